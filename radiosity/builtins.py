@@ -1,0 +1,108 @@
+"""Built-in meshes (``builtin = "..."`` in a scene file) and built-in scenes.
+
+Meshes, each a raw (positions (V, 3) float64, faces (F, 3) int64) pair, fronts out:
+
+    teapot          the Utah teapot, data units (height 3.15), y up, bottom on y = 0
+    sphere          unit icosphere about the origin
+    quad            unit square in the xz plane about the origin, front facing +y
+    cube            unit cube about the origin
+    cornell:<part>  a part of the measured Cornell box, millimetres: floor, ceiling,
+                    back_wall, left_wall, right_wall, short_block, tall_block, light;
+                    walls face into the box, blocks face out, the light faces down
+
+Scenes are TOML files shipped in ``radiosity/data``: ``cornell`` and ``cornell-teapot``.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+import trimesh
+
+from . import teapot
+from .errors import InputError
+
+SCENES = ("cornell", "cornell-teapot")
+MESHES = ("teapot", "sphere", "quad", "cube", "cornell:<part>")
+LIGHT_DROP_MM = 0.1  # the measured light lies in the ceiling plane; lower it this much
+
+
+@lru_cache(maxsize=1)
+def cornell_data():
+    return json.loads(resources.files("radiosity").joinpath("data/cornell_box.json").read_text())
+
+
+def cornell_parts():
+    return tuple(cornell_data()["objects"])
+
+
+def scene_path(name):
+    """Path of a built-in scene's TOML file."""
+    if name not in SCENES:
+        raise InputError(f"unknown built-in scene {name!r}; built-in scenes: {', '.join(SCENES)}")
+    return resources.files("radiosity").joinpath(f"data/{name}.toml")
+
+
+def mesh(spec, *, resolution=None, subdivisions=None):
+    """Positions and faces of the built-in mesh named ``spec``.
+
+    ``resolution`` applies to the teapot (segments per patch side, default 8),
+    ``subdivisions`` to the sphere (icosphere levels, default 3).
+    """
+    if resolution is not None and spec != "teapot":
+        raise InputError(f"'resolution' applies to builtin 'teapot' only, not {spec!r}")
+    if subdivisions is not None and spec != "sphere":
+        raise InputError(f"'subdivisions' applies to builtin 'sphere' only, not {spec!r}")
+    if spec == "teapot":
+        res = 8 if resolution is None else resolution
+        if not isinstance(res, int) or isinstance(res, bool) or not 2 <= res <= 256:
+            raise InputError(f"teapot resolution must be a whole number from 2 to 256, got {res!r}")
+        return teapot.tessellate(res)
+    if spec == "sphere":
+        levels = 3 if subdivisions is None else subdivisions
+        if not isinstance(levels, int) or isinstance(levels, bool) or not 0 <= levels <= 8:
+            raise InputError(f"sphere subdivisions must be a whole number from 0 to 8, got {levels!r}")
+        s = trimesh.creation.icosphere(subdivisions=levels, radius=1.0)
+        return np.asarray(s.vertices, dtype=np.float64), np.asarray(s.faces, dtype=np.int64)
+    if spec == "quad":
+        p = np.array([[-0.5, 0, -0.5], [-0.5, 0, 0.5], [0.5, 0, 0.5], [0.5, 0, -0.5]], dtype=np.float64)
+        return p, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+    if spec == "cube":
+        b = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+        return np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces, dtype=np.int64)
+    if spec.startswith("cornell:"):
+        return _cornell_part(spec.split(":", 1)[1])
+    raise InputError(
+        f"unknown builtin mesh {spec!r}; built-in meshes: {', '.join(MESHES)} "
+        f"(parts: {', '.join(cornell_parts())})"
+    )
+
+
+def _cornell_part(part):
+    objects = cornell_data()["objects"]
+    if part not in objects:
+        raise InputError(f"unknown Cornell box part {part!r}; parts: {', '.join(objects)}")
+    quads = np.asarray(objects[part]["quads"], dtype=np.float64)  # (Q, 4, 3)
+    if part == "light":
+        quads[:, :, 1] -= LIGHT_DROP_MM
+    # the measured winding is not consistent: orient each quad by where it must face
+    box_centre = np.array([278.0, 274.4, 279.6])
+    part_centre = quads.reshape(-1, 3).mean(axis=0)
+    positions, faces = [], []
+    for q in quads:
+        normal = np.cross(q[1] - q[0], q[2] - q[0]) + np.cross(q[2] - q[0], q[3] - q[0])
+        if part == "light":
+            wanted = np.array([0.0, -1.0, 0.0])
+        elif part.endswith("block"):
+            wanted = q.mean(axis=0) - part_centre  # out of the block
+        else:
+            wanted = box_centre - q.mean(axis=0)  # into the box
+        if normal @ wanted < 0:
+            q = q[::-1]
+        base = 4 * len(positions)
+        positions.append(q)
+        faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
+    return np.concatenate(positions), np.asarray(faces, dtype=np.int64)

@@ -1,0 +1,124 @@
+"""What ``vlights scene-info`` reports: a JSON-ready description of a scene and its text form."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .materials import albedo
+
+
+def _round(values, digits=6):
+    return [float(f"{v:.{digits}g}") for v in np.atleast_1d(values)]
+
+
+def describe(scene, refined, max_edge, how):
+    """A JSON-ready dict: the scene as loaded and after refinement to ``max_edge``."""
+    total_power = sum((o.emitted_power for o in scene.emitters), np.zeros(3))
+    lo, hi = scene.bounds
+    materials = {}
+    for name, m in scene.materials.items():
+        kind = "glossy" if m.is_glossy else ("diffuse" if m.is_reflective else "black")
+        materials[name] = {
+            **m.to_dict(),
+            "kind": kind + (" emitter" if m.is_emitter else ""),
+            "albedo_normal": _round(albedo(m, 1.0), 4),
+            "albedo_60deg": _round(albedo(m, 0.5), 4),
+        }
+    objects = []
+    for o, r in zip(scene.objects, refined.objects):
+        objects.append(
+            {
+                "name": o.name,
+                "material": o.material.name,
+                "source": o.source,
+                "triangles": o.n_triangles,
+                "vertices": o.n_vertices,
+                "refined_triangles": r.n_triangles,
+                "refined_vertices": r.n_vertices,
+                "area": float(f"{o.area:.6g}"),
+            }
+        )
+    emitters = []
+    for o in scene.emitters:
+        power = o.emitted_power
+        emitters.append(
+            {
+                "name": o.name,
+                "area": float(f"{o.area:.6g}"),
+                "radiance": list(o.material.emission),
+                "power": _round(power),
+                "power_fraction": float(f"{power.sum() / total_power.sum():.4g}"),
+            }
+        )
+    return {
+        "scene": scene.name,
+        "source": scene.source,
+        "bounds": {"min": _round(lo), "max": _round(hi), "diagonal": float(f"{scene.diagonal:.6g}")},
+        "camera": scene.camera.to_dict() if scene.camera else None,
+        "materials": materials,
+        "objects": objects,
+        "emitters": emitters,
+        "totals": {
+            "objects": len(scene.objects),
+            "triangles": scene.n_triangles,
+            "vertices": scene.n_vertices,
+            "refined_triangles": refined.n_triangles,
+            "refined_vertices": refined.n_vertices,
+            "emitted_power": _round(total_power),
+        },
+        "refinement": {"max_edge": float(f"{max_edge:.6g}"), "chosen_by": how},
+    }
+
+
+def _v(values, fmt="{:.4g}"):
+    return " ".join(fmt.format(v) for v in values)
+
+
+def format_description(info):
+    """The description as aligned text for a terminal."""
+    out = [f"scene     {info['scene']}  ({info['source']})"]
+    b = info["bounds"]
+    out.append(f"bounds    min ({_v(b['min'])})  max ({_v(b['max'])})  diagonal {b['diagonal']:.6g}")
+    cam = info["camera"]
+    out.append(
+        "camera    "
+        + (
+            f"eye ({_v(cam['eye'])})  look at ({_v(cam['look_at'])})  up ({_v(cam['up'])})  fov {cam['fov_y_deg']:g} deg"
+            if cam
+            else "none in the scene (views default to one framing the bounds)"
+        )
+    )
+    out += ["", f"materials ({len(info['materials'])})"]
+    out.append(f"  {'name':<14} {'kind':<16} {'diffuse kd':<20} {'specular ks':<20} {'n':>7}  {'albedo 0/60 deg':<15} emission")
+    for name, m in info["materials"].items():
+        glossy = any(m["specular"])
+        specular = _v(m["specular"], "{:.3f}") if glossy else "-"
+        exponent = "{:g}".format(m["exponent"]) if glossy else "-"
+        albedos = "{:.3f} / {:.3f}".format(max(m["albedo_normal"]), max(m["albedo_60deg"]))
+        emission = _v(m["emission"], "{:g}") if any(m["emission"]) else "-"
+        out.append(
+            f"  {name:<14} {m['kind']:<16} {_v(m['diffuse'], '{:.3f}'):<20} "
+            f"{specular:<20} {exponent:>7}  {albedos:<15} {emission}"
+        )
+    t = info["totals"]
+    r = info["refinement"]
+    out += ["", f"objects ({t['objects']})   refined to max edge {r['max_edge']:.4g} ({r['chosen_by']})"]
+    out.append(f"  {'name':<14} {'material':<10} {'triangles':>10} {'vertices':>10} {'refined tris':>13} {'refined verts':>14} {'area':>11}  source")
+    for o in info["objects"]:
+        out.append(
+            f"  {o['name']:<14} {o['material']:<10} {o['triangles']:>10} {o['vertices']:>10} "
+            f"{o['refined_triangles']:>13} {o['refined_vertices']:>14} {o['area']:>11.4g}  {o['source']}"
+        )
+    out.append(
+        f"  {'total':<14} {'':<10} {t['triangles']:>10} {t['vertices']:>10} "
+        f"{t['refined_triangles']:>13} {t['refined_vertices']:>14}"
+    )
+    out += ["", f"emitters ({len(info['emitters'])})   total power (pi Le A, RGB) {_v(t['emitted_power'])}"]
+    if not info["emitters"]:
+        out.append("  none: nothing emits light, so a solution will be black")
+    for e in info["emitters"]:
+        out.append(
+            f"  {e['name']:<14} area {e['area']:.4g}  radiance ({_v(e['radiance'], '{:g}')})  "
+            f"power ({_v(e['power'])})  {100 * e['power_fraction']:.1f}% of the total"
+        )
+    return "\n".join(out)

@@ -1,0 +1,364 @@
+"""Reading scenes: TOML scene files, OBJ (with MTL), glTF / GLB, and the built-ins.
+
+``load_scene(source)`` takes a path or a built-in scene's name and returns a Scene.
+Every problem with the input raises InputError with one line naming it.
+
+Material mapping for mesh files given directly (a TOML scene names its materials
+itself and ignores the file's):
+
+OBJ / MTL
+    Kd -> diffuse, Ks -> specular, Ns -> exponent (Ks absent or zero: diffuse),
+    Ke -> emission. A map_Kd texture multiplies Kd by its mean colour (linearised
+    from sRGB). kd + ks > 1 is refused, as in a scene file.
+glTF 2.0 (metallic-roughness)
+    base = baseColorFactor (times the mean of baseColorTexture, if any);
+    specular ks = base * metallic + 0.04 * (1 - metallic) (the usual F0);
+    diffuse kd = base * (1 - metallic) * (1 - ks);
+    exponent n = (2 / alpha^2 - 2) / 4 with alpha = roughness^2 (the Blinn-Phong
+    equivalent of GGX, quartered because our lobe is about the mirror direction, not
+    the half vector), at most 10000; a dielectric (metallic = 0) with roughness >= 0.9
+    is taken as diffuse (ks = 0), a lobe that broad being indistinguishable from one;
+    emission = emissiveFactor (times KHR_materials_emissive_strength, if any).
+    Base colours pass through trimesh, which keeps them to 8 bits per channel.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from . import builtins, geometry
+from .errors import InputError
+from .materials import Material
+from .scene import DEFAULT_CREASE_ANGLE_DEG, Camera, Scene, build_object
+
+MESH_SUFFIXES = {".obj", ".gltf", ".glb", ".ply", ".stl", ".off"}
+_MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
+_OBJECT_KEYS = {
+    "name", "mesh", "builtin", "material", "scale", "rotate_deg", "translate",
+    "resolution", "subdivisions", "crease_angle_deg",
+}
+_CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg"}
+_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units"}
+
+
+def load_scene(source):
+    """A Scene from a scene file (.toml), a mesh file, or a built-in scene's name."""
+    source = str(source)
+    if source in builtins.SCENES:
+        path = builtins.scene_path(source)
+        return _load_toml(path.read_text(), Path(str(path)).parent, name=source, where=source)
+    path = Path(source)
+    if not path.exists():
+        hint = f"; built-in scenes: {', '.join(builtins.SCENES)}" if not path.suffix else ""
+        raise InputError(f"scene {source!r} not found{hint}")
+    if path.is_dir():
+        raise InputError(f"scene {source!r} is a directory, not a file")
+    suffix = path.suffix.lower()
+    if suffix == ".toml":
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read {source}: {exc}") from None
+        return _load_toml(text, path.parent, name=path.stem, where=str(path))
+    if suffix in MESH_SUFFIXES:
+        return _load_mesh_scene(path)
+    raise InputError(
+        f"{source}: unknown scene format {suffix or '(no extension)'!r}; "
+        f"give a .toml scene, a mesh file ({', '.join(sorted(MESH_SUFFIXES))}) "
+        f"or a built-in scene ({', '.join(builtins.SCENES)})"
+    )
+
+
+# -- TOML ---------------------------------------------------------------------------
+
+
+def _load_toml(text, base_dir, *, name, where):
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: malformed TOML: {exc}") from None
+    _check_keys(data, _TOP_KEYS, where)
+    materials = _parse_materials(data.get("materials", {}), where)
+    objects_data = data.get("objects")
+    if not isinstance(objects_data, list) or not objects_data:
+        raise InputError(f"{where}: no [[objects]]: a scene needs at least one object")
+    objects = [
+        _parse_object(entry, i, materials, base_dir, where) for i, entry in enumerate(objects_data)
+    ]
+    camera = _parse_camera(data["camera"], where) if "camera" in data else None
+    return Scene(name=str(data.get("name", name)), objects=tuple(objects), camera=camera, source=where)
+
+
+def _check_keys(table, allowed, where):
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: expected a table, got {type(table).__name__}")
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise InputError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(sorted(allowed))})")
+
+
+def _number(value, where, key):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{where}: '{key}' must be a number, got {value!r}")
+    if not np.isfinite(value):
+        raise InputError(f"{where}: '{key}' must be finite, got {value!r}")
+    return float(value)
+
+
+def _vec3(value, where, key, *, allow_scalar=False):
+    if allow_scalar and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return (_number(value, where, key),) * 3
+    if not isinstance(value, list) or len(value) != 3:
+        shape = "a number or 3 numbers" if allow_scalar else "3 numbers"
+        raise InputError(f"{where}: '{key}' must be {shape}, got {value!r}")
+    return tuple(_number(v, where, key) for v in value)
+
+
+def _parse_materials(table, where):
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: [materials] must be a table of named materials")
+    out = {}
+    for mname, spec in table.items():
+        here = f"{where}: [materials.{mname}]"
+        if not isinstance(spec, dict):
+            raise InputError(f"{here}: must be a table")
+        _check_keys(spec, _MATERIAL_KEYS, here)
+        out[mname] = _material(
+            mname,
+            diffuse=_vec3(spec.get("diffuse", 0.0), here, "diffuse", allow_scalar=True),
+            specular=_vec3(spec.get("specular", 0.0), here, "specular", allow_scalar=True),
+            exponent=_number(spec.get("exponent", 0.0), here, "exponent"),
+            emission=_vec3(spec.get("emission", 0.0), here, "emission", allow_scalar=True),
+            where=f"{where}: ",
+        )
+    return out
+
+
+def _material(name, *, diffuse, specular, exponent, emission, where=""):
+    try:
+        return Material(name=name, diffuse=diffuse, specular=specular, exponent=exponent, emission=emission)
+    except InputError as exc:
+        raise InputError(f"{where}{exc}") from None
+
+
+def _parse_camera(table, where):
+    here = f"{where}: [camera]"
+    _check_keys(table, _CAMERA_KEYS, here)
+    if "position" in table and "eye" in table:
+        raise InputError(f"{here}: give 'position' or 'eye', not both")
+    eye = table.get("eye", table.get("position"))
+    if eye is None or "look_at" not in table:
+        raise InputError(f"{here}: needs 'position' (or 'eye') and 'look_at'")
+    camera = Camera(
+        eye=_vec3(eye, here, "position"),
+        look_at=_vec3(table["look_at"], here, "look_at"),
+        up=_vec3(table.get("up", [0, 1, 0]), here, "up"),
+        fov_y_deg=_number(table.get("fov_y_deg", 39.3), here, "fov_y_deg"),
+    )
+    forward = np.subtract(camera.look_at, camera.eye)
+    if np.linalg.norm(forward) == 0:
+        raise InputError(f"{here}: 'look_at' equals the camera position")
+    if np.linalg.norm(np.cross(forward, camera.up)) <= 1e-9 * np.linalg.norm(forward) * np.linalg.norm(camera.up):
+        raise InputError(f"{here}: 'up' is zero or parallel to the viewing direction")
+    if not 0 < camera.fov_y_deg < 180:
+        raise InputError(f"{here}: 'fov_y_deg' must be between 0 and 180, got {camera.fov_y_deg}")
+    return camera
+
+
+def _parse_object(entry, index, materials, base_dir, where):
+    if not isinstance(entry, dict):
+        raise InputError(f"{where}: [[objects]] entry {index + 1} must be a table")
+    name = entry.get("name")
+    if not isinstance(name, str) or not name:
+        raise InputError(f"{where}: [[objects]] entry {index + 1} needs a 'name'")
+    here = f"{where}: object {name!r}"
+    _check_keys(entry, _OBJECT_KEYS, here)
+    mname = entry.get("material")
+    if mname is None:
+        raise InputError(f"{here}: needs a 'material'")
+    if mname not in materials:
+        known = ", ".join(materials) or "none defined"
+        raise InputError(f"{here}: unknown material {mname!r} (materials: {known})")
+    if ("mesh" in entry) == ("builtin" in entry):
+        raise InputError(f"{here}: give exactly one of 'mesh' (a file) or 'builtin'")
+
+    if "builtin" in entry:
+        spec = entry["builtin"]
+        if not isinstance(spec, str):
+            raise InputError(f"{here}: 'builtin' must be a string, got {spec!r}")
+        try:
+            positions, faces = builtins.mesh(
+                spec, resolution=entry.get("resolution"), subdivisions=entry.get("subdivisions")
+            )
+        except InputError as exc:
+            raise InputError(f"{here}: {exc}") from None
+        source = f"builtin {spec}"
+    else:
+        for key in ("resolution", "subdivisions"):
+            if key in entry:
+                raise InputError(f"{here}: '{key}' applies to built-in meshes only")
+        mesh_file = entry["mesh"]
+        if not isinstance(mesh_file, str):
+            raise InputError(f"{here}: 'mesh' must be a file name, got {mesh_file!r}")
+        path = base_dir / mesh_file
+        positions, faces = _read_single_mesh(path, here)
+        source = str(path)
+
+    scale = entry.get("scale", 1.0)
+    scale = _vec3(scale, here, "scale", allow_scalar=True)
+    if any(s == 0 for s in scale):
+        raise InputError(f"{here}: 'scale' must not be zero")
+    matrix = geometry.transform_matrix(
+        scale=scale,
+        rotate_deg=_vec3(entry.get("rotate_deg", [0, 0, 0]), here, "rotate_deg"),
+        translate=_vec3(entry.get("translate", [0, 0, 0]), here, "translate"),
+    )
+    positions, faces, _ = geometry.apply_transform(matrix, positions, faces)
+    crease = _number(entry.get("crease_angle_deg", DEFAULT_CREASE_ANGLE_DEG), here, "crease_angle_deg")
+    if not 0 <= crease <= 180:
+        raise InputError(f"{here}: 'crease_angle_deg' must be between 0 and 180, got {crease}")
+    return build_object(
+        name,
+        materials[mname],
+        positions,
+        faces,
+        crease_angle_deg=crease,
+        source=source,
+        warn_degenerate=not source.startswith("builtin"),
+    )
+
+
+# -- mesh files -----------------------------------------------------------------------
+
+
+def _trimesh_load(path, where, **kwargs):
+    if not path.exists():
+        raise InputError(f"{where}: mesh file {str(path)!r} not found")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise InputError(
+            f"{where}: {str(path)!r}: unsupported mesh format (use {', '.join(sorted(MESH_SUFFIXES))})"
+        )
+    try:
+        return trimesh.load(str(path), process=False, **kwargs)
+    except Exception as exc:  # trimesh raises many types for a bad file
+        raise InputError(f"{where}: cannot read mesh {str(path)!r}: {exc}") from None
+
+
+def _read_single_mesh(path, where):
+    """All triangles of a mesh file as one (positions, faces) pair, in file units."""
+    loaded = _trimesh_load(path, where, force="mesh")
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise InputError(f"{where}: mesh {str(path)!r} has no triangles")
+    return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, dtype=np.int64)
+
+
+def _load_mesh_scene(path):
+    """A scene from one mesh file, one object per (node, material), its materials mapped."""
+    where = str(path)
+    loaded = _trimesh_load(path, where)
+    if isinstance(loaded, trimesh.Trimesh):
+        loaded = trimesh.Scene(loaded)
+    if not isinstance(loaded, trimesh.Scene) or not loaded.geometry:
+        raise InputError(f"{where}: no triangle meshes in the file")
+    objects, materials = [], {}
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        mesh = loaded.geometry[geom_name]
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            continue
+        material = _mapped_material(mesh, where)
+        materials.setdefault(material.name, material)
+        positions, faces, _ = geometry.apply_transform(
+            np.asarray(transform, dtype=np.float64),
+            np.asarray(mesh.vertices, dtype=np.float64),
+            np.asarray(mesh.faces, dtype=np.int64),
+        )
+        name = node if node not in {o.name for o in objects} else f"{node}#{len(objects)}"
+        objects.append(build_object(name, materials[material.name], positions, faces, source=where))
+    if not objects:
+        raise InputError(f"{where}: no triangle meshes in the file")
+    return Scene(name=path.stem, objects=tuple(objects), camera=None, source=where)
+
+
+def _mean_texture_colour(image):
+    """Mean linear RGB of a PIL image (sRGB-encoded), or None."""
+    if image is None:
+        return None
+    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
+    linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return linear.reshape(-1, 3).mean(axis=0)
+
+
+def _mapped_material(mesh, where):
+    visual = getattr(mesh, "visual", None)
+    mat = getattr(visual, "material", None)
+    if mat is None:
+        return _material("default", diffuse=(0.8, 0.8, 0.8), specular=(0, 0, 0), exponent=0, emission=(0, 0, 0))
+    name = getattr(mat, "name", None) or "material"
+    here = f"{where}: material {name!r}: "
+    if isinstance(mat, trimesh.visual.material.PBRMaterial):
+        return _from_pbr(mat, name, here)
+    return _from_mtl(mat, name, here)
+
+
+def _mtl_vec(raw, key, here):
+    value = raw.get(key)
+    if value is None:
+        return np.zeros(3)
+    try:
+        values = [float(v) for v in np.atleast_1d(value)]
+    except (TypeError, ValueError):
+        raise InputError(f"{here}{key.capitalize()} must be numbers, got {value!r}") from None
+    if len(values) == 1:
+        values *= 3
+    if len(values) != 3:
+        raise InputError(f"{here}{key.capitalize()} must have 1 or 3 values, got {value!r}")
+    return np.array(values)
+
+
+def _from_mtl(mat, name, here):
+    raw = getattr(mat, "kwargs", {}) or {}
+    kd = _mtl_vec(raw, "kd", here)
+    tex = _mean_texture_colour(getattr(mat, "image", None))
+    if tex is not None:
+        kd = kd * tex
+    ks = _mtl_vec(raw, "ks", here)
+    try:
+        exponent = float(np.atleast_1d(raw.get("ns", 0.0))[0])
+    except (TypeError, ValueError):
+        raise InputError(f"{here}Ns must be a number, got {raw.get('ns')!r}") from None
+    if not ks.any():
+        exponent = 0.0
+    return _material(
+        name, diffuse=tuple(kd), specular=tuple(ks), exponent=exponent,
+        emission=tuple(_mtl_vec(raw, "ke", here)), where=here[:-2] + ": ",
+    )
+
+
+def _from_pbr(mat, name, here):
+    factor = mat.baseColorFactor
+    base = np.ones(3) if factor is None else np.asarray(factor, dtype=np.float64)[:3] / 255.0
+    tex = _mean_texture_colour(getattr(mat, "baseColorTexture", None))
+    if tex is not None:
+        base = base * tex
+    metallic = 1.0 if mat.metallicFactor is None else float(mat.metallicFactor)
+    roughness = 1.0 if mat.roughnessFactor is None else float(mat.roughnessFactor)
+    if metallic == 0.0 and roughness >= 0.9:
+        ks = np.zeros(3)
+        exponent = 0.0
+    else:
+        ks = base * metallic + 0.04 * (1.0 - metallic)
+        alpha = max(roughness, 1e-3) ** 2
+        exponent = float(min(max(2.0 / alpha**2 - 2.0, 0.0) / 4.0, 1e4))
+    kd = base * (1.0 - metallic) * (1.0 - ks)
+    emissive = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, dtype=np.float64)[:3]
+    strength = (getattr(mat, "extensions", None) or {}).get("KHR_materials_emissive_strength", {})
+    emissive = emissive * float(strength.get("emissiveStrength", 1.0))
+    return _material(
+        name, diffuse=tuple(kd), specular=tuple(ks), exponent=exponent,
+        emission=tuple(emissive), where=here[:-2] + ": ",
+    )

@@ -1,0 +1,235 @@
+"""The scene model: objects with shading frames and materials, refinement, and the
+merged triangle array the ray tracer wants.
+
+    Scene
+      objects : tuple[SceneObject, ...]   one material each, world space
+      camera  : Camera | None             the scene's default viewpoint
+
+A SceneObject's arrays are float64 in the scene's units; ``Scene.merged()`` packs
+all triangles into one float32 array with a triangle-to-object table.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from . import geometry
+from .errors import InputError, SceneWarning
+from .materials import Material
+
+DEFAULT_CREASE_ANGLE_DEG = 40.0
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera (DESIGN.md, contract 3); ``fov_y_deg`` is the vertical field of view."""
+
+    eye: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov_y_deg: float = 39.3
+
+    def to_dict(self):
+        return {
+            "eye": list(self.eye),
+            "look_at": list(self.look_at),
+            "up": list(self.up),
+            "fov_y_deg": self.fov_y_deg,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class SceneObject:
+    """One object: a triangle mesh with one material.
+
+    positions : (V, 3) float64, world space
+    normals   : (V, 3) float64, unit shading normals (split at creases)
+    tangents  : (V, 3) float64, unit, orthogonal to the normals
+    faces     : (F, 3) int64, counter-clockwise seen from the front
+    """
+
+    name: str
+    material: Material
+    positions: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+    faces: np.ndarray
+    source: str = ""
+
+    @property
+    def n_vertices(self):
+        return len(self.positions)
+
+    @property
+    def n_triangles(self):
+        return len(self.faces)
+
+    @property
+    def face_areas(self):
+        return geometry.face_normals(self.positions, self.faces)[1]
+
+    @property
+    def area(self):
+        return float(self.face_areas.sum())
+
+    @property
+    def emitted_power(self):
+        """Power leaving the front faces, (3,) float64: pi * Le * area (Lambertian emitter)."""
+        return np.pi * np.asarray(self.material.emission) * self.area
+
+    @property
+    def bitangents(self):
+        return np.cross(self.normals, self.tangents)
+
+    def refined(self, max_edge):
+        """This object refined so that no edge is longer than ``max_edge``."""
+        p, f, n = geometry.refine(self.positions, self.faces, max_edge, normals=self.normals)
+        return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n))
+
+
+class MergedMesh(NamedTuple):
+    """All triangles of a scene in one array, as the ray tracer takes them.
+
+    positions       : (N, 3) float32
+    faces           : (T, 3) int32, into positions
+    triangle_object : (T,) int32, index of the object each triangle belongs to
+    triangle_face   : (T,) int32, index of the triangle within its object
+    vertex_offset   : (O + 1,) int64, object o owns positions[vertex_offset[o]:vertex_offset[o+1]]
+    """
+
+    positions: np.ndarray
+    faces: np.ndarray
+    triangle_object: np.ndarray
+    triangle_face: np.ndarray
+    vertex_offset: np.ndarray
+
+    def triangles(self):
+        """(T, 3, 3) float32 vertex positions per triangle."""
+        return self.positions[self.faces]
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    name: str
+    objects: tuple[SceneObject, ...]
+    camera: Camera | None = None
+    source: str = ""
+    notes: tuple[str, ...] = field(default=())
+
+    def __post_init__(self):
+        if not self.objects:
+            raise InputError(f"scene {self.name!r} has no objects")
+        names = [o.name for o in self.objects]
+        duplicate = sorted({n for n in names if names.count(n) > 1})
+        if duplicate:
+            raise InputError(f"scene {self.name!r}: object names must be unique: {duplicate[0]!r} repeats")
+
+    @property
+    def materials(self):
+        """Materials in first-use order, by name."""
+        out = {}
+        for o in self.objects:
+            out.setdefault(o.material.name, o.material)
+        return out
+
+    @property
+    def emitters(self):
+        return [o for o in self.objects if o.material.is_emitter]
+
+    @property
+    def bounds(self):
+        """(2, 3) float64: min and max corner."""
+        p = np.concatenate([o.positions for o in self.objects])
+        return np.stack([p.min(axis=0), p.max(axis=0)])
+
+    @property
+    def diagonal(self):
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    @property
+    def n_triangles(self):
+        return sum(o.n_triangles for o in self.objects)
+
+    @property
+    def n_vertices(self):
+        return sum(o.n_vertices for o in self.objects)
+
+    def object(self, name):
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(name)
+
+    def refined(self, max_edge):
+        """The scene with every object refined to edges no longer than ``max_edge``."""
+        return replace(self, objects=tuple(o.refined(max_edge) for o in self.objects))
+
+    def merged(self):
+        """One triangle array for the ray tracer, with a triangle-to-object table."""
+        offsets = np.cumsum([0] + [o.n_vertices for o in self.objects])
+        faces = np.concatenate([o.faces + off for o, off in zip(self.objects, offsets)])
+        return MergedMesh(
+            positions=np.concatenate([o.positions for o in self.objects]).astype(np.float32),
+            faces=faces.astype(np.int32),
+            triangle_object=np.concatenate(
+                [np.full(o.n_triangles, i, dtype=np.int32) for i, o in enumerate(self.objects)]
+            ),
+            triangle_face=np.concatenate(
+                [np.arange(o.n_triangles, dtype=np.int32) for o in self.objects]
+            ),
+            vertex_offset=offsets.astype(np.int64),
+        )
+
+
+def build_object(
+    name,
+    material,
+    positions,
+    faces,
+    *,
+    crease_angle_deg=DEFAULT_CREASE_ANGLE_DEG,
+    source="",
+    warn_degenerate=True,
+):
+    """A SceneObject from a raw triangle soup in world space.
+
+    Checks coordinates, welds coincident vertices, drops degenerate triangles (with a
+    SceneWarning counting them), and computes crease-split normals and tangents.
+    """
+    where = f"object {name!r}" + (f" ({source})" if source else "")
+    positions = np.asarray(positions, dtype=np.float64)
+    faces = np.asarray(faces)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise InputError(f"{where}: positions must be (V, 3), got shape {positions.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise InputError(f"{where}: has no triangles")
+    bad = ~np.isfinite(positions).all(axis=1)
+    if bad.any():
+        raise InputError(
+            f"{where}: {int(bad.sum())} of {len(positions)} vertices have NaN or infinite coordinates"
+        )
+    faces = faces.astype(np.int64)
+    if faces.min() < 0 or faces.max() >= len(positions):
+        raise InputError(f"{where}: a triangle refers to a vertex that does not exist")
+    extent = float(np.ptp(positions[faces.ravel()], axis=0).max())
+    positions, faces = geometry.weld(positions, faces, 1e-9 * max(extent, np.finfo(float).tiny))
+    positions, faces, dropped = geometry.remove_degenerate(positions, faces)
+    if dropped and warn_degenerate:
+        warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=2)
+    if len(faces) == 0:
+        raise InputError(f"{where}: every triangle is degenerate (zero area)")
+    positions, faces, normals = geometry.crease_normals(positions, faces, crease_angle_deg)
+    return SceneObject(
+        name=name,
+        material=material,
+        positions=positions,
+        normals=normals,
+        tangents=geometry.tangents(normals),
+        faces=faces,
+        source=source,
+    )
