@@ -1,0 +1,122 @@
+"""Mesh operations: refinement, crease normals, welding, cleaning, frames, transforms."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from radiosity import geometry
+from radiosity.errors import InputError
+
+
+def edge_use_counts(faces):
+    edges = np.sort(faces[:, geometry._EDGE_CORNERS].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return counts
+
+
+def unit_cube():
+    box = trimesh.creation.box()
+    return np.asarray(box.vertices, float), np.asarray(box.faces, np.int64)
+
+
+@pytest.mark.parametrize("max_edge", [0.9, 0.3, 0.07])
+def test_refine_closed_cube_stays_watertight_and_exact(max_edge):
+    p, f = unit_cube()
+    rp, rf, _ = geometry.refine(p, f, max_edge)
+    counts = edge_use_counts(rf)
+    assert (counts == 2).all(), "a T-junction or crack: some edge is used by one triangle only"
+    lengths = np.linalg.norm(rp[rf] - rp[np.roll(rf, -1, axis=1)], axis=2)
+    assert lengths.max() <= max_edge + 1e-12
+    _, area = geometry.face_normals(rp, rf)
+    assert area.sum() == pytest.approx(6.0, rel=1e-12)
+    assert trimesh.Trimesh(rp, rf, process=False).volume == pytest.approx(1.0, rel=1e-12)
+
+
+def test_refine_keeps_orientation_and_angles():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0.3, 0.8, 0]], float)
+    f = np.array([[0, 1, 2]])
+    rp, rf, _ = geometry.refine(p, f, 0.05)
+    n, _ = geometry.face_normals(rp, rf)
+    assert np.allclose(n, [0, 0, 1])  # all still counter-clockwise seen from +z
+    start = np.degrees(geometry.corner_angles(p, f).min())
+    final = np.degrees(geometry.corner_angles(rp, rf).min())
+    assert final >= start / 2 - 1e-9, (start, final)  # longest-edge bisection bounds angles
+
+
+def test_refine_interpolates_normals_and_leaves_short_edges_alone():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    f = np.array([[0, 1, 2]])
+    normals = np.array([[0, 0, 1], [1, 0, 0], [0, 0, 1]], float)
+    rp, rf, rn = geometry.refine(p, f, 0.75, normals=normals)
+    assert np.allclose(np.linalg.norm(rn, axis=1), 1.0)
+    mid = np.nonzero(np.all(np.isclose(rp, [0.5, 0, 0]), axis=1))[0]
+    assert len(mid) == 1 and np.allclose(rn[mid[0]], np.array([1, 0, 1]) / np.sqrt(2))
+    same_p, same_f, _ = geometry.refine(p, f, 10.0)
+    assert np.array_equal(same_p, p) and np.array_equal(same_f, f)
+
+
+def test_refine_refuses_absurd_sizes():
+    p, f = unit_cube()
+    with pytest.raises(InputError, match="triangles"):
+        geometry.refine(p, f, 1e-4)
+    with pytest.raises(InputError, match="positive"):
+        geometry.refine(p, f, 0.0)
+
+
+def test_crease_normals_split_a_cube_but_not_a_sphere():
+    p, f = unit_cube()
+    cp, cf, cn = geometry.crease_normals(p, f, 40.0)
+    assert len(cp) == 24  # each corner split into its three faces
+    assert np.allclose(np.abs(cn).max(axis=1), 1.0)  # every normal is axis-aligned
+    fn, _ = geometry.face_normals(cp, cf)
+    assert np.allclose(np.einsum("fkj,fj->fk", cn[cf], fn), 1.0)
+
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    sp, sf, sn = geometry.crease_normals(np.asarray(sphere.vertices), np.asarray(sphere.faces), 40.0)
+    assert len(sp) == len(sphere.vertices)
+    radial = sp / np.linalg.norm(sp, axis=1, keepdims=True)
+    assert np.degrees(np.arccos(np.einsum("ij,ij->i", sn, radial).clip(-1, 1))).max() < 1.0
+
+
+@pytest.mark.parametrize("threshold, vertices", [(40.0, 4), (20.0, 6)])
+def test_crease_threshold_on_a_hinge(threshold, vertices):
+    bend = np.radians(30.0)  # the two faces' normals differ by 30 degrees
+    p = np.array([[0, 0, 0], [0, 1, 0], [-1, 0, 0], [np.cos(bend), 0, np.sin(bend)]], float)
+    f = np.array([[0, 1, 2], [0, 3, 1]])
+    cp, _, cn = geometry.crease_normals(p, f, threshold)
+    assert len(cp) == vertices
+    assert np.allclose(np.linalg.norm(cn, axis=1), 1.0)
+
+
+def test_weld_and_remove_degenerate():
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1e-12, 0, 0], [2, 2, 0], [3, 3, 0]], float)
+    f = np.array([[0, 1, 2], [3, 2, 1], [0, 4, 5], [1, 1, 2]])
+    wp, wf = geometry.weld(p, f, 1e-9)
+    assert len(wp) == 5 and wf[1, 0] == 0
+    cp, cf, dropped = geometry.remove_degenerate(wp, wf)
+    assert dropped == 2  # the collinear one and the one with a repeated vertex
+    assert len(cf) == 2 and len(cp) == 3
+
+
+def test_tangents_are_unit_and_orthogonal_everywhere():
+    rng = np.random.default_rng(7)
+    n = rng.normal(size=(1000, 3))
+    n = np.vstack([n, np.eye(3), -np.eye(3), [[0.9, 0.43588989, 0]]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    t = geometry.tangents(n)
+    assert np.allclose(np.linalg.norm(t, axis=1), 1.0)
+    assert np.abs(np.einsum("ij,ij->i", t, n)).max() < 1e-12
+
+
+def test_mirroring_transform_keeps_fronts_outward():
+    p, f = unit_cube()
+    m = geometry.transform_matrix(scale=[-2, 1, 1], rotate_deg=[10, 20, 30], translate=[5, 6, 7])
+    tp, tf, _ = geometry.apply_transform(m, p, f)
+    assert trimesh.Trimesh(tp, tf, process=False).volume == pytest.approx(2.0)
+    assert np.allclose(tp.mean(axis=0), [5, 6, 7])
+
+
+def test_rotation_order_is_x_then_y_then_z():
+    m = geometry.transform_matrix(rotate_deg=[90, 90, 0])
+    # x first: +y -> +z; then y: +z -> +x
+    assert np.allclose(m[:3, :3] @ [0, 1, 0], [1, 0, 0], atol=1e-12)

@@ -1,0 +1,96 @@
+"""The ``vlights`` command: subcommands, scene-info, and bad input refused cleanly."""
+
+import json
+import shutil
+import subprocess
+
+import pytest
+
+from display.cli import main
+
+from bad_inputs import BAD_INPUTS, bad_input_path
+
+SUBCOMMANDS = ["solve", "fit", "render", "view", "compare", "demo", "scene-info"]
+
+
+def run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_help_lists_every_subcommand(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for command in SUBCOMMANDS:
+        assert command in out
+
+
+@pytest.mark.parametrize("command", ["solve", "fit", "render", "view", "compare", "demo"])
+def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
+    code, out, err = run([command], capsys)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "not available yet" in err
+
+
+def test_scene_info_describes_the_demo_scene(capsys):
+    code, out, err = run(["scene-info", "cornell-teapot"], capsys)
+    assert code == 0, err
+    for word in ("teapot", "tall_block", "glaze", "satin", "emitters (1)", "refined", "diagonal"):
+        assert word in out
+    code, out, _ = run(["scene-info", "cornell-teapot", "--max-edge", "25", "--json"], capsys)
+    info = json.loads(out)
+    assert info["refinement"] == {"max_edge": 25.0, "chosen_by": "--max-edge"}
+    assert info["totals"]["refined_triangles"] > info["totals"]["triangles"]
+
+
+def test_quality_presets_refine_more_as_quality_rises(capsys):
+    counts = []
+    for quality in ("draft", "medium", "high"):
+        code, out, _ = run(["scene-info", "cornell", "--quality", quality, "--json"], capsys)
+        assert code == 0
+        counts.append(json.loads(out)["totals"]["refined_triangles"])
+    assert counts[0] < counts[1] < counts[2]
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_scene_one_line_exit_2(case, tmp_path, capsys):
+    code, out, err = run(["scene-info", bad_input_path(case, tmp_path)], capsys)
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1 and err.startswith("vlights scene-info: error: ")
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "argv", [["scene-info"], ["scene-info", "cornell", "--max-edge", "-3"], ["scene-info", "cornell", "--quality", "ultra"], ["frobnicate"]]
+)
+def test_bad_flags_one_line_exit_2(argv, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse exits by itself
+        code = exc.code
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1, err
+
+
+def test_degenerate_triangles_warn_in_one_line(tmp_path, capsys):
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n")
+    (tmp_path / "s.toml").write_text('[materials.m]\ndiffuse=0.5\n[[objects]]\nname="a"\nmesh="m.obj"\nmaterial="m"\n')
+    code, out, err = run(["scene-info", str(tmp_path / "s.toml")], capsys)
+    assert code == 0
+    assert err.strip() == "vlights: warning: object 'a' (%s): dropped 1 degenerate triangle(s)" % (tmp_path / "m.obj")
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_installed_entry_point(tmp_path):
+    ok = subprocess.run(["vlights", "scene-info", "cornell"], capture_output=True, text=True)
+    assert ok.returncode == 0 and "short_block" in ok.stdout
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[materials.m\n")
+    fail = subprocess.run(["vlights", "scene-info", str(bad)], capture_output=True, text=True)
+    assert fail.returncode == 2 and fail.stdout == ""
+    assert fail.stderr.count("\n") == 1 and "line 1" in fail.stderr and "Traceback" not in fail.stderr
