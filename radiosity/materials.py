@@ -1,0 +1,436 @@
+"""Materials: Lambert plus the modified Phong BRDF of Lafortune & Willems (1994).
+
+A material with diffuse reflectance ``kd``, specular reflectance ``ks`` (RGB) and
+Phong exponent ``n`` reflects with
+
+    f(wi, wo) = kd / pi + ks (n + 2) / (2 pi) * max(0, dot(reflect(wi), wo))^n
+
+when wi.z > 0 and wo.z > 0, and f = 0 otherwise. The lobe max(0, c)^n is 0 for
+c <= 0 also when n = 0. f is reciprocal and, for kd + ks <= 1 in every channel,
+energy conserving: the directional albedo is kd + ks at normal incidence and the
+specular part falls towards grazing incidence (see ``albedo``).
+
+Conventions: directions are unit vectors in the local shading frame (x tangent,
+y bitangent, z normal), wi and wo both pointing away from the surface, and
+reflect(w) = (-w.x, -w.y, w.z).
+
+Contents:
+
+- ``Material``: an immutable, validated description, as scene files give it.
+- ``pack_materials``: a float64 table, one row per material, with the column
+  indices ``KD``, ``KS``, ``EXPONENT``, ``EMISSION``, ``P_SPECULAR`` and ``NCOL``.
+- numba kernels on one row ``mat`` of that table and plain floats:
+  ``brdf_eval``, ``brdf_pdf``, ``brdf_sample`` and the basis helper ``onb``.
+- ``eval_brdf``, ``pdf``, ``sample``: the kernels vectorised over arrays.
+- ``albedo``: the exact directional albedo, by deterministic quadrature.
+
+Importance sampling: ``brdf_sample`` picks the specular lobe with probability
+``P_SPECULAR`` = mean(ks) / (mean(kd) + mean(ks)), otherwise the diffuse lobe. The
+diffuse lobe is cosine-weighted over the upper hemisphere; the specular lobe has
+density (n + 1) / (2 pi) * max(0, cos alpha)^n over the whole sphere, alpha being
+the angle to the mirror direction reflect(wo). Some specular samples therefore lie
+below the horizon (wi.z <= 0); they are returned as they are, with the mixture
+density, and the caller treats them as absorbed (zero weight).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "EMISSION",
+    "EXPONENT",
+    "KD",
+    "KS",
+    "MAX_EXPONENT",
+    "NCOL",
+    "P_SPECULAR",
+    "Material",
+    "albedo",
+    "brdf_eval",
+    "brdf_pdf",
+    "brdf_sample",
+    "eval_brdf",
+    "onb",
+    "pack_materials",
+    "pdf",
+    "sample",
+]
+
+MAX_EXPONENT = 1e6
+"""Largest Phong exponent a material may have."""
+
+_ENERGY_TOLERANCE = 1e-6
+_CHANNELS = ("red", "green", "blue")
+
+
+@dataclass(frozen=True)
+class Material:
+    """A Lambert + modified Phong material; validated on construction.
+
+    Attributes:
+        name: how the scene calls it; used in error messages.
+        diffuse: kd, RGB reflectance in [0, 1].
+        specular: ks, RGB reflectance in [0, 1], with kd + ks <= 1 per channel.
+        exponent: Phong exponent n, in [0, ``MAX_EXPONENT``].
+        emission: emitted radiance, RGB, >= 0 (not bounded by 1).
+
+    All numbers are stored as python floats. Raises ``InputError`` naming the
+    material and the problem if a value is missing, not finite, out of range, or if
+    kd + ks > 1 in a channel.
+    """
+
+    name: str
+    diffuse: tuple[float, float, float]
+    specular: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    exponent: float = 0.0
+    emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for field, upper in (("diffuse", 1.0), ("specular", 1.0), ("emission", math.inf)):
+            object.__setattr__(self, field, self._rgb(field, upper))
+        object.__setattr__(self, "exponent", self._exponent())
+        for channel, kd, ks in zip(_CHANNELS, self.diffuse, self.specular):
+            if kd + ks > 1.0 + _ENERGY_TOLERANCE:
+                raise self._error(
+                    f"diffuse + specular = {kd + ks:.6g} in the {channel} channel is above 1, "
+                    "so the material would reflect more light than it receives"
+                )
+
+    def _error(self, problem: str) -> InputError:
+        return InputError(f"material {self.name!r}: {problem}")
+
+    def _rgb(self, field: str, upper: float) -> tuple[float, float, float]:
+        value = getattr(self, field)
+        try:
+            rgb = tuple(float(v) for v in value)
+        except (TypeError, ValueError):
+            raise self._error(
+                f"{field} must be 3 numbers (red, green, blue), got {value!r}"
+            ) from None
+        if len(rgb) != 3:
+            raise self._error(f"{field} must be 3 numbers (red, green, blue), got {len(rgb)}")
+        for channel, v in zip(_CHANNELS, rgb):
+            if not math.isfinite(v):
+                raise self._error(f"{field} {channel} is {v}, not a finite number")
+            if v < 0.0:
+                raise self._error(f"{field} {channel} = {v:g} is negative")
+            if v > upper:
+                raise self._error(f"{field} {channel} = {v:g} is above {upper:g}")
+        return rgb
+
+    def _exponent(self) -> float:
+        try:
+            n = float(self.exponent)
+        except (TypeError, ValueError):
+            raise self._error(f"exponent must be a number, got {self.exponent!r}") from None
+        if not math.isfinite(n):
+            raise self._error(f"exponent is {n}, not a finite number")
+        if n < 0.0:
+            raise self._error(f"exponent = {n:g} is negative")
+        if n > MAX_EXPONENT:
+            raise self._error(f"exponent = {n:g} is above the maximum {MAX_EXPONENT:g}")
+        return n
+
+    @property
+    def is_glossy(self) -> bool:
+        """True if some specular channel is positive."""
+        return any(v > 0.0 for v in self.specular)
+
+    @property
+    def is_emitter(self) -> bool:
+        """True if some emission channel is positive."""
+        return any(v > 0.0 for v in self.emission)
+
+    @property
+    def is_reflective(self) -> bool:
+        """True if the material reflects any light (diffusely or glossily)."""
+        return self.is_glossy or any(v > 0.0 for v in self.diffuse)
+
+    def to_dict(self) -> dict:
+        """The material as plain JSON-ready values (the name is the caller's key)."""
+        return {
+            "diffuse": list(self.diffuse),
+            "specular": list(self.specular),
+            "exponent": self.exponent,
+            "emission": list(self.emission),
+        }
+
+
+# Columns of the packed material table.
+KD = 0  # 3 columns: diffuse reflectance
+KS = 3  # 3 columns: specular reflectance
+EXPONENT = 6  # Phong exponent n
+EMISSION = 7  # 3 columns: emitted radiance
+P_SPECULAR = 10  # probability that brdf_sample picks the specular lobe
+NCOL = 11
+
+
+def pack_materials(materials: Sequence[Material]) -> np.ndarray:
+    """Pack materials into a table for the numba kernels.
+
+    Returns a C-contiguous float64 array of shape (M, NCOL); row i describes
+    ``materials[i]`` with the column layout ``KD``, ``KS``, ``EXPONENT``,
+    ``EMISSION``, ``P_SPECULAR``. P_SPECULAR = mean(ks) / (mean(kd) + mean(ks)),
+    0 if both are 0.
+    """
+    table = np.zeros((len(materials), NCOL), dtype=np.float64)
+    for row, m in zip(table, materials):
+        row[KD : KD + 3] = m.diffuse
+        row[KS : KS + 3] = m.specular
+        row[EXPONENT] = m.exponent
+        row[EMISSION : EMISSION + 3] = m.emission
+        kd, ks = sum(m.diffuse) / 3.0, sum(m.specular) / 3.0
+        row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
+    return table
+
+
+_INV_PI = 1.0 / math.pi
+_INV_2PI = 0.5 / math.pi
+
+
+@numba.njit(cache=True, fastmath=False)
+def onb(nx, ny, nz):
+    """Tangent t and bitangent b completing the unit vector n to an orthonormal basis.
+
+    Branchless construction of Duff et al. (2017), "Building an orthonormal basis,
+    revisited"; (t, b, n) is right-handed. Returns (tx, ty, tz, bx, by, bz).
+    """
+    sign = math.copysign(1.0, nz)
+    a = -1.0 / (sign + nz)
+    b = nx * ny * a
+    return 1.0 + sign * nx * nx * a, sign * b, -sign * nx, b, sign + ny * ny * a, -ny
+
+
+@numba.njit(cache=True, fastmath=False)
+def _lobe(cos_alpha, exponent):
+    """max(0, cos_alpha)^exponent, with cos_alpha clamped to 1 and 0 for cos_alpha <= 0."""
+    if cos_alpha <= 0.0:
+        return 0.0
+    return min(cos_alpha, 1.0) ** exponent
+
+
+@numba.njit(cache=True, fastmath=False)
+def _mixture_pdf(mat, cos_alpha, wiz):
+    """Sampling density of a direction with wi.z = wiz at angle alpha from reflect(wo)."""
+    n = mat[EXPONENT]
+    p_specular = mat[P_SPECULAR]
+    diffuse = max(0.0, wiz) * _INV_PI
+    specular = (n + 1.0) * _INV_2PI * _lobe(cos_alpha, n)
+    return (1.0 - p_specular) * diffuse + p_specular * specular
+
+
+@numba.njit(cache=True, fastmath=False)
+def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
+    """BRDF value f(wi, wo) as an (r, g, b) tuple; 0 unless wi.z > 0 and wo.z > 0.
+
+    ``mat`` is one row (float64, length NCOL) of ``pack_materials``; wi and wo are
+    unit vectors in the shading frame, both pointing away from the surface.
+    """
+    if wiz <= 0.0 or woz <= 0.0:
+        return 0.0, 0.0, 0.0
+    n = mat[EXPONENT]
+    cos_alpha = wiz * woz - wix * wox - wiy * woy
+    specular = (n + 2.0) * _INV_2PI * _lobe(cos_alpha, n)
+    return (
+        mat[KD] * _INV_PI + mat[KS] * specular,
+        mat[KD + 1] * _INV_PI + mat[KS + 1] * specular,
+        mat[KD + 2] * _INV_PI + mat[KS + 2] * specular,
+    )
+
+
+@numba.njit(cache=True, fastmath=False)
+def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
+    """Density, per unit solid angle over the whole sphere, of ``brdf_sample``'s wi for this wo.
+
+    (1 - ps) * max(0, wi.z) / pi + ps * (n + 1) / (2 pi) * max(0, cos alpha)^n, with
+    ps = mat[P_SPECULAR] and alpha the angle between wi and reflect(wo). It integrates
+    to 1 over the sphere; if ps > 0 it is also positive below the horizon within 90
+    degrees of the mirror direction.
+    """
+    cos_alpha = wiz * woz - wix * wox - wiy * woy
+    return _mixture_pdf(mat, cos_alpha, wiz)
+
+
+@numba.njit(cache=True, fastmath=False)
+def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
+    """Sample wi for the outgoing direction wo from uniform numbers u1, u2, u3 in [0, 1).
+
+    u1 < mat[P_SPECULAR] picks the specular lobe, otherwise the diffuse lobe;
+    (u2, u3) place the direction in the lobe: cos alpha = (1 - u2)^(1/(n+1)) about
+    reflect(wo) for the specular lobe (u2 = 0 gives the mirror direction; 1 - u2 is
+    never 0 for u2 < 1, and u2 = 1 still gives a finite direction), and the
+    cosine-weighted hemisphere for the diffuse lobe. Returns (wix, wiy, wiz, pdf),
+    pdf being the mixture density of ``brdf_pdf`` at wi, evaluated with the sampled
+    cos alpha rather than one recomputed from the rounded wi. Specular samples may
+    lie below the horizon (wiz <= 0); the caller must treat those as absorbed.
+    """
+    phi = 2.0 * math.pi * u3
+    if u1 < mat[P_SPECULAR]:
+        rx, ry, rz = -wox, -woy, woz
+        tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
+        # log(cos alpha); sin^2 alpha = 1 - cos^2 alpha without cancellation for huge n.
+        log_cos = math.log(1.0 - u2) / (mat[EXPONENT] + 1.0)
+        cos_alpha = math.exp(log_cos)
+        sin_alpha = math.sqrt(-math.expm1(2.0 * log_cos))
+        sx = sin_alpha * math.cos(phi)
+        sy = sin_alpha * math.sin(phi)
+        wix = sx * tx + sy * bx + cos_alpha * rx
+        wiy = sx * ty + sy * by + cos_alpha * ry
+        wiz = sx * tz + sy * bz + cos_alpha * rz
+        return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz)
+    radius = math.sqrt(u2)
+    wix = radius * math.cos(phi)
+    wiy = radius * math.sin(phi)
+    wiz = math.sqrt(1.0 - u2)
+    cos_alpha = wiz * woz - wix * wox - wiy * woy
+    return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz)
+
+
+@numba.njit(cache=True, fastmath=False)
+def _eval_rows(mat, wi, wo, out):
+    for k in range(wi.shape[0]):
+        r, g, b = brdf_eval(mat, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2])
+        out[k, 0] = r
+        out[k, 1] = g
+        out[k, 2] = b
+
+
+@numba.njit(cache=True, fastmath=False)
+def _pdf_rows(mat, wo, wi, out):
+    for k in range(wi.shape[0]):
+        out[k] = brdf_pdf(mat, wo[k, 0], wo[k, 1], wo[k, 2], wi[k, 0], wi[k, 1], wi[k, 2])
+
+
+@numba.njit(cache=True, fastmath=False)
+def _sample_rows(mat, wo, u, wi, density):
+    for k in range(u.shape[0]):
+        x, y, z, p = brdf_sample(mat, wo[k, 0], wo[k, 1], wo[k, 2], u[k, 0], u[k, 1], u[k, 2])
+        wi[k, 0] = x
+        wi[k, 1] = y
+        wi[k, 2] = z
+        density[k] = p
+
+
+def _rows_of_three(*arrays) -> list[np.ndarray]:
+    """Arrays of shape (3,) or (N, 3), broadcast together to C-contiguous float64 (N, 3)."""
+    rows = [np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in arrays]
+    for a in rows:
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise ValueError(f"expected shape (3,) or (N, 3), got {a.shape}")
+    shape = np.broadcast_shapes(*(a.shape for a in rows))
+    return [np.ascontiguousarray(np.broadcast_to(a, shape)) for a in rows]
+
+
+def eval_brdf(material: Material, wi, wo) -> np.ndarray:
+    """f(wi, wo) for arrays of directions.
+
+    wi, wo: float arrays of shape (N, 3) or (3,) (broadcast), unit vectors in the
+    shading frame. Returns float64 (N, 3), RGB.
+    """
+    wi, wo = _rows_of_three(wi, wo)
+    out = np.empty((wi.shape[0], 3), dtype=np.float64)
+    _eval_rows(pack_materials([material])[0], wi, wo, out)
+    return out
+
+
+def pdf(material: Material, wo, wi) -> np.ndarray:
+    """``brdf_pdf`` for arrays: density of sampling wi given wo.
+
+    wo, wi: float arrays of shape (N, 3) or (3,) (broadcast). Returns float64 (N,).
+    """
+    wo, wi = _rows_of_three(wo, wi)
+    out = np.empty(wi.shape[0], dtype=np.float64)
+    _pdf_rows(pack_materials([material])[0], wo, wi, out)
+    return out
+
+
+def sample(material: Material, wo, u) -> tuple[np.ndarray, np.ndarray]:
+    """``brdf_sample`` for arrays.
+
+    wo: float (N, 3) or (3,), unit vectors; u: float (N, 3), uniform in [0, 1).
+    Returns (wi, pdf): float64 (N, 3) and (N,). Rows with wi[:, 2] <= 0 are
+    samples below the horizon, to be treated as absorbed.
+    """
+    wo, u = _rows_of_three(wo, u)
+    wi = np.empty_like(u)
+    density = np.empty(u.shape[0], dtype=np.float64)
+    _sample_rows(pack_materials([material])[0], wo, u, wi, density)
+    return wi, density
+
+
+def _kink_rule(points: int, ratio: float, panels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Quadrature for int_0^1 g(w) 2w dw, g analytic inside (0, 1): (log(1 - w^2), weights).
+
+    Each half of [0, 1] is cut into panels shrinking geometrically (by ``ratio``)
+    towards its end, each panel with ``points`` Gauss-Legendre points; this
+    converges exponentially for integrands that are singular at w = 1 like
+    (1 - w)^p and nearly singular at w = 0. The nodes are returned as
+    log(1 - w^2), computed without rounding near either end; the weights include
+    the 2w Jacobian.
+    """
+    x, w = np.polynomial.legendre.leggauss(points)
+    edges = 0.5 * np.concatenate(([0.0], ratio ** np.arange(panels, -1, -1, dtype=np.float64)))
+    half = 0.5 * np.diff(edges)[:, None]
+    t = (edges[:-1, None] + half * (1.0 + x)).ravel()  # distance from the end, in (0, 1/2)
+    t_weights = (half * w).ravel()
+    log_one_minus_w2 = np.concatenate((np.log1p(-t * t), np.log(t * (2.0 - t))))
+    weights = np.concatenate((2.0 * t * t_weights, 2.0 * (1.0 - t) * t_weights))
+    return log_one_minus_w2, weights
+
+
+# Quadrature for the clipped part of the specular albedo (see _specular_albedo):
+# absolute error below 1e-12 for exponents 0 to MAX_EXPONENT, at all angles.
+_LOG_ONE_MINUS_W2, _W_WEIGHTS = _kink_rule(points=16, ratio=0.25, panels=24)
+
+
+def _specular_albedo(exponent: float, cos_theta: np.ndarray) -> np.ndarray:
+    """Directional albedo of the normalised lobe (ks = 1) for wo at cos_theta, float64 (N,).
+
+    S = (n+2)/(2 pi) * int cos^n(alpha) Phi(alpha) sin(alpha) dalpha over [0, pi/2],
+    where Phi = int max(0, A + B cos phi) dphi, A = cos alpha cos theta and
+    B = sin alpha sin theta. With s = cos^(n+1) alpha the alpha integral is
+    1/(n+1) * int_0^1 Phi ds. Above the kink s_k = sin^(n+1) theta (A >= B: the
+    whole circle about the mirror direction is above the horizon) Phi = 2 pi A and
+    the integral is closed form: S_above = cos theta (1 - sin^(n+2) theta). Below
+    it Phi = 2 (A phi0 + B sin phi0), phi0 = arccos(-A/B); the substitution
+    s = s_k (1 - w^2) removes the square-root behaviour at the kink (w = 0), and
+    ``_kink_rule`` handles the s^(1/(n+1)) singularity at s = 0 (w = 1).
+    """
+    n = exponent
+    c = cos_theta[:, None]
+    s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
+    # e = 1 - (1 - w^2)^(2/(n+1)), so cos^2 alpha = sin^2 theta (1 - e) and
+    # sin^2 alpha = cos^2 theta + sin^2 theta e, both without cancellation.
+    e = -np.expm1(2.0 / (n + 1.0) * _LOG_ONE_MINUS_W2)
+    a = c * np.sqrt(1.0 - e)  # A / sin theta
+    b = np.sqrt(c * c + s * s * e)  # B / sin theta; > 0 at every node since e > 0
+    phi0 = np.arccos(np.clip(-a / b, -1.0, 0.0))
+    clipped = (_W_WEIGHTS * (a * phi0 + b * np.sin(phi0))).sum(axis=1)
+    sin_pow = s[:, 0] ** (n + 2.0)
+    return cos_theta * (1.0 - sin_pow) + sin_pow * (n + 2.0) / ((n + 1.0) * math.pi) * clipped
+
+
+def albedo(material: Material, cos_theta) -> np.ndarray:
+    """Directional albedo rho(wo) = int f(wi, wo) cos(theta_i) dwi over the upper hemisphere.
+
+    cos_theta: wo.z, a float or float array of shape (N,), in [0, 1] (at 0 the
+    grazing limit). Deterministic quadrature, accurate to ~1e-12. Returns float64
+    RGB, shape (3,) for a scalar, (N, 3) for an array: kd + ks * S(theta), where
+    S = 1 at normal incidence and falls towards grazing incidence.
+    """
+    cos_theta = np.asarray(cos_theta, dtype=np.float64)
+    if cos_theta.ndim > 1:
+        raise ValueError(f"cos_theta must be a scalar or of shape (N,), got {cos_theta.shape}")
+    if not np.all((cos_theta >= 0.0) & (cos_theta <= 1.0)):
+        raise ValueError("cos_theta must be in [0, 1]")
+    specular = _specular_albedo(material.exponent, np.atleast_1d(cos_theta))
+    rho = np.asarray(material.diffuse) + specular[:, None] * np.asarray(material.specular)
+    return rho[0] if cos_theta.ndim == 0 else rho
