@@ -60,6 +60,7 @@ __all__ = [
     "eval_brdf",
     "onb",
     "pack_materials",
+    "phong_lobe",
     "pdf",
     "sample",
 ]
@@ -210,7 +211,7 @@ def onb(nx, ny, nz):
 
 
 @numba.njit(cache=True, fastmath=False)
-def _lobe(cos_alpha, exponent):
+def phong_lobe(cos_alpha, exponent):
     """max(0, cos_alpha)^exponent, with cos_alpha clamped to 1 and 0 for cos_alpha <= 0."""
     if cos_alpha <= 0.0:
         return 0.0
@@ -223,7 +224,7 @@ def _mixture_pdf(mat, cos_alpha, wiz):
     n = mat[EXPONENT]
     p_specular = mat[P_SPECULAR]
     diffuse = max(0.0, wiz) * _INV_PI
-    specular = (n + 1.0) * _INV_2PI * _lobe(cos_alpha, n)
+    specular = (n + 1.0) * _INV_2PI * phong_lobe(cos_alpha, n)
     return (1.0 - p_specular) * diffuse + p_specular * specular
 
 
@@ -238,7 +239,7 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
         return 0.0, 0.0, 0.0
     n = mat[EXPONENT]
     cos_alpha = wiz * woz - wix * wox - wiy * woy
-    specular = (n + 2.0) * _INV_2PI * _lobe(cos_alpha, n)
+    specular = (n + 2.0) * _INV_2PI * phong_lobe(cos_alpha, n)
     return (
         mat[KD] * _INV_PI + mat[KS] * specular,
         mat[KD + 1] * _INV_PI + mat[KS + 1] * specular,

@@ -1,0 +1,508 @@
+"""numba kernels of the solver: photon emission and scattering, density deposits, and
+the vertex gather. Orchestration (batches, threads, Embree calls) is in ``solver``.
+
+The kernels work wavefront-style: one kernel makes rays, Embree traces them (in
+``embree``), the next kernel reads the hits. Every random number comes from a
+counter-based hash of (seed, stream, item, dimension), so a result depends on the
+seed and the item's index only, never on how work is split into batches or threads.
+
+Scene data reach the kernels as one ``SceneArrays`` named tuple (merged over all
+objects; vertex and triangle indices are those of ``Scene.merged()``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from .materials import EMISSION, EXPONENT, KD, KS, brdf_eval, brdf_sample, onb, phong_lobe
+
+STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
+# tally slots of a photon batch (RGB triples, then counts)
+T_ESCAPED, T_ABSORBED, T_INCIDENT, T_BACKFACE, T_TERMINATED = 0, 3, 6, 9, 12
+T_HITS, T_LENGTH = 15, 16
+LOBE_CUTOFF = 1e-7  # gather: lobe values below this fraction of the peak are skipped
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_INV_2_53 = 1.0 / 9007199254740992.0
+
+
+class SceneArrays(NamedTuple):
+    """The merged scene as the kernels read it.
+
+    positions      : (N, 3) float64   vertex positions
+    normals        : (N, 3) float64   unit shading normals
+    tangents       : (N, 3) float64   unit tangents (the frames of the density moments)
+    faces          : (T, 3) int64
+    face_normals   : (T, 3) float64   unit geometric normals (the front side)
+    face_material  : (T,) int64       row of ``materials``
+    materials      : (M, NCOL) float64, see ``materials.pack_materials``
+    albedo_table   : (M, A, 3) float64 true directional albedo at cos theta = k / (A - 1)
+    emit_cdf       : (E,) float64     cumulative probability over emitting triangles
+    emit_triangles : (E,) int64
+    emit_area_pdf  : (T,) float64     density per unit area of choosing a point on a triangle
+    epsilon        : float            ray-origin offset, scene units
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+    faces: np.ndarray
+    face_normals: np.ndarray
+    face_material: np.ndarray
+    materials: np.ndarray
+    albedo_table: np.ndarray
+    emit_cdf: np.ndarray
+    emit_triangles: np.ndarray
+    emit_area_pdf: np.ndarray
+    epsilon: float
+
+
+# -- random numbers -------------------------------------------------------------------
+
+
+@numba.njit(inline="always")
+def _mix(z):
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(cache=True, nogil=True)
+def rand(seed, stream, item, dim):
+    """A uniform number in [0, 1) determined by (seed, stream, item, dim) alone."""
+    z = _mix(np.uint64(seed) * _GOLDEN + np.uint64(stream))
+    z = _mix(z ^ (np.uint64(item) * _GOLDEN))
+    z = _mix(z + np.uint64(dim) * _M1)
+    return float(z >> np.uint64(11)) * _INV_2_53
+
+
+# -- small geometry helpers -----------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def _pick_emitter(sa, u):
+    k = np.searchsorted(sa.emit_cdf, u, side="right")
+    return sa.emit_triangles[min(k, len(sa.emit_triangles) - 1)]
+
+
+@numba.njit(cache=True, nogil=True)
+def _barycentric_point(sa, tri, u, v):
+    i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
+    w = 1.0 - u - v
+    p = sa.positions
+    return (
+        w * p[i0, 0] + u * p[i1, 0] + v * p[i2, 0],
+        w * p[i0, 1] + u * p[i1, 1] + v * p[i2, 1],
+        w * p[i0, 2] + u * p[i1, 2] + v * p[i2, 2],
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _shading_normal(sa, tri, u, v, dx, dy, dz):
+    """Interpolated shading normal at a hit, or the geometric one where the
+    interpolated normal would put the incoming ray's side behind the surface."""
+    i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
+    w = 1.0 - u - v
+    n = sa.normals
+    nx = w * n[i0, 0] + u * n[i1, 0] + v * n[i2, 0]
+    ny = w * n[i0, 1] + u * n[i1, 1] + v * n[i2, 1]
+    nz = w * n[i0, 2] + u * n[i1, 2] + v * n[i2, 2]
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length > 0.0 and (nx * dx + ny * dy + nz * dz) < 0.0:
+        return nx / length, ny / length, nz / length
+    g = sa.face_normals[tri]
+    return g[0], g[1], g[2]
+
+
+@numba.njit(cache=True, nogil=True)
+def _interpolate3(values, sa, tri, u, v, c):
+    i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
+    return (1.0 - u - v) * values[i0, c] + u * values[i1, c] + v * values[i2, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _albedo(sa, m, cos_theta, c):
+    table = sa.albedo_table[m]
+    x = min(max(cos_theta, 0.0), 1.0) * (table.shape[0] - 1)
+    k = min(int(x), table.shape[0] - 2)
+    f = x - k
+    return (1.0 - f) * table[k, c] + f * table[k + 1, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cosine_direction(u1, u2):
+    """Cosine-weighted direction about +z from the concentric map of (u1, u2)."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    if a == 0.0 and b == 0.0:
+        return 0.0, 0.0, 1.0
+    if abs(a) > abs(b):
+        r, phi = a, 0.25 * math.pi * b / a
+    else:
+        r, phi = b, 0.5 * math.pi - 0.25 * math.pi * a / b
+    x, y = r * math.cos(phi), r * math.sin(phi)
+    return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
+
+
+# -- photons --------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def emit_photons(sa, seed, first_id, count, total, origins, directions, power, ids):
+    """Emit photons first_id .. first_id + count - 1 of ``total``: a triangle in
+    proportion to its power, a uniform point on it, a cosine-distributed direction
+    about its front. Each carries pi Le / (total * area pdf), so the batch's power sums
+    to the emitters' power in expectation."""
+    for i in range(count):
+        pid = first_id + i
+        tri = _pick_emitter(sa, rand(seed, STREAM_EMIT, pid, 0))
+        s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
+        u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
+        v = s - u
+        px, py, pz = _barycentric_point(sa, tri, u, v)
+        g = sa.face_normals[tri]
+        lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
+        tx, ty, tz, bx, by, bz = onb(g[0], g[1], g[2])
+        directions[i, 0] = lx * tx + ly * bx + lz * g[0]
+        directions[i, 1] = lx * ty + ly * by + lz * g[1]
+        directions[i, 2] = lx * tz + ly * bz + lz * g[2]
+        origins[i, 0] = px + sa.epsilon * g[0]
+        origins[i, 1] = py + sa.epsilon * g[1]
+        origins[i, 2] = pz + sa.epsilon * g[2]
+        m = sa.face_material[tri]
+        scale = math.pi / (total * sa.emit_area_pdf[tri])
+        for c in range(3):
+            power[i, c] = sa.materials[m, EMISSION + c] * scale
+        ids[i] = pid
+
+
+@numba.njit(cache=True, nogil=True)
+def bounce_photons(
+    sa, seed, depth, max_depth, ids, origins, directions, power, tri, u, v,
+    moment0, moment1, tally, out_ids, out_origins, out_directions, out_power,
+):
+    """Deposit each photon where it landed and scatter it on; returns the survivors' count.
+
+    At a front-face hit the incident power is added to the density moments of the
+    triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power *
+    lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric weight,
+    the hat function of vertex j). The photon then scatters by BRDF sampling with
+    Russian roulette that keeps its power about constant. Backs absorb.
+
+    ``tally`` (float64, T_LENGTH) gains escaped power, the expected absorbed power
+    (incident * (1 - true albedo)), incident power, back-face and forced-termination
+    losses, and the hit count: emitted = escaped + absorbed + backface + terminated
+    in expectation, which tests check.
+    """
+    n_out = 0
+    for k in range(len(ids)):
+        t = tri[k]
+        pid = ids[k]
+        if t < 0:
+            for c in range(3):
+                tally[T_ESCAPED + c] += power[k, c]
+            continue
+        tally[T_HITS] += 1.0
+        dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
+        g = sa.face_normals[t]
+        if dx * g[0] + dy * g[1] + dz * g[2] >= 0.0:
+            for c in range(3):
+                tally[T_BACKFACE + c] += power[k, c]
+            continue
+        uk, vk = float(u[k]), float(v[k])
+        x, y, z = _barycentric_point(sa, t, uk, vk)
+        lam0 = 1.0 - uk - vk
+        for j in range(3):
+            vert = sa.faces[t, j]
+            lam = lam0 if j == 0 else (uk if j == 1 else vk)
+            ox = x - sa.positions[vert, 0]
+            oy = y - sa.positions[vert, 1]
+            oz = z - sa.positions[vert, 2]
+            tn = sa.tangents[vert]
+            nn = sa.normals[vert]
+            bx = nn[1] * tn[2] - nn[2] * tn[1]
+            by = nn[2] * tn[0] - nn[0] * tn[2]
+            bz = nn[0] * tn[1] - nn[1] * tn[0]
+            along_t = ox * tn[0] + oy * tn[1] + oz * tn[2]
+            along_b = ox * bx + oy * by + oz * bz
+            for c in range(3):
+                w = power[k, c] * lam
+                moment0[vert, c] += w
+                moment1[vert, c, 0] += w * along_t
+                moment1[vert, c, 1] += w * along_b
+        for c in range(3):
+            tally[T_INCIDENT + c] += power[k, c]
+
+        m = sa.face_material[t]
+        mat = sa.materials[m]
+        nx, ny, nz = _shading_normal(sa, t, uk, vk, dx, dy, dz)
+        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+        wox = -(dx * tx + dy * ty + dz * tz)
+        woy = -(dx * bx + dy * by + dz * bz)
+        woz = -(dx * nx + dy * ny + dz * nz)
+        for c in range(3):
+            tally[T_ABSORBED + c] += power[k, c] * (1.0 - _albedo(sa, m, woz, c))
+        if depth + 1 >= max_depth:
+            for c in range(3):
+                tally[T_TERMINATED + c] += power[k, c] * _albedo(sa, m, woz, c)
+            continue
+        base = depth * 8
+        wix, wiy, wiz, pdf = brdf_sample(
+            mat, wox, woy, woz,
+            rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
+            rand(seed, STREAM_BOUNCE, pid, base + 2),
+        )
+        if wiz <= 0.0 or pdf <= 0.0:
+            continue
+        ox = wix * tx + wiy * bx + wiz * nx
+        oy = wix * ty + wiy * by + wiz * ny
+        oz = wix * tz + wiy * bz + wiz * nz
+        if ox * g[0] + oy * g[1] + oz * g[2] <= 0.0:
+            continue  # below the true surface: absorbed
+        fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
+        scale = wiz / pdf
+        new0, new1, new2 = power[k, 0] * fr * scale, power[k, 1] * fg * scale, power[k, 2] * fb * scale
+        old = max(power[k, 0], power[k, 1], power[k, 2])
+        survive = min(1.0, max(new0, new1, new2) / old) if old > 0.0 else 0.0
+        if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+            continue
+        out_ids[n_out] = pid
+        out_origins[n_out, 0] = x + sa.epsilon * g[0]
+        out_origins[n_out, 1] = y + sa.epsilon * g[1]
+        out_origins[n_out, 2] = z + sa.epsilon * g[2]
+        out_directions[n_out, 0] = ox
+        out_directions[n_out, 1] = oy
+        out_directions[n_out, 2] = oz
+        out_power[n_out, 0] = new0 / survive
+        out_power[n_out, 1] = new1 / survive
+        out_power[n_out, 2] = new2 / survive
+        n_out += 1
+    return n_out
+
+
+# -- gather ---------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def make_gather_rays(
+    sa, seed, vertices, n_light, strata,
+    light_origins, light_directions, light_distances, light_wi, light_radiance, light_pdf,
+    gather_origins, gather_directions, gather_wi,
+):
+    """Rays for the vertices of one block: ``n_light`` light samples (shadow rays) and
+    ``strata``^2 stratified cosine-weighted gather rays per vertex. Directions are also
+    kept in the vertex's local frame (x tangent, y bitangent, z normal).
+
+    light_pdf is the solid-angle density of the light sample, 0 for a sample that
+    cannot contribute (behind the vertex or seeing the light's back).
+    """
+    n_gather = strata * strata
+    for b in range(len(vertices)):
+        vert = vertices[b]
+        px, py, pz = sa.positions[vert, 0], sa.positions[vert, 1], sa.positions[vert, 2]
+        nx, ny, nz = sa.normals[vert, 0], sa.normals[vert, 1], sa.normals[vert, 2]
+        tx, ty, tz = sa.tangents[vert, 0], sa.tangents[vert, 1], sa.tangents[vert, 2]
+        bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+        ox, oy, oz = px + sa.epsilon * nx, py + sa.epsilon * ny, pz + sa.epsilon * nz
+        for m in range(n_light):
+            i = b * n_light + m
+            item = vert * n_light + m
+            tri = _pick_emitter(sa, rand(seed, STREAM_LIGHT, item, 0))
+            s = math.sqrt(rand(seed, STREAM_LIGHT, item, 1))
+            u = s * (1.0 - rand(seed, STREAM_LIGHT, item, 2))
+            qx, qy, qz = _barycentric_point(sa, tri, u, s - u)
+            g = sa.face_normals[tri]
+            qx, qy, qz = qx + sa.epsilon * g[0], qy + sa.epsilon * g[1], qz + sa.epsilon * g[2]
+            dx, dy, dz = qx - ox, qy - oy, qz - oz
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            light_origins[i, 0], light_origins[i, 1], light_origins[i, 2] = ox, oy, oz
+            light_pdf[i] = 0.0
+            light_distances[i] = 0.0
+            light_directions[i, 0], light_directions[i, 1], light_directions[i, 2] = nx, ny, nz
+            if dist <= 0.0:
+                continue
+            dx, dy, dz = dx / dist, dy / dist, dz / dist
+            cos_light = -(dx * g[0] + dy * g[1] + dz * g[2])
+            wz = dx * nx + dy * ny + dz * nz
+            if cos_light <= 0.0 or wz <= 0.0:
+                continue
+            light_directions[i, 0], light_directions[i, 1], light_directions[i, 2] = dx, dy, dz
+            light_distances[i] = dist
+            light_wi[i, 0] = dx * tx + dy * ty + dz * tz
+            light_wi[i, 1] = dx * bx + dy * by + dz * bz
+            light_wi[i, 2] = wz
+            light_pdf[i] = sa.emit_area_pdf[tri] * dist * dist / cos_light
+            mat = sa.face_material[tri]
+            for c in range(3):
+                light_radiance[i, c] = sa.materials[mat, EMISSION + c]
+        for k in range(n_gather):
+            i = b * n_gather + k
+            item = vert * n_gather + k
+            kx, ky = k % strata, k // strata
+            lx, ly, lz = _cosine_direction(
+                (kx + rand(seed, STREAM_GATHER, item, 0)) / strata,
+                (ky + rand(seed, STREAM_GATHER, item, 1)) / strata,
+            )
+            gather_wi[i, 0], gather_wi[i, 1], gather_wi[i, 2] = lx, ly, lz
+            gather_directions[i, 0] = lx * tx + ly * bx + lz * nx
+            gather_directions[i, 1] = lx * ty + ly * by + lz * ny
+            gather_directions[i, 2] = lx * tz + ly * bz + lz * nz
+            gather_origins[i, 0], gather_origins[i, 1], gather_origins[i, 2] = ox, oy, oz
+
+
+@numba.njit(cache=True, nogil=True)
+def _hit_distance(origins, k, sa, t, u, v):
+    x, y, z = _barycentric_point(sa, t, u, v)
+    dx, dy, dz = x - origins[k, 0], y - origins[k, 1], z - origins[k, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@numba.njit(cache=True, nogil=True)
+def shade_paths(
+    sa, irradiance, seed, depth, max_depth, n_light, n_gather, vertices,
+    ids, throughput, origins, directions, first_cos, tri, u, v, incoming,
+    out_ids, out_throughput, out_origins, out_directions,
+):
+    """Radiance arriving along gather paths; returns the number of paths that go on.
+
+    ``incoming[ids[k]]`` gains throughput * (emitted + diffusely reflected radiance) at
+    each path's hit. On the first segment (depth 0) the emitted part is weighted by
+    the balance heuristic against the ``n_light`` light samples, which also saw the
+    light (``first_cos`` is the ray's cosine at the vertex, so its density is
+    first_cos / pi); later segments count emission in full. The diffuse part is kd / pi
+    times the irradiance interpolated at the hit. At a glossy surface the path goes on
+    through the specular lobe (the diffuse lobe's light is in the irradiance), with
+    Russian roulette, so light that passes from glossy to glossy is not lost.
+
+    ``ids`` index the block's gather samples (vertex ``vertices[id // n_gather]``,
+    sample ``id % n_gather``), which also key the random numbers.
+    """
+    n_out = 0
+    for k in range(len(ids)):
+        t = tri[k]
+        if t < 0:
+            continue
+        dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
+        g = sa.face_normals[t]
+        if dx * g[0] + dy * g[1] + dz * g[2] >= 0.0:
+            continue
+        uk, vk = float(u[k]), float(v[k])
+        m = sa.face_material[t]
+        mat = sa.materials[m]
+        target = ids[k]
+        weight = 1.0
+        if depth == 0 and n_light > 0 and sa.emit_area_pdf[t] > 0.0:
+            cos_light = -(dx * g[0] + dy * g[1] + dz * g[2])
+            dist = _hit_distance(origins, k, sa, t, uk, vk)
+            p_light = sa.emit_area_pdf[t] * dist * dist / cos_light
+            p_gather = first_cos[k] / math.pi
+            weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
+        for c in range(3):
+            radiance = weight * mat[EMISSION + c] + mat[KD + c] / math.pi * _interpolate3(irradiance, sa, t, uk, vk, c)
+            incoming[target, c] += throughput[k, c] * radiance
+        ks_max = max(mat[KS], mat[KS + 1], mat[KS + 2])
+        if ks_max <= 0.0 or depth + 1 >= max_depth:
+            continue
+        nx, ny, nz = _shading_normal(sa, t, uk, vk, dx, dy, dz)
+        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+        wox = -(dx * tx + dy * ty + dz * tz)
+        woy = -(dx * bx + dy * by + dz * bz)
+        woz = -(dx * nx + dy * ny + dz * nz)
+        item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+        wix, wiy, wiz, _ = brdf_sample(
+            mat, wox, woy, woz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
+        )
+        if wiz <= 0.0:
+            continue
+        ox = wix * tx + wiy * bx + wiz * nx
+        oy = wix * ty + wiy * by + wiz * ny
+        oz = wix * tz + wiy * bz + wiz * nz
+        if ox * g[0] + oy * g[1] + oz * g[2] <= 0.0:
+            continue
+        # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
+        lobe_weight = (mat[EXPONENT] + 2.0) / (mat[EXPONENT] + 1.0) * wiz
+        t0 = throughput[k, 0] * mat[KS] * lobe_weight
+        t1 = throughput[k, 1] * mat[KS + 1] * lobe_weight
+        t2 = throughput[k, 2] * mat[KS + 2] * lobe_weight
+        survive = min(1.0, max(t0, t1, t2))
+        if survive <= 0.0 or rand(seed, STREAM_GATHER + 1, item, 2) >= survive:
+            continue
+        x, y, z = _barycentric_point(sa, t, uk, vk)
+        out_ids[n_out] = target
+        out_throughput[n_out, 0] = t0 / survive
+        out_throughput[n_out, 1] = t1 / survive
+        out_throughput[n_out, 2] = t2 / survive
+        out_origins[n_out, 0] = x + sa.epsilon * g[0]
+        out_origins[n_out, 1] = y + sa.epsilon * g[1]
+        out_origins[n_out, 2] = z + sa.epsilon * g[2]
+        out_directions[n_out, 0] = ox
+        out_directions[n_out, 1] = oy
+        out_directions[n_out, 2] = oz
+        n_out += 1
+    return n_out
+
+
+@numba.njit(cache=True, nogil=True)
+def gather_outputs(
+    mat, emission, diffuse_radiance, n_light, n_gather,
+    light_wi, light_radiance, light_pdf, light_visible, gather_wi, incoming, directions, out,
+):
+    """Outgoing radiance of a block of vertices in every grid direction.
+
+    out[b, d] = emission + diffuse_radiance[b] + the specular lobe's integral of the
+    incoming light for wo = directions[d], estimated from the vertex's light samples
+    (balance-heuristic weighted against the gather rays) and its gather rays, all
+    shared by every direction d.
+
+    mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
+    (B, 3) kd E / pi; light_* : (B * n_light, ...); gather_wi, incoming :
+    (B * n_gather, 3); directions : (D, 3) local; out : (B, D, 3) float64.
+    """
+    n = mat[EXPONENT]
+    norm = (n + 2.0) / (2.0 * math.pi)
+    cos_min = math.exp(math.log(LOBE_CUTOFF) / n) if n > 1e-9 else 0.0
+    n_samples = n_light + n_gather
+    mirror = np.empty((n_samples, 3))
+    weight = np.empty((n_samples, 3))
+    for b in range(out.shape[0]):
+        used = 0
+        for m in range(n_light):
+            i = b * n_light + m
+            p = light_pdf[i]
+            if p <= 0.0 or not light_visible[i]:
+                continue
+            wz = light_wi[i, 2]
+            p_gather = wz / math.pi
+            scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -light_wi[i, 0], -light_wi[i, 1], wz
+            for c in range(3):
+                weight[used, c] = scale * light_radiance[i, c]
+            used += 1
+        for k in range(n_gather):
+            i = b * n_gather + k
+            if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
+                continue
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -gather_wi[i, 0], -gather_wi[i, 1], gather_wi[i, 2]
+            for c in range(3):
+                weight[used, c] = math.pi / n_gather * incoming[i, c]
+            used += 1
+        for d in range(directions.shape[0]):
+            wx, wy, wz = directions[d, 0], directions[d, 1], directions[d, 2]
+            acc0, acc1, acc2 = 0.0, 0.0, 0.0
+            for s in range(used):
+                cos_alpha = mirror[s, 0] * wx + mirror[s, 1] * wy + mirror[s, 2] * wz
+                if cos_alpha <= cos_min:
+                    continue
+                lobe = phong_lobe(cos_alpha, n)
+                acc0 += lobe * weight[s, 0]
+                acc1 += lobe * weight[s, 1]
+                acc2 += lobe * weight[s, 2]
+            out[b, d, 0] = emission[0] + diffuse_radiance[b, 0] + norm * mat[KS] * acc0
+            out[b, d, 1] = emission[1] + diffuse_radiance[b, 1] + norm * mat[KS + 1] * acc1
+            out[b, d, 2] = emission[2] + diffuse_radiance[b, 2] + norm * mat[KS + 2] * acc2
