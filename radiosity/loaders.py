@@ -39,7 +39,7 @@ MESH_SUFFIXES = {".obj", ".gltf", ".glb", ".ply", ".stl", ".off"}
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
 _OBJECT_KEYS = {
     "name", "mesh", "builtin", "material", "scale", "rotate_deg", "translate",
-    "resolution", "subdivisions", "crease_angle_deg",
+    "resolution", "subdivisions", "crease_angle_deg", "flip",
 }
 _CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg"}
 _TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units"}
@@ -218,6 +218,11 @@ def _parse_object(entry, index, materials, base_dir, where):
         translate=_vec3(entry.get("translate", [0, 0, 0]), here, "translate"),
     )
     positions, faces, _ = geometry.apply_transform(matrix, positions, faces)
+    flip = entry.get("flip", False)
+    if not isinstance(flip, bool):
+        raise InputError(f"{here}: 'flip' must be true or false, got {flip!r}")
+    if flip:  # turn the surface inside out: a room, an enclosing sphere
+        faces = faces[:, ::-1].copy()
     crease = _number(entry.get("crease_angle_deg", DEFAULT_CREASE_ANGLE_DEG), here, "crease_angle_deg")
     if not 0 <= crease <= 180:
         raise InputError(f"{here}: 'crease_angle_deg' must be between 0 and 180, got {crease}")

@@ -35,10 +35,10 @@ PHOTON_BATCH = 1 << 16
 ALBEDO_TABLE_SIZE = 129
 
 PRESETS = {
-    #          photons      gather rays  light samples
-    "draft": dict(photons=1_000_000, gather_samples=256, light_samples=32),
-    "medium": dict(photons=4_000_000, gather_samples=1024, light_samples=64),
-    "high": dict(photons=16_000_000, gather_samples=4096, light_samples=256),
+    # photons in all; gather rays, light samples per glossy vertex; density kernel width
+    "draft": dict(photons=1_000_000, gather_samples=256, light_samples=32, kernel_rings=1),
+    "medium": dict(photons=4_000_000, gather_samples=1024, light_samples=64, kernel_rings=1),
+    "high": dict(photons=16_000_000, gather_samples=4096, light_samples=256, kernel_rings=1),
 }
 
 
@@ -52,6 +52,9 @@ class SolveOptions:
     grid           : n of the n x n direction grid of every glossy object
                      (default: from each object's exponent, ``directions.grid_size``)
     max_edge       : refine to edges no longer than this (scene units)
+    kernel_rings   : density kernel of each vertex: its hat function widened by this
+                     many rings of neighbours (0: the hat alone; more: less noise,
+                     more blur), see ``density.widen``
     seed, threads  : the random seed; worker threads (default: one per core)
     """
 
@@ -61,6 +64,7 @@ class SolveOptions:
     light_samples: int | None = None
     grid: int | None = None
     max_edge: float | None = None
+    kernel_rings: int | None = None
     seed: int = 1
     threads: int | None = None
 
@@ -74,12 +78,13 @@ class SolveOptions:
             "photons": self.photons if self.photons is not None else preset["photons"],
             "gather_samples": self.gather_samples if self.gather_samples is not None else preset["gather_samples"],
             "light_samples": self.light_samples if self.light_samples is not None else preset["light_samples"],
+            "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset["kernel_rings"],
             "grid": self.grid,
             "seed": int(self.seed),
             "threads": int(self.threads or default_threads()),
         }
         out["max_edge"], out["max_edge_chosen_by"] = options.max_edge(scene, self.quality, self.max_edge)
-        for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("threads", 1)):
+        for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
             if int(out[key]) != out[key] or out[key] < low:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
@@ -107,7 +112,7 @@ def _progress_factory(enabled):
         return _NullProgress
     from tqdm import tqdm
 
-    return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, **kw)
+    return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, disable=None, **kw)
 
 
 def scene_arrays(scene, merged, epsilon):
@@ -233,7 +238,7 @@ def solve(scene, opts=SolveOptions(), progress=False):
         starts = list(range(0, total, PHOTON_BATCH))
         counts = [min(PHOTON_BATCH, total - s) for s in starts]
         if refined.emitters:
-            bar = make_bar(total=total, desc="photons")
+            bar = make_bar(total=total, desc="photons", unit="photon")
             _run_ordered(
                 pool,
                 threads,
@@ -253,8 +258,9 @@ def solve(scene, opts=SolveOptions(), progress=False):
         offsets = merged.vertex_offset
         for i, o in enumerate(refined.objects):
             sl = slice(offsets[i], offsets[i + 1])
-            k0, k1, k2 = density.kernel_moments(o.positions, o.normals, o.tangents, o.faces)
-            irradiance[sl] = density.local_linear(moment0[sl], moment1[sl], k0, k1, k2)
+            irradiance[sl] = density.irradiance(
+                o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"]
+            )
         times["density"] = time.perf_counter() - t0
 
         # -- gather -------------------------------------------------------------------
@@ -267,7 +273,7 @@ def solve(scene, opts=SolveOptions(), progress=False):
             for o in glossy
         }
         work = sum(o.n_vertices for o in glossy)
-        bar = make_bar(total=work, desc="gather") if work else None
+        bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
         for i, o in enumerate(refined.objects):
             sl = slice(offsets[i], offsets[i + 1])
             mat = o.material

@@ -1,0 +1,427 @@
+"""Reader and writer of the solution file (shared/DESIGN.md, "Contract 1").
+
+``solution.npz`` is written with ``numpy.savez_compressed`` and readable with
+``allow_pickle=False``. Keys:
+
+- ``meta``: 0-d str array holding JSON ``{"format": "vlights.solution", "version": 1,
+  "objects": [names], "materials": {name: {"diffuse": [r,g,b], "specular": [r,g,b],
+  "exponent": n, "emission": [r,g,b]}}, "settings": {...}, "stats": {...},
+  "scene": "..."}``;
+- per object ``<name>/positions`` (V, 3) float32, ``<name>/normals`` (V, 3) float32,
+  ``<name>/tangents`` (V, 3) float32, ``<name>/faces`` (F, 3) int32,
+  ``<name>/directions`` (D, 3) float32 (local frame: x tangent, y bitangent =
+  cross(normal, tangent), z normal) and ``<name>/radiance`` (V, D, 3) float32, the
+  outgoing radiance at each vertex in each direction, emission included.
+
+Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
+of ``radiosity.directions`` (D = n * n, row d = j * n + i).
+
+``Solution.save`` writes atomically (``radiosity.atomic``). ``Solution.load`` /
+``load_solution`` validate everything a reader relies on and refuse a bad file with a
+one-line ``InputError``. Constructing an ``ObjectSolution`` or ``Solution`` in code
+applies the same checks but raises ``ValueError`` (a bug, not a user error).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import zipfile
+import zlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .atomic import atomic_output
+from .directions import grid_directions
+from .errors import InputError
+from .materials import Material
+
+__all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
+
+FORMAT = "vlights.solution"
+VERSION = 1
+
+ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
+_MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
+_UNIT_TOLERANCE = 1e-4  # |direction| within this of 1
+_GRID_TOLERANCE = 1e-5  # stored directions within this of the contract's grid
+
+
+class _Invalid(ValueError):
+    """A problem with one object's data; load turns it into an InputError."""
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _shape(a: np.ndarray) -> str:
+    return "(" + ", ".join(str(s) for s in a.shape) + ")"
+
+
+def _as_array(name: str, key: str, value: Any, dtype: type, kinds: str) -> np.ndarray:
+    """``value`` as a C-contiguous array of ``dtype``; its kind must be one of ``kinds``."""
+    a = np.asarray(value)
+    if a.dtype.kind not in kinds:
+        expected = "integers" if kinds == "iu" else "numbers"
+        raise _Invalid(f"'{name}/{key}' has dtype {a.dtype}, expected {expected}")
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def _check_name(name: Any) -> str:
+    if not isinstance(name, str) or not name:
+        raise _Invalid(f"object name must be a non-empty string, got {name!r}")
+    if "/" in name:
+        raise _Invalid(f"object name {name!r} contains '/', which the file's keys use as separator")
+    return name
+
+
+def _material_dict(name: str, material: Any) -> dict:
+    """The contract's material dict, validated through ``Material``; raises _Invalid."""
+    if isinstance(material, Material):
+        return material.to_dict()
+    if not isinstance(material, dict):
+        raise _Invalid(f"material must be a dict, got {type(material).__name__}")
+    missing = [k for k in _MATERIAL_KEYS if k not in material]
+    if missing:
+        raise _Invalid(f"material has no {', '.join(repr(k) for k in missing)}")
+    try:
+        return Material(name, **{k: material[k] for k in _MATERIAL_KEYS}).to_dict()
+    except InputError as exc:
+        raise _Invalid(str(exc)) from None
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class ObjectSolution:
+    """One object of a solution: its solver mesh and outgoing radiance.
+
+    Attributes (arrays are converted on construction to C-contiguous arrays of the
+    contract's dtypes; arrays already in that form are kept, not copied):
+        name: the object's name: non-empty, no '/'.
+        positions: (V, 3) float32 world-space vertex positions.
+        normals: (V, 3) float32 unit shading normals.
+        tangents: (V, 3) float32 unit tangents, orthogonal to the normals.
+        faces: (F, 3) int32 triangles (counter-clockwise seen from the front),
+            indices in [0, V).
+        directions: (D, 3) float32 local outgoing directions: (0, 0, 1) alone for a
+            diffuse object, else ``grid_directions(n)`` with D = n * n.
+        radiance: (V, D, 3) float32 finite outgoing radiance, emission included.
+        material: {"diffuse": [r, g, b], "specular": [r, g, b], "exponent": n,
+            "emission": [r, g, b]} (a ``radiosity.materials.Material`` is accepted
+            and converted).
+
+    Raises ValueError if a shape, dtype kind, face index, direction or radiance value
+    breaks the contract.
+    """
+
+    name: str
+    positions: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+    faces: np.ndarray
+    directions: np.ndarray
+    radiance: np.ndarray
+    material: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        name = _check_name(self.name)
+        try:
+            self._validate(name)
+        except _Invalid as exc:
+            raise _Invalid(f"object {name!r}: {exc}") from None
+
+    def _validate(self, name: str) -> None:
+        put = object.__setattr__
+        floats, ints = "fiu", "iu"
+        for key in ("positions", "normals", "tangents"):
+            put(self, key, _as_array(name, key, getattr(self, key), np.float32, floats))
+        put(self, "faces", _as_array(name, "faces", self.faces, np.int32, ints))
+        put(self, "directions", _as_array(name, "directions", self.directions, np.float32, floats))
+        put(self, "radiance", _as_array(name, "radiance", self.radiance, np.float32, floats))
+
+        p = self.positions
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise _Invalid(f"'{name}/positions' has shape {_shape(p)}, expected (V, 3)")
+        v = p.shape[0]
+        for key in ("normals", "tangents"):
+            a = getattr(self, key)
+            if a.shape != (v, 3):
+                raise _Invalid(f"'{name}/{key}' has shape {_shape(a)}, expected (V, 3) = ({v}, 3)")
+        f = self.faces
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise _Invalid(f"'{name}/faces' has shape {_shape(f)}, expected (F, 3)")
+        d = self.directions
+        if d.ndim != 2 or d.shape[1] != 3 or d.shape[0] < 1:
+            raise _Invalid(
+                f"'{name}/directions' has shape {_shape(d)}, expected (D, 3) with D >= 1"
+            )
+        nd = d.shape[0]
+        r = self.radiance
+        if r.shape != (v, nd, 3):
+            raise _Invalid(
+                f"'{name}/radiance' has shape {_shape(r)}, expected (V, D, 3) = ({v}, {nd}, 3)"
+            )
+
+        for key in ("positions", "normals", "tangents"):
+            if not np.isfinite(getattr(self, key)).all():
+                raise _Invalid(f"'{name}/{key}' contains NaN or infinite values")
+        if f.size and (f.min() < 0 or f.max() >= v):
+            raise _Invalid(
+                f"'{name}/faces' has vertex indices from {f.min()} to {f.max()}, outside [0, {v})"
+            )
+        length = np.linalg.norm(d.astype(np.float64), axis=1)
+        if not (np.abs(length - 1.0) <= _UNIT_TOLERANCE).all():
+            off = np.abs(length - 1.0)
+            worst = float(np.nanmax(off)) if np.isfinite(off).any() else math.nan
+            raise _Invalid(
+                f"'{name}/directions' are not unit vectors (length off by up to {worst:.3g})"
+            )
+        n = math.isqrt(nd)
+        if n * n != nd:
+            raise _Invalid(f"'{name}/directions' has D = {nd}, not a square n * n of the grid")
+        if np.abs(d - grid_directions(n)).max() > _GRID_TOLERANCE:
+            what = "(0, 0, 1)" if n == 1 else f"the {n} x {n} equal-area grid of the contract"
+            raise _Invalid(f"'{name}/directions' are not {what}")
+        if not np.isfinite(r).all():
+            bad = int(np.count_nonzero(~np.isfinite(r)))
+            raise _Invalid(f"'{name}/radiance' has {bad} NaN or infinite values")
+
+        put(self, "material", _material_dict(name, self.material))
+
+    def __repr__(self) -> str:
+        return (
+            f"ObjectSolution(name={self.name!r}, V={self.num_vertices}, F={self.faces.shape[0]}, "
+            f"D={self.directions.shape[0]})"
+        )
+
+    @property
+    def num_vertices(self) -> int:
+        """V."""
+        return self.positions.shape[0]
+
+    @property
+    def is_diffuse(self) -> bool:
+        """True if D == 1 (radiance stored only for the normal direction)."""
+        return self.directions.shape[0] == 1
+
+    @property
+    def grid_n(self) -> int:
+        """n of the n x n direction grid for a glossy object, 0 for a diffuse one."""
+        return 0 if self.is_diffuse else math.isqrt(self.directions.shape[0])
+
+    @property
+    def bitangents(self) -> np.ndarray:
+        """cross(normal, tangent), (V, 3) float32: the local frame's y axis."""
+        return np.cross(self.normals, self.tangents).astype(np.float32, copy=False)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The six arrays keyed as in the file (``<name>/positions``, ...)."""
+        return {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
+
+
+def _json_default(value: Any) -> Any:
+    """Let numpy scalars and arrays in settings / stats serialise as plain JSON."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """A whole solution: objects in order, plus the run's settings, stats and scene.
+
+    Attributes:
+        objects: tuple of ``ObjectSolution``, unique names.
+        settings: JSON-ready dict of the solver settings.
+        stats: JSON-ready dict; at least photons traced, rays cast, wall time per
+            phase, seed, thread count, quality preset (contract; not enforced here).
+        scene: what the scene was (path or built-in name).
+    """
+
+    objects: tuple[ObjectSolution, ...]
+    settings: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+    scene: str = ""
+
+    def __post_init__(self) -> None:
+        objects = tuple(self.objects)
+        for o in objects:
+            if not isinstance(o, ObjectSolution):
+                raise TypeError(f"objects must be ObjectSolution, got {type(o).__name__}")
+        names = [o.name for o in objects]
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise ValueError(f"duplicate object names: {', '.join(map(repr, dupes))}")
+        for key in ("settings", "stats"):
+            if not isinstance(getattr(self, key), dict):
+                raise TypeError(f"{key} must be a dict, got {type(getattr(self, key)).__name__}")
+        if not isinstance(self.scene, str):
+            raise TypeError(f"scene must be a string, got {type(self.scene).__name__}")
+        object.__setattr__(self, "objects", objects)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Object names, in file order."""
+        return tuple(o.name for o in self.objects)
+
+    def object(self, name: str) -> ObjectSolution:
+        """The object called ``name``; KeyError listing the names if there is none."""
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(f"no object {name!r} in the solution (objects: {', '.join(self.names)})")
+
+    def meta(self) -> dict:
+        """The ``meta`` JSON of the file, as a dict."""
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "objects": list(self.names),
+            "materials": {o.name: o.material for o in self.objects},
+            "settings": self.settings,
+            "stats": self.stats,
+            "scene": self.scene,
+        }
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the contract's npz to ``path`` atomically (all or nothing).
+
+        Raises ValueError for an object name containing '/', TypeError if settings or
+        stats hold something JSON cannot represent (numpy scalars, arrays and paths are
+        converted; NaN and infinity are written as Python's json writes them), OSError
+        if the file cannot be written; in every case ``path`` keeps its previous
+        content and no temporary file is left behind.
+        """
+        for o in self.objects:
+            _check_name(o.name)
+        meta = json.dumps(self.meta(), default=_json_default)
+        arrays = {"meta": np.array(meta)}
+        for o in self.objects:
+            arrays.update(o.arrays())
+        with atomic_output(path) as f:
+            np.savez_compressed(f, **arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Solution:
+        """Read and validate a solution file; InputError (one line) if it is not valid."""
+        return _Reader(path).read()
+
+
+def load_solution(path: str | os.PathLike) -> Solution:
+    """Read and validate a solution file; same as ``Solution.load``."""
+    return Solution.load(path)
+
+
+# Errors numpy / zipfile raise on a file that is not a readable npz or a damaged member.
+_READ_ERRORS = (
+    OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error,
+)
+
+
+class _Reader:
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
+
+    def fail(self, problem: str) -> InputError:
+        return InputError(_one_line(f"solution file '{self.path}': {problem}"))
+
+    def not_solution(self, why: object) -> InputError:
+        return InputError(_one_line(f"'{self.path}' is not a solution file ({why})"))
+
+    def read(self) -> Solution:
+        if not os.path.exists(self.path):
+            raise InputError(_one_line(f"solution file '{self.path}' not found"))
+        if os.path.isdir(self.path):
+            raise self.not_solution("it is a directory")
+        try:
+            with open(self.path, "rb") as f:
+                magic = f.read(6)
+        except OSError as exc:
+            raise self.not_solution(f"cannot read it: {exc.strerror or exc}") from None
+        if magic.startswith(b"\x93NUMPY"):
+            raise self.not_solution("a single .npy array, not an .npz archive")
+        if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+            what = "an empty file" if not magic else "not a zip archive"
+            raise self.not_solution(f"{what}; expected an .npz archive")
+        try:
+            npz = np.load(self.path, allow_pickle=False)
+        except _READ_ERRORS as exc:
+            raise self.not_solution(f"{type(exc).__name__}: {exc}") from None
+        if not isinstance(npz, np.lib.npyio.NpzFile):
+            raise self.not_solution("not an .npz archive")
+        with npz:
+            return self._read(npz)
+
+    def _array(self, npz, key: str) -> np.ndarray:
+        try:
+            return npz[key]
+        except _READ_ERRORS as exc:
+            raise self.not_solution(f"cannot read '{key}': {type(exc).__name__}: {exc}") from None
+
+    def _meta(self, npz) -> dict:
+        if "meta" not in npz.files:
+            raise self.not_solution("no 'meta' entry")
+        raw = self._array(npz, "meta")
+        if raw.ndim != 0 or raw.dtype.kind != "U":
+            raise self.not_solution(
+                f"'meta' is a {raw.dtype} array of shape {_shape(raw)}, not a string"
+            )
+        try:
+            meta = json.loads(str(raw))
+        except json.JSONDecodeError as exc:
+            raise self.not_solution(f"'meta' is not JSON: {exc}") from None
+        if not isinstance(meta, dict):
+            raise self.not_solution(f"'meta' is a JSON {type(meta).__name__}, not an object")
+        fmt = meta.get("format")
+        if fmt != FORMAT:
+            raise self.not_solution(f"format {fmt!r}, expected {FORMAT!r}")
+        version = meta.get("version")
+        if not (isinstance(version, int) and not isinstance(version, bool) and version == VERSION):
+            raise self.fail(
+                f"version {version!r} is not supported; this program reads version {VERSION}"
+            )
+        return meta
+
+    def _read(self, npz) -> Solution:
+        meta = self._meta(npz)
+        names = meta.get("objects")
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise self.fail(f"meta 'objects' must be a list of names, got {names!r}")
+        if len(set(names)) != len(names):
+            raise self.fail(f"meta 'objects' lists a name twice: {names!r}")
+        materials = meta.get("materials")
+        if not isinstance(materials, dict):
+            raise self.fail(
+                f"meta 'materials' must be an object of name: material, got {materials!r}"
+            )
+        settings = meta.get("settings", {})
+        stats = meta.get("stats", {})
+        scene = meta.get("scene", "")
+        for key, value, kind in (
+            ("settings", settings, dict), ("stats", stats, dict), ("scene", scene, str)
+        ):
+            if not isinstance(value, kind):
+                kind_name = "object" if kind is dict else "string"
+                raise self.fail(f"meta '{key}' must be a JSON {kind_name}")
+
+        files = set(npz.files)
+        objects = []
+        for name in names:
+            if name not in materials:
+                raise self.fail(f"object {name!r} has no entry in meta 'materials'")
+            missing = [k for k in ARRAY_KEYS if f"{name}/{k}" not in files]
+            if missing:
+                raise self.fail(f"object {name!r} has no '{name}/{missing[0]}' array")
+            arrays = {k: self._array(npz, f"{name}/{k}") for k in ARRAY_KEYS}
+            try:
+                objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
+            except _Invalid as exc:
+                raise self.fail(str(exc)) from None
+        return Solution(objects=tuple(objects), settings=settings, stats=stats, scene=scene)

@@ -1,0 +1,421 @@
+"""Tests for radiosity.solution (Contract 1, the solution file) and radiosity.atomic.
+
+A small synthetic solution (one diffuse object, one glossy object on the 4 x 4 grid)
+is saved and read back, read with plain numpy, written atomically under an
+interrupted writer, and every kind of damaged file is refused with a one-line
+InputError.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from radiosity.atomic import atomic_output
+from radiosity.directions import DIFFUSE_DIRECTIONS, grid_directions
+from radiosity.errors import InputError
+from radiosity.materials import Material
+from radiosity.solution import ARRAY_KEYS, ObjectSolution, Solution, load_solution
+
+DTYPES = {
+    "positions": np.float32,
+    "normals": np.float32,
+    "tangents": np.float32,
+    "faces": np.int32,
+    "directions": np.float32,
+    "radiance": np.float32,
+}
+DIFFUSE_NAME = "floor:left.0"  # ':' and '.' are allowed in names
+GLOSSY_NAME = "teapot"
+BLACK = [0.0, 0.0, 0.0]
+WHITE = {"diffuse": [0.7, 0.7, 0.7], "specular": BLACK, "exponent": 0.0, "emission": BLACK}
+POLISHED = {
+    "diffuse": [0.2, 0.05, 0.05], "specular": [0.5, 0.5, 0.5], "exponent": 60.0, "emission": BLACK
+}
+
+
+def make_object(name: str, n_grid: int, material: dict, seed: int) -> ObjectSolution:
+    """A 2 x 2 quad grid (V = 9, F = 8) in the plane z = 0, arrays as float64 / int64."""
+    rng = np.random.default_rng(seed)
+    u, v = np.meshgrid(np.arange(3.0), np.arange(3.0))
+    positions = np.stack([u.ravel(), v.ravel(), np.zeros(9)], axis=1)
+    faces = []
+    for r in range(2):
+        for c in range(2):
+            k = 3 * r + c
+            faces += [[k, k + 1, k + 4], [k, k + 4, k + 3]]
+    directions = DIFFUSE_DIRECTIONS if n_grid == 0 else grid_directions(n_grid)
+    return ObjectSolution(
+        name=name,
+        positions=positions,
+        normals=np.tile([0.0, 0.0, 1.0], (9, 1)),
+        tangents=np.tile([1.0, 0.0, 0.0], (9, 1)),
+        faces=np.array(faces, dtype=np.int64),
+        directions=directions,
+        radiance=rng.random((9, len(directions), 3)) * 10.0,
+        material=material,
+    )
+
+
+def make_solution() -> Solution:
+    return Solution(
+        objects=(make_object(DIFFUSE_NAME, 0, WHITE, 1), make_object(GLOSSY_NAME, 4, POLISHED, 2)),
+        settings={"quality": "draft", "grid": {"teapot": 4}},
+        stats={
+            "photons": 1000, "rays": np.int64(5000), "wall_s": {"trace": np.float64(0.5)}, "seed": 7
+        },
+        scene="cornell-teapot",
+    )
+
+
+@pytest.fixture
+def solution() -> Solution:
+    return make_solution()
+
+
+@pytest.fixture
+def saved(tmp_path, solution) -> str:
+    path = str(tmp_path / "solution.npz")
+    solution.save(path)
+    return path
+
+
+# ---------------------------------------------------------------------------
+# Round trip and the file's layout
+# ---------------------------------------------------------------------------
+
+
+def test_round_trip(saved, solution):
+    loaded = load_solution(saved)
+    assert loaded.names == (DIFFUSE_NAME, GLOSSY_NAME)
+    assert loaded.scene == "cornell-teapot"
+    assert loaded.settings == {"quality": "draft", "grid": {"teapot": 4}}
+    assert loaded.stats == {"photons": 1000, "rays": 5000, "wall_s": {"trace": 0.5}, "seed": 7}
+    for before, after in zip(solution.objects, loaded.objects):
+        assert after.name == before.name
+        assert after.material == before.material
+        for key, dtype in DTYPES.items():
+            a = getattr(after, key)
+            assert a.dtype == dtype, key
+            np.testing.assert_array_equal(a, getattr(before, key))
+    assert Solution.load(saved).names == loaded.names
+
+
+def test_object_properties(solution):
+    diffuse, glossy = solution.object(DIFFUSE_NAME), solution.object(GLOSSY_NAME)
+    assert diffuse.is_diffuse and diffuse.grid_n == 0
+    assert not glossy.is_diffuse and glossy.grid_n == 4
+    assert glossy.radiance.shape == (9, 16, 3)
+    b = glossy.bitangents
+    assert b.dtype == np.float32 and b.shape == (9, 3)
+    np.testing.assert_array_equal(b, np.tile([0.0, 1.0, 0.0], (9, 1)))  # cross(z, x) = y
+    with pytest.raises(KeyError, match="lamp"):
+        solution.object("lamp")
+    assert "teapot" in repr(solution) and "D=16" in repr(glossy)
+
+
+def test_constructor_converts_to_the_contract_dtypes(solution):
+    for o in solution.objects:
+        for key, dtype in DTYPES.items():
+            a = getattr(o, key)
+            assert a.dtype == dtype and a.flags.c_contiguous, key
+
+
+def test_file_has_exactly_the_contract_keys_and_plain_numpy_reads_it(saved):
+    with np.load(saved, allow_pickle=False) as npz:
+        expected = {"meta"} | {f"{n}/{k}" for n in (DIFFUSE_NAME, GLOSSY_NAME) for k in ARRAY_KEYS}
+        assert set(npz.files) == expected
+        for name, d in ((DIFFUSE_NAME, 1), (GLOSSY_NAME, 16)):
+            for key, dtype in DTYPES.items():
+                assert npz[f"{name}/{key}"].dtype == dtype
+            assert npz[f"{name}/positions"].shape == (9, 3)
+            assert npz[f"{name}/faces"].shape == (8, 3)
+            assert npz[f"{name}/directions"].shape == (d, 3)
+            assert npz[f"{name}/radiance"].shape == (9, d, 3)
+        np.testing.assert_allclose(npz[f"{GLOSSY_NAME}/directions"], grid_directions(4), atol=1e-7)
+        raw = npz["meta"]
+        assert raw.shape == () and raw.dtype.kind == "U"
+        meta = json.loads(str(raw))
+    assert meta["format"] == "vlights.solution" and meta["version"] == 1
+    assert meta["objects"] == [DIFFUSE_NAME, GLOSSY_NAME]
+    assert meta["materials"] == {DIFFUSE_NAME: WHITE, GLOSSY_NAME: POLISHED}
+    assert set(meta) >= {"settings", "stats", "scene"}
+    assert meta["scene"] == "cornell-teapot"
+
+
+def test_file_is_compressed(tmp_path):
+    o = make_object("flat", 32, POLISHED, 3)
+    o = ObjectSolution(**{**{k: getattr(o, k) for k in ("name", "material", *ARRAY_KEYS)},
+                          "radiance": np.zeros((9, 1024, 3))})
+    path = tmp_path / "zeros.npz"
+    Solution((o,)).save(path)
+    assert path.stat().st_size < o.radiance.nbytes / 4
+
+
+def test_material_objects_are_accepted():
+    m = Material("polished", **POLISHED)
+    o = make_object("teapot", 2, m, 4)
+    assert o.material == POLISHED
+
+
+def test_names_with_a_slash_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="'/'"):
+        Solution((make_object("box/top", 0, WHITE, 1),)).save(tmp_path / "s.npz")
+    assert not list(tmp_path.iterdir())
+
+
+def test_duplicate_names_are_refused():
+    with pytest.raises(ValueError, match="duplicate"):
+        Solution((make_object("a", 0, WHITE, 1), make_object("a", 0, WHITE, 2)))
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"radiance": np.zeros((9, 2, 3))}, "radiance"),
+        ({"faces": np.array([[0, 1, 9]])}, "faces"),
+        ({"faces": np.zeros((1, 3), dtype=np.float32)}, "integers"),
+        ({"directions": DIFFUSE_DIRECTIONS * 2.0}, "unit"),
+        ({"directions": grid_directions(2)[::-1].copy(), "radiance": np.zeros((9, 4, 3))}, "grid"),
+        ({"radiance": np.full((9, 1, 3), np.inf)}, "infinite"),
+        ({"material": {"diffuse": [0.7, 0.7, 0.7]}}, "material"),
+    ],
+)
+def test_constructor_refuses_data_that_breaks_the_contract(change, match):
+    o = make_object("x", 0, WHITE, 1)
+    kwargs = {k: getattr(o, k) for k in ("name", "material", *ARRAY_KEYS)}
+    with pytest.raises(ValueError, match=match):
+        ObjectSolution(**{**kwargs, **change})
+
+
+def test_save_replaces_an_existing_file_and_keeps_open_permissions(tmp_path, solution):
+    path = tmp_path / "solution.npz"
+    path.write_bytes(b"old")
+    solution.save(path)
+    assert load_solution(path).names == solution.names
+    assert os.listdir(tmp_path) == ["solution.npz"]
+    reference = tmp_path / "plain"
+    reference.write_bytes(b"")
+    assert (path.stat().st_mode & 0o777) == (reference.stat().st_mode & 0o777)
+
+
+# ---------------------------------------------------------------------------
+# Atomicity
+# ---------------------------------------------------------------------------
+
+
+def interrupted_savez(file, *args, **kwargs):
+    """Stands in for numpy.savez_compressed: writes part of the data, then Ctrl-C."""
+    file.write(b"PK\x03\x04 half a zip archive")
+    file.flush()
+    raise KeyboardInterrupt
+
+
+def test_interrupted_save_leaves_no_file(tmp_path, solution, monkeypatch):
+    monkeypatch.setattr(np, "savez_compressed", interrupted_savez)
+    with pytest.raises(KeyboardInterrupt):
+        solution.save(tmp_path / "solution.npz")
+    assert os.listdir(tmp_path) == []
+
+
+def test_interrupted_save_keeps_the_older_file(tmp_path, solution, monkeypatch):
+    path = tmp_path / "solution.npz"
+    solution.save(path)
+    old = path.read_bytes()
+    monkeypatch.setattr(np, "savez_compressed", interrupted_savez)
+    with pytest.raises(KeyboardInterrupt):
+        make_solution().save(path)
+    assert os.listdir(tmp_path) == ["solution.npz"]
+    assert path.read_bytes() == old
+
+
+def test_unserialisable_stats_fail_before_any_file_is_made(tmp_path):
+    s = Solution((make_object("a", 0, WHITE, 1),), stats={"bad": object()})
+    with pytest.raises(TypeError):
+        s.save(tmp_path / "s.npz")
+    assert os.listdir(tmp_path) == []
+
+
+def test_atomic_output_commits_on_success_and_cleans_up_on_error(tmp_path):
+    path = tmp_path / "out.bin"
+    with atomic_output(path) as f:
+        f.write(b"new")
+        assert not path.exists()  # nothing visible until the block ends
+    assert path.read_bytes() == b"new"
+    with pytest.raises(RuntimeError):
+        with atomic_output(path) as f:
+            f.write(b"newer, but broken")
+            raise RuntimeError("boom")
+    assert path.read_bytes() == b"new"
+    assert os.listdir(tmp_path) == ["out.bin"]
+    (tmp_path / "dir").mkdir()
+    with pytest.raises(OSError):  # the rename onto a directory fails
+        with atomic_output(tmp_path / "dir") as f:
+            f.write(b"x")
+    assert sorted(os.listdir(tmp_path)) == ["dir", "out.bin"]
+
+
+# ---------------------------------------------------------------------------
+# Bad files: InputError with a one-line message
+# ---------------------------------------------------------------------------
+
+
+def contents(solution: Solution) -> tuple[dict, dict]:
+    """(meta dict, arrays dict) of a good file, to damage before writing it."""
+    arrays = {}
+    for o in solution.objects:
+        arrays.update(o.arrays())
+    return json.loads(json.dumps(solution.meta(), default=lambda v: v.item())), arrays
+
+
+def write_npz(path, meta, arrays) -> str:
+    np.savez_compressed(path, meta=np.array(json.dumps(meta)), **arrays)
+    return str(path)
+
+
+def refused(path, *fragments: str) -> str:
+    with pytest.raises(InputError) as info:
+        load_solution(path)
+    message = str(info.value)
+    assert "\n" not in message and "\r" not in message, message
+    for fragment in fragments:
+        assert fragment in message, message
+    return message
+
+
+def test_good_file_written_by_plain_numpy_is_accepted(tmp_path, solution):
+    meta, arrays = contents(solution)
+    loaded = load_solution(write_npz(tmp_path / "s.npz", meta, arrays))
+    assert loaded.names == solution.names
+
+
+def test_missing_file(tmp_path):
+    path = tmp_path / "nothing.npz"
+    assert refused(path) == f"solution file '{path}' not found"
+
+
+def test_not_a_zip(tmp_path):
+    path = tmp_path / "s.npz"
+    path.write_text("this is not\na zip archive\n")
+    refused(path, "is not a solution file", "not a zip archive")
+    path.write_bytes(b"")
+    refused(path, "is not a solution file", "empty")
+
+
+def test_truncated_file(tmp_path, saved):
+    data = open(saved, "rb").read()
+    path = tmp_path / "cut.npz"
+    path.write_bytes(data[: len(data) // 2])
+    refused(path, "is not a solution file")
+
+
+def test_corrupted_member(tmp_path, saved):
+    data = bytearray(open(saved, "rb").read())
+    with zipfile.ZipFile(saved) as z:
+        info = z.getinfo(f"{GLOSSY_NAME}/radiance.npy")
+    start = info.header_offset + 30 + len(info.filename) + len(info.extra)  # member data
+    for k in range(10, min(200, info.compress_size)):
+        data[start + k] ^= 0x55
+    path = tmp_path / "corrupt.npz"
+    path.write_bytes(bytes(data))
+    refused(path, "is not a solution file", f"'{GLOSSY_NAME}/radiance'")
+
+
+def test_directory_and_npy_are_refused(tmp_path):
+    refused(tmp_path, "is not a solution file", "directory")
+    np.save(tmp_path / "a.npy", np.zeros(3))
+    refused(tmp_path / "a.npy", "is not a solution file", ".npy")
+
+
+def test_zip_without_meta(tmp_path, solution):
+    _, arrays = contents(solution)
+    np.savez_compressed(tmp_path / "s.npz", **arrays)
+    refused(tmp_path / "s.npz", "is not a solution file", "'meta'")
+
+
+def test_meta_not_json(tmp_path, solution):
+    _, arrays = contents(solution)
+    np.savez_compressed(tmp_path / "s.npz", meta=np.array("{not json"), **arrays)
+    refused(tmp_path / "s.npz", "'meta' is not JSON")
+
+
+def test_wrong_format_string(tmp_path, solution):
+    meta, arrays = contents(solution)
+    meta["format"] = "vlights.fit"
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
+
+
+@pytest.mark.parametrize("version", [2, "1", None, True])
+def test_wrong_version(tmp_path, solution, version):
+    meta, arrays = contents(solution)
+    meta["version"] = version
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), f"version {version!r}")
+
+
+@pytest.mark.parametrize("key", ARRAY_KEYS)
+def test_missing_key(tmp_path, solution, key):
+    meta, arrays = contents(solution)
+    del arrays[f"{GLOSSY_NAME}/{key}"]
+    path = write_npz(tmp_path / "s.npz", meta, arrays)
+    refused(path, f"'{GLOSSY_NAME}'", f"'{GLOSSY_NAME}/{key}'")
+
+
+def test_missing_material(tmp_path, solution):
+    meta, arrays = contents(solution)
+    del meta["materials"][DIFFUSE_NAME]
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{DIFFUSE_NAME}'", "materials")
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("radiance", np.zeros((9, 15, 3), np.float32)),  # D does not match directions
+        ("radiance", np.zeros((8, 16, 3), np.float32)),  # V does not match positions
+        ("normals", np.zeros((9, 2), np.float32)),
+        ("faces", np.zeros((4, 4), np.int32)),
+        ("directions", np.zeros((16,), np.float32)),
+    ],
+)
+def test_shape_mismatch(tmp_path, solution, key, value):
+    meta, arrays = contents(solution)
+    arrays[f"{GLOSSY_NAME}/{key}"] = value
+    path = write_npz(tmp_path / "s.npz", meta, arrays)
+    message = refused(path, f"'{GLOSSY_NAME}/{key}'", "shape")
+    assert str(value.shape).replace(",)", ")") in message
+
+
+def test_nan_radiance(tmp_path, solution):
+    meta, arrays = contents(solution)
+    arrays[f"{GLOSSY_NAME}/radiance"] = arrays[f"{GLOSSY_NAME}/radiance"].copy()
+    arrays[f"{GLOSSY_NAME}/radiance"][3, 5, 1] = np.nan
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{GLOSSY_NAME}/radiance'", "NaN")
+
+
+@pytest.mark.parametrize(
+    "key, damage, fragment",
+    [
+        ("directions", lambda d: d * 1.01, "unit"),
+        ("directions", lambda d: d[[1, 0, *range(2, 16)]], "grid"),
+        ("faces", lambda f: f + 5, "outside"),
+        ("positions", lambda p: np.where(p == 0, np.inf, p).astype(np.float32), "infinite"),
+        ("radiance", lambda r: r.astype(object), "cannot read"),
+    ],
+)
+def test_other_contract_violations(tmp_path, solution, key, damage, fragment):
+    meta, arrays = contents(solution)
+    arrays[f"{GLOSSY_NAME}/{key}"] = damage(arrays[f"{GLOSSY_NAME}/{key}"])
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), fragment)
+
+
+def test_float64_file_is_read_as_the_contract_dtypes(tmp_path, solution):
+    meta, arrays = contents(solution)
+    wide = {np.dtype(np.float32): np.float64, np.dtype(np.int32): np.int64}
+    arrays = {k: v.astype(wide[v.dtype]) for k, v in arrays.items()}
+    loaded = load_solution(write_npz(tmp_path / "s.npz", meta, arrays))
+    for o in loaded.objects:
+        for key, dtype in DTYPES.items():
+            assert getattr(o, key).dtype == dtype
