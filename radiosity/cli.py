@@ -102,8 +102,12 @@ def format_summary(solution, path):
         f"  photons  {st['photons']:,} traced, {st['photon_rays']:,} rays, "
         f"{st['photon_rays_per_s'] / 1e6:.2f} M rays/s, {t['photons']:.2f} s",
         f"  density  {t['density']:.2f} s",
-        f"  gather   {st['gather_rays']:,} rays, {st['gather_rays_per_s'] / 1e6:.2f} M rays/s, "
-        f"{t['gather']:.2f} s" + (f"  (grids: {', '.join(f'{k} {v}' for k, v in glossy.items())})" if glossy else ""),
+        (
+            f"  gather   {st['gather_rays']:,} rays, {st['gather_rays_per_s'] / 1e6:.2f} M rays/s, "
+            f"{t['gather']:.2f} s  (grids: {', '.join(f'{k} {v}' for k, v in glossy.items())})"
+            if glossy
+            else "  gather   none: no glossy objects"
+        ),
         f"  total    {total:.2f} s (setup {t['setup']:.2f} s)",
         f"wrote {path} ({size / 1e6:.2f} MB)",
     ]

@@ -18,13 +18,18 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from .directions import hemisphere_to_square_nb
 from .materials import EMISSION, EXPONENT, KD, KS, brdf_eval, brdf_sample, onb, phong_lobe
 
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
 # tally slots of a photon batch (RGB triples, then counts)
 T_ESCAPED, T_ABSORBED, T_INCIDENT, T_BACKFACE, T_TERMINATED = 0, 3, 6, 9, 12
 T_HITS, T_LENGTH = 15, 16
-LOBE_CUTOFF = 1e-7  # gather: lobe values below this fraction of the peak are skipped
+LOBE_CUTOFF = 1e-3  # gather: lobe values below this fraction of the peak are skipped (<= 0.1 % of its energy)
+LOBE_TABLE = 2048  # entries of the cos^n table
+# the concentric map shrinks no angle by more than 0.73 (square max-norm units per radian
+# at least 1 / 0.73, measured over 2e6 random pairs; tests check it): 0.7 leaves a margin
+SQUARE_PER_RADIAN = 1.0 / 0.7
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
@@ -451,22 +456,38 @@ def shade_paths(
 @numba.njit(cache=True, nogil=True)
 def gather_outputs(
     mat, emission, diffuse_radiance, n_light, n_gather,
-    light_wi, light_radiance, light_pdf, light_visible, gather_wi, incoming, directions, out,
+    light_wi, light_radiance, light_pdf, light_visible, gather_wi, incoming, grid_n, directions, out,
 ):
-    """Outgoing radiance of a block of vertices in every grid direction.
+    """Outgoing radiance of a block of vertices in every direction of an n x n grid.
 
     out[b, d] = emission + diffuse_radiance[b] + the specular lobe's integral of the
     incoming light for wo = directions[d], estimated from the vertex's light samples
     (balance-heuristic weighted against the gather rays) and its gather rays, all
     shared by every direction d.
 
+    Each sample adds ks (n + 2) / (2 pi) cos^n(alpha) times its weight to the grid
+    directions within its lobe, alpha measured from its mirror direction; directions
+    where the lobe is below LOBE_CUTOFF of its peak are skipped (that loses at most
+    LOBE_CUTOFF of the lobe's energy). The cells to visit come from the grid's square:
+    the concentric map never shrinks angles by more than SQUARE_PER_RADIAN, so a
+    window of that many square units per radian of lobe holds every cell that
+    matters. cos^n comes from a table over the lobe's range of cos alpha, linearly
+    interpolated (relative error ~1e-6 whatever n).
+
     mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
     (B, 3) kd E / pi; light_* : (B * n_light, ...); gather_wi, incoming :
-    (B * n_gather, 3); directions : (D, 3) local; out : (B, D, 3) float64.
+    (B * n_gather, 3); directions : (grid_n^2, 3) local, ``directions.grid_directions``;
+    out : (B, grid_n^2, 3) float64.
     """
     n = mat[EXPONENT]
     norm = (n + 2.0) / (2.0 * math.pi)
     cos_min = math.exp(math.log(LOBE_CUTOFF) / n) if n > 1e-9 else 0.0
+    half = math.acos(cos_min) * SQUARE_PER_RADIAN
+    table = np.empty(LOBE_TABLE)
+    step = (1.0 - cos_min) / (LOBE_TABLE - 1)
+    for k in range(LOBE_TABLE):
+        table[k] = phong_lobe(cos_min + k * step, n)
+    inv_step = 1.0 / step
     n_samples = n_light + n_gather
     mirror = np.empty((n_samples, 3))
     weight = np.empty((n_samples, 3))
@@ -492,17 +513,28 @@ def gather_outputs(
             for c in range(3):
                 weight[used, c] = math.pi / n_gather * incoming[i, c]
             used += 1
-        for d in range(directions.shape[0]):
-            wx, wy, wz = directions[d, 0], directions[d, 1], directions[d, 2]
-            acc0, acc1, acc2 = 0.0, 0.0, 0.0
-            for s in range(used):
-                cos_alpha = mirror[s, 0] * wx + mirror[s, 1] * wy + mirror[s, 2] * wz
-                if cos_alpha <= cos_min:
-                    continue
-                lobe = phong_lobe(cos_alpha, n)
-                acc0 += lobe * weight[s, 0]
-                acc1 += lobe * weight[s, 1]
-                acc2 += lobe * weight[s, 2]
-            out[b, d, 0] = emission[0] + diffuse_radiance[b, 0] + norm * mat[KS] * acc0
-            out[b, d, 1] = emission[1] + diffuse_radiance[b, 1] + norm * mat[KS + 1] * acc1
-            out[b, d, 2] = emission[2] + diffuse_radiance[b, 2] + norm * mat[KS + 2] * acc2
+        acc = out[b]
+        acc[:, :] = 0.0
+        for s in range(used):
+            rx, ry, rz = mirror[s, 0], mirror[s, 1], mirror[s, 2]
+            sa_, sb_ = hemisphere_to_square_nb(rx, ry, rz)
+            i_lo = max(0, int(math.floor((sa_ - half + 1.0) * 0.5 * grid_n - 0.5)))
+            i_hi = min(grid_n - 1, int(math.ceil((sa_ + half + 1.0) * 0.5 * grid_n - 0.5)))
+            j_lo = max(0, int(math.floor((sb_ - half + 1.0) * 0.5 * grid_n - 0.5)))
+            j_hi = min(grid_n - 1, int(math.ceil((sb_ + half + 1.0) * 0.5 * grid_n - 0.5)))
+            w0, w1, w2 = weight[s, 0], weight[s, 1], weight[s, 2]
+            for j in range(j_lo, j_hi + 1):
+                for i in range(i_lo, i_hi + 1):
+                    d = j * grid_n + i
+                    cos_alpha = rx * directions[d, 0] + ry * directions[d, 1] + rz * directions[d, 2]
+                    if cos_alpha <= cos_min:
+                        continue
+                    x = min((cos_alpha - cos_min) * inv_step, LOBE_TABLE - 1.0)
+                    k = min(int(x), LOBE_TABLE - 2)
+                    lobe = table[k] + (x - k) * (table[k + 1] - table[k])
+                    acc[d, 0] += lobe * w0
+                    acc[d, 1] += lobe * w1
+                    acc[d, 2] += lobe * w2
+        for d in range(acc.shape[0]):
+            for c in range(3):
+                acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]

@@ -13,7 +13,7 @@ QUALITIES = ("draft", "medium", "high")
 DEFAULT_QUALITY = "draft"
 
 # maximum edge length of the solver mesh, as a fraction of the scene's bounding-box diagonal
-MAX_EDGE_FRACTION = {"draft": 1 / 16, "medium": 1 / 32, "high": 1 / 64}
+MAX_EDGE_FRACTION = {"draft": 1 / 24, "medium": 1 / 40, "high": 1 / 64}
 
 
 def max_edge(scene, quality=DEFAULT_QUALITY, explicit=None):

@@ -36,9 +36,9 @@ ALBEDO_TABLE_SIZE = 129
 
 PRESETS = {
     # photons in all; gather rays, light samples per glossy vertex; density kernel width
-    "draft": dict(photons=1_000_000, gather_samples=256, light_samples=32, kernel_rings=1),
-    "medium": dict(photons=4_000_000, gather_samples=1024, light_samples=64, kernel_rings=1),
-    "high": dict(photons=16_000_000, gather_samples=4096, light_samples=256, kernel_rings=1),
+    "draft": dict(photons=2_000_000, gather_samples=256, light_samples=32, kernel_rings=1),
+    "medium": dict(photons=8_000_000, gather_samples=1024, light_samples=64, kernel_rings=1),
+    "high": dict(photons=32_000_000, gather_samples=4096, light_samples=256, kernel_rings=1),
 }
 
 
@@ -81,7 +81,7 @@ class SolveOptions:
             "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset["kernel_rings"],
             "grid": self.grid,
             "seed": int(self.seed),
-            "threads": int(self.threads or default_threads()),
+            "threads": default_threads() if self.threads is None else self.threads,
         }
         out["max_edge"], out["max_edge_chosen_by"] = options.max_edge(scene, self.quality, self.max_edge)
         for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
@@ -336,7 +336,7 @@ def _gather_object(pool, tracer, sa, irradiance, obj, offset, dirs, settings, ba
     n_light = settings["light_samples"] if len(sa.emit_triangles) and sa.emit_area_pdf.any() else 0
     n_gather = settings["gather_samples"]
     strata = math.isqrt(n_gather)
-    block = max(8, min(1024, (1 << 18) // (n_light + n_gather)))
+    block = max(8, min(256, (1 << 16) // (n_light + n_gather)))  # small blocks balance the threads
     vertices = np.arange(offset, offset + obj.n_vertices, dtype=np.int64)
     blocks = [vertices[s:s + block] for s in range(0, len(vertices), block)]
     mat = pack_materials([obj.material])[0]
@@ -398,7 +398,7 @@ def gather_block(tracer, sa, irradiance, verts, mat, emission, kd, n_light, n_ga
     diffuse = kd[None, :] * irradiance[verts]
     kernels.gather_outputs(
         mat, emission, diffuse, n_light, n_gather, light_wi, light_le, light_pdf, visible,
-        g_wi, incoming, dirs, values,
+        g_wi, incoming, math.isqrt(len(dirs)), dirs, values,
     )
     return values
 

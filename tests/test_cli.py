@@ -94,3 +94,56 @@ def test_installed_entry_point(tmp_path):
     fail = subprocess.run(["vlights", "scene-info", str(bad)], capture_output=True, text=True)
     assert fail.returncode == 2 and fail.stdout == ""
     assert fail.stderr.count("\n") == 1 and "line 1" in fail.stderr and "Traceback" not in fail.stderr
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_ctrl_c_during_solve_leaves_no_file(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "solution.npz"
+    proc = subprocess.Popen(
+        ["vlights", "solve", "cornell-teapot", "--photons", "400000000", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    time.sleep(6)  # imports, numba cache load, and well into the photon pass
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err.strip().splitlines()[-1] == "vlights solve: interrupted" and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []  # no solution, no temporary file
+
+
+def test_solve_writes_a_readable_solution_and_a_summary(tmp_path, capsys):
+    from radiosity.solution import load_solution
+
+    out = tmp_path / "s.npz"
+    code, stdout, _ = run(
+        ["solve", "cornell", "-o", str(out), "--photons", "20000", "--max-edge", "200", "--seed", "3"], capsys
+    )
+    assert code == 0
+    for word in ("photons", "rays/s", "density", "gather", "total", "wrote", "MB"):
+        assert word in stdout
+    solution = load_solution(out)
+    assert solution.stats["photons"] == 20000 and solution.stats["seed"] == 3
+    assert set(solution.stats["time_s"]) == {"setup", "photons", "density", "gather"}
+    assert {"photons", "rays", "threads", "quality", "seed"} <= set(solution.stats)
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--photons", "0"], "--photons"),
+        (["--gather-samples", "-4"], "--gather-samples"),
+        (["--grid", "0"], "--grid"),
+        (["--threads", "0"], "--threads"),
+        (["--max-edge", "0"], "--max-edge"),
+        (["-o", "out.txt"], "must end in .npz"),
+    ],
+)
+def test_solve_refuses_bad_knobs(flags, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(["solve", "cornell"] + flags, capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and message in err
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,239 @@
+"""How fast is the solver, against Embree itself, and does its memory stay flat?
+
+Usage:
+    python benchmarks/bench_solver.py [--scene cornell-teapot] [--repeats 3] [--quick]
+
+Measures, on one scene in one run, with the same thread count throughout:
+  1. bare Embree: closest-hit rays per second of incoherent rays (origins on the
+     surfaces, cosine-distributed directions, like photons and gather rays), through
+     the same ``RayTracer`` with its own thread pool;
+  2. the solver's photon pass and gather: their rays per second (rays / phase time,
+     all kernel work included), as ratios to (1);
+  3. peak memory (max RSS of a fresh process) at N and 10 N photons;
+  4. solve time of the scene at each quality preset, numba compile time apart
+     (a first solve in a fresh process with an empty cache, against a warm one).
+
+Medians of ``--repeats`` runs. Results: JSON lines in benchmarks/results/solver.jsonl,
+a plot in benchmarks/results/solver.png. Machine and thread count are recorded.
+Equivalence check: the same seed gives the same radiance at 1 and N threads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+
+
+def machine():
+    return {
+        "cores": os.cpu_count(),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+        "cpu": platform.processor() or platform.uname().machine,
+    }
+
+
+def bare_embree_rays_per_second(scene, threads, n_rays, repeats):
+    from radiosity.embree import RayTracer
+
+    refined = scene
+    merged = refined.merged()
+    rng = np.random.default_rng(0)
+    tri = rng.integers(0, len(merged.faces), n_rays)
+    bary = rng.random((n_rays, 2))
+    flip = bary.sum(axis=1) > 1
+    bary[flip] = 1 - bary[flip]
+    p = merged.positions.astype(np.float64)[merged.faces[tri]]
+    points = p[:, 0] + bary[:, :1] * (p[:, 1] - p[:, 0]) + bary[:, 1:] * (p[:, 2] - p[:, 0])
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    d = rng.normal(size=(n_rays, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
+    with RayTracer(merged.positions, merged.faces, threads=threads) as tracer:
+        origins = (points + tracer.epsilon * normal).astype(np.float32)
+        d = d.astype(np.float32)
+        rates = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            tracer.intersect(origins, d)
+            rates.append(n_rays / (time.perf_counter() - t))
+    return float(np.median(rates))
+
+
+def peak_memory_mb(scene_name, photons, threads):
+    # a child inherits its parent's high-water RSS across fork and exec: reset it first
+    code = (
+        "open('/proc/self/clear_refs', 'w').write('5')\n"
+        "from radiosity.loaders import load_scene\n"
+        "from radiosity.solver import solve, SolveOptions\n"
+        f"solve(load_scene({scene_name!r}), SolveOptions(photons={photons}, gather_samples=4, light_samples=1, threads={threads}))\n"
+        "status = open('/proc/self/status').read().split('VmHWM:')[1]\n"
+        "print(int(status.split()[0]) / 1024)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def timed_solve_in_fresh_process(scene_name, quality, threads, cache_dir):
+    code = (
+        "import time, json\n"
+        "t0 = time.perf_counter()\n"
+        "from radiosity.loaders import load_scene\n"
+        "from radiosity.solver import solve, SolveOptions\n"
+        f"scene = load_scene({scene_name!r})\n"
+        "t1 = time.perf_counter()\n"
+        f"sol = solve(scene, SolveOptions(quality={quality!r}, threads={threads}))\n"
+        "t2 = time.perf_counter()\n"
+        "print(json.dumps({'import_load_s': t1 - t0, 'solve_s': t2 - t1, 'phases': sol.stats['time_s']}))\n"
+    )
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="cornell-teapot")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=os.cpu_count())
+    parser.add_argument("--quick", action="store_true", help="fewer photons and presets, for a smoke run")
+    args = parser.parse_args(argv)
+
+    from radiosity.loaders import load_scene
+    from radiosity.solver import SolveOptions, solve
+
+    RESULTS.mkdir(exist_ok=True)
+    rows = []
+    info = machine() | {"threads": args.threads, "scene": args.scene}
+
+    def record(row):
+        row = info | row
+        rows.append(row)
+        print(json.dumps(row))
+
+    scene = load_scene(args.scene)
+    photons = 500_000 if args.quick else 2_000_000
+    opts = SolveOptions(quality="draft", photons=photons, threads=args.threads)
+    solve(scene, SolveOptions(photons=1000, gather_samples=4, light_samples=1))  # compile, warm caches
+    refined = scene.refined(opts.resolved(scene)["max_edge"])
+
+    # 1 + 2: rays per second, solver against bare Embree, interleaved runs, medians
+    bare, photon_rate, gather_rate = [], [], []
+    for _ in range(args.repeats):
+        bare.append(bare_embree_rays_per_second(refined, args.threads, 2_000_000, 1))
+        stats = solve(scene, opts).stats
+        photon_rate.append(stats["photon_rays_per_s"])
+        gather_rate.append(stats["gather_rays_per_s"])
+    record(
+        {
+            "question": "rays per second",
+            "bare_embree_rays_per_s": float(np.median(bare)),
+            "photon_rays_per_s": float(np.median(photon_rate)),
+            "gather_rays_per_s": float(np.median(gather_rate)),
+            "photon_ratio": float(np.median(photon_rate) / np.median(bare)),
+            "gather_ratio": float(np.median(gather_rate) / np.median(bare)),
+            "target_ratio": 0.5,
+            "photons": photons,
+        }
+    )
+
+    # equivalence: thread count does not change the answer
+    small = SolveOptions(photons=100_000, gather_samples=16, light_samples=4, seed=5)
+    a = solve(scene, SolveOptions(**{**small.__dict__, "threads": 1}))
+    b = solve(scene, SolveOptions(**{**small.__dict__, "threads": args.threads}))
+    same = all(np.array_equal(x.radiance, y.radiance) for x, y in zip(a.objects, b.objects))
+    record({"question": "same answer at 1 and N threads", "identical": bool(same)})
+
+    # 3: peak memory at N and 10 N photons
+    n_small = 200_000 if args.quick else 1_000_000
+    mem = [peak_memory_mb(args.scene, n, args.threads) for n in (n_small, 10 * n_small)]
+    record(
+        {
+            "question": "peak memory",
+            "photons": [n_small, 10 * n_small],
+            "peak_rss_mb": mem,
+            "growth": mem[1] / mem[0] - 1,
+            "target_growth": 0.10,
+        }
+    )
+
+    # 4: solve time per preset, compile apart
+    presets = ["draft"] if args.quick else ["draft", "medium", "high"]
+    cache = Path(tempfile.mkdtemp(prefix="vlights-numba-"))
+    try:
+        cold = timed_solve_in_fresh_process(args.scene, "draft", args.threads, cache)
+        for quality in presets:
+            warm = [timed_solve_in_fresh_process(args.scene, quality, args.threads, cache) for _ in range(args.repeats)]
+            solve_s = float(np.median([w["solve_s"] for w in warm]))
+            record(
+                {
+                    "question": "solve time per preset",
+                    "quality": quality,
+                    "solve_s_warm_median": solve_s,
+                    "phases_s": warm[0]["phases"],
+                    "target_s": 30.0 if quality == "draft" else None,
+                }
+            )
+        warm_draft = next(r for r in rows if r.get("quality") == "draft")["solve_s_warm_median"]
+        record(
+            {
+                "question": "numba compile time",
+                "cold_first_solve_s": cold["solve_s"],
+                "warm_solve_s": warm_draft,
+                "compile_s": cold["solve_s"] - warm_draft,
+            }
+        )
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+
+    with open(RESULTS / "solver.jsonl", "w") as f:
+        for row in rows:
+            f.write(json.dumps(row) + "\n")
+    plot(rows, RESULTS / "solver.png")
+    return 0
+
+
+def plot(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    r = next(r for r in rows if r["question"] == "rays per second")
+    names = ["bare Embree", "photon pass", "gather"]
+    values = [r["bare_embree_rays_per_s"], r["photon_rays_per_s"], r["gather_rays_per_s"]]
+    axes[0].bar(names, np.array(values) / 1e6, color=["grey", "tab:orange", "tab:blue"])
+    axes[0].axhline(0.5 * values[0] / 1e6, ls="--", c="k", lw=1, label="target: 0.5 x bare")
+    axes[0].set_ylabel("M rays / s")
+    axes[0].set_title(f"rays per second, {r['threads']} threads")
+    axes[0].legend()
+    m = next(r for r in rows if r["question"] == "peak memory")
+    axes[1].bar([f"{n:,}" for n in m["photons"]], m["peak_rss_mb"], color="tab:green")
+    axes[1].set_xlabel("photons")
+    axes[1].set_ylabel("peak RSS (MB)")
+    axes[1].set_title(f"memory: {100 * m['growth']:+.1f} % for 10x photons")
+    presets = [r for r in rows if r["question"] == "solve time per preset"]
+    axes[2].bar([p["quality"] for p in presets], [p["solve_s_warm_median"] for p in presets], color="tab:purple")
+    axes[2].set_ylabel("solve time (s), warm cache")
+    axes[2].set_title(f"{r['scene']} per preset")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
