@@ -28,7 +28,7 @@ def test_help_lists_every_subcommand(capsys):
         assert command in out
 
 
-@pytest.mark.parametrize("command", ["fit", "render", "view", "compare", "demo"])
+@pytest.mark.parametrize("command", ["render", "view", "compare", "demo"])
 def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
     code, out, err = run([command], capsys)
     assert code == 2 and out == ""
@@ -147,3 +147,52 @@ def test_solve_refuses_bad_knobs(flags, message, tmp_path, capsys, monkeypatch):
     code, out, err = run(["solve", "cornell"] + flags, capsys)
     assert code == 2 and out == "" and err.count("\n") == 1 and message in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def small_solution(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sol") / "s.npz"
+    code = main(["solve", "cornell-teapot", "-o", str(out), "--photons", "20000", "--max-edge", "150",
+                 "--gather-samples", "16", "--light-samples", "4", "--grid", "8"])
+    assert code == 0
+    return out
+
+
+def test_fit_writes_a_model_and_reports_errors(small_solution, tmp_path, capsys):
+    from fitting import load_fit
+
+    capsys.readouterr()
+    out = tmp_path / "f.npz"
+    code, stdout, _ = run(["fit", str(small_solution), "-o", str(out), "--lights", "2", "--method", "paper"], capsys)
+    assert code == 0
+    assert "teapot" in stdout and "rel. RMS" in stdout and "diffuse only" in stdout
+    model = load_fit(out)
+    assert model.object("teapot").n_lights == 2 and model.object("floor").n_lights == 0
+    assert model.object("teapot").info["error"]["relative_rms"] < model.object("teapot").info["error"]["diffuse_only_relative_rms"]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--lights", "many"], "--lights"),
+        (["--lights", "-1"], "--lights"),
+        (["--exponent-bounds", "10", "1"], "exponent bounds"),
+        (["--target", "0"], "--target"),
+        (["--iterations", "-2"], "--iterations"),
+    ],
+)
+def test_fit_refuses_bad_flags(small_solution, args, message, tmp_path, capsys):
+    capsys.readouterr()
+    code, out, err = run(["fit", str(small_solution), "-o", str(tmp_path / "f.npz")] + args, capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("content", [b"", b"not a zip", None])
+def test_fit_refuses_bad_solution_files(content, tmp_path, capsys):
+    path = tmp_path / "bad.npz"
+    if content is not None:
+        path.write_bytes(content)
+    code, out, err = run(["fit", str(path), "-o", str(tmp_path / "f.npz")], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "Traceback" not in err
+    assert not (tmp_path / "f.npz").exists()
