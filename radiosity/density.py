@@ -138,12 +138,6 @@ def _fit(moments):
     return np.maximum(estimate, 0.0), mass
 
 
-def local_linear(moment0, moment1, k0, k1, k2):
-    """Vertex irradiance (V, 3) float64 from photon moments S0 (V, 3), S1 (V, 3, 2)
-    and kernel moments (V,), (V, 2), (V, 2, 2); never negative."""
-    return _fit((moment0, moment1, k0, k1, k2))[0]
-
-
 def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, max_extra_rings=3):
     """Vertex irradiance (V, 3) of one object from its photon moments.
 

@@ -155,6 +155,17 @@ def _cosine_direction(u1, u2):
     return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
 
 
+@numba.njit(inline="always")
+def _push_ray(origins, directions, values, i, x, y, z, g, epsilon, dx, dy, dz, v0, v1, v2):
+    """Write outgoing ray i: origin (x, y, z) offset along the front normal g, direction
+    (dx, dy, dz), and its RGB payload (power or throughput)."""
+    origins[i, 0] = x + epsilon * g[0]
+    origins[i, 1] = y + epsilon * g[1]
+    origins[i, 2] = z + epsilon * g[2]
+    directions[i, 0], directions[i, 1], directions[i, 2] = dx, dy, dz
+    values[i, 0], values[i, 1], values[i, 2] = v0, v1, v2
+
+
 # -- photons --------------------------------------------------------------------------
 
 
@@ -278,15 +289,8 @@ def bounce_photons(
         if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
             continue
         out_ids[n_out] = pid
-        out_origins[n_out, 0] = x + sa.epsilon * g[0]
-        out_origins[n_out, 1] = y + sa.epsilon * g[1]
-        out_origins[n_out, 2] = z + sa.epsilon * g[2]
-        out_directions[n_out, 0] = ox
-        out_directions[n_out, 1] = oy
-        out_directions[n_out, 2] = oz
-        out_power[n_out, 0] = new0 / survive
-        out_power[n_out, 1] = new1 / survive
-        out_power[n_out, 2] = new2 / survive
+        _push_ray(out_origins, out_directions, out_power, n_out, x, y, z, g, sa.epsilon,
+                  ox, oy, oz, new0 / survive, new1 / survive, new2 / survive)
         n_out += 1
     return n_out
 
@@ -440,15 +444,8 @@ def shade_paths(
             continue
         x, y, z = _barycentric_point(sa, t, uk, vk)
         out_ids[n_out] = target
-        out_throughput[n_out, 0] = t0 / survive
-        out_throughput[n_out, 1] = t1 / survive
-        out_throughput[n_out, 2] = t2 / survive
-        out_origins[n_out, 0] = x + sa.epsilon * g[0]
-        out_origins[n_out, 1] = y + sa.epsilon * g[1]
-        out_origins[n_out, 2] = z + sa.epsilon * g[2]
-        out_directions[n_out, 0] = ox
-        out_directions[n_out, 1] = oy
-        out_directions[n_out, 2] = oz
+        _push_ray(out_origins, out_directions, out_throughput, n_out, x, y, z, g, sa.epsilon,
+                  ox, oy, oz, t0 / survive, t1 / survive, t2 / survive)
         n_out += 1
     return n_out
 

@@ -12,7 +12,7 @@ all triangles into one float32 array with a triangle-to-object table.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -118,7 +118,6 @@ class Scene:
     objects: tuple[SceneObject, ...]
     camera: Camera | None = None
     source: str = ""
-    notes: tuple[str, ...] = field(default=())
 
     def __post_init__(self):
         if not self.objects:

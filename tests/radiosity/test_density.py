@@ -1,0 +1,78 @@
+"""Local linear density estimation: exact for linear irradiance, at edges and corners too."""
+
+import numpy as np
+import pytest
+
+from radiosity import density, geometry
+
+
+# the 4-point rule exact for cubics on a triangle (barycentric points, weights of the area)
+RULE_POINTS = np.array([[1 / 3, 1 / 3, 1 / 3], [0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6]])
+RULE_WEIGHTS = np.array([-27 / 48, 25 / 48, 25 / 48, 25 / 48])
+
+
+def deposit(positions, normals, tangents, faces, irradiance_at):
+    """Photon moments of a known irradiance field by quadrature on every triangle
+    (independent of the kernel-moment formulas): S0_i = int lambda_i E, S1_i = int lambda_i E d.
+    For a linear field the integrands are cubic and the rule is exact."""
+    s0 = np.zeros((len(positions), 3))
+    s1 = np.zeros((len(positions), 3, 2))
+    bitangents = np.cross(normals, tangents)
+    for f in faces:
+        tri = positions[f]
+        area = 0.5 * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
+        x = RULE_POINTS @ tri
+        e = irradiance_at(x) * (area * RULE_WEIGHTS)[:, None]
+        for corner, vert in enumerate(f):
+            lam = RULE_POINTS[:, corner]
+            d = x - positions[vert]
+            dt, db = d @ tangents[vert], d @ bitangents[vert]
+            s0[vert] += lam @ e
+            s1[vert, :, 0] += (lam * dt) @ e
+            s1[vert, :, 1] += (lam * db) @ e
+    return s0, s1
+
+
+def plate(max_edge):
+    p = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 0.7], [0, 0, 0.7]], float)
+    f = np.array([[0, 2, 1], [0, 3, 2]])
+    p, f, _ = geometry.refine(p, f, max_edge)
+    normals = np.tile([0.0, 1.0, 0.0], (len(p), 1))
+    return p, f, normals, geometry.tangents(normals)
+
+
+@pytest.mark.parametrize("rings", [0, 1, 2])
+def test_linear_irradiance_is_exact_at_every_vertex(rings):
+    positions, faces, normals, tangents = plate(0.15)
+
+    def field(x):
+        return np.stack([2.0 + 3.0 * x[:, 0], 1.0 + 2.0 * x[:, 2], 5.0 - 4.0 * x[:, 0] + x[:, 2]], axis=1)
+
+    s0, s1 = deposit(positions, normals, tangents, faces, field)
+    estimate = density.irradiance(positions, normals, tangents, faces, s0, s1, rings=rings)
+    truth = field(positions)
+    assert np.allclose(estimate, truth, rtol=1e-9, atol=1e-9), np.abs(estimate / truth - 1).max()
+    # the normalised kernel estimate S0 / K0 is biased where the field slopes at the border
+    k0, _, _ = density.kernel_moments(positions, normals, tangents, faces)
+    corner = np.argmin(positions[:, 0] + positions[:, 2])
+    assert abs(s0[corner, 0] / k0[corner] / truth[corner, 0] - 1) > 0.01
+
+
+def test_constant_irradiance_on_a_curved_surface():
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    p, f, n = geometry.crease_normals(np.asarray(sphere.vertices), np.asarray(sphere.faces), 40.0)
+    t = geometry.tangents(n)
+    s0, s1 = deposit(p, n, t, f, lambda x: np.full((len(x), 3), 7.0))
+    estimate = density.irradiance(p, n, t, f, s0, s1, rings=1)
+    assert np.allclose(estimate, 7.0, rtol=0.02)
+
+
+def test_no_photons_gives_zero_and_never_negative():
+    positions, faces, normals, tangents = plate(0.3)
+    zero = density.irradiance(positions, normals, tangents, faces, np.zeros((len(positions), 3)), np.zeros((len(positions), 3, 2)))
+    assert (zero == 0).all()
+    # a steep falloff: a linear fit would go below zero beyond it
+    s0, s1 = deposit(positions, normals, tangents, faces, lambda x: np.repeat(np.exp(-30 * x[:, :1]), 3, axis=1))
+    assert (density.irradiance(positions, normals, tangents, faces, s0, s1) >= 0).all()
