@@ -176,6 +176,8 @@ def _parse_object(entry, index, materials, base_dir, where):
     if not isinstance(name, str) or not name:
         raise InputError(f"{where}: [[objects]] entry {index + 1} needs a 'name'")
     here = f"{where}: object {name!r}"
+    if "/" in name:
+        raise InputError(f"{here}: names may not contain '/' (the solution file uses it as a separator)")
     _check_keys(entry, _OBJECT_KEYS, here)
     mname = entry.get("material")
     if mname is None:
@@ -282,7 +284,9 @@ def _load_mesh_scene(path):
             np.asarray(mesh.vertices, dtype=np.float64),
             np.asarray(mesh.faces, dtype=np.int64),
         )
-        name = node if node not in {o.name for o in objects} else f"{node}#{len(objects)}"
+        name = str(node).replace("/", "_")  # '/' separates keys in the solution file
+        if name in {o.name for o in objects}:
+            name = f"{name}#{len(objects)}"
         objects.append(build_object(name, materials[material.name], positions, faces, source=where))
     if not objects:
         raise InputError(f"{where}: no triangle meshes in the file")

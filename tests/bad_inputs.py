@@ -29,6 +29,7 @@ BAD_INPUTS = {
     "zero scale": (GOOD_MATERIAL + '[[objects]]\nname="a"\nbuiltin="cube"\nmaterial="m"\nscale=0\n', "scale"),
     "bad vector": (GOOD_MATERIAL + '[[objects]]\nname="a"\nbuiltin="cube"\nmaterial="m"\ntranslate=[1,2]\n', "translate"),
     "unknown format": ("", "unknown scene format"),
+    "slash in a name": (GOOD_MATERIAL + '[[objects]]\nname="a/b"\nbuiltin="cube"\nmaterial="m"\n', "may not contain '/'"),
 }
 
 
