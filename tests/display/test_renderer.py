@@ -109,7 +109,8 @@ def test_reference_returns_the_stored_radiance_at_cell_centres(gl_context, rng, 
     vertex = 2
     w = world(obj, vertex, directions.grid_directions(6)[cell])
     eye = obj.positions[vertex].astype(float) + 3.0 * w
-    view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), fov_y_deg=30.0, width=8, height=8)
+    view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
+                fov_y_deg=30.0, width=8, height=8)
     got = r.vertex_colours(view, "quad", "reference")[vertex]
     # float32 atan/sqrt on the GPU move the bilinear weights by ~1e-5: neighbours leak in that much
     assert np.allclose(got, obj.radiance[vertex, cell], rtol=1e-3), (got, obj.radiance[vertex, cell])
@@ -126,7 +127,8 @@ def test_reference_interpolates_between_centres(gl_context, rng):
         idx, weight = directions.grid_lookup_weights(local, 8)
         expected = (weight[:, None] * obj.radiance[vertex, idx]).sum(axis=0)
         eye = obj.positions[vertex].astype(float) + 2.0 * world(obj, vertex, local)
-        view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), fov_y_deg=30.0, width=8, height=8)
+        view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
+                    fov_y_deg=30.0, width=8, height=8)
         got = r.vertex_colours(view, "quad", "reference")[vertex]
         assert np.allclose(got, expected, rtol=1e-3), (a, b, got, expected)
     r.release()
