@@ -35,15 +35,149 @@ def not_built(command, what):
     return handler
 
 
+def _size(text):
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes WIDTHxHEIGHT, e.g. 800x600, got {text!r}") from None
+    return w, h
+
+
 def register(subparsers, not_built):
+    p = subparsers.add_parser(
+        "render",
+        help="render a fitted model or a solution to an image",
+        description="Draw fit.npz (modes fitted, diffuse) and/or solution.npz (modes reference, diffuse) "
+        "from a camera, headless (EGL). --hdr writes linear radiance (H, W, 3) float32, row 0 at the "
+        "top, background 0; -o writes the tone-mapped picture (exposure, then sRGB).",
+    )
+    p.add_argument("file", help="fit.npz or solution.npz")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit")
+    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"), help="default: fitted for a fit, reference for a solution")
+    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view")
+    p.add_argument("--size", type=_size, default=(800, 800), metavar="WxH", help="image size (default: 800x800)")
+    p.add_argument("--view", metavar="NAME", help="a named view from --views")
+    p.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
+    p.add_argument("--hdr", metavar="FILE.npy", help="write linear radiance")
+    p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: render.png if no --hdr)")
+    p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
+    p.add_argument("--lights", type=int, metavar="K", help="use only the first K lights of each object")
+    p.set_defaults(func=_render)
+
     for command, help_text in (
-        ("render", "render a solution or fitted model to an image"),
         ("view", "walk through a scene in a window"),
         ("compare", "the paper's comparison figures with error images and numbers"),
         ("demo", "solve, fit and compare the built-in cornell-teapot scene"),
     ):
         p = subparsers.add_parser(command, help=help_text)
         p.set_defaults(func=not_built(command, "the display stage (issue #5)" if command != "demo" else "the end-to-end demo (issue #6)"))
+
+
+def _read_model_files(path, extra_solution=None):
+    """(fit or None, solution or None) from a file that is either, plus an optional solution."""
+    import json
+
+    import numpy as np
+
+    from fitting import load_fit
+    from radiosity.solution import load_solution
+
+    fmt = None
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            fmt = json.loads(str(npz["meta"])).get("format") if "meta" in npz.files else None
+    except FileNotFoundError:
+        raise InputError(f"file {path!r} not found") from None
+    except Exception:
+        fmt = None
+    if fmt == "vlights.fit":
+        fit, solution = load_fit(path), None
+    elif fmt == "vlights.solution":
+        fit, solution = None, load_solution(path)
+    else:
+        raise InputError(f"{path!r} is neither a fit.npz nor a solution.npz")
+    if extra_solution is not None:
+        solution = load_solution(extra_solution)
+    return fit, solution
+
+
+def _scene_camera(source):
+    """The camera of the scene a file was made from, if it can still be read."""
+    from radiosity.loaders import load_scene
+
+    try:
+        return load_scene(source).camera if source else None
+    except InputError:
+        return None
+
+
+def resolve_view(args, bounds, source):
+    """The camera from flags, a named view, or the scene's (or a framing) default."""
+    from display.camera import View, framing_view, load_views, view_from_camera
+
+    width, height = args.size
+    if args.view is not None:
+        if args.views is None:
+            raise InputError("--view needs --views FILE")
+        views = load_views(args.views)
+        if args.view not in views:
+            raise InputError(f"no view {args.view!r} in {args.views} (views: {', '.join(views)})")
+        v = views[args.view]
+        try:
+            base = View(tuple(v["eye"]), tuple(v["look_at"]), tuple(v.get("up", (0, 1, 0))), float(v.get("fov_y_deg", 39.3)), width, height)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"view {args.view!r} in {args.views}: needs eye and look_at ({exc})") from None
+    else:
+        camera = _scene_camera(source)
+        base = view_from_camera(camera, width, height) if camera else framing_view(bounds[0], bounds[1], width, height)
+    return View(
+        tuple(args.eye) if args.eye else base.eye,
+        tuple(args.look_at) if args.look_at else base.look_at,
+        tuple(args.up) if args.up else base.up,
+        args.fov if args.fov is not None else base.fov_y_deg,
+        width,
+        height,
+    )
+
+
+def _render(args):
+    import numpy as np
+    from PIL import Image
+
+    from display.gl import headless_context
+    from display.renderer import Renderer, tonemap
+    from radiosity.atomic import atomic_output
+
+    png = args.output or (None if args.hdr else "render.png")
+    if png is not None and not png.lower().endswith(".png"):
+        raise InputError(f"-o {png!r} must end in .png")
+    if args.hdr is not None and not args.hdr.endswith(".npy"):
+        raise InputError(f"--hdr {args.hdr!r} must end in .npy")
+    if args.lights is not None and args.lights < 0:
+        raise InputError(f"--lights must be >= 0, got {args.lights}")
+    if not args.exposure > 0:
+        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    fit, solution = _read_model_files(args.file, args.solution)
+    mode = args.mode or ("fitted" if fit is not None else "reference")
+    source = (fit.source if fit is not None else solution.scene)
+    ctx = headless_context()
+    renderer = Renderer(ctx, fit=fit, solution=solution)
+    view = resolve_view(args, renderer.bounds, source)
+    hdr = renderer.render(view, mode, args.shading, args.lights)
+    renderer.release()
+    if args.hdr:
+        with atomic_output(args.hdr) as f:
+            np.save(f, hdr.astype(np.float32))
+        print(f"wrote {args.hdr} (linear radiance {hdr.shape[1]}x{hdr.shape[0]}, max {hdr.max():.4g})")
+    if png:
+        with atomic_output(png) as f:
+            Image.fromarray(tonemap(hdr, args.exposure)).save(f, format="PNG")
+        print(f"wrote {png} ({mode}, {args.shading} shading, exposure {args.exposure:g})")
+    return 0
 
 
 def build_parser():

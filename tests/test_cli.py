@@ -28,7 +28,7 @@ def test_help_lists_every_subcommand(capsys):
         assert command in out
 
 
-@pytest.mark.parametrize("command", ["render", "view", "compare", "demo"])
+@pytest.mark.parametrize("command", ["view", "compare", "demo"])
 def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
     code, out, err = run([command], capsys)
     assert code == 2 and out == ""
@@ -196,3 +196,62 @@ def test_fit_refuses_bad_solution_files(content, tmp_path, capsys):
     code, out, err = run(["fit", str(path), "-o", str(tmp_path / "f.npz")], capsys)
     assert code == 2 and out == "" and err.count("\n") == 1 and "Traceback" not in err
     assert not (tmp_path / "f.npz").exists()
+
+
+@pytest.fixture(scope="module")
+def small_fit(small_solution, tmp_path_factory):
+    out = tmp_path_factory.mktemp("fit") / "f.npz"
+    assert main(["fit", str(small_solution), "-o", str(out), "--lights", "2", "--method", "paper"]) == 0
+    return out
+
+
+@pytest.mark.gl
+def test_render_writes_hdr_and_png(small_solution, small_fit, tmp_path, capsys, gl_context):
+    import numpy as np
+    from PIL import Image
+
+    hdr, png = tmp_path / "a.npy", tmp_path / "a.png"
+    code, out, err = run(["render", str(small_fit), "--hdr", str(hdr), "-o", str(png), "--size", "64x48"], capsys)
+    assert code == 0, err
+    image = np.load(hdr)
+    assert image.shape == (48, 64, 3) and image.dtype == np.float32
+    assert np.isfinite(image).all() and image.max() > 0
+    away = tmp_path / "away.npy"  # from the open front, looking away from the box: background only
+    assert main(["render", str(small_fit), "--eye", "278", "273", "-800", "--look-at", "278", "273", "-1600",
+                 "--hdr", str(away), "--size", "16x16"]) == 0
+    assert (np.load(away) == 0).all()
+    assert Image.open(png).size == (64, 48)
+    # 2 lights against none: the fitted picture differs from the diffuse one
+    diffuse = tmp_path / "d.npy"
+    assert main(["render", str(small_fit), "--mode", "diffuse", "--hdr", str(diffuse), "--size", "64x48"]) == 0
+    assert not np.array_equal(np.load(diffuse), image)
+    # a solution renders in reference mode by default, and with the fit next to it
+    ref = tmp_path / "r.npy"
+    assert main(["render", str(small_solution), "--hdr", str(ref), "--size", "64x48", "--shading", "gouraud"]) == 0
+    assert np.load(ref).max() > 0
+    views = tmp_path / "views.json"
+    views.write_text('{"side": {"eye": [50, 300, -300], "look_at": [278, 200, 280], "fov_y_deg": 50}}')
+    assert main(["render", str(small_fit), "--solution", str(small_solution), "--mode", "reference",
+                 "--views", str(views), "--view", "side", "--hdr", str(ref), "--size", "32x32"]) == 0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--size", "10by10"], "WIDTHxHEIGHT"),
+        (["--mode", "reference"], "needs a solution"),
+        (["--view", "x"], "--views"),
+        (["--exposure", "0"], "--exposure"),
+        (["-o", "x.jpg"], ".png"),
+        (["--eye", "0", "0", "0", "--look-at", "0", "0", "0"], "look-at equals the eye"),
+    ],
+)
+def test_render_refuses_bad_input(small_fit, args, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(["render", str(small_fit)] + args)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
