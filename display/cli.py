@@ -68,9 +68,33 @@ def register(subparsers, not_built):
     p.add_argument("--lights", type=int, metavar="K", help="use only the first K lights of each object")
     p.set_defaults(func=_render)
 
+    p.add_argument("--video", metavar="FILE.mp4", help="instead of one picture, a walkthrough video along a smooth path from the camera")
+    p.add_argument("--frames", type=int, default=120, help="video frames (default: %(default)s)")
+    p.add_argument("--fps", type=int, default=30, help="video frame rate (default: %(default)s)")
+
+    p = subparsers.add_parser(
+        "compare",
+        help="the paper's comparison figures with error images and numbers",
+        description="Figures 5 (reference against fitted, three viewpoints), 6 (2 against 8 lights) and 7 "
+        "(with and without virtual lights) as PNG files, each with a FLIP error image, and FLIP mean, PSNR "
+        "and relative MSE in compare.json.",
+    )
+    p.add_argument("fit", help="fit.npz")
+    p.add_argument("solution", help="the solution.npz it was fitted to")
+    p.add_argument("--out", default="compare", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="image size (default: 512x512)")
+    p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
+    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--fov", type=float, metavar="DEG")
+    p.add_argument("--view", metavar="NAME", help="a named view from --views, the first viewpoint")
+    p.add_argument("--views", metavar="FILE", help="JSON of named views")
+    p.set_defaults(func=_compare)
+
     for command, help_text in (
         ("view", "walk through a scene in a window"),
-        ("compare", "the paper's comparison figures with error images and numbers"),
         ("demo", "solve, fit and compare the built-in cornell-teapot scene"),
     ):
         p = subparsers.add_parser(command, help=help_text)
@@ -152,6 +176,8 @@ def _render(args):
     from display.renderer import Renderer, tonemap
     from radiosity.atomic import atomic_output
 
+    if args.video is not None:
+        return _video(args)
     png = args.output or (None if args.hdr else "render.png")
     if png is not None and not png.lower().endswith(".png"):
         raise InputError(f"-o {png!r} must end in .png")
@@ -177,6 +203,58 @@ def _render(args):
         with atomic_output(png) as f:
             Image.fromarray(tonemap(hdr, args.exposure)).save(f, format="PNG")
         print(f"wrote {png} ({mode}, {args.shading} shading, exposure {args.exposure:g})")
+    return 0
+
+
+def _video(args):
+    from display.gl import headless_context
+    from display.renderer import Renderer
+    from display.video import write_video
+
+    if not args.video.lower().endswith(".mp4"):
+        raise InputError(f"--video {args.video!r} must end in .mp4")
+    if not 2 <= args.frames <= 100_000 or not 1 <= args.fps <= 240:
+        raise InputError("--frames must be 2 to 100000 and --fps 1 to 240")
+    fit, solution = _read_model_files(args.file, args.solution)
+    mode = args.mode or ("fitted" if fit is not None else "reference")
+    renderer = Renderer(headless_context(), fit=fit, solution=solution)
+    view = resolve_view(args, renderer.bounds, fit.source if fit is not None else solution.scene)
+    if mode not in renderer.modes:
+        raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
+    frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure, progress=True)
+    print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode})")
+    return 0
+
+
+def _compare(args):
+    from pathlib import Path
+
+    from display.compare import compare
+    from display.gl import headless_context
+    from display.renderer import Renderer
+    from fitting import load_fit
+    from radiosity.solution import load_solution
+
+    if not args.exposure > 0:
+        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {args.out!r} exists and is not a directory")
+    fit, solution = load_fit(args.fit), load_solution(args.solution)
+    renderer = Renderer(headless_context(), fit=fit, solution=solution)
+    view = resolve_view(args, renderer.bounds, solution.scene)
+    results = compare(renderer, out, view, args.exposure, args.shading)
+    renderer.release()
+    print(f"wrote figures 5, 6, 7 and compare.json to {out}/")
+    print(f"  {'':<32} {'whole image':^28} {'glossy objects only':^28}")
+    print(f"  {'':<32} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10}")
+    rows = [(f"figure 5, view {i}", results["figure5"][f"view{i}"]) for i in range(1, 4)]
+    rows += [(f"figure 6, {k.replace('_', ' ')}", m) for k, m in results["figure6"].items()]
+    rows += [(f"figure 7, {k.replace('_', ' ')}", m) for k, m in results["figure7"].items() if isinstance(m, dict)]
+    for label, m in rows:
+        glossy = (f"{m['flip_mean_glossy']:>8.4f} {m['psnr_db_glossy']:>8.2f} {m['relative_mse_glossy']:>10.4g}"
+                  if "flip_mean_glossy" in m else "")
+        print(f"  {label:<32} {m['flip_mean']:>8.4f} {m['psnr_db']:>8.2f} {m['relative_mse']:>10.4g} {glossy}")
     return 0
 
 

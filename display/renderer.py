@@ -79,6 +79,7 @@ FITTED_FS = """
 #version 330
 uniform vec3 eye;
 uniform int gouraud;
+uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
 in vec3 v_position;
 in vec3 v_normal;
 in vec3 v_emitted;
@@ -88,7 +89,7 @@ out vec4 f_colour;
 """ + SHADE_GLSL + """
 void main() {
     vec3 c = gouraud == 1 ? v_colour : shade(normalize(v_normal), normalize(eye - v_position), v_emitted, v_specular);
-    f_colour = vec4(c, 1.0);
+    f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
 }
 """
 
@@ -386,8 +387,9 @@ class Renderer:
         if name in program:
             program[name].value = value
 
-    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None):
-        """Draw into a new float framebuffer; returns it (caller releases) ."""
+    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None):
+        """Draw into a new float framebuffer; returns it (caller releases). With ``mask`` (a
+        set of object names) every object is drawn flat: 1 for those named, 0 for the others."""
         if mode not in self.modes:
             raise InputError(f"mode {mode!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; this input has {', '.join(self.modes)}")
         if shading not in SHADINGS:
@@ -422,6 +424,8 @@ class Renderer:
                     obj.lights.use(location=1)
                 self._set(program, "lights", 1)
                 self._set(program, "n_lights", n)
+                flat = (0.0, 0.0, 0.0, 0.0) if mask is None else ((1.0,) * 3 + (1.0,) if obj.name in mask else (0.0, 0.0, 0.0, 1.0))
+                self._set(program, "flat_colour", flat)
                 attributes = ("in_position", "in_normal", "in_emitted", "in_specular")
             vao = obj.vao(ctx, program, attributes)
             vao.render(moderngl.TRIANGLES)
@@ -435,6 +439,14 @@ class Renderer:
         fbo = self.draw(view, mode, shading, lights)
         try:
             return self._read(fbo, 0)
+        finally:
+            self._release(fbo)
+
+    def object_mask(self, view, names):
+        """(H, W) bool: pixels where one of the objects ``names`` is the visible surface."""
+        fbo = self.draw(view, "diffuse", "pixel", mask=set(names))
+        try:
+            return self._read(fbo, 0)[..., 0] > 0.5
         finally:
             self._release(fbo)
 
