@@ -28,7 +28,7 @@ def test_help_lists_every_subcommand(capsys):
         assert command in out
 
 
-@pytest.mark.parametrize("command", ["view", "compare", "demo"])
+@pytest.mark.parametrize("command", ["view", "demo"])
 def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
     code, out, err = run([command], capsys)
     assert code == 2 and out == ""
@@ -255,3 +255,50 @@ def test_render_refuses_bad_input(small_fit, args, message, tmp_path, capsys, mo
     out, err = capsys.readouterr()
     assert code == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.gl
+def test_compare_writes_the_figures_and_numbers(small_solution, small_fit, tmp_path, capsys, gl_context):
+    import json
+
+    out = tmp_path / "cmp"
+    code, stdout, err = run(["compare", str(small_fit), str(small_solution), "--out", str(out), "--size", "48x40"], capsys)
+    assert code == 0, err
+    names = {p.name for p in out.iterdir()}
+    assert names == {"figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json"}
+    results = json.loads((out / "compare.json").read_text())
+    assert results["glossy_objects"] == ["tall_block", "teapot"]
+    for figure in ("figure5", "figure6", "figure7"):
+        for numbers in results[figure].values():
+            assert 0 <= numbers["flip_mean"] <= 1 and numbers["psnr_db"] > 0 and numbers["relative_mse"] >= 0
+            assert numbers["glossy_pixels"] > 0 and numbers["flip_mean_glossy"] >= numbers["flip_mean"] * 0.5
+    assert "figure 7, diffuse only" in stdout
+
+
+def test_compare_metrics_know_the_answer():
+    import numpy as np
+
+    from display.compare import metrics
+
+    rng = np.random.default_rng(1)
+    reference = rng.uniform(0, 1, (32, 32, 3)).astype(np.float32)
+    same, _ = metrics(reference, reference)
+    assert same["flip_mean"] == 0 and same["psnr_db"] == float("inf") and same["relative_mse"] == 0
+    brighter, image = metrics(reference, reference * 1.5, mask=np.eye(32, dtype=bool))
+    assert brighter["flip_mean"] > 0.01 and brighter["psnr_db"] < 40 and image.shape == (32, 32, 3)
+    expected = np.mean((0.5 * reference.astype(np.float64)) ** 2 / (reference.astype(np.float64) ** 2 + 0.01))
+    assert brighter["relative_mse"] == pytest.approx(expected, rel=1e-6)
+    assert brighter["glossy_pixels"] == 32
+
+
+@pytest.mark.gl
+def test_render_video(small_fit, tmp_path, capsys, gl_context):
+    import imageio.v2 as imageio
+
+    out = tmp_path / "walk.mp4"
+    code, _, err = run(["render", str(small_fit), "--video", str(out), "--frames", "12", "--size", "64x48"], capsys)
+    assert code == 0, err
+    frames = list(imageio.get_reader(str(out)))
+    assert len(frames) == 12 and frames[0].shape == (48, 64, 3)
+    assert (frames[0] != frames[6]).any()  # the camera moves
+    assert [p.name for p in tmp_path.iterdir()] == ["walk.mp4"]  # no partial file left
