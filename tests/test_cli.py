@@ -298,7 +298,9 @@ def test_render_video(small_fit, tmp_path, capsys, gl_context):
     out = tmp_path / "walk.mp4"
     code, _, err = run(["render", str(small_fit), "--video", str(out), "--frames", "12", "--size", "64x48"], capsys)
     assert code == 0, err
-    frames = list(imageio.get_reader(str(out)))
-    assert len(frames) == 12 and frames[0].shape == (48, 64, 3)
-    assert (frames[0] != frames[6]).any()  # the camera moves
+    assert imageio.get_reader(str(out)).count_frames() == 12
+    reader = imageio.get_reader(str(out))  # counting used the first reader up
+    frames = [reader.get_data(i) for i in (0, 6, 11)]
+    assert frames[0].shape == (48, 64, 3)
+    assert (frames[0] != frames[1]).any()  # the camera moves
     assert [p.name for p in tmp_path.iterdir()] == ["walk.mp4"]  # no partial file left
