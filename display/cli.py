@@ -11,6 +11,8 @@ import argparse
 import sys
 import warnings
 
+import numpy as np
+
 import fitting.cli
 import radiosity.cli
 from radiosity.errors import InputError
@@ -93,8 +95,29 @@ def register(subparsers, not_built):
     p.add_argument("--views", metavar="FILE", help="JSON of named views")
     p.set_defaults(func=_compare)
 
+    p = subparsers.add_parser(
+        "view",
+        help="walk through a scene in a window",
+        description="The walkthrough window: WASD (Q/E down/up) and mouse-look with the left button held; "
+        "M mode, G Gouraud/per-pixel, L 2/all lights, +/- exposure, P screenshot, ESC quit.",
+    )
+    p.add_argument("file", help="fit.npz or solution.npz")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit")
+    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"))
+    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    p.add_argument("--fov", type=float, metavar="DEG")
+    p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="window size (default: 1280x720)")
+    p.add_argument("--view", metavar="NAME")
+    p.add_argument("--views", metavar="FILE")
+    p.add_argument("--exposure", type=float, default=1.0)
+    p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
+    p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
+    p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p) after the first frame")
+    p.set_defaults(func=_view)
+
     for command, help_text in (
-        ("view", "walk through a scene in a window"),
         ("demo", "solve, fit and compare the built-in cornell-teapot scene"),
     ):
         p = subparsers.add_parser(command, help=help_text)
@@ -223,6 +246,35 @@ def _video(args):
         raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
     frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure, progress=True)
     print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode})")
+    return 0
+
+
+def _view(args):
+    from display.window import has_display
+
+    if not has_display():
+        raise InputError("no display to open a window on (DISPLAY is not set); use 'vlights render' for pictures")
+    if not args.exposure > 0:
+        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    if args.frames is not None and args.frames < 1:
+        raise InputError(f"--frames must be >= 1, got {args.frames}")
+    import moderngl_window as mglw
+
+    from display.window import Walkthrough
+
+    fit, solution = _read_model_files(args.file, args.solution)
+    source = fit.source if fit is not None else solution.scene
+    positions = np.concatenate([o.positions for o in (fit or solution).objects])
+    view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), source)
+    if set(args.press) - set("mgl+-p"):
+        raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
+    Walkthrough.configure(fit, solution, view, args.exposure, args.frames, args.screenshot, args.mode, args.press)
+    try:
+        mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
+    except Exception as exc:  # the window library's own failure to open a window
+        if "display" in str(exc).lower() or "xlib" in str(exc).lower():
+            raise InputError(f"cannot open a window: {' '.join(str(exc).split())}") from None
+        raise
     return 0
 
 

@@ -28,7 +28,7 @@ def test_help_lists_every_subcommand(capsys):
         assert command in out
 
 
-@pytest.mark.parametrize("command", ["view", "demo"])
+@pytest.mark.parametrize("command", ["demo"])
 def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
     code, out, err = run([command], capsys)
     assert code == 2 and out == ""

@@ -1,0 +1,173 @@
+"""``vlights view``: the walkthrough window (moderngl-window).
+
+The renderer draws the HDR image into a float framebuffer; a full-screen pass applies
+exposure and sRGB into the window. moderngl-window's KeyboardCamera does the walking
+(WASD, Q/E down/up, mouse-look while the left button is held). Keys:
+
+    M  cycle mode (fitted, diffuse, reference)     G  Gouraud / per-pixel shading
+    L  2 lights / all lights (the paper's figure 6)   + / -  exposure x 2 / x 0.5
+    P  screenshot (PNG, tone-mapped)                ESC  quit
+
+A status line shows mode, shading, lights, exposure and frame time. ``--frames N``
+draws N frames and closes (for tests and scripted captures); ``--screenshot FILE``
+writes the last frame; ``--press KEYS`` presses keys (m g l + - p) after the first frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import moderngl
+import moderngl_window as mglw
+import numpy as np
+from moderngl_window.scene.camera import KeyboardCamera
+
+from .camera import View
+from .renderer import Renderer
+
+TONEMAP_VS = """
+#version 330
+in vec2 in_position;
+out vec2 uv;
+void main() { uv = 0.5 * in_position + 0.5; gl_Position = vec4(in_position, 0.0, 1.0); }
+"""
+TONEMAP_FS = """
+#version 330
+uniform sampler2D hdr;
+uniform float exposure;
+in vec2 uv;
+out vec4 colour;
+void main() {
+    vec3 x = clamp(texture(hdr, uv).rgb * exposure, 0.0, 1.0);
+    vec3 srgb = mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
+    colour = vec4(srgb, 1.0);
+}
+"""
+
+
+class Walkthrough(mglw.WindowConfig):
+    """Settings come from ``configure`` (the renderer knows nothing of windows)."""
+
+    gl_version = (3, 3)
+    title = "vlights view"
+    window_size = (1280, 720)
+    aspect_ratio = None
+    resizable = True
+    vsync = False
+    setup = {}
+
+    @classmethod
+    def configure(cls, fit, solution, view, exposure=1.0, frames=None, screenshot=None, mode=None, press=""):
+        cls.setup = dict(fit=fit, solution=solution, view=view, exposure=exposure, frames=frames,
+                         screenshot=screenshot, mode=mode, press=press)
+        cls.window_size = (view.width, view.height)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        s = self.setup
+        self.renderer = Renderer(self.ctx, fit=s["fit"], solution=s["solution"])
+        self.modes = self.renderer.modes
+        self.mode = s["mode"] or self.modes[0]
+        self.shading = "pixel"
+        self.all_lights = True
+        self.exposure = s["exposure"]
+        self.frames_left = s["frames"]
+        self.screenshot_path = s["screenshot"]
+        self.press = s["press"]
+        view = s["view"]
+        self.fov = view.fov_y_deg
+        radius = float(np.linalg.norm(self.renderer.bounds[1] - self.renderer.bounds[0]))
+        self.camera = KeyboardCamera(self.wnd.keys, fov=self.fov, aspect_ratio=self.wnd.aspect_ratio,
+                                     near=radius * 1e-3, far=radius * 10)
+        self.camera.velocity = radius * 0.25
+        self.camera.mouse_sensitivity = 0.15
+        eye = np.asarray(view.eye, float)
+        forward = np.subtract(view.look_at, view.eye)
+        forward /= np.linalg.norm(forward)
+        self.camera.set_position(*eye)
+        self.camera.set_rotation(math.degrees(math.atan2(forward[2], forward[0])), math.degrees(math.asin(forward[1])))
+        self.quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+        self.tonemap = self.ctx.program(vertex_shader=TONEMAP_VS, fragment_shader=TONEMAP_FS)
+        self.quad_vao = self.ctx.vertex_array(self.tonemap, [(self.quad, "2f", "in_position")])
+        from moderngl_window.text.bitmapped import TextWriter2D
+
+        self.text = TextWriter2D()
+        self.text.text = ""
+        self.last_frame_ms = 0.0
+
+    def current_view(self):
+        yaw, pitch = math.radians(self.camera.yaw), math.radians(self.camera.pitch)
+        forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(pitch), math.sin(yaw) * math.cos(pitch)])
+        eye = np.array(self.camera.position, float)
+        w, h = self.wnd.buffer_size
+        return View(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), self.fov, max(int(w), 1), max(int(h), 1))
+
+    def on_render(self, time_s, frame_time):
+        start = time.perf_counter()
+        view = self.current_view()
+        lights = None if self.all_lights else 2
+        fbo = self.renderer.draw(view, self.mode, self.shading, lights)
+        self.wnd.use()
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        fbo.color_attachments[0].use(location=0)
+        self.tonemap["hdr"].value = 0
+        self.tonemap["exposure"].value = self.exposure
+        self.quad_vao.render(moderngl.TRIANGLE_STRIP)
+        self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
+                          f"exposure {self.exposure:g} | {self.last_frame_ms:.1f} ms")
+        self.text.draw((10, self.wnd.buffer_size[1] - 24), size=14)
+        self.renderer._release(fbo)
+        self.ctx.finish()
+        self.last_frame_ms = 1000 * (time.perf_counter() - start)
+        if self.press:  # scripted key presses, through the same handler as the keyboard's
+            keys = self.wnd.keys
+            table = {"m": keys.M, "g": keys.G, "l": keys.L, "+": keys.EQUAL, "-": keys.MINUS, "p": keys.P}
+            for char in self.press:
+                self.on_key_event(table[char], keys.ACTION_PRESS, None)
+            self.press = ""
+        if self.frames_left is not None:
+            self.frames_left -= 1
+            if self.frames_left <= 0:
+                if self.screenshot_path:
+                    self.save_screenshot(self.screenshot_path)
+                self.wnd.close()
+
+    def save_screenshot(self, path=None):
+        from PIL import Image
+
+        w, h = self.wnd.buffer_size
+        data = np.frombuffer(self.wnd.fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1]
+        path = path or os.path.abspath(f"vlights-{time.strftime('%Y%m%d-%H%M%S')}.png")
+        Image.fromarray(data).save(path)
+        print(f"screenshot: {path}")
+        return path
+
+    def on_key_event(self, key, action, modifiers):
+        keys = self.wnd.keys
+        self.camera.key_input(key, action, modifiers)
+        if action != keys.ACTION_PRESS:
+            return
+        if key == keys.M:
+            self.mode = self.modes[(self.modes.index(self.mode) + 1) % len(self.modes)]
+        elif key == keys.G:
+            self.shading = "gouraud" if self.shading == "pixel" else "pixel"
+        elif key == keys.L:
+            self.all_lights = not self.all_lights
+        elif key == keys.EQUAL:
+            self.exposure *= 2.0
+        elif key == keys.MINUS:
+            self.exposure *= 0.5
+        elif key == keys.P:
+            self.save_screenshot()
+
+    def on_mouse_drag_event(self, x, y, dx, dy):
+        self.camera.rot_state(-dx, -dy)
+
+    def on_resize(self, width, height):
+        self.camera.projection.update(aspect_ratio=self.wnd.aspect_ratio)
+
+
+def has_display():
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

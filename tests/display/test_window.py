@@ -1,0 +1,67 @@
+"""The walkthrough window under a virtual X server (skipped where Xvfb is missing)."""
+
+import os
+import shutil
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+pytestmark = [pytest.mark.gl, pytest.mark.skipif(shutil.which("Xvfb") is None, reason="Xvfb is not installed")]
+
+
+@pytest.fixture(scope="module")
+def x_display():
+    for number in range(91, 120):
+        if not os.path.exists(f"/tmp/.X11-unix/X{number}") and not os.path.exists(f"/tmp/.X{number}-lock"):
+            break
+    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    for _ in range(50):
+        if os.path.exists(f"/tmp/.X11-unix/X{number}"):
+            break
+        time.sleep(0.1)
+    yield f":{number}"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+def view(x_display, model, tmp_path, name, *extra):
+    shot = tmp_path / f"{name}.png"
+    env = dict(os.environ, DISPLAY=x_display)
+    run = subprocess.run(
+        ["vlights", "view", str(model), "--frames", "3", "--screenshot", str(shot), "--size", "160x120", *extra],
+        capture_output=True, text=True, env=env, timeout=120,
+    )
+    assert run.returncode == 0, run.stderr[-800:]
+    return np.asarray(Image.open(shot))
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_window_opens_draws_switches_mode_and_screenshots(x_display, tmp_path):
+    from fitting import FittedModel, FittedObject
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=2)
+    n = len(s.vertices)
+    obj = FittedObject(
+        name="ball", positions=np.asarray(s.vertices, np.float32), normals=np.asarray(s.vertex_normals, np.float32),
+        faces=np.asarray(s.faces, np.int32), emitted=np.full((n, 3), 0.1, np.float32), specular=np.ones((n, 3), np.float32),
+        light_dirs=np.array([[0.3, 0.5, 0.8]], np.float32) / np.linalg.norm([0.3, 0.5, 0.8]),
+        light_rgb=np.array([[2.0, 1.5, 1.0]], np.float32), shininess=np.array([20.0], np.float32),
+    )
+    model_path = tmp_path / "fit.npz"
+    FittedModel(objects=(obj,), source="").save(model_path)
+    fitted = view(x_display, model_path, tmp_path, "fitted")
+    assert fitted.shape == (120, 160, 3) and fitted.max() > 50  # not blank
+    diffuse = view(x_display, model_path, tmp_path, "diffuse", "--press", "m")  # m: fitted -> diffuse
+    assert not np.array_equal(fitted, diffuse)
+    brighter = view(x_display, model_path, tmp_path, "bright", "--press", "++")
+    assert brighter.astype(int).sum() > fitted.astype(int).sum()
+
+
+def test_view_without_a_display_says_so(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    run = subprocess.run(["vlights", "view", "nothing.npz"], capture_output=True, text=True, env=env, timeout=60)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1 and "display" in run.stderr
