@@ -318,6 +318,7 @@ class Renderer:
         if solution is not None:
             self._upload_solution(solution)
         self._programs = {}
+        self._framebuffers = {}
         self._scratch = None
 
     def _upload_solution(self, solution):
@@ -388,7 +389,8 @@ class Renderer:
             program[name].value = value
 
     def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None):
-        """Draw into a new float framebuffer; returns it (caller releases). With ``mask`` (a
+        """Draw into the renderer's float framebuffer for this size (reused between calls,
+        released with the renderer) and return it. With ``mask`` (a
         set of object names) every object is drawn flat: 1 for those named, 0 for the others."""
         if mode not in self.modes:
             raise InputError(f"mode {mode!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; this input has {', '.join(self.modes)}")
@@ -396,8 +398,11 @@ class Renderer:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx
         size = (view.width, view.height)
-        colour = [ctx.texture(size, 4, dtype="f4") for _ in range(targets)]
-        fbo = ctx.framebuffer(color_attachments=colour, depth_attachment=ctx.depth_renderbuffer(size))
+        fbo = self._framebuffers.get((size, targets))
+        if fbo is None:  # kept for the next frame of this size: a walkthrough draws many
+            colour = [ctx.texture(size, 4, dtype="f4") for _ in range(targets)]
+            fbo = ctx.framebuffer(color_attachments=colour, depth_attachment=ctx.depth_renderbuffer(size))
+            self._framebuffers[(size, targets)] = fbo
         fbo.use()
         ctx.viewport = (0, 0, *size)
         ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -436,29 +441,18 @@ class Renderer:
         """Linear radiance (H, W, 3) float32, row 0 at the top, background 0.
 
         ``lights``: use only the first K lights of each object (None: all)."""
-        fbo = self.draw(view, mode, shading, lights)
-        try:
-            return self._read(fbo, 0)
-        finally:
-            self._release(fbo)
+        return self._read(self.draw(view, mode, shading, lights), 0)
 
     def object_mask(self, view, names):
         """(H, W) bool: pixels where one of the objects ``names`` is the visible surface."""
-        fbo = self.draw(view, "diffuse", "pixel", mask=set(names))
-        try:
-            return self._read(fbo, 0)[..., 0] > 0.5
-        finally:
-            self._release(fbo)
+        return self._read(self.draw(view, "diffuse", "pixel", mask=set(names)), 0)[..., 0] > 0.5
 
     def render_attributes(self, view):
         """Per-pixel interpolated (position, normal, emitted, specular, coverage) as
         float arrays, row 0 at the top: what the per-pixel shader sees (for tests)."""
         fbo = self.draw(view, "fitted", "pixel", targets=4, program_key="attributes")
-        try:
-            out = [self._read(fbo, i, components=4) for i in range(4)]  # alpha of target 0 marks coverage
-            return out[0][..., :3], out[1][..., :3], out[2][..., :3], out[3][..., :3], out[0][..., 3] > 0
-        finally:
-            self._release(fbo)
+        out = [self._read(fbo, i, components=4) for i in range(4)]  # alpha of target 0 marks coverage
+        return out[0][..., :3], out[1][..., :3], out[2][..., :3], out[3][..., :3], out[0][..., 3] > 0
 
     def vertex_colours(self, view, name, mode="fitted", lights=None):
         """The Gouraud vertex shader's colours (V, 3) of object ``name`` for ``mode``,
@@ -515,3 +509,5 @@ class Renderer:
             self.radiance.release()
         if self._scratch is not None:
             self._scratch.release()
+        for fbo in self._framebuffers.values():
+            self._release(fbo)

@@ -118,7 +118,6 @@ class Walkthrough(mglw.WindowConfig):
         self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
                           f"exposure {self.exposure:g} | {self.last_frame_ms:.1f} ms")
         self.text.draw((10, self.wnd.buffer_size[1] - 24), size=14)
-        self.renderer._release(fbo)
         self.ctx.finish()
         self.last_frame_ms = 1000 * (time.perf_counter() - start)
         if self.press:  # scripted key presses, through the same handler as the keyboard's

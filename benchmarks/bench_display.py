@@ -1,0 +1,181 @@
+"""What does each display mode cost per frame, and how much smaller is the fitted model?
+
+Usage:
+    python benchmarks/bench_display.py [--frames 20] [--quick]
+
+Headless (EGL; on machines without a GPU, Mesa llvmpipe on the CPU), at 1280 x 720:
+  1. frame time (median over frames, drawing only: glFinish, no read-back) per mode
+     (fitted, diffuse, reference) and shading (gouraud, pixel), for the demo scene
+     (cornell-teapot, draft solve, K = 8 fit) and for a scene of about 1 M triangles
+     (the teapot tessellated at 128 segments per patch side, 8 synthetic lights, a
+     synthetic 6 x 6 direction grid for the reference mode);
+  2. bytes each mode needs on the GPU;
+  3. the targets: fitted Gouraud within 1.5x the frame time of diffuse-only; the fitted
+     model at least 10x smaller than the solution (files and arrays).
+
+Results: JSON lines in benchmarks/results/display.jsonl, a plot in results/display.png.
+Equivalence check: rendering twice gives the same image.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+
+
+def frame_times(renderer, view, mode, shading, frames):
+    renderer.draw(view, mode, shading)  # compile, allocate
+    renderer.ctx.finish()
+    times = []
+    for _ in range(frames):
+        t = time.perf_counter()
+        renderer.draw(view, mode, shading)
+        renderer.ctx.finish()
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)) * 1000
+
+
+def mode_bytes(fit, solution, mode):
+    """GPU bytes a mode needs: vertex attributes and indices (+ light tables, + radiance)."""
+    objects = (fit or solution).objects
+    total = 0
+    for o in objects:
+        v, f = len(o.positions), len(o.faces)
+        attributes = {"fitted": 4, "diffuse": 2, "reference": 3}[mode]  # vec3 each
+        total += v * attributes * 12 + f * 12
+        if mode == "fitted":
+            total += max(o.n_lights, 1) * 32
+    if mode == "reference":
+        total += sum(o.radiance.size * 4 for o in solution.objects)
+    return int(total)
+
+
+def big_scene(rng):
+    """About 1 M triangles: the teapot at 128 segments per patch side."""
+    from fitting import FittedModel, FittedObject
+    from radiosity import directions, geometry, teapot
+    from radiosity.solution import ObjectSolution, Solution
+
+    positions, faces = teapot.tessellate(128)
+    positions, faces, normals = geometry.crease_normals(positions, faces, 40.0)
+    tangents = geometry.tangents(normals)
+    v = len(positions)
+    dirs = rng.normal(size=(8, 3))
+    dirs[:, 1] = np.abs(dirs[:, 1])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    fit = FittedModel(objects=(FittedObject(
+        name="teapot", positions=positions.astype(np.float32), normals=normals.astype(np.float32), faces=faces.astype(np.int32),
+        emitted=rng.uniform(0, 0.2, (v, 3)).astype(np.float32), specular=rng.uniform(0, 1, (v, 3)).astype(np.float32),
+        light_dirs=dirs.astype(np.float32), light_rgb=rng.uniform(0.5, 2, (8, 3)).astype(np.float32),
+        shininess=np.full(8, 120.0, np.float32)),), source="")
+    grid = 6
+    solution = Solution(objects=(ObjectSolution(
+        name="teapot", positions=positions.astype(np.float32), normals=normals.astype(np.float32),
+        tangents=tangents.astype(np.float32), faces=faces.astype(np.int32),
+        directions=directions.grid_directions(grid).astype(np.float32),
+        radiance=rng.uniform(0, 1, (v, grid * grid, 3)).astype(np.float32),
+        material={"diffuse": [0.1] * 3, "specular": [0.5] * 3, "exponent": 120.0, "emission": [0.0] * 3}),), settings={}, stats={}, scene="")
+    return fit, solution
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=20)
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+
+    from display.camera import framing_view, view_from_camera
+    from display.gl import headless_context
+    from display.renderer import Renderer
+    from fitting import FitOptions, fit
+    from radiosity.loaders import load_scene
+    from radiosity.solver import SolveOptions, solve
+
+    RESULTS.mkdir(exist_ok=True)
+    info = {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
+    rows = []
+
+    def record(row):
+        row = info | row
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+
+    ctx = headless_context()
+    info["gl_renderer"] = ctx.info["GL_RENDERER"]
+    width, height = (640, 360) if args.quick else (1280, 720)
+    frames = 3 if args.quick else args.frames
+
+    scene = load_scene("cornell-teapot")
+    solution = solve(scene, SolveOptions(quality="draft", seed=1))
+    model = fit(solution, FitOptions(lights=8, method="paper"))
+    with tempfile.TemporaryDirectory() as tmp:
+        solution.save(Path(tmp) / "s.npz")
+        model.save(Path(tmp) / "f.npz")
+        sizes = {"solution_file": (Path(tmp) / "s.npz").stat().st_size, "fit_file": (Path(tmp) / "f.npz").stat().st_size}
+    sizes["solution_arrays"] = sum(sum(a.nbytes for a in (o.positions, o.normals, o.tangents, o.faces, o.directions, o.radiance)) for o in solution.objects)
+    sizes["fit_arrays"] = sum(sum(a.nbytes for a in o.arrays().values()) for o in model.objects)
+    record({"question": "model size", **sizes, "file_ratio": sizes["solution_file"] / sizes["fit_file"],
+            "array_ratio": sizes["solution_arrays"] / sizes["fit_arrays"], "target_ratio": 10})
+
+    scenes = [("cornell-teapot", model, solution, view_from_camera(scene.camera, width, height))]
+    if not args.quick:
+        big_fit, big_solution = big_scene(np.random.default_rng(0))
+        lo = big_fit.objects[0].positions.min(axis=0)
+        hi = big_fit.objects[0].positions.max(axis=0)
+        scenes.append(("teapot 1M triangles", big_fit, big_solution, framing_view(lo, hi, width, height)))
+    for name, f, s, view in scenes:
+        renderer = Renderer(ctx, fit=f, solution=s)
+        triangles = sum(len(o.faces) for o in f.objects)
+        results = {}
+        for mode in ("fitted", "diffuse", "reference"):
+            for shading in ("gouraud", "pixel"):
+                ms = frame_times(renderer, view, mode, shading, frames)
+                results[(mode, shading)] = ms
+                record({"question": "frame time", "scene": name, "triangles": triangles, "mode": mode, "shading": shading,
+                        "width": width, "height": height, "frame_ms": ms, "bytes": mode_bytes(f, s, mode)})
+        a = renderer.render(view, "fitted", "pixel")
+        b = renderer.render(view, "fitted", "pixel")
+        record({"question": "targets", "scene": name,
+                "fitted_gouraud_over_diffuse": results[("fitted", "gouraud")] / results[("diffuse", "gouraud")],
+                "target": 1.5, "same_image_twice": bool(np.array_equal(a, b))})
+        renderer.release()
+
+    with open(RESULTS / "display.jsonl", "w") as out:
+        for row in rows:
+            out.write(json.dumps(row) + "\n")
+    plot(rows, RESULTS / "display.png")
+    return 0
+
+
+def plot(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["question"] == "frame time"))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        sel = [r for r in rows if r["question"] == "frame time" and r["scene"] == scene]
+        labels = [f"{r['mode']}\n{r['shading']}" for r in sel]
+        ax.bar(labels, [r["frame_ms"] for r in sel], color=["tab:orange", "tab:orange", "tab:green", "tab:green", "tab:blue", "tab:blue"])
+        ax.set_ylabel("frame time (ms)")
+        ax.set_title(f"{scene} ({sel[0]['triangles']:,} triangles), {sel[0]['width']}x{sel[0]['height']}")
+    fig.suptitle(rows[0].get("gl_renderer", ""), fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
