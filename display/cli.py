@@ -45,6 +45,17 @@ def _size(text):
     return w, h
 
 
+def add_camera_flags(parser, size):
+    """Contract 3's camera flags; the default camera is the scene's."""
+    parser.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view")
+    parser.add_argument("--size", type=_size, default=size, metavar="WxH", help=f"image size (default: {size[0]}x{size[1]})")
+    parser.add_argument("--view", metavar="NAME", help="a named view from --views")
+    parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
+
+
 def register(subparsers, not_built):
     p = subparsers.add_parser(
         "render",
@@ -57,13 +68,7 @@ def register(subparsers, not_built):
     p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit")
     p.add_argument("--mode", choices=("fitted", "reference", "diffuse"), help="default: fitted for a fit, reference for a solution")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
-    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view")
-    p.add_argument("--size", type=_size, default=(800, 800), metavar="WxH", help="image size (default: 800x800)")
-    p.add_argument("--view", metavar="NAME", help="a named view from --views")
-    p.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
+    add_camera_flags(p, (800, 800))
     p.add_argument("--hdr", metavar="FILE.npy", help="write linear radiance")
     p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: render.png if no --hdr)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
@@ -84,15 +89,9 @@ def register(subparsers, not_built):
     p.add_argument("fit", help="fit.npz")
     p.add_argument("solution", help="the solution.npz it was fitted to")
     p.add_argument("--out", default="compare", metavar="DIR", help="output directory (default: %(default)s)")
-    p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="image size (default: 512x512)")
+    add_camera_flags(p, (512, 512))
     p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
-    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--fov", type=float, metavar="DEG")
-    p.add_argument("--view", metavar="NAME", help="a named view from --views, the first viewpoint")
-    p.add_argument("--views", metavar="FILE", help="JSON of named views")
     p.set_defaults(func=_compare)
 
     p = subparsers.add_parser(
@@ -104,13 +103,7 @@ def register(subparsers, not_built):
     p.add_argument("file", help="fit.npz or solution.npz")
     p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit")
     p.add_argument("--mode", choices=("fitted", "reference", "diffuse"))
-    p.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    p.add_argument("--fov", type=float, metavar="DEG")
-    p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="window size (default: 1280x720)")
-    p.add_argument("--view", metavar="NAME")
-    p.add_argument("--views", metavar="FILE")
+    add_camera_flags(p, (1280, 720))
     p.add_argument("--exposure", type=float, default=1.0)
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
