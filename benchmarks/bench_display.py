@@ -34,16 +34,23 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 
 
-def frame_times(renderer, view, mode, shading, frames):
-    renderer.draw(view, mode, shading)  # compile, allocate
-    renderer.ctx.finish()
-    times = []
-    for _ in range(frames):
-        t = time.perf_counter()
+CONFIGURATIONS = [(m, s) for m in ("fitted", "diffuse", "reference") for s in ("gouraud", "pixel")]
+
+
+def frame_times(renderer, view, frames):
+    """Median ms per frame of every (mode, shading), the configurations interleaved frame
+    by frame so that drift in the machine's speed hits them all alike."""
+    for mode, shading in CONFIGURATIONS:  # compile, allocate
         renderer.draw(view, mode, shading)
-        renderer.ctx.finish()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times)) * 1000
+    renderer.ctx.finish()
+    times = {c: [] for c in CONFIGURATIONS}
+    for _ in range(frames):
+        for mode, shading in CONFIGURATIONS:
+            t = time.perf_counter()
+            renderer.draw(view, mode, shading)
+            renderer.ctx.finish()
+            times[(mode, shading)].append(time.perf_counter() - t)
+    return {c: float(np.median(t)) * 1000 for c, t in times.items()}
 
 
 def mode_bytes(fit, solution, mode):
@@ -137,13 +144,10 @@ def main(argv=None):
     for name, f, s, view in scenes:
         renderer = Renderer(ctx, fit=f, solution=s)
         triangles = sum(len(o.faces) for o in f.objects)
-        results = {}
-        for mode in ("fitted", "diffuse", "reference"):
-            for shading in ("gouraud", "pixel"):
-                ms = frame_times(renderer, view, mode, shading, frames)
-                results[(mode, shading)] = ms
-                record({"question": "frame time", "scene": name, "triangles": triangles, "mode": mode, "shading": shading,
-                        "width": width, "height": height, "frame_ms": ms, "bytes": mode_bytes(f, s, mode)})
+        results = frame_times(renderer, view, frames)
+        for (mode, shading), ms in results.items():
+            record({"question": "frame time", "scene": name, "triangles": triangles, "mode": mode, "shading": shading,
+                    "width": width, "height": height, "frame_ms": ms, "bytes": mode_bytes(f, s, mode)})
         a = renderer.render(view, "fitted", "pixel")
         b = renderer.render(view, "fitted", "pixel")
         record({"question": "targets", "scene": name,

@@ -75,6 +75,22 @@ void main() {
 }
 """
 
+GOURAUD_VS = """
+#version 330
+uniform mat4 mvp;
+uniform vec3 eye;
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_emitted;
+in vec3 in_specular;
+out vec3 v_colour;
+""" + SHADE_GLSL + """
+void main() {
+    gl_Position = mvp * vec4(in_position, 1.0);
+    v_colour = shade(normalize(in_normal), normalize(eye - in_position), in_emitted, in_specular);
+}
+"""
+
 FITTED_FS = """
 #version 330
 uniform vec3 eye;
@@ -368,7 +384,8 @@ class Renderer:
                 "reference-pixel": dict(
                     vertex_shader=REFERENCE_PIXEL_VS, geometry_shader=REFERENCE_PIXEL_GS, fragment_shader=REFERENCE_PIXEL_FS
                 ),
-                "fitted-feedback": dict(vertex_shader=FITTED_VS, varyings=["v_colour"]),
+                "gouraud": dict(vertex_shader=GOURAUD_VS, fragment_shader=COLOUR_FS),
+                "fitted-feedback": dict(vertex_shader=GOURAUD_VS, varyings=["v_colour"]),
                 "reference-feedback": dict(vertex_shader=REFERENCE_GOURAUD_VS, varyings=["v_colour"]),
             }[key]
             self._programs[key] = self.ctx.program(**sources)
@@ -408,7 +425,10 @@ class Renderer:
         ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)  # one-sided surfaces are still seen from behind
-        key = program_key or ("fitted" if mode in ("fitted", "diffuse") else f"reference-{shading}")
+        if program_key is None and mode in ("fitted", "diffuse"):
+            # per vertex: the colour alone crosses to the fragments; per pixel: the coefficients
+            program_key = "gouraud" if shading == "gouraud" and mask is None else "fitted"
+        key = program_key or f"reference-{shading}"
         program = self._program(key)
         mvp = self._matrices(view)
         program["mvp"].write(mvp)
