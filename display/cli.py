@@ -110,11 +110,17 @@ def register(subparsers, not_built):
     p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p) after the first frame")
     p.set_defaults(func=_view)
 
-    for command, help_text in (
-        ("demo", "solve, fit and compare the built-in cornell-teapot scene"),
-    ):
-        p = subparsers.add_parser(command, help=help_text)
-        p.set_defaults(func=not_built(command, "the display stage (issue #5)" if command != "demo" else "the end-to-end demo (issue #6)"))
+    p = subparsers.add_parser(
+        "demo",
+        help="solve, fit and compare the built-in cornell-teapot scene",
+        description="The whole pipeline on the built-in cornell-teapot scene: solution.npz, fit.npz, the paper's "
+        "figures 5-7 with error images and numbers, an error-against-lights plot, report.md and summary.json.",
+    )
+    p.add_argument("--quality", choices=("draft", "medium", "high"), default="draft", help="default: %(default)s")
+    p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
+    p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")
+    p.set_defaults(func=_demo)
 
 
 def _read_model_files(path, extra_solution=None):
@@ -268,6 +274,36 @@ def _view(args):
         if "display" in str(exc).lower() or "xlib" in str(exc).lower():
             raise InputError(f"cannot open a window: {' '.join(str(exc).split())}") from None
         raise
+    return 0
+
+
+def _demo(args):
+    from pathlib import Path
+
+    from display.demo import key_numbers, run_demo
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {args.out!r} exists and is not a directory")
+    summary = run_demo(out, args.quality, args.size)
+    print(key_numbers(summary, out))
+    if args.view:
+        from display.window import has_display
+
+        if not has_display():
+            print("no display: skipping the walkthrough (run 'vlights view' where there is one)")
+        else:
+            import moderngl_window as mglw
+
+            from display.camera import view_from_camera
+            from display.window import Walkthrough
+            from fitting import load_fit
+            from radiosity.loaders import load_scene
+            from radiosity.solution import load_solution
+
+            view = view_from_camera(load_scene("cornell-teapot").camera, 1280, 720)
+            Walkthrough.configure(load_fit(out / "fit.npz"), load_solution(out / "solution.npz"), view)
+            mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
     return 0
 
 

@@ -28,13 +28,6 @@ def test_help_lists_every_subcommand(capsys):
         assert command in out
 
 
-@pytest.mark.parametrize("command", ["demo"])
-def test_unbuilt_stages_say_so_and_exit_2(command, capsys):
-    code, out, err = run([command], capsys)
-    assert code == 2 and out == ""
-    assert err.count("\n") == 1 and "not available yet" in err
-
-
 def test_scene_info_describes_the_demo_scene(capsys):
     code, out, err = run(["scene-info", "cornell-teapot"], capsys)
     assert code == 0, err
