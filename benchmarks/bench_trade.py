@@ -1,0 +1,256 @@
+"""What does more time buy? Every solver knob against error, time and size.
+
+Usage:
+    python benchmarks/bench_trade.py [--quick]
+
+On cornell-teapot, fixed seeds, 2 cores:
+  1. photons against error and time: radiance of every vertex (all objects, all
+     directions) against a 16x-photon reference on the same mesh; the log-log slope
+     of error against photons (Monte Carlo: -0.5);
+  2. gather samples against the glossy objects' error (against 4096 gather rays),
+     time and file size;
+  3. the direction grid of the glossy objects: error of the stored radiance read
+     bilinearly at a 32 x 32 reference grid's directions, against that reference;
+     time and file size;
+  4. scaling: triangles from about 1e3 to 1e6 (mesh refinement): solve time, peak
+     memory (a fresh process each), fit time (paper's method, K = 8);
+  5. the three presets: solve time and error against a high-quality reference
+     (32 M photons, 4096 gather rays).
+Results: JSON lines in benchmarks/results/trade.jsonl, plots in results/trade.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+
+
+def radiance_error(a, b, names=None):
+    """Relative RMS difference of two solutions' radiance over the chosen objects."""
+    num = den = 0.0
+    for x, y in zip(a.objects, b.objects):
+        if names is not None and x.name not in names:
+            continue
+        num += float(np.sum((x.radiance.astype(np.float64) - y.radiance) ** 2))
+        den += float(np.sum(y.radiance.astype(np.float64) ** 2))
+    return float(np.sqrt(num / den))
+
+
+def grid_error(test, reference, names):
+    """Stored radiance read bilinearly at the reference grid's directions, against it."""
+    from radiosity import directions
+
+    num = den = 0.0
+    for x, y in zip(test.objects, reference.objects):
+        if x.name not in names:
+            continue
+        idx, weight = directions.grid_lookup_weights(y.directions.astype(np.float64), x.grid_n)
+        values = np.einsum("dk,vdkc->vdc", weight, x.radiance[:, idx].astype(np.float64))
+        num += float(np.sum((values - y.radiance) ** 2))
+        den += float(np.sum(y.radiance.astype(np.float64) ** 2))
+    return float(np.sqrt(num / den))
+
+
+def timed_solve(scene, **kw):
+    from radiosity.solver import SolveOptions, solve
+
+    t = time.perf_counter()
+    solution = solve(scene, SolveOptions(seed=kw.pop("seed", 1), **kw))
+    return solution, time.perf_counter() - t
+
+
+def file_size(solution):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "s.npz"
+        solution.save(path)
+        return path.stat().st_size
+
+
+def scaling_run(max_edge):
+    code = (
+        "open('/proc/self/clear_refs', 'w').write('5')\n"
+        "import json, time\n"
+        "from radiosity.loaders import load_scene\n"
+        "from radiosity.solver import solve, SolveOptions\n"
+        "from fitting import fit, FitOptions\n"
+        "scene = load_scene('cornell-teapot')\n"
+        "t = time.perf_counter()\n"
+        f"sol = solve(scene, SolveOptions(max_edge={max_edge}, photons=2_000_000, gather_samples=64, light_samples=16))\n"
+        "t_solve = time.perf_counter() - t\n"
+        "t = time.perf_counter()\n"
+        "fit(sol, FitOptions(lights=8, method='paper'))\n"
+        "t_fit = time.perf_counter() - t\n"
+        "hwm = int(open('/proc/self/status').read().split('VmHWM:')[1].split()[0]) / 1024\n"
+        "print(json.dumps({'triangles': sol.stats['triangles'], 'vertices': sol.stats['vertices'], 'solve_s': t_solve, 'fit_s': t_fit, 'peak_rss_mb': hwm}))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+    from radiosity.loaders import load_scene
+
+    RESULTS.mkdir(exist_ok=True)
+    info = {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
+    rows = []
+
+    def record(row):
+        row = info | row
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+
+    scene = load_scene("cornell-teapot")
+    glossy = ["teapot", "tall_block"]
+    edge = 40.0
+    timed_solve(scene, photons=1000, gather_samples=4, light_samples=1, max_edge=200.0)  # compile
+
+    # 1 photons
+    counts = [125_000, 500_000, 2_000_000] if args.quick else [125_000, 250_000, 500_000, 1_000_000, 2_000_000, 4_000_000]
+    base = dict(max_edge=edge, gather_samples=16, light_samples=4, grid=8)
+    reference, _ = timed_solve(scene, photons=16 * counts[-1], seed=99, **base)
+    errors = []
+    for n in counts:
+        sol, seconds = timed_solve(scene, photons=n, **base)
+        errors.append(radiance_error(sol, reference, names=[o.name for o in sol.objects if o.name not in glossy + ["light"]]))
+        record({"question": "photons", "photons": n, "relative_rms": errors[-1], "seconds": seconds, "photon_phase_s": sol.stats["time_s"]["photons"]})
+    slope = float(np.polyfit(np.log(counts), np.log(errors), 1)[0])
+    record({"question": "photons slope", "log_log_slope": slope, "monte_carlo_is": -0.5})
+
+    # 2 gather samples
+    samples = [16, 64, 256] if args.quick else [16, 64, 256, 1024]
+    gbase = dict(max_edge=edge, photons=2_000_000, grid=12, light_samples=32)
+    reference, _ = timed_solve(scene, gather_samples=4096, seed=98, **gbase)
+    for g in samples:
+        sol, seconds = timed_solve(scene, gather_samples=g, **gbase)
+        record({"question": "gather samples", "gather_samples": g, "relative_rms": radiance_error(sol, reference, glossy),
+                "seconds": seconds, "gather_phase_s": sol.stats["time_s"]["gather"], "file_mb": file_size(sol) / 1e6})
+
+    # 3 grid size
+    grids = [8, 17, 24] if args.quick else [6, 8, 12, 17, 24]
+    rbase = dict(max_edge=edge, photons=2_000_000, gather_samples=256, light_samples=32)
+    reference, _ = timed_solve(scene, grid=32, **rbase)
+    for n in grids:
+        sol, seconds = timed_solve(scene, grid=n, **rbase)
+        record({"question": "grid", "grid": n, "relative_rms": grid_error(sol, reference, glossy), "seconds": seconds,
+                "gather_phase_s": sol.stats["time_s"]["gather"], "file_mb": file_size(sol) / 1e6})
+
+    # 4 scaling with triangles
+    edges = [300.0, 60.0, 15.0] if args.quick else [600.0, 150.0, 40.0, 12.0, 4.0, 2.0]
+    for e in edges:
+        record({"question": "scaling", "max_edge": e} | scaling_run(e))
+
+    # 5 presets
+    reference, _ = timed_solve(scene, quality="high", photons=32_000_000, gather_samples=4096, seed=97)
+    for quality in ("draft", "medium", "high"):
+        sol, seconds = timed_solve(scene, quality=quality)
+        # presets refine differently: compare on the reference's mesh by re-solving is not
+        # possible, so error is measured per object on the diffuse part's mean and the glossy
+        # objects' direction-averaged radiance, area-weighted over vertices
+        record({"question": "presets", "quality": quality, "seconds": seconds, "vertices": sol.stats["vertices"],
+                "file_mb": file_size(sol) / 1e6, "relative_error_of_object_means": preset_error(sol, reference)})
+
+    with open(RESULTS / "trade.jsonl", "w") as f:
+        for row in rows:
+            f.write(json.dumps(row) + "\n")
+    plot(rows, RESULTS / "trade.png")
+    return 0
+
+
+def preset_error(test, reference):
+    """Meshes differ between presets: compare each object's mean outgoing radiance per
+    direction (area-weighted over vertices), RMS over objects, directions and channels."""
+    from fitting.data import vertex_areas
+    from radiosity import directions
+
+    num = den = 0.0
+    for x, y in zip(test.objects, reference.objects):
+        ax, ay = vertex_areas(x.positions, x.faces), vertex_areas(y.positions, y.faces)
+        if x.is_diffuse:
+            mx = (ax[:, None, None] * x.radiance).sum(axis=0) / ax.sum()
+            my = (ay[:, None, None] * y.radiance).sum(axis=0) / ay.sum()
+        else:
+            idx, weight = directions.grid_lookup_weights(y.directions.astype(np.float64), x.grid_n)
+            values = np.einsum("dk,vdkc->vdc", weight, x.radiance[:, idx].astype(np.float64))
+            mx = (ax[:, None, None] * values).sum(axis=0) / ax.sum()
+            my = (ay[:, None, None] * y.radiance).sum(axis=0) / ay.sum()
+        num += float(np.sum((mx - my) ** 2))
+        den += float(np.sum(my**2))
+    return float(np.sqrt(num / den))
+
+
+def plot(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8))
+    p = [r for r in rows if r["question"] == "photons"]
+    ax = axes[0, 0]
+    ax.loglog([r["photons"] for r in p], [r["relative_rms"] for r in p], "o-")
+    slope = next(r["log_log_slope"] for r in rows if r["question"] == "photons slope")
+    ax.set_title(f"photons: error (slope {slope:.2f}; MC -0.5)")
+    ax.set_xlabel("photons")
+    ax.set_ylabel("relative RMS vs 16x reference")
+    ax2 = ax.twinx()
+    ax2.loglog([r["photons"] for r in p], [r["seconds"] for r in p], "s--", color="tab:red")
+    ax2.set_ylabel("solve time (s)", color="tab:red")
+    g = [r for r in rows if r["question"] == "gather samples"]
+    ax = axes[0, 1]
+    ax.loglog([r["gather_samples"] for r in g], [r["relative_rms"] for r in g], "o-")
+    ax.set_title("gather rays per vertex: glossy error")
+    ax.set_xlabel("gather rays")
+    ax.set_ylabel("relative RMS vs 4096")
+    ax2 = ax.twinx()
+    ax2.loglog([r["gather_samples"] for r in g], [r["seconds"] for r in g], "s--", color="tab:red")
+    ax2.set_ylabel("solve time (s)", color="tab:red")
+    d = [r for r in rows if r["question"] == "grid"]
+    ax = axes[0, 2]
+    ax.plot([r["grid"] for r in d], [r["relative_rms"] for r in d], "o-")
+    ax.set_title("direction grid n x n: error vs 32 x 32")
+    ax.set_xlabel("n")
+    ax.set_ylabel("relative RMS")
+    ax2 = ax.twinx()
+    ax2.plot([r["grid"] for r in d], [r["file_mb"] for r in d], "s--", color="tab:green")
+    ax2.set_ylabel("solution.npz (MB)", color="tab:green")
+    s = [r for r in rows if r["question"] == "scaling"]
+    ax = axes[1, 0]
+    ax.loglog([r["triangles"] for r in s], [r["solve_s"] for r in s], "o-", label="solve")
+    ax.loglog([r["triangles"] for r in s], [r["fit_s"] for r in s], "s-", label="fit (paper, K=8)")
+    ax.set_xlabel("triangles")
+    ax.set_ylabel("seconds")
+    ax.set_title("scaling: time")
+    ax.legend()
+    ax = axes[1, 1]
+    ax.semilogx([r["triangles"] for r in s], [r["peak_rss_mb"] for r in s], "o-")
+    ax.set_xlabel("triangles")
+    ax.set_ylabel("peak RSS (MB)")
+    ax.set_title("scaling: memory")
+    q = [r for r in rows if r["question"] == "presets"]
+    ax = axes[1, 2]
+    ax.bar([r["quality"] for r in q], [r["seconds"] for r in q])
+    for i, r in enumerate(q):
+        ax.annotate(f"err {r['relative_error_of_object_means']:.3f}", (i, r["seconds"]), ha="center", va="bottom")
+    ax.set_ylabel("solve time (s)")
+    ax.set_title("presets: time (error of object means vs high reference)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
