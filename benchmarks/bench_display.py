@@ -20,18 +20,13 @@ Equivalence check: rendering twice gives the same image.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
+from _common import RESULTS, Recorder
 
 
 CONFIGURATIONS = [(m, s) for m in ("fitted", "diffuse", "reference") for s in ("gouraud", "pixel")]
@@ -109,17 +104,9 @@ def main(argv=None):
     from radiosity.loaders import load_scene
     from radiosity.solver import SolveOptions, solve
 
-    RESULTS.mkdir(exist_ok=True)
-    info = {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
-    rows = []
-
-    def record(row):
-        row = info | row
-        rows.append(row)
-        print(json.dumps(row), flush=True)
-
     ctx = headless_context()
-    info["gl_renderer"] = ctx.info["GL_RENDERER"]
+    record = Recorder(gl_renderer=ctx.info["GL_RENDERER"])
+    rows = record.rows
     width, height = (640, 360) if args.quick else (1280, 720)
     frames = 3 if args.quick else args.frames
 
@@ -155,9 +142,7 @@ def main(argv=None):
                 "target": 1.5, "same_image_twice": bool(np.array_equal(a, b))})
         renderer.release()
 
-    with open(RESULTS / "display.jsonl", "w") as out:
-        for row in rows:
-            out.write(json.dumps(row) + "\n")
+    record.save("display.jsonl")
     plot(rows, RESULTS / "display.png")
     return 0
 

@@ -22,16 +22,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
+from _common import RESULTS, Recorder
 
 
 def median_time(fn, repeats):
@@ -83,14 +78,8 @@ def main(argv=None):
     from radiosity.loaders import load_scene
     from radiosity.solver import SolveOptions, solve
 
-    RESULTS.mkdir(exist_ok=True)
-    info = {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
-    rows = []
-
-    def record(row):
-        row = info | row
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    record = Recorder()
+    rows = record.rows
 
     solution = solve(load_scene("cornell-teapot"), SolveOptions(quality=args.quality, seed=1))
     glossy = [o for o in solution.objects if not o.is_diffuse]
@@ -158,9 +147,7 @@ def main(argv=None):
                 "floats_per_vertex": 6 + 7 * k / data.n_vertices, "relative_rms": r["relative_rms"],
             })
 
-    with open(RESULTS / "fit.jsonl", "w") as f:
-        for row in rows:
-            f.write(json.dumps(row) + "\n")
+    record.save("fit.jsonl")
     plot(rows, [o.name for o in glossy], RESULTS / "fit.png")
     return 0
 

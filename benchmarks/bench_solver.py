@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -32,18 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
-
-
-def machine():
-    return {
-        "cores": os.cpu_count(),
-        "machine": platform.machine(),
-        "python": platform.python_version(),
-        "cpu": platform.processor() or platform.uname().machine,
-    }
+from _common import RESULTS, Recorder
 
 
 def bare_embree_rays_per_second(scene, threads, n_rays, repeats):
@@ -116,14 +104,8 @@ def main(argv=None):
     from radiosity.loaders import load_scene
     from radiosity.solver import SolveOptions, solve
 
-    RESULTS.mkdir(exist_ok=True)
-    rows = []
-    info = machine() | {"threads": args.threads, "scene": args.scene}
-
-    def record(row):
-        row = info | row
-        rows.append(row)
-        print(json.dumps(row))
+    record = Recorder(threads=args.threads, scene=args.scene)
+    rows = record.rows
 
     scene = load_scene(args.scene)
     photons = 500_000 if args.quick else 2_000_000
@@ -200,9 +182,7 @@ def main(argv=None):
     finally:
         shutil.rmtree(cache, ignore_errors=True)
 
-    with open(RESULTS / "solver.jsonl", "w") as f:
-        for row in rows:
-            f.write(json.dumps(row) + "\n")
+    record.save("solver.jsonl")
     plot(rows, RESULTS / "solver.png")
     return 0
 

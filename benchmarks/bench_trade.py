@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -32,9 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
+from _common import RESULTS, Recorder
 
 
 def radiance_error(a, b, names=None):
@@ -105,14 +101,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     from radiosity.loaders import load_scene
 
-    RESULTS.mkdir(exist_ok=True)
-    info = {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
-    rows = []
-
-    def record(row):
-        row = info | row
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    record = Recorder()
+    rows = record.rows
 
     scene = load_scene("cornell-teapot")
     glossy = ["teapot", "tall_block"]
@@ -164,9 +154,7 @@ def main(argv=None):
         record({"question": "presets", "quality": quality, "seconds": seconds, "vertices": sol.stats["vertices"],
                 "file_mb": file_size(sol) / 1e6, "relative_error_of_object_means": preset_error(sol, reference)})
 
-    with open(RESULTS / "trade.jsonl", "w") as f:
-        for row in rows:
-            f.write(json.dumps(row) + "\n")
+    record.save("trade.jsonl")
     plot(rows, RESULTS / "trade.png")
     return 0
 

@@ -155,6 +155,30 @@ def _cosine_direction(u1, u2):
     return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
 
 
+@numba.njit(cache=True, nogil=True)
+def _scatter(sa, t, u, v, dx, dy, dz, u1, u2, u3):
+    """Sample the BRDF at a hit on triangle t reached along (dx, dy, dz), in the shading
+    frame there, with the uniform numbers (u1, u2, u3) of ``brdf_sample``.
+
+    Returns (wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok): wo and wi in the local
+    frame, the mixture pdf, the sampled direction in world space, and whether it leaves
+    above both the shading and the true (geometric) surface.
+    """
+    mat = sa.materials[sa.face_material[t]]
+    nx, ny, nz = _shading_normal(sa, t, u, v, dx, dy, dz)
+    tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+    wox = -(dx * tx + dy * ty + dz * tz)
+    woy = -(dx * bx + dy * by + dz * bz)
+    woz = -(dx * nx + dy * ny + dz * nz)
+    wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, u1, u2, u3)
+    ox = wix * tx + wiy * bx + wiz * nx
+    oy = wix * ty + wiy * by + wiz * ny
+    oz = wix * tz + wiy * bz + wiz * nz
+    g = sa.face_normals[t]
+    ok = wiz > 0.0 and pdf > 0.0 and ox * g[0] + oy * g[1] + oz * g[2] > 0.0
+    return wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok
+
+
 @numba.njit(inline="always")
 def _push_ray(origins, directions, values, i, x, y, z, g, epsilon, dx, dy, dz, v0, v1, v2):
     """Write outgoing ray i: origin (x, y, z) offset along the front normal g, direction
@@ -257,30 +281,20 @@ def bounce_photons(
 
         m = sa.face_material[t]
         mat = sa.materials[m]
-        nx, ny, nz = _shading_normal(sa, t, uk, vk, dx, dy, dz)
-        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
-        wox = -(dx * tx + dy * ty + dz * tz)
-        woy = -(dx * bx + dy * by + dz * bz)
-        woz = -(dx * nx + dy * ny + dz * nz)
+        base = depth * 8
+        wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok = _scatter(
+            sa, t, uk, vk, dx, dy, dz,
+            rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
+            rand(seed, STREAM_BOUNCE, pid, base + 2),
+        )
         for c in range(3):
             tally[T_ABSORBED + c] += power[k, c] * (1.0 - _albedo(sa, m, woz, c))
         if depth + 1 >= max_depth:
             for c in range(3):
                 tally[T_TERMINATED + c] += power[k, c] * _albedo(sa, m, woz, c)
             continue
-        base = depth * 8
-        wix, wiy, wiz, pdf = brdf_sample(
-            mat, wox, woy, woz,
-            rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
-            rand(seed, STREAM_BOUNCE, pid, base + 2),
-        )
-        if wiz <= 0.0 or pdf <= 0.0:
-            continue
-        ox = wix * tx + wiy * bx + wiz * nx
-        oy = wix * ty + wiy * by + wiz * ny
-        oz = wix * tz + wiy * bz + wiz * nz
-        if ox * g[0] + oy * g[1] + oz * g[2] <= 0.0:
-            continue  # below the true surface: absorbed
+        if not ok:
+            continue  # below the shading or the true surface: absorbed
         fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
         scale = wiz / pdf
         new0, new1, new2 = power[k, 0] * fr * scale, power[k, 1] * fg * scale, power[k, 2] * fb * scale
@@ -418,21 +432,12 @@ def shade_paths(
         ks_max = max(mat[KS], mat[KS + 1], mat[KS + 2])
         if ks_max <= 0.0 or depth + 1 >= max_depth:
             continue
-        nx, ny, nz = _shading_normal(sa, t, uk, vk, dx, dy, dz)
-        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
-        wox = -(dx * tx + dy * ty + dz * tz)
-        woy = -(dx * bx + dy * by + dz * bz)
-        woz = -(dx * nx + dy * ny + dz * nz)
         item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
-        wix, wiy, wiz, _ = brdf_sample(
-            mat, wox, woy, woz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
+        # u1 = 0 picks the specular lobe (the diffuse lobe's light is in the irradiance)
+        _, _, _, wix, wiy, wiz, _, ox, oy, oz, ok = _scatter(
+            sa, t, uk, vk, dx, dy, dz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
         )
-        if wiz <= 0.0:
-            continue
-        ox = wix * tx + wiy * bx + wiz * nx
-        oy = wix * ty + wiy * by + wiz * ny
-        oz = wix * tz + wiy * bz + wiz * nz
-        if ox * g[0] + oy * g[1] + oz * g[2] <= 0.0:
+        if not ok:
             continue
         # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
         lobe_weight = (mat[EXPONENT] + 2.0) / (mat[EXPONENT] + 1.0) * wiz
