@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 from _common import RESULTS, Recorder
 
-
 CONFIGURATIONS = [(m, s) for m in ("fitted", "diffuse", "reference") for s in ("gouraud", "pixel")]
 
 
@@ -66,8 +65,9 @@ def mode_bytes(fit, solution, mode):
 def big_scene(rng):
     """About 1 M triangles: the teapot at 128 segments per patch side."""
     from fitting import FittedModel, FittedObject
-    from radiosity import directions, geometry, teapot
-    from radiosity.solution import ObjectSolution, Solution
+    from radiosity.formats import directions
+    from radiosity.formats.solution import ObjectSolution, Solution
+    from radiosity.scene import geometry, teapot
 
     positions, faces = teapot.tessellate(128)
     positions, faces, normals = geometry.crease_normals(positions, faces, 40.0)
@@ -97,12 +97,12 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args(argv)
 
-    from display.camera import framing_view, view_from_camera
+    from display.camera import framing_view
     from display.gl import headless_context
     from display.renderer import Renderer
     from fitting import FitOptions, fit
-    from radiosity.loaders import load_scene
-    from radiosity.solver import SolveOptions, solve
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.solve import SolveOptions, solve
 
     ctx = headless_context()
     record = Recorder(gl_renderer=ctx.info["GL_RENDERER"])
@@ -122,7 +122,7 @@ def main(argv=None):
     record({"question": "model size", **sizes, "file_ratio": sizes["solution_file"] / sizes["fit_file"],
             "array_ratio": sizes["solution_arrays"] / sizes["fit_arrays"], "target_ratio": 10})
 
-    scenes = [("cornell-teapot", model, solution, view_from_camera(scene.camera, width, height))]
+    scenes = [("cornell-teapot", model, solution, scene.camera.sized(width, height))]
     if not args.quick:
         big_fit, big_solution = big_scene(np.random.default_rng(0))
         lo = big_fit.objects[0].positions.min(axis=0)

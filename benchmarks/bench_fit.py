@@ -40,7 +40,7 @@ def median_time(fn, repeats):
 
 def synthetic_data(rng, n_vertices, grid):
     from fitting.data import FitData
-    from radiosity import directions
+    from radiosity.formats import directions
 
     normals = rng.normal(size=(n_vertices, 3))
     normals[:, 2] = np.abs(normals[:, 2]) + 0.3
@@ -75,8 +75,8 @@ def main(argv=None):
     from fitting.data import fit_data, relative_error
     from fitting.fit import FitOptions, fit_lights, reconstruct
     from fitting.paper import fit_paper
-    from radiosity.loaders import load_scene
-    from radiosity.solver import SolveOptions, solve
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.solve import SolveOptions, solve
 
     record = Recorder()
     rows = record.rows

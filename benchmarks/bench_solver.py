@@ -35,7 +35,7 @@ from _common import RESULTS, Recorder
 
 
 def bare_embree_rays_per_second(scene, threads, n_rays, repeats):
-    from radiosity.embree import RayTracer
+    from radiosity.transport.embree import RayTracer
 
     refined = scene
     merged = refined.merged()
@@ -66,8 +66,8 @@ def peak_memory_mb(scene_name, photons, threads):
     # a child inherits its parent's high-water RSS across fork and exec: reset it first
     code = (
         "open('/proc/self/clear_refs', 'w').write('5')\n"
-        "from radiosity.loaders import load_scene\n"
-        "from radiosity.solver import solve, SolveOptions\n"
+        "from radiosity.scene.loaders import load_scene\n"
+        "from radiosity.transport.solve import solve, SolveOptions\n"
         f"solve(load_scene({scene_name!r}), SolveOptions(photons={photons}, gather_samples=4, light_samples=1, threads={threads}))\n"
         "status = open('/proc/self/status').read().split('VmHWM:')[1]\n"
         "print(int(status.split()[0]) / 1024)\n"
@@ -80,8 +80,8 @@ def timed_solve_in_fresh_process(scene_name, quality, threads, cache_dir):
     code = (
         "import time, json\n"
         "t0 = time.perf_counter()\n"
-        "from radiosity.loaders import load_scene\n"
-        "from radiosity.solver import solve, SolveOptions\n"
+        "from radiosity.scene.loaders import load_scene\n"
+        "from radiosity.transport.solve import solve, SolveOptions\n"
         f"scene = load_scene({scene_name!r})\n"
         "t1 = time.perf_counter()\n"
         f"sol = solve(scene, SolveOptions(quality={quality!r}, threads={threads}))\n"
@@ -101,8 +101,8 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="fewer photons and presets, for a smoke run")
     args = parser.parse_args(argv)
 
-    from radiosity.loaders import load_scene
-    from radiosity.solver import SolveOptions, solve
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.solve import SolveOptions, solve
 
     record = Recorder(threads=args.threads, scene=args.scene)
     rows = record.rows

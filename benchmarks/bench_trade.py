@@ -46,7 +46,7 @@ def radiance_error(a, b, names=None):
 
 def grid_error(test, reference, names):
     """Stored radiance read bilinearly at the reference grid's directions, against it."""
-    from radiosity import directions
+    from radiosity.formats import directions
 
     num = den = 0.0
     for x, y in zip(test.objects, reference.objects):
@@ -60,7 +60,7 @@ def grid_error(test, reference, names):
 
 
 def timed_solve(scene, **kw):
-    from radiosity.solver import SolveOptions, solve
+    from radiosity.transport.solve import SolveOptions, solve
 
     t = time.perf_counter()
     solution = solve(scene, SolveOptions(seed=kw.pop("seed", 1), **kw))
@@ -78,8 +78,8 @@ def scaling_run(max_edge):
     code = (
         "open('/proc/self/clear_refs', 'w').write('5')\n"
         "import json, time\n"
-        "from radiosity.loaders import load_scene\n"
-        "from radiosity.solver import solve, SolveOptions\n"
+        "from radiosity.scene.loaders import load_scene\n"
+        "from radiosity.transport.solve import solve, SolveOptions\n"
         "from fitting import fit, FitOptions\n"
         "scene = load_scene('cornell-teapot')\n"
         "t = time.perf_counter()\n"
@@ -99,7 +99,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args(argv)
-    from radiosity.loaders import load_scene
+    from radiosity.scene.loaders import load_scene
 
     record = Recorder()
     rows = record.rows
@@ -163,7 +163,7 @@ def preset_error(test, reference):
     """Meshes differ between presets: compare each object's mean outgoing radiance per
     direction (area-weighted over vertices), RMS over objects, directions and channels."""
     from fitting.data import vertex_areas
-    from radiosity import directions
+    from radiosity.formats import directions
 
     num = den = 0.0
     for x, y in zip(test.objects, reference.objects):

@@ -15,7 +15,7 @@ import numpy as np
 
 import fitting.cli
 import radiosity.cli
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
 
 PROG = "vlights"
 
@@ -125,21 +125,10 @@ def register(subparsers, not_built):
 
 def _read_model_files(path, extra_solution=None):
     """(fit or None, solution or None) from a file that is either, plus an optional solution."""
-    import json
-
-    import numpy as np
-
     from fitting import load_fit
-    from radiosity.solution import load_solution
+    from radiosity.formats import file_format, load_solution
 
-    fmt = None
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            fmt = json.loads(str(npz["meta"])).get("format") if "meta" in npz.files else None
-    except FileNotFoundError:
-        raise InputError(f"file {path!r} not found") from None
-    except Exception:
-        fmt = None
+    fmt = file_format(path)
     if fmt == "vlights.fit":
         fit, solution = load_fit(path), None
     elif fmt == "vlights.solution":
@@ -151,43 +140,16 @@ def _read_model_files(path, extra_solution=None):
     return fit, solution
 
 
-def _scene_camera(source):
-    """The camera of the scene a file was made from, if it can still be read."""
-    from radiosity.loaders import load_scene
+def resolve_view(args, bounds, fit=None, solution=None):
+    """The camera from flags, a named view, or the files' scene camera (else a framing view)."""
+    from display.camera import resolve_camera
 
-    try:
-        return load_scene(source).camera if source else None
-    except InputError:
-        return None
-
-
-def resolve_view(args, bounds, source):
-    """The camera from flags, a named view, or the scene's (or a framing) default."""
-    from display.camera import View, framing_view, load_views, view_from_camera
-
-    width, height = args.size
-    if args.view is not None:
-        if args.views is None:
-            raise InputError("--view needs --views FILE")
-        views = load_views(args.views)
-        if args.view not in views:
-            raise InputError(f"no view {args.view!r} in {args.views} (views: {', '.join(views)})")
-        v = views[args.view]
-        try:
-            base = View(tuple(v["eye"]), tuple(v["look_at"]), tuple(v.get("up", (0, 1, 0))), float(v.get("fov_y_deg", 39.3)), width, height)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"view {args.view!r} in {args.views}: needs eye and look_at ({exc})") from None
-    else:
-        camera = _scene_camera(source)
-        base = view_from_camera(camera, width, height) if camera else framing_view(bounds[0], bounds[1], width, height)
-    return View(
-        tuple(args.eye) if args.eye else base.eye,
-        tuple(args.look_at) if args.look_at else base.look_at,
-        tuple(args.up) if args.up else base.up,
-        args.fov if args.fov is not None else base.fov_y_deg,
-        width,
-        height,
-    )
+    default = None
+    for model in (solution, fit):
+        if model is not None and getattr(model, "camera", None) is not None:
+            default = model.camera
+            break
+    return resolve_camera(args, bounds, default)
 
 
 def _render(args):
@@ -196,7 +158,7 @@ def _render(args):
 
     from display.gl import headless_context
     from display.renderer import Renderer, tonemap
-    from radiosity.atomic import atomic_output
+    from radiosity.formats.atomic import atomic_output
 
     if args.video is not None:
         return _video(args)
@@ -211,10 +173,9 @@ def _render(args):
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
     fit, solution = _read_model_files(args.file, args.solution)
     mode = args.mode or ("fitted" if fit is not None else "reference")
-    source = (fit.source if fit is not None else solution.scene)
     ctx = headless_context()
     renderer = Renderer(ctx, fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, source)
+    view = resolve_view(args, renderer.bounds, fit, solution)
     hdr = renderer.render(view, mode, args.shading, args.lights)
     renderer.release()
     if args.hdr:
@@ -240,7 +201,7 @@ def _video(args):
     fit, solution = _read_model_files(args.file, args.solution)
     mode = args.mode or ("fitted" if fit is not None else "reference")
     renderer = Renderer(headless_context(), fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, fit.source if fit is not None else solution.scene)
+    view = resolve_view(args, renderer.bounds, fit, solution)
     if mode not in renderer.modes:
         raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
     frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure, progress=True)
@@ -262,9 +223,8 @@ def _view(args):
     from display.window import Walkthrough
 
     fit, solution = _read_model_files(args.file, args.solution)
-    source = fit.source if fit is not None else solution.scene
     positions = np.concatenate([o.positions for o in (fit or solution).objects])
-    view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), source)
+    view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), fit, solution)
     if set(args.press) - set("mgl+-p"):
         raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
     Walkthrough.configure(fit, solution, view, args.exposure, args.frames, args.screenshot, args.mode, args.press)
@@ -295,14 +255,12 @@ def _demo(args):
         else:
             import moderngl_window as mglw
 
-            from display.camera import view_from_camera
             from display.window import Walkthrough
             from fitting import load_fit
-            from radiosity.loaders import load_scene
-            from radiosity.solution import load_solution
+            from radiosity.formats import load_solution
 
-            view = view_from_camera(load_scene("cornell-teapot").camera, 1280, 720)
-            Walkthrough.configure(load_fit(out / "fit.npz"), load_solution(out / "solution.npz"), view)
+            solution = load_solution(out / "solution.npz")
+            Walkthrough.configure(load_fit(out / "fit.npz"), solution, solution.camera.sized(1280, 720))
             mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
     return 0
 
@@ -314,7 +272,7 @@ def _compare(args):
     from display.gl import headless_context
     from display.renderer import Renderer
     from fitting import load_fit
-    from radiosity.solution import load_solution
+    from radiosity.formats.solution import load_solution
 
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
@@ -323,7 +281,7 @@ def _compare(args):
         raise InputError(f"--out {args.out!r} exists and is not a directory")
     fit, solution = load_fit(args.fit), load_solution(args.solution)
     renderer = Renderer(headless_context(), fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, solution.scene)
+    view = resolve_view(args, renderer.bounds, fit, solution)
     results = compare(renderer, out, view, args.exposure, args.shading)
     renderer.release()
     print(f"wrote figures 5, 6, 7 and compare.json to {out}/")

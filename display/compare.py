@@ -20,9 +20,9 @@ import json
 import numpy as np
 from PIL import Image, ImageDraw
 
-from radiosity.atomic import atomic_output
+from radiosity.formats import Camera
+from radiosity.formats.atomic import atomic_output
 
-from .camera import View
 from .renderer import tonemap
 
 
@@ -72,7 +72,7 @@ def orbit(view, degrees):
     angle = np.radians(degrees)
     rotated = (offset * np.cos(angle) + np.cross(axis, offset) * np.sin(angle)
                + axis * (axis @ offset) * (1 - np.cos(angle)))
-    return View(tuple(centre + rotated), view.look_at, view.up, view.fov_y_deg, view.width, view.height)
+    return Camera(tuple(centre + rotated), view.look_at, view.up, view.fov_y_deg, view.width, view.height)
 
 
 def _panel_row(images, labels, path):

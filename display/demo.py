@@ -11,8 +11,7 @@ import json
 import time
 from pathlib import Path
 
-
-from radiosity.atomic import atomic_output
+from radiosity.formats.atomic import atomic_output
 
 # refinement iterations per quality: the draft demo must stay well under 90 s on 2 cores
 ITERATIONS = {"draft": 25, "medium": 100, "high": 300}
@@ -23,10 +22,9 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
     from fitting import FitOptions, fit
     from fitting.data import fit_data, relative_error
     from fitting.fit import fit_lights, reconstruct
-    from radiosity.loaders import load_scene
-    from radiosity.solver import SolveOptions, solve
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.solve import SolveOptions, solve
 
-    from .camera import view_from_camera
     from .compare import compare
     from .gl import headless_context
     from .renderer import Renderer
@@ -51,7 +49,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
     log("[3/4] rendering the paper's figures")
     t = time.perf_counter()
     renderer = Renderer(headless_context(), fit=model, solution=solution)
-    numbers = compare(renderer, out / "compare", view_from_camera(scene.camera, *size))
+    numbers = compare(renderer, out / "compare", scene.camera.sized(*size))
     renderer.release()
     times["compare_s"] = time.perf_counter() - t
 

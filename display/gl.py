@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import moderngl
 
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
 
 REQUIRED_VERSION = 330
 

@@ -25,7 +25,7 @@ import math
 import moderngl
 import numpy as np
 
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
@@ -137,7 +137,7 @@ const float FOUR_OVER_PI = 1.2732395447351628;
 vec3 fetch(int index) {
     return texelFetch(radiance, ivec2(index %% TEXTURE_WIDTH, index / TEXTURE_WIDTH), 0).rgb;
 }
-vec2 hemisphere_to_square(vec3 w) {   // radiosity.directions.hemisphere_to_square
+vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere_to_square
     w = normalize(w);
     float z = clamp(w.z, 0.0, 1.0);
     float radius = z > 0.5 ? length(w.xy) / sqrt(1.0 + z) : sqrt(1.0 - z);
@@ -150,7 +150,7 @@ vec2 hemisphere_to_square(vec3 w) {   // radiosity.directions.hemisphere_to_squa
     else { a = -radius; b = t > 0.0 ? radius * (4.0 - t) : -radius * (4.0 + t); }
     return clamp(vec2(a, b), -1.0, 1.0);
 }
-vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.directions.grid_lookup_weights
+vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directions.grid_lookup_weights
     if (grid_n == 0) return fetch(base + vertex);
     int D = grid_n * grid_n;
     vec3 bt = cross(n, t);
@@ -307,7 +307,7 @@ class _Object:
 
 class Renderer:
     """Draws ``fit`` (a ``fitting.FittedModel``) and/or ``solution`` (a
-    ``radiosity.solution.Solution``) with a moderngl context ``ctx``."""
+    ``radiosity.formats.solution.Solution``) with a moderngl context ``ctx``."""
 
     def __init__(self, ctx, fit=None, solution=None):
         if fit is None and solution is None:

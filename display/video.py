@@ -7,7 +7,8 @@ import os
 
 import numpy as np
 
-from .camera import View
+from radiosity.formats import Camera
+
 from .renderer import tonemap
 
 
@@ -26,7 +27,7 @@ def walkthrough_path(view, frames):
         radial = offset * np.cos(angle) + np.cross(axis, offset) * np.sin(angle) + axis * (axis @ offset) * (1 - np.cos(angle))
         shrink = 1.0 - 0.45 * np.sin(np.pi * t)
         rise = 0.08 * np.linalg.norm(offset) * np.sin(np.pi * t)
-        out.append(View(tuple(centre + radial * shrink + axis * rise), view.look_at, view.up, view.fov_y_deg, view.width, view.height))
+        out.append(Camera(tuple(centre + radial * shrink + axis * rise), view.look_at, view.up, view.fov_y_deg, view.width, view.height))
     return out
 
 

@@ -24,7 +24,8 @@ import moderngl_window as mglw
 import numpy as np
 from moderngl_window.scene.camera import KeyboardCamera
 
-from .camera import View
+from radiosity.formats import Camera
+
 from .renderer import Renderer
 
 TONEMAP_VS = """
@@ -102,7 +103,7 @@ class Walkthrough(mglw.WindowConfig):
         forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(pitch), math.sin(yaw) * math.cos(pitch)])
         eye = np.array(self.camera.position, float)
         w, h = self.wnd.buffer_size
-        return View(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), self.fov, max(int(w), 1), max(int(h), 1))
+        return Camera(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), self.fov, max(int(w), 1), max(int(h), 1))
 
     def on_render(self, time_s, frame_time):
         start = time.perf_counter()

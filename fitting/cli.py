@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
 
 
 def _lights(text):
@@ -41,7 +41,7 @@ def register(subparsers, not_built):
 
 def _fit(args):
     from radiosity.cli import _output_path
-    from radiosity.solution import load_solution
+    from radiosity.formats.solution import load_solution
 
     from .fit import FitOptions, fit
 

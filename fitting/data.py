@@ -45,7 +45,7 @@ def vertex_areas(positions, faces):
 
 
 def fit_data(obj):
-    """The FitData of a ``radiosity.solution.ObjectSolution``."""
+    """The FitData of a ``radiosity.formats.solution.ObjectSolution``."""
     normals = np.asarray(obj.normals, np.float64)
     tangents = np.asarray(obj.tangents, np.float64)
     bitangents = np.cross(normals, tangents)

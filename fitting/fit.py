@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
 
 from . import paper, refine
 from .data import fit_data, relative_error
@@ -204,4 +204,5 @@ def fit(solution, options=FitOptions(), progress=False):
             "method": options.method, "loss": options.loss,
             "exponent_bounds": list(options.exponent_bounds), "iterations": options.iterations,
         },
+        camera=solution.camera,
     )

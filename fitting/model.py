@@ -28,8 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from radiosity.atomic import atomic_output
-from radiosity.errors import InputError
+from radiosity.formats import Camera, InputError, atomic_output, camera_from_dict
 
 FORMAT = "vlights.fit"
 VERSION = 1
@@ -116,6 +115,7 @@ class FittedModel:
     source: str = ""
     model: str = ""
     settings: dict = field(default_factory=dict)
+    camera: Camera | None = None  # the scene's default camera, from the solution
 
     def object(self, name):
         for o in self.objects:
@@ -135,6 +135,7 @@ class FittedModel:
             "model": self.model,
             "settings": self.settings,
             "objects": {o.name: {"lights": o.n_lights, **o.info} for o in self.objects},
+            **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
         }
 
     def save(self, path):
@@ -204,7 +205,10 @@ def load_fit(path):
                     raise InputError(f"{where}: {exc}") from None
     except (zipfile.BadZipFile, ValueError, OSError, json.JSONDecodeError) as exc:
         raise InputError(f"{where} is not a fitted model ({' '.join(str(exc).split())})") from None
+    camera = None
+    if meta.get("camera") is not None:
+        camera = camera_from_dict(meta["camera"], where=f"{where}: meta 'camera'")
     return FittedModel(
         objects=tuple(objects), source=meta.get("source", ""), model=meta.get("model", ""),
-        settings=meta.get("settings", {}),
+        settings=meta.get("settings", {}), camera=camera,
     )

@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from . import options
-from .errors import InputError
-from .info import describe, format_description
-from .loaders import load_scene
+from radiosity.formats.errors import InputError
+from radiosity.info import describe, format_description
+from radiosity.scene.loaders import load_scene
+from radiosity.transport import presets as options
 
 
 def add_quality_flag(parser):
@@ -67,7 +67,7 @@ def _output_path(path, suffix=".npz"):
 
 
 def _solve(args):
-    from .solver import SolveOptions, solve
+    from radiosity.transport.solve import SolveOptions, solve
 
     out = _output_path(args.output)
     scene = load_scene(args.scene)

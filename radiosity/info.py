@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .materials import albedo
+from radiosity.scene.materials import albedo
 
 
 def _round(values, digits=6):

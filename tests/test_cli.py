@@ -5,10 +5,9 @@ import shutil
 import subprocess
 
 import pytest
+from bad_inputs import BAD_INPUTS, bad_input_path
 
 from display.cli import main
-
-from bad_inputs import BAD_INPUTS, bad_input_path
 
 SUBCOMMANDS = ["solve", "fit", "render", "view", "compare", "demo", "scene-info"]
 
@@ -109,7 +108,7 @@ def test_ctrl_c_during_solve_leaves_no_file(tmp_path):
 
 
 def test_solve_writes_a_readable_solution_and_a_summary(tmp_path, capsys):
-    from radiosity.solution import load_solution
+    from radiosity.formats.solution import load_solution
 
     out = tmp_path / "s.npz"
     code, stdout, _ = run(

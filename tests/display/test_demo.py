@@ -5,14 +5,14 @@ import json
 import pytest
 
 import display.demo
-import radiosity.solver
+import radiosity.transport.solve
 from display.cli import main
 
 pytestmark = pytest.mark.gl
 
 
 def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_context):
-    monkeypatch.setitem(radiosity.solver.PRESETS, "draft", dict(photons=30_000, gather_samples=16, light_samples=4, kernel_rings=1))
+    monkeypatch.setitem(radiosity.transport.solve.PRESETS, "draft", dict(photons=30_000, gather_samples=16, light_samples=4, kernel_rings=1))
     monkeypatch.setitem(display.demo.ITERATIONS, "draft", 2)
     monkeypatch.setitem(display.demo.LIGHT_SWEEP, "draft", (1, 2))
     out = tmp_path / "demo"

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from display.camera import View
 from display.renderer import Renderer, tonemap
 from fitting import FittedModel, FittedObject, shade
 from fitting.model import shade_arrays
-from radiosity import directions, geometry
-from radiosity.solution import ObjectSolution, Solution
+from radiosity.formats import Camera, directions
+from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.scene import geometry
 
 pytestmark = pytest.mark.gl
 
@@ -33,7 +33,7 @@ def ball_model(rng, lights=3):
     return FittedModel(objects=(obj,), source="test")
 
 
-VIEW = View(eye=(0.3, 0.4, 3.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=96, height=80)
+VIEW = Camera(eye=(0.3, 0.4, 3.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=96, height=80)
 
 
 def test_fitted_per_pixel_equals_the_shading_formula(gl_context, rng):
@@ -109,7 +109,7 @@ def test_reference_returns_the_stored_radiance_at_cell_centres(gl_context, rng, 
     vertex = 2
     w = world(obj, vertex, directions.grid_directions(6)[cell])
     eye = obj.positions[vertex].astype(float) + 3.0 * w
-    view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
+    view = Camera(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
                 fov_y_deg=30.0, width=8, height=8)
     got = r.vertex_colours(view, "quad", "reference")[vertex]
     # float32 atan/sqrt on the GPU move the bilinear weights by ~1e-5: neighbours leak in that much
@@ -127,7 +127,7 @@ def test_reference_interpolates_between_centres(gl_context, rng):
         idx, weight = directions.grid_lookup_weights(local, 8)
         expected = (weight[:, None] * obj.radiance[vertex, idx]).sum(axis=0)
         eye = obj.positions[vertex].astype(float) + 2.0 * world(obj, vertex, local)
-        view = View(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
+        view = Camera(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
                     fov_y_deg=30.0, width=8, height=8)
         got = r.vertex_colours(view, "quad", "reference")[vertex]
         assert np.allclose(got, expected, rtol=1e-3), (a, b, got, expected)
@@ -137,7 +137,7 @@ def test_reference_interpolates_between_centres(gl_context, rng):
 def test_reference_per_pixel_matches_a_numpy_lookup(gl_context, rng):
     solution = quad_solution(rng, grid=8)
     obj = solution.objects[0]
-    view = View(eye=(0.4, 1.5, 2.2), look_at=(0.0, 0.0, 0.0), fov_y_deg=60.0, width=40, height=30)
+    view = Camera(eye=(0.4, 1.5, 2.2), look_at=(0.0, 0.0, 0.0), fov_y_deg=60.0, width=40, height=30)
     r = Renderer(gl_context, solution=solution)
     image = r.render(view, "reference", "pixel")
     # numpy: intersect each pixel's ray with the plane y = 0, blend the three vertices' lookups

@@ -40,8 +40,9 @@ def view(x_display, model, tmp_path, name, *extra):
 
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
 def test_window_opens_draws_switches_mode_and_screenshots(x_display, tmp_path):
-    from fitting import FittedModel, FittedObject
     import trimesh
+
+    from fitting import FittedModel, FittedObject
 
     s = trimesh.creation.icosphere(subdivisions=2)
     n = len(s.vertices)

@@ -9,8 +9,9 @@ from fitting.data import fit_data, relative_error
 from fitting.fit import fit_lights, reconstruct
 from fitting.paper import fit_paper, vertex_coefficients
 from fitting.refine import refine
-from radiosity import directions, geometry
-from radiosity.solution import ObjectSolution, Solution
+from radiosity.formats import directions
+from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.scene import geometry
 
 MATERIAL = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 50.0, "emission": [0.0, 0.0, 0.0]}
 

@@ -7,7 +7,7 @@ millimetres and in metres.
 
 from __future__ import annotations
 
-from .errors import InputError
+from radiosity.formats.errors import InputError
 
 QUALITIES = ("draft", "medium", "high")
 DEFAULT_QUALITY = "draft"

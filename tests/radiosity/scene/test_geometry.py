@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from radiosity import geometry
-from radiosity.errors import InputError
+from radiosity.formats.errors import InputError
+from radiosity.scene import geometry
 
 
 def edge_use_counts(faces):

@@ -1,4 +1,4 @@
-"""Tests for radiosity.solution (Contract 1, the solution file) and radiosity.atomic.
+"""Tests for radiosity.formats.solution (Contract 1, the solution file) and radiosity.formats.atomic.
 
 A small synthetic solution (one diffuse object, one glossy object on the 4 x 4 grid)
 is saved and read back, read with plain numpy, written atomically under an
@@ -15,11 +15,16 @@ import zipfile
 import numpy as np
 import pytest
 
-from radiosity.atomic import atomic_output
-from radiosity.directions import DIFFUSE_DIRECTIONS, grid_directions
-from radiosity.errors import InputError
-from radiosity.materials import Material
-from radiosity.solution import ARRAY_KEYS, ObjectSolution, Solution, load_solution
+from radiosity.formats.atomic import atomic_output
+from radiosity.formats.directions import DIFFUSE_DIRECTIONS, grid_directions
+from radiosity.formats.errors import InputError
+from radiosity.formats.material import Material
+from radiosity.formats.solution import (
+    ARRAY_KEYS,
+    ObjectSolution,
+    Solution,
+    load_solution,
+)
 
 DTYPES = {
     "positions": np.float32,

@@ -21,7 +21,7 @@ from math import comb
 
 import numpy as np
 
-from . import geometry
+from radiosity.scene import geometry
 
 LID_RING_HEIGHT = 2.4  # the lid's lower edge and the rim's inner edge, in the data's z
 LID_RADIUS, RIM_INNER_RADIUS = 1.3, 1.4
@@ -29,7 +29,7 @@ LID_RADIUS, RIM_INNER_RADIUS = 1.3, 1.4
 
 @lru_cache(maxsize=1)
 def _patch_data():
-    data = json.loads(resources.files("radiosity").joinpath("data/teapot.json").read_text())
+    data = json.loads(resources.files("radiosity.scene").joinpath("data/teapot.json").read_text())
     control = np.asarray(data["control_points"], dtype=np.float64)
     patches = np.asarray(data["patches"], dtype=np.int64)
     return control[patches].reshape(-1, 4, 4, 3)  # (32, 4, 4, 3), z up

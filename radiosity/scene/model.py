@@ -17,29 +17,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import geometry
-from .errors import InputError, SceneWarning
-from .materials import Material
+from radiosity.formats.camera import Camera
+from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.scene import geometry
+from radiosity.scene.materials import Material
 
 DEFAULT_CREASE_ANGLE_DEG = 40.0
-
-
-@dataclass(frozen=True)
-class Camera:
-    """A pinhole camera (DESIGN.md, contract 3); ``fov_y_deg`` is the vertical field of view."""
-
-    eye: tuple[float, float, float]
-    look_at: tuple[float, float, float]
-    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
-    fov_y_deg: float = 39.3
-
-    def to_dict(self):
-        return {
-            "eye": list(self.eye),
-            "look_at": list(self.look_at),
-            "up": list(self.up),
-            "fov_y_deg": self.fov_y_deg,
-        }
 
 
 @dataclass(frozen=True, eq=False)

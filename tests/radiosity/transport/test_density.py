@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from radiosity import density, geometry
-
+from radiosity.scene import geometry
+from radiosity.transport import density
 
 # the 4-point rule exact for cubics on a triangle (barycentric points, weights of the area)
 RULE_POINTS = np.array([[1 / 3, 1 / 3, 1 / 3], [0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6]])

@@ -14,9 +14,9 @@
   outgoing radiance at each vertex in each direction, emission included.
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
-of ``radiosity.directions`` (D = n * n, row d = j * n + i).
+of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
 
-``Solution.save`` writes atomically (``radiosity.atomic``). ``Solution.load`` /
+``Solution.save`` writes atomically (``radiosity.formats.atomic``). ``Solution.load`` /
 ``load_solution`` validate everything a reader relies on and refuse a bad file with a
 one-line ``InputError``. Constructing an ``ObjectSolution`` or ``Solution`` in code
 applies the same checks but raises ``ValueError`` (a bug, not a user error).
@@ -24,20 +24,18 @@ applies the same checks but raises ``ValueError`` (a bug, not a user error).
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import zipfile
-import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_output
-from .directions import grid_directions
-from .errors import InputError
-from .materials import Material
+from radiosity.formats.camera import Camera, camera_from_dict
+from radiosity.formats.directions import grid_directions
+from radiosity.formats.errors import InputError
+from radiosity.formats.material import Material
+from radiosity.formats.npz import open_archive, write_archive
 
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
@@ -110,7 +108,7 @@ class ObjectSolution:
             diffuse object, else ``grid_directions(n)`` with D = n * n.
         radiance: (V, D, 3) float32 finite outgoing radiance, emission included.
         material: {"diffuse": [r, g, b], "specular": [r, g, b], "exponent": n,
-            "emission": [r, g, b]} (a ``radiosity.materials.Material`` is accepted
+            "emission": [r, g, b]} (a ``radiosity.scene.materials.Material`` is accepted
             and converted).
 
     Raises ValueError if a shape, dtype kind, face index, direction or radiance value
@@ -222,17 +220,6 @@ class ObjectSolution:
         return {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
 
 
-def _json_default(value: Any) -> Any:
-    """Let numpy scalars and arrays in settings / stats serialise as plain JSON."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
-
-
 @dataclass(frozen=True, eq=False)
 class Solution:
     """A whole solution: objects in order, plus the run's settings, stats and scene.
@@ -243,12 +230,15 @@ class Solution:
         stats: JSON-ready dict; at least photons traced, rays cast, wall time per
             phase, seed, thread count, quality preset (contract; not enforced here).
         scene: what the scene was (path or built-in name).
+        camera: the scene's default camera, if it has one (``meta.camera``, optional:
+            the displays' default view).
     """
 
     objects: tuple[ObjectSolution, ...]
     settings: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     scene: str = ""
+    camera: Camera | None = None
 
     def __post_init__(self) -> None:
         objects = tuple(self.objects)
@@ -288,30 +278,30 @@ class Solution:
             "settings": self.settings,
             "stats": self.stats,
             "scene": self.scene,
+            **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
         }
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the contract's npz to ``path`` atomically (all or nothing).
 
-        Raises ValueError for an object name containing '/', TypeError if settings or
-        stats hold something JSON cannot represent (numpy scalars, arrays and paths are
-        converted; NaN and infinity are written as Python's json writes them), OSError
-        if the file cannot be written; in every case ``path`` keeps its previous
-        content and no temporary file is left behind.
+        Raises ValueError for an object name containing '/' or a NaN or infinity in
+        settings or stats, TypeError if they hold something JSON cannot represent
+        (numpy scalars, arrays and paths are converted), OSError if the file cannot be
+        written; in every case ``path`` keeps its previous content and no temporary
+        file is left behind.
         """
         for o in self.objects:
             _check_name(o.name)
-        meta = json.dumps(self.meta(), default=_json_default)
-        arrays = {"meta": np.array(meta)}
+        arrays = {}
         for o in self.objects:
             arrays.update(o.arrays())
-        with atomic_output(path) as f:
-            np.savez_compressed(f, **arrays)
+        write_archive(path, self.meta(), arrays)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Solution:
         """Read and validate a solution file; InputError (one line) if it is not valid."""
-        return _Reader(path).read()
+        with open_archive(path, FORMAT, (VERSION,)) as archive:
+            return _read(archive)
 
 
 def load_solution(path: str | os.PathLike) -> Solution:
@@ -319,109 +309,43 @@ def load_solution(path: str | os.PathLike) -> Solution:
     return Solution.load(path)
 
 
-# Errors numpy / zipfile raise on a file that is not a readable npz or a damaged member.
-_READ_ERRORS = (
-    OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error,
-)
-
-
-class _Reader:
-    def __init__(self, path: str | os.PathLike) -> None:
-        self.path = os.fspath(path)
-
-    def fail(self, problem: str) -> InputError:
-        return InputError(_one_line(f"solution file '{self.path}': {problem}"))
-
-    def not_solution(self, why: object) -> InputError:
-        return InputError(_one_line(f"'{self.path}' is not a solution file ({why})"))
-
-    def read(self) -> Solution:
-        if not os.path.exists(self.path):
-            raise InputError(_one_line(f"solution file '{self.path}' not found"))
-        if os.path.isdir(self.path):
-            raise self.not_solution("it is a directory")
+def _read(archive) -> Solution:
+    meta = archive.meta
+    fail = archive.fail
+    names = meta.get("objects")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise fail(f"meta 'objects' must be a list of names, got {names!r}")
+    if not names:
+        raise fail("meta 'objects' is empty: the file holds no objects")
+    if len(set(names)) != len(names):
+        raise fail(f"meta 'objects' lists a name twice: {names!r}")
+    materials = meta.get("materials")
+    if not isinstance(materials, dict):
+        raise fail(f"meta 'materials' must be an object of name: material, got {materials!r}")
+    settings = meta.get("settings", {})
+    stats = meta.get("stats", {})
+    scene = meta.get("scene", "")
+    for key, value, kind in (("settings", settings, dict), ("stats", stats, dict), ("scene", scene, str)):
+        if not isinstance(value, kind):
+            kind_name = "object" if kind is dict else "string"
+            raise fail(f"meta '{key}' must be a JSON {kind_name}")
+    camera = None
+    if meta.get("camera") is not None:
         try:
-            with open(self.path, "rb") as f:
-                magic = f.read(6)
-        except OSError as exc:
-            raise self.not_solution(f"cannot read it: {exc.strerror or exc}") from None
-        if magic.startswith(b"\x93NUMPY"):
-            raise self.not_solution("a single .npy array, not an .npz archive")
-        if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
-            what = "an empty file" if not magic else "not a zip archive"
-            raise self.not_solution(f"{what}; expected an .npz archive")
+            camera = camera_from_dict(meta["camera"], where="meta 'camera'")
+        except InputError as exc:
+            raise fail(str(exc)) from None
+
+    objects = []
+    for name in names:
+        if name not in materials:
+            raise fail(f"object {name!r} has no entry in meta 'materials'")
+        missing = [k for k in ARRAY_KEYS if f"{name}/{k}" not in archive.keys]
+        if missing:
+            raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
+        arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
         try:
-            npz = np.load(self.path, allow_pickle=False)
-        except _READ_ERRORS as exc:
-            raise self.not_solution(f"{type(exc).__name__}: {exc}") from None
-        if not isinstance(npz, np.lib.npyio.NpzFile):
-            raise self.not_solution("not an .npz archive")
-        with npz:
-            return self._read(npz)
-
-    def _array(self, npz, key: str) -> np.ndarray:
-        try:
-            return npz[key]
-        except _READ_ERRORS as exc:
-            raise self.not_solution(f"cannot read '{key}': {type(exc).__name__}: {exc}") from None
-
-    def _meta(self, npz) -> dict:
-        if "meta" not in npz.files:
-            raise self.not_solution("no 'meta' entry")
-        raw = self._array(npz, "meta")
-        if raw.ndim != 0 or raw.dtype.kind != "U":
-            raise self.not_solution(
-                f"'meta' is a {raw.dtype} array of shape {_shape(raw)}, not a string"
-            )
-        try:
-            meta = json.loads(str(raw))
-        except json.JSONDecodeError as exc:
-            raise self.not_solution(f"'meta' is not JSON: {exc}") from None
-        if not isinstance(meta, dict):
-            raise self.not_solution(f"'meta' is a JSON {type(meta).__name__}, not an object")
-        fmt = meta.get("format")
-        if fmt != FORMAT:
-            raise self.not_solution(f"format {fmt!r}, expected {FORMAT!r}")
-        version = meta.get("version")
-        if not (isinstance(version, int) and not isinstance(version, bool) and version == VERSION):
-            raise self.fail(
-                f"version {version!r} is not supported; this program reads version {VERSION}"
-            )
-        return meta
-
-    def _read(self, npz) -> Solution:
-        meta = self._meta(npz)
-        names = meta.get("objects")
-        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-            raise self.fail(f"meta 'objects' must be a list of names, got {names!r}")
-        if len(set(names)) != len(names):
-            raise self.fail(f"meta 'objects' lists a name twice: {names!r}")
-        materials = meta.get("materials")
-        if not isinstance(materials, dict):
-            raise self.fail(
-                f"meta 'materials' must be an object of name: material, got {materials!r}"
-            )
-        settings = meta.get("settings", {})
-        stats = meta.get("stats", {})
-        scene = meta.get("scene", "")
-        for key, value, kind in (
-            ("settings", settings, dict), ("stats", stats, dict), ("scene", scene, str)
-        ):
-            if not isinstance(value, kind):
-                kind_name = "object" if kind is dict else "string"
-                raise self.fail(f"meta '{key}' must be a JSON {kind_name}")
-
-        files = set(npz.files)
-        objects = []
-        for name in names:
-            if name not in materials:
-                raise self.fail(f"object {name!r} has no entry in meta 'materials'")
-            missing = [k for k in ARRAY_KEYS if f"{name}/{k}" not in files]
-            if missing:
-                raise self.fail(f"object {name!r} has no '{name}/{missing[0]}' array")
-            arrays = {k: self._array(npz, f"{name}/{k}") for k in ARRAY_KEYS}
-            try:
-                objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
-            except _Invalid as exc:
-                raise self.fail(str(exc)) from None
-        return Solution(objects=tuple(objects), settings=settings, stats=stats, scene=scene)
+            objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
+        except _Invalid as exc:
+            raise fail(str(exc)) from None
+    return Solution(objects=tuple(objects), settings=settings, stats=stats, scene=scene, camera=camera)

@@ -22,8 +22,8 @@ from importlib import resources
 import numpy as np
 import trimesh
 
-from . import teapot
-from .errors import InputError
+from radiosity.formats.errors import InputError
+from radiosity.scene import teapot
 
 SCENES = ("cornell", "cornell-teapot")
 MESHES = ("teapot", "sphere", "quad", "cube", "cornell:<part>")
@@ -32,7 +32,7 @@ LIGHT_DROP_MM = 0.1  # the measured light lies in the ceiling plane; lower it th
 
 @lru_cache(maxsize=1)
 def cornell_data():
-    return json.loads(resources.files("radiosity").joinpath("data/cornell_box.json").read_text())
+    return json.loads(resources.files("radiosity.scene").joinpath("data/cornell_box.json").read_text())
 
 
 def cornell_parts():
@@ -43,7 +43,7 @@ def scene_path(name):
     """Path of a built-in scene's TOML file."""
     if name not in SCENES:
         raise InputError(f"unknown built-in scene {name!r}; built-in scenes: {', '.join(SCENES)}")
-    return resources.files("radiosity").joinpath(f"data/{name}.toml")
+    return resources.files("radiosity.scene").joinpath(f"data/{name}.toml")
 
 
 def mesh(spec, *, resolution=None, subdivisions=None):

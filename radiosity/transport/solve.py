@@ -23,11 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import density, directions, kernels, options
-from .embree import RayTracer, default_threads
-from .errors import InputError
-from .materials import albedo, pack_materials
-from .solution import ObjectSolution, Solution
+from radiosity.formats import directions
+from radiosity.formats.errors import InputError
+from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.scene.materials import albedo, pack_materials
+from radiosity.transport import density, kernels
+from radiosity.transport import presets as options
+from radiosity.transport.embree import RayTracer, default_threads
 
 MAX_PHOTON_DEPTH = 64
 MAX_GATHER_DEPTH = 8
@@ -328,7 +330,9 @@ def solve(scene, opts=SolveOptions(), progress=False):
         )
         for o, dirs, radiance in results
     )
-    return Solution(objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name)
+    return Solution(
+        objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera
+    )
 
 
 def _gather_object(pool, tracer, sa, irradiance, obj, offset, dirs, settings, bar):

@@ -7,7 +7,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from radiosity import geometry, teapot
+from radiosity.scene import geometry, teapot
 
 
 def boundary_edges(faces):

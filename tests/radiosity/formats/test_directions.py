@@ -1,4 +1,4 @@
-"""Tests for radiosity.directions: the contract's equal-area hemisphere grid, the maps
+"""Tests for radiosity.formats.directions: the contract's equal-area hemisphere grid, the maps
 between the square and the hemisphere (numpy and numba), bilinear grid lookup, and the
 grid size rule.
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from radiosity.directions import (
+from radiosity.formats.directions import (
     DIFFUSE_DIRECTIONS,
     GRID_MAX,
     GRID_MIN,

@@ -30,10 +30,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from . import builtins, geometry
-from .errors import InputError
-from .materials import Material
-from .scene import DEFAULT_CREASE_ANGLE_DEG, Camera, Scene, build_object
+from radiosity.formats.camera import camera_from_dict
+from radiosity.formats.errors import InputError
+from radiosity.scene import builtins, geometry
+from radiosity.scene.materials import Material
+from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object
 
 MESH_SUFFIXES = {".obj", ".gltf", ".glb", ".ply", ".stl", ".off"}
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
@@ -148,25 +149,7 @@ def _material(name, *, diffuse, specular, exponent, emission, where=""):
 def _parse_camera(table, where):
     here = f"{where}: [camera]"
     _check_keys(table, _CAMERA_KEYS, here)
-    if "position" in table and "eye" in table:
-        raise InputError(f"{here}: give 'position' or 'eye', not both")
-    eye = table.get("eye", table.get("position"))
-    if eye is None or "look_at" not in table:
-        raise InputError(f"{here}: needs 'position' (or 'eye') and 'look_at'")
-    camera = Camera(
-        eye=_vec3(eye, here, "position"),
-        look_at=_vec3(table["look_at"], here, "look_at"),
-        up=_vec3(table.get("up", [0, 1, 0]), here, "up"),
-        fov_y_deg=_number(table.get("fov_y_deg", 39.3), here, "fov_y_deg"),
-    )
-    forward = np.subtract(camera.look_at, camera.eye)
-    if np.linalg.norm(forward) == 0:
-        raise InputError(f"{here}: 'look_at' equals the camera position")
-    if np.linalg.norm(np.cross(forward, camera.up)) <= 1e-9 * np.linalg.norm(forward) * np.linalg.norm(camera.up):
-        raise InputError(f"{here}: 'up' is zero or parallel to the viewing direction")
-    if not 0 < camera.fov_y_deg < 180:
-        raise InputError(f"{here}: 'fov_y_deg' must be between 0 and 180, got {camera.fov_y_deg}")
-    return camera
+    return camera_from_dict(table, where=here)
 
 
 def _parse_object(entry, index, materials, base_dir, where):

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from radiosity import directions, kernels
-from radiosity.materials import Material, pack_materials
+from radiosity.formats import directions
+from radiosity.scene.materials import Material, pack_materials
+from radiosity.transport import kernels
 
 
 def test_concentric_map_never_shrinks_angles_below_the_window_bound(rng):

@@ -11,10 +11,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from radiosity import directions
-from radiosity.loaders import load_scene
-from radiosity.materials import Material, eval_brdf
-from radiosity.solver import SolveOptions, solve
+from radiosity.formats import directions
+from radiosity.scene.loaders import load_scene
+from radiosity.scene.materials import Material, eval_brdf
+from radiosity.transport.solve import SolveOptions, solve
 
 
 def scene_from(tmp_path, text, name="scene.toml"):

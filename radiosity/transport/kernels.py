@@ -18,8 +18,17 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .directions import hemisphere_to_square_nb
-from .materials import EMISSION, EXPONENT, KD, KS, brdf_eval, brdf_sample, onb, phong_lobe
+from radiosity.formats.directions import hemisphere_to_square_nb
+from radiosity.scene.materials import (
+    EMISSION,
+    EXPONENT,
+    KD,
+    KS,
+    brdf_eval,
+    brdf_sample,
+    onb,
+    phong_lobe,
+)
 
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
 # tally slots of a photon batch (RGB triples, then counts)

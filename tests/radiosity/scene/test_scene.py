@@ -7,12 +7,11 @@ import textwrap
 import numpy as np
 import pytest
 import trimesh
-
-from radiosity import builtins, geometry
-from radiosity.errors import InputError, SceneWarning
-from radiosity.loaders import load_scene
-
 from bad_inputs import BAD_INPUTS, bad_input_path, write
+
+from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.scene import builtins, geometry
+from radiosity.scene.loaders import load_scene
 
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
 

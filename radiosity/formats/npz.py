@@ -1,0 +1,194 @@
+"""The one reader and writer of the project's ``.npz`` files (both file contracts).
+
+Every file is a ``numpy.savez_compressed`` archive, readable with
+``allow_pickle=False``, whose ``meta`` entry is a 0-d string of JSON with at least
+``format`` and ``version``. ``write_archive`` writes one atomically;
+``open_archive`` opens one, checks that it is the format and a version the caller
+reads, and hands out its arrays checked by key, dtype kind and shape, so every
+problem becomes one ``InputError`` naming the file and the key. ``file_format``
+says what a file is without reading its arrays.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+import zlib
+from typing import Any
+
+import numpy as np
+
+from radiosity.formats.atomic import atomic_output
+from radiosity.formats.errors import InputError
+
+__all__ = ["KNOWN_FORMATS", "Archive", "file_format", "json_default", "one_line", "open_archive", "write_archive"]
+
+KNOWN_FORMATS = {"vlights.solution": "solution file", "vlights.fit": "fit file"}
+
+# Errors numpy / zipfile raise on a file that is not a readable npz or a damaged member.
+READ_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error)
+
+
+def one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def json_default(value: Any) -> Any:
+    """Let numpy scalars and arrays and paths in meta serialise as plain JSON."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def write_archive(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``meta`` (JSON, strict: no NaN or infinity) and ``arrays`` atomically.
+
+    Raises TypeError or ValueError before anything is written if meta cannot be
+    represented, OSError if the file cannot be written; ``path`` keeps its previous
+    content and no temporary file is left behind in every case.
+    """
+    text = json.dumps(meta, default=json_default, allow_nan=False)
+    payload = {"meta": np.array(text)}
+    payload.update(arrays)
+    with atomic_output(path) as f:
+        np.savez_compressed(f, **payload)
+
+
+def _sniff(path: str) -> tuple[str | None, str]:
+    """(problem, '') if ``path`` cannot be an npz archive, else (None, '')."""
+    if not os.path.exists(path):
+        return "not found", ""
+    if os.path.isdir(path):
+        return "is a directory", ""
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(6)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})", ""
+    if magic.startswith(b"\x93NUMPY"):
+        return "is a single .npy array, not an .npz archive", ""
+    if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+        return ("is an empty file" if not magic else "is not a zip archive") + "; expected an .npz archive", ""
+    return None, ""
+
+
+def _read_meta(npz, fail) -> dict:
+    if "meta" not in npz.files:
+        raise fail("no 'meta' entry")
+    try:
+        raw = npz["meta"]
+    except READ_ERRORS as exc:
+        raise fail(f"cannot read 'meta': {type(exc).__name__}: {exc}") from None
+    if raw.ndim != 0 or raw.dtype.kind != "U":
+        raise fail(f"'meta' is a {raw.dtype} array of shape {tuple(raw.shape)}, not a string")
+    try:
+        meta = json.loads(str(raw))
+    except json.JSONDecodeError as exc:
+        raise fail(f"'meta' is not JSON: {exc}") from None
+    if not isinstance(meta, dict):
+        raise fail(f"'meta' is a JSON {type(meta).__name__}, not an object")
+    return meta
+
+
+def file_format(path: str | os.PathLike) -> str | None:
+    """The ``meta.format`` of an npz file of ours ("vlights.solution", "vlights.fit"),
+    or None if it is not one. Raises InputError if the file is missing or unreadable."""
+    path = os.fspath(path)
+    problem, _ = _sniff(path)
+    if problem == "not found":
+        raise InputError(f"file {path!r} not found")
+    if problem is not None:
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            meta = _read_meta(npz, lambda why: ValueError(why))
+    except (*READ_ERRORS, ValueError):
+        return None
+    fmt = meta.get("format")
+    return fmt if isinstance(fmt, str) else None
+
+
+class Archive:
+    """An open archive of one of our formats; use as a context manager.
+
+    ``meta`` is the parsed JSON; ``array(key, kinds, shape)`` reads one array;
+    ``fail(problem)`` makes the InputError naming the file.
+    """
+
+    def __init__(self, path: str, npz, meta: dict, what: str):
+        self.path, self.npz, self.meta, self.what = path, npz, meta, what
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.npz.close()
+
+    @property
+    def keys(self) -> set[str]:
+        return set(self.npz.files)
+
+    def fail(self, problem: str) -> InputError:
+        return InputError(one_line(f"{self.what} '{self.path}': {problem}"))
+
+    def array(self, key: str, kinds: str | None = None, shape: tuple | None = None) -> np.ndarray:
+        """The array ``key``; ``kinds`` its allowed dtype kinds ("f", "iu", ...),
+        ``shape`` its shape with None for any length. InputError naming the key."""
+        if key not in self.npz.files:
+            raise self.fail(f"no '{key}' array")
+        try:
+            a = self.npz[key]
+        except READ_ERRORS as exc:
+            raise InputError(one_line(
+                f"'{self.path}' is not a {self.what} (cannot read '{key}': {type(exc).__name__}: {exc})"
+            )) from None
+        if kinds is not None and a.dtype.kind not in kinds:
+            expected = "integers" if kinds == "iu" else "numbers"
+            raise self.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
+        if shape is not None and (a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape))):
+            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            raise self.fail(f"'{key}' has shape {tuple(a.shape)}, expected {want}")
+        return a
+
+
+def open_archive(path: str | os.PathLike, fmt: str, versions: tuple[int, ...]) -> Archive:
+    """Open ``path`` as a file of format ``fmt`` in one of ``versions``; InputError
+    (one line naming the file and the problem) otherwise."""
+    path = os.fspath(path)
+    what = KNOWN_FORMATS.get(fmt, "file")
+    problem, _ = _sniff(path)
+    if problem == "not found":
+        raise InputError(f"{what} '{path}' not found")
+
+    def not_ours(why):
+        return InputError(one_line(f"'{path}' is not a {what} ({why})"))
+
+    if problem is not None:
+        raise not_ours(problem.removeprefix("is "))
+    try:
+        npz = np.load(path, allow_pickle=False)
+    except READ_ERRORS as exc:
+        raise not_ours(f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(npz, np.lib.npyio.NpzFile):
+        raise not_ours("not an .npz archive")
+    try:
+        meta = _read_meta(npz, not_ours)
+        found = meta.get("format")
+        if found != fmt:
+            other = KNOWN_FORMATS.get(found) if isinstance(found, str) else None
+            raise not_ours(f"format {found!r}, expected {fmt!r}" + (f": it is a {other}" if other else ""))
+        version = meta.get("version")
+        if not (isinstance(version, int) and not isinstance(version, bool) and version in versions):
+            raise InputError(one_line(
+                f"{what} '{path}': version {version!r} is not supported; this program reads "
+                f"version{'s' if len(versions) > 1 else ''} {', '.join(map(str, versions))}"
+            ))
+    except BaseException:
+        npz.close()
+        raise
+    return Archive(path, npz, meta, what)
