@@ -15,7 +15,7 @@ import numpy as np
 
 import fitting.cli
 import radiosity.cli
-from radiosity.formats.errors import InputError
+from radiosity.formats import InputError, presets
 
 PROG = "vlights"
 
@@ -116,7 +116,7 @@ def register(subparsers, not_built):
         description="The whole pipeline on the built-in cornell-teapot scene: solution.npz, fit.npz, the paper's "
         "figures 5-7 with error images and numbers, an error-against-lights plot, report.md and summary.json.",
     )
-    p.add_argument("--quality", choices=("draft", "medium", "high"), default="draft", help="default: %(default)s")
+    p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY, help="every knob of every stage at once (default: %(default)s)")
     p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory (default: %(default)s)")
     p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
     p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")

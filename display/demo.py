@@ -13,15 +13,12 @@ from pathlib import Path
 
 from radiosity.formats.atomic import atomic_output
 
-# refinement iterations per quality: the draft demo must stay well under 90 s on 2 cores
-ITERATIONS = {"draft": 25, "medium": 100, "high": 300}
-LIGHT_SWEEP = {"draft": (1, 2, 4, 8), "medium": (1, 2, 4, 8, 16), "high": (1, 2, 4, 8, 16)}
-
 
 def run_demo(out, quality="draft", size=(512, 512), log=print):
     from fitting import FitOptions, fit
     from fitting.data import fit_data, relative_error
     from fitting.fit import fit_lights, reconstruct
+    from radiosity.formats.presets import preset
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.solve import SolveOptions, solve
 
@@ -42,7 +39,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
 
     log("[2/4] fitting virtual lights (8 per glossy object, refined)")
     t = time.perf_counter()
-    model = fit(solution, FitOptions(lights=8, method="refined", iterations=ITERATIONS[quality]), progress=True)
+    model = fit(solution, FitOptions(lights=preset(quality).fit_lights, method="refined", iterations=preset(quality).fit_iterations), progress=True)
     model.save(out / "fit.npz")
     times["fit_s"] = time.perf_counter() - t
 
@@ -63,7 +60,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
         paper_options = FitOptions(lights=1, method="paper")
         sweep[obj.name] = {
             str(k): relative_error(data, reconstruct(data, fit_lights(data, k, paper_options)))["relative_rms"]
-            for k in LIGHT_SWEEP[quality]
+            for k in preset(quality).demo_light_sweep
         }
     _plot_sweep(sweep, model, out / "error_vs_lights.png")
     times["sweep_s"] = time.perf_counter() - t

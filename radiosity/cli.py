@@ -5,17 +5,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from radiosity.formats import presets
 from radiosity.formats.errors import InputError
 from radiosity.info import describe, format_description
 from radiosity.scene.loaders import load_scene
-from radiosity.transport import presets as options
 
 
 def add_quality_flag(parser):
     parser.add_argument(
         "--quality",
-        choices=options.QUALITIES,
-        default=options.DEFAULT_QUALITY,
+        choices=presets.QUALITIES,
+        default=presets.DEFAULT_QUALITY,
         help="set every speed/accuracy knob at once (default: %(default)s)",
     )
 
@@ -116,7 +116,7 @@ def format_summary(solution, path):
 
 def _scene_info(args):
     scene = load_scene(args.scene)
-    max_edge, how = options.max_edge(scene, args.quality, args.max_edge)
+    max_edge, how = presets.max_edge(scene, args.quality, args.max_edge)
     info = describe(scene, scene.refined(max_edge), max_edge, how)
     print(json.dumps(info, indent=2) if args.json else format_description(info))
     return 0

@@ -36,6 +36,8 @@ import math
 import numba
 import numpy as np
 
+from radiosity.formats.presets import PRESETS
+
 __all__ = [
     "DIFFUSE_DIRECTIONS",
     "GRID_MAX",
@@ -53,8 +55,8 @@ __all__ = [
 DIFFUSE_DIRECTIONS = np.array([[0.0, 0.0, 1.0]])
 """The single direction of a diffuse object (D = 1), shape (1, 3) float64."""
 
-QUALITY_FACTORS = {"draft": 1.5, "medium": 2.5, "high": 4.0}
-"""c in n = ceil(c * sqrt(exponent + 1)), per quality preset (see ``grid_size``)."""
+QUALITY_FACTORS = {quality: p.grid_factor for quality, p in PRESETS.items()}
+"""c in n = ceil(c * sqrt(exponent + 1)), per quality preset (``presets.Preset.grid_factor``)."""
 
 GRID_MIN = 8
 GRID_MAX = 64

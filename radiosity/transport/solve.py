@@ -23,26 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from radiosity.formats import directions
+from radiosity.formats import directions, presets
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.transport import density, kernels
-from radiosity.transport import presets as options
 from radiosity.transport.embree import RayTracer, default_threads
 
 MAX_PHOTON_DEPTH = 64
 MAX_GATHER_DEPTH = 8
 PHOTON_BATCH = 1 << 16
 ALBEDO_TABLE_SIZE = 129
-
-PRESETS = {
-    # photons in all; gather rays, light samples per glossy vertex; density kernel width
-    "draft": dict(photons=2_000_000, gather_samples=256, light_samples=32, kernel_rings=1),
-    "medium": dict(photons=8_000_000, gather_samples=1024, light_samples=64, kernel_rings=1),
-    "high": dict(photons=32_000_000, gather_samples=4096, light_samples=256, kernel_rings=1),
-}
-
 
 @dataclass(frozen=True)
 class SolveOptions:
@@ -60,7 +51,7 @@ class SolveOptions:
     seed, threads  : the random seed; worker threads (default: one per core)
     """
 
-    quality: str = options.DEFAULT_QUALITY
+    quality: str = presets.DEFAULT_QUALITY
     photons: int | None = None
     gather_samples: int | None = None
     light_samples: int | None = None
@@ -72,20 +63,18 @@ class SolveOptions:
 
     def resolved(self, scene):
         """Every knob with its value for this scene (a plain dict, JSON-ready)."""
-        if self.quality not in PRESETS:
-            raise InputError(f"unknown quality {self.quality!r}; choose one of {', '.join(PRESETS)}")
-        preset = PRESETS[self.quality]
+        preset = presets.preset(self.quality)
         out = {
             "quality": self.quality,
-            "photons": self.photons if self.photons is not None else preset["photons"],
-            "gather_samples": self.gather_samples if self.gather_samples is not None else preset["gather_samples"],
-            "light_samples": self.light_samples if self.light_samples is not None else preset["light_samples"],
-            "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset["kernel_rings"],
+            "photons": self.photons if self.photons is not None else preset.photons,
+            "gather_samples": self.gather_samples if self.gather_samples is not None else preset.gather_samples,
+            "light_samples": self.light_samples if self.light_samples is not None else preset.light_samples,
+            "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset.kernel_rings,
             "grid": self.grid,
             "seed": int(self.seed),
             "threads": default_threads() if self.threads is None else self.threads,
         }
-        out["max_edge"], out["max_edge_chosen_by"] = options.max_edge(scene, self.quality, self.max_edge)
+        out["max_edge"], out["max_edge_chosen_by"] = presets.max_edge(scene, self.quality, self.max_edge)
         for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
             if int(out[key]) != out[key] or out[key] < low:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")

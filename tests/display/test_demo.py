@@ -1,20 +1,21 @@
 """vlights demo end to end, with the draft preset shrunk so the test is quick."""
 
+import dataclasses
 import json
 
 import pytest
 
-import display.demo
-import radiosity.transport.solve
 from display.cli import main
+from radiosity.formats import presets
 
 pytestmark = pytest.mark.gl
 
 
 def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_context):
-    monkeypatch.setitem(radiosity.transport.solve.PRESETS, "draft", dict(photons=30_000, gather_samples=16, light_samples=4, kernel_rings=1))
-    monkeypatch.setitem(display.demo.ITERATIONS, "draft", 2)
-    monkeypatch.setitem(display.demo.LIGHT_SWEEP, "draft", (1, 2))
+    tiny = dataclasses.replace(
+        presets.PRESETS["draft"], photons=30_000, gather_samples=16, light_samples=4, fit_iterations=2, demo_light_sweep=(1, 2)
+    )
+    monkeypatch.setitem(presets.PRESETS, "draft", tiny)
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--size", "48x48"]) == 0
     printed = capsys.readouterr().out

@@ -1,0 +1,85 @@
+"""Quality presets: one word that sets every speed/accuracy knob of every stage.
+
+``PRESETS[quality]`` is the one table. The solver (photons, gather and light samples,
+kernel width, mesh refinement), the direction grid (``grid_factor``), the fitter
+(lights, refinement iterations), the demo (the light-count sweep) and the help texts
+all read it. Each knob also has its own flag; a flag given explicitly wins over the
+preset. Mesh refinement is relative to the scene's size, so a preset means the same
+in millimetres and in metres.
+
+It lives with the file formats because every stage reads it: the fitter and the
+display may import nothing else of the radiosity stage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from radiosity.formats.errors import InputError
+
+__all__ = ["DEFAULT_QUALITY", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Every knob of one quality.
+
+    photons          : photons emitted in total
+    gather_samples   : gather rays per glossy vertex
+    light_samples    : light samples (shadow rays) per glossy vertex
+    kernel_rings     : density kernel width, in rings of neighbours
+    max_edge_divisor : refine to edges no longer than the scene diagonal / this
+    grid_factor      : c in the direction grid's n = ceil(c * sqrt(exponent + 1))
+    fit_lights       : virtual lights per glossy object
+    fit_iterations   : L-BFGS iterations of the fit's refinement
+    demo_light_sweep : light counts of the demo's error-against-lights plot
+    """
+
+    photons: int
+    gather_samples: int
+    light_samples: int
+    kernel_rings: int
+    max_edge_divisor: int
+    grid_factor: float
+    fit_lights: int
+    fit_iterations: int
+    demo_light_sweep: tuple[int, ...]
+
+
+PRESETS = {
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8)),
+    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 100, (1, 2, 4, 8, 16)),
+    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 300, (1, 2, 4, 8, 16)),
+}
+QUALITIES = tuple(PRESETS)
+DEFAULT_QUALITY = "draft"
+
+
+def preset(quality: str) -> Preset:
+    """The preset of ``quality``; InputError naming the choices otherwise."""
+    try:
+        return PRESETS[quality]
+    except (KeyError, TypeError):
+        raise InputError(f"unknown quality {quality!r}; choose one of {', '.join(QUALITIES)}") from None
+
+
+def preset_table() -> str:
+    """The table as text, for help texts and ``--help``."""
+    rows = [asdict(p) for p in PRESETS.values()]
+    keys = list(rows[0])
+    width = max(len(k) for k in keys)
+    lines = [" " * width + "".join(f"{q:>14}" for q in QUALITIES)]
+    for k in keys:
+        lines.append(k.ljust(width) + "".join(f"{str(r[k]):>14}" for r in rows))
+    return "\n".join(lines)
+
+
+def max_edge(scene, quality=DEFAULT_QUALITY, explicit=None):
+    """The refinement edge length: ``explicit`` if given, else the preset's fraction
+    of the scene diagonal. Returns (length, how it was chosen)."""
+    if explicit is not None:
+        if not explicit > 0:
+            raise InputError(f"--max-edge must be positive, got {explicit:g}")
+        return float(explicit), "--max-edge"
+    divisor = preset(quality).max_edge_divisor
+    return scene.diagonal / divisor, f"{quality} preset: diagonal / {divisor}"
