@@ -8,7 +8,9 @@ exits with 130; anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import warnings
 
 import numpy as np
@@ -314,7 +316,53 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"{PROG}: warning: {message}", file=sys.stderr)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP: stop as Ctrl-C does (every ``with atomic_output`` removes its
+    temporary file on the way out), then exit with 128 + the signal's number."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum, _frame):
+    raise Terminated(signum)
+
+
+def _install_signal_handlers():
+    """SIGTERM and SIGHUP unwind like Ctrl-C; only possible from the main thread.
+    Returns the previous handlers, to restore."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            previous[getattr(signal, name)] = signal.signal(getattr(signal, name), _raise_terminated)
+    return previous
+
+
+def _interruption(exc):
+    """The KeyboardInterrupt behind ``exc``, if a Ctrl-C surfaced wrapped inside another
+    exception (numba and scipy's Fortran can report one as a SystemError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def main(argv=None):
+    previous = _install_signal_handlers()
+    try:
+        return _run(argv)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _run(argv):
     args = build_parser().parse_args(argv)
     warnings.showwarning = _show_warning
     try:
@@ -322,9 +370,22 @@ def main(argv=None):
     except InputError as exc:
         print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"{PROG} {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _interrupted(args.command, exc)
+    except Exception as exc:
+        interrupt = _interruption(exc)
+        if interrupt is None:
+            raise
+        return _interrupted(args.command, interrupt)
+
+
+def _interrupted(command, exc):
+    if isinstance(exc, Terminated):
+        name = signal.Signals(exc.signum).name
+        print(f"{PROG} {command}: stopped by {name}", file=sys.stderr)
+        return 128 + exc.signum
+    print(f"{PROG} {command}: interrupted", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from radiosity.formats import presets
-from radiosity.formats.errors import InputError
+from radiosity.formats.atomic import check_output
 from radiosity.info import describe, format_description
 from radiosity.scene.loaders import load_scene
 
@@ -37,7 +37,7 @@ def register(subparsers, not_built):
         "solve",
         help="compute the view-independent global-illumination solution (solution.npz)",
         description="Photon tracing on Embree, local linear density estimation and a directional "
-        "gather at every vertex of each glossy object; writes Contract 1's solution.npz. "
+        "gather at every vertex of each glossy object; writes solution.npz (its format: docs/formats.md). "
         "--quality sets every knob; each knob's own flag overrides it.",
     )
     p.add_argument("scene", help="a .toml scene, a mesh file or a built-in: cornell, cornell-teapot")
@@ -54,22 +54,15 @@ def register(subparsers, not_built):
     p.set_defaults(func=_solve)
 
 
-def _output_path(path, suffix=".npz"):
-    """Check an output path before hours of work go into it."""
-    out = Path(path)
-    if out.is_dir():
-        raise InputError(f"output {path!r} is a directory; give a file name")
-    if not out.parent.exists():
-        raise InputError(f"output directory {str(out.parent)!r} does not exist")
-    if out.suffix != suffix:
-        raise InputError(f"output {path!r} must end in {suffix}")
-    return out
+def _output_path(path, suffix=".npz", inputs=()):
+    """Check an output path before hours of work go into it (``check_output``)."""
+    return check_output(path, suffix, inputs=inputs, flag="output")
 
 
 def _solve(args):
     from radiosity.transport.solve import SolveOptions, solve
 
-    out = _output_path(args.output)
+    out = _output_path(args.output, inputs=(args.scene,) if Path(args.scene).exists() else ())
     scene = load_scene(args.scene)
     opts = SolveOptions(
         quality=args.quality,

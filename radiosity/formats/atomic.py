@@ -54,8 +54,8 @@ def check_output(path, suffix=None, inputs=(), flag="output"):
         raise InputError(f"{flag} {shown!r}: directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {shown!r}: cannot write into directory {str(parent)!r} (permission denied)")
-    if out.exists() and not os.access(out, os.W_OK) and not os.access(parent, os.W_OK):
-        raise InputError(f"{flag} {shown!r} is not writable")
+    if out.exists() and not out.is_file():
+        raise InputError(f"{flag} {shown!r} exists and is not a regular file")
     if suffix is not None:
         suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
         if not shown.lower().endswith(tuple(x.lower() for x in suffixes)):
@@ -109,6 +109,9 @@ def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
     """
     target = os.path.abspath(os.fspath(path))
     directory, name = os.path.split(target)
+    if os.path.exists(target) and not os.path.isfile(target):
+        # a rename would replace a directory's entry, a device (/dev/null) or a pipe
+        raise OutputError(f"cannot write {os.fspath(path)!r}: it exists and is not a regular file")
     try:
         tmp, fd = _create_temporary(directory, name)
     except OSError as exc:

@@ -1,0 +1,100 @@
+"""Stopping a run: Ctrl-C at any moment (start-up, solve, fit), SIGTERM and SIGHUP
+while a file is being saved. One line, the right exit status, no traceback, and no
+file (final or temporary) left behind."""
+
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def _default_sigint():
+    """A child of a background job inherits SIGINT ignored; a user's terminal does not."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+SLOW_SAVE = textwrap.dedent(
+    """
+    import sys, time, pathlib
+    import numpy as np
+    marker = pathlib.Path(sys.argv[1])
+    real = np.savez_compressed
+    def slow_savez(file, *args, **kwargs):
+        real(file, *args, **kwargs)   # the temporary file now holds data
+        marker.write_text("saving")
+        time.sleep(30)
+    np.savez_compressed = slow_savez
+    from display.cli import main
+    sys.exit(main(sys.argv[2:]))
+    """
+)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_a_signal_during_the_save_leaves_no_file(tmp_path, signum):
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    marker = tmp_path / "marker"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SLOW_SAVE, str(marker), "solve", "cornell", "--photons", "2000", "--max-edge", "400",
+         "-o", str(out_dir / "solution.npz")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.time() + 120
+    while not marker.exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    assert marker.exists(), proc.communicate()
+    assert len(list(out_dir.iterdir())) == 1  # the temporary file, being written
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum, err
+    assert err.strip().splitlines()[-1] == f"vlights solve: stopped by {signal.Signals(signum).name}"
+    assert "Traceback" not in err
+    assert list(out_dir.iterdir()) == []
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+@pytest.mark.parametrize("delay", [0.15, 0.4, 0.8])
+def test_ctrl_c_while_starting_up(tmp_path, delay):
+    proc = subprocess.Popen(["vlights", "scene-info", "cornell-teapot"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=_default_sigint)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip(f"finished before the signal came ({delay} s)")
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.fixture(scope="module")
+def small_solution(tmp_path_factory):
+    from display.cli import main
+
+    path = tmp_path_factory.mktemp("solution") / "solution.npz"
+    assert main(["solve", "cornell-teapot", "--photons", "20000", "--gather-samples", "16", "--light-samples", "4",
+                 "--grid", "8", "-o", str(path)]) == 0
+    return path
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+@pytest.mark.parametrize("delay", [3.0, 4.5, 6.0])
+def test_ctrl_c_during_fit(tmp_path, small_solution, delay):
+    out = tmp_path / "fit.npz"
+    proc = subprocess.Popen(
+        ["vlights", "fit", str(small_solution), "--lights", "8", "--iterations", "5000", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint,
+    )
+    time.sleep(delay)
+    if proc.poll() is not None:
+        pytest.skip(f"the fit finished in under {delay} s")
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "vlights fit: interrupted" and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
