@@ -106,13 +106,14 @@ class ObjectSolution:
             indices in [0, V).
         directions: (D, 3) float32 local outgoing directions: (0, 0, 1) alone for a
             diffuse object, else ``grid_directions(n)`` with D = n * n.
-        radiance: (V, D, 3) float32 finite outgoing radiance, emission included.
+        radiance: (V, D, 3) float32 finite, non-negative outgoing radiance, emission
+            included.
         material: {"diffuse": [r, g, b], "specular": [r, g, b], "exponent": n,
             "emission": [r, g, b]} (a ``radiosity.scene.materials.Material`` is accepted
             and converted).
 
     Raises ValueError if a shape, dtype kind, face index, direction or radiance value
-    breaks the contract.
+    (NaN, infinite or negative) breaks the contract.
     """
 
     name: str
@@ -186,6 +187,12 @@ class ObjectSolution:
         if not np.isfinite(r).all():
             bad = int(np.count_nonzero(~np.isfinite(r)))
             raise _Invalid(f"'{name}/radiance' has {bad} NaN or infinite values")
+        negative = r < 0.0
+        if negative.any():
+            raise _Invalid(
+                f"'{name}/radiance' has {int(np.count_nonzero(negative))} negative values "
+                f"(down to {float(r.min()):.3g}); radiance is never negative"
+            )
 
         put(self, "material", _material_dict(name, self.material))
 

@@ -163,7 +163,8 @@ def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
     f = np.asarray(faces, dtype=np.int64)
     nrm = None if normals is None else np.asarray(normals, dtype=np.float64)
     _, area = face_normals(p, f)
-    estimate = len(f) + 2.3 * area.sum() / (np.sqrt(3) / 4 * max_edge**2)
+    with np.errstate(over="ignore", divide="ignore"):  # extreme max_edge: an estimate of 0 or inf
+        estimate = len(f) + 2.3 * area.sum() / (np.sqrt(3) / 4 * np.float64(max_edge) ** 2)
     if estimate > max_triangles:
         raise InputError(
             f"refining to a maximum edge of {max_edge:g} would make about {estimate:.3g} "
@@ -248,8 +249,10 @@ def apply_transform(matrix, positions, faces, normals=None):
     """Transform positions (and normals by the inverse transpose); a mirroring
     transform reverses the winding so fronts stay fronts. Returns (positions, faces, normals)."""
     linear = matrix[:3, :3]
-    p = positions @ linear.T + matrix[:3, 3]
-    if np.linalg.det(linear) < 0:
+    with np.errstate(over="ignore", invalid="ignore"):  # huge values become inf, which callers refuse
+        p = positions @ linear.T + matrix[:3, 3]
+        mirrored = np.linalg.det(linear) < 0
+    if mirrored:
         faces = faces[:, ::-1].copy()
     if normals is not None:
         n = normals @ np.linalg.inv(linear)

@@ -18,23 +18,34 @@ glTF 2.0 (metallic-roughness)
     equivalent of GGX, quartered because our lobe is about the mirror direction, not
     the half vector), at most 10000; a dielectric (metallic = 0) with roughness >= 0.9
     is taken as diffuse (ks = 0), a lobe that broad being indistinguishable from one;
-    emission = emissiveFactor (times KHR_materials_emissive_strength, if any).
+    emission = emissiveFactor (times KHR_materials_emissive_strength, if any: folded
+    into the factor before trimesh reads the file, since trimesh drops extensions).
     Base colours pass through trimesh, which keeps them to 8 bits per channel.
+
+Text mesh files (OBJ, MTL, ASCII STL, OFF) are read as UTF-8, a byte-order mark
+dropped, or as Latin-1 where they are not UTF-8. An OBJ whose material library is
+missing loads with the default material (diffuse 0.8) and a SceneWarning.
 """
 
 from __future__ import annotations
 
+import codecs
+import io
+import json
+import struct
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from radiosity.formats.camera import camera_from_dict
-from radiosity.formats.errors import InputError
+from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.formats.material import FLOAT32_MAX
 from radiosity.scene import builtins, geometry
 from radiosity.scene.materials import Material
-from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object
+from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object
 
 MESH_SUFFIXES = {".obj", ".gltf", ".glb", ".ply", ".stl", ".off"}
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
@@ -107,6 +118,8 @@ def _number(value, where, key):
         raise InputError(f"{where}: '{key}' must be a number, got {value!r}")
     if not np.isfinite(value):
         raise InputError(f"{where}: '{key}' must be finite, got {value!r}")
+    if abs(value) > FLOAT32_MAX:  # the solver and the files work in single precision
+        raise InputError(f"{where}: '{key}' = {value:g} is beyond the single-precision range (+-{FLOAT32_MAX:.4g})")
     return float(value)
 
 
@@ -202,7 +215,15 @@ def _parse_object(entry, index, materials, base_dir, where):
         rotate_deg=_vec3(entry.get("rotate_deg", [0, 0, 0]), here, "rotate_deg"),
         translate=_vec3(entry.get("translate", [0, 0, 0]), here, "translate"),
     )
+    within = np.abs(positions).max() <= MAX_COORDINATE  # False for NaN: build_object names that
     positions, faces, _ = geometry.apply_transform(matrix, positions, faces)
+    reach = np.abs(positions).max()
+    if within and not reach <= MAX_COORDINATE:
+        keys = " and ".join(f"'{k}'" for k in ("scale", "rotate_deg", "translate") if k in entry)
+        raise InputError(
+            f"{here}: {keys} put its coordinates at {reach:.3g}, beyond the +-{MAX_COORDINATE:g} "
+            "the single-precision ray tracer handles"
+        )
     flip = entry.get("flip", False)
     if not isinstance(flip, bool):
         raise InputError(f"{here}: 'flip' must be true or false, got {flip!r}")
@@ -225,6 +246,55 @@ def _parse_object(entry, index, materials, base_dir, where):
 # -- mesh files -----------------------------------------------------------------------
 
 
+_TEXT_MESH_SUFFIXES = {".obj", ".off", ".stl"}  # .stl: unless binary; .ply and .glb are binary, .gltf JSON
+
+
+def decode_text(data):
+    """A text mesh or material file's bytes as str: UTF-8 (a byte-order mark dropped),
+    or, where that fails, Latin-1 (a comment or name from an old exporter)."""
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def _is_binary_stl(data):
+    """The binary STL layout: an 80-byte header, a face count, 50 bytes per face."""
+    return len(data) >= 84 and len(data) == 84 + 50 * int.from_bytes(data[80:84], "little")
+
+
+class _Resolver(trimesh.resolvers.FilePathResolver):
+    """The files a mesh file refers to, beside it; material libraries decoded as
+    ``decode_text`` (trimesh would need charset_normalizer for Latin-1, and silently
+    drops the materials without it)."""
+
+    def get(self, name):
+        data = super().get(name)
+        if str(name).lower().endswith(".mtl"):
+            return decode_text(data).encode("utf-8")
+        return data
+
+
+def _mesh_bytes(path, where):
+    """The file as trimesh should read it: text formats decoded (``decode_text``) and
+    re-encoded as UTF-8, glTF with its emissive strength folded in (``_gltf_emissive``);
+    None to read the file as it is."""
+    suffix = path.suffix.lower()
+    if suffix not in _TEXT_MESH_SUFFIXES | {".gltf", ".glb"}:
+        return None
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read mesh {str(path)!r}: {exc.strerror or exc}") from None
+    if suffix in (".gltf", ".glb"):
+        return _gltf_emissive(data, suffix == ".glb", where)
+    if suffix == ".stl" and _is_binary_stl(data):
+        return None
+    return decode_text(data).encode("utf-8")
+
+
 def _trimesh_load(path, where, **kwargs):
     if not path.exists():
         raise InputError(f"{where}: mesh file {str(path)!r} not found")
@@ -232,10 +302,81 @@ def _trimesh_load(path, where, **kwargs):
         raise InputError(
             f"{where}: {str(path)!r}: unsupported mesh format (use {', '.join(sorted(MESH_SUFFIXES))})"
         )
+    if path.is_dir():
+        raise InputError(f"{where}: mesh {str(path)!r} is a directory, not a file")
+    data = _mesh_bytes(path, where)
     try:
-        return trimesh.load(str(path), process=False, **kwargs)
+        if data is None:
+            return trimesh.load(str(path), process=False, resolver=_Resolver(str(path)), **kwargs)
+        # file_type as the whole name: trimesh takes the format from it and names objects as for the file
+        return trimesh.load(
+            io.BytesIO(data), file_type=str(path), resolver=_Resolver(str(path)), process=False, **kwargs
+        )
     except Exception as exc:  # trimesh raises many types for a bad file
         raise InputError(f"{where}: cannot read mesh {str(path)!r}: {exc}") from None
+
+
+def _missing_material_libraries(path):
+    """The ``mtllib`` files an OBJ names that do not exist beside it."""
+    missing = []
+    for line in decode_text(path.read_bytes()).splitlines():
+        words = line.split(None, 1)
+        if len(words) == 2 and words[0] == "mtllib":
+            name = words[1].strip()
+            if not (path.parent / name).is_file():
+                missing.append(name)
+    return missing
+
+
+# glTF materials' KHR_materials_emissive_strength, which trimesh does not keep
+_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
+_GLB_MAGIC, _GLB_JSON = b"glTF", 0x4E4F534A
+
+
+def _gltf_emissive(data, binary, where):
+    """glTF (JSON) or GLB bytes with every material's KHR_materials_emissive_strength
+    multiplied into its emissiveFactor (and the extension removed); None if no
+    material uses it or the file is not readable as glTF (trimesh then says why)."""
+    if binary:
+        if len(data) < 20 or data[:4] != _GLB_MAGIC:
+            return None
+        json_length, chunk_type = struct.unpack_from("<II", data, 12)
+        if chunk_type != _GLB_JSON or 20 + json_length > len(data):
+            return None
+        text, rest = data[20:20 + json_length], data[20 + json_length:]
+    else:
+        text, rest = data, b""
+    try:
+        tree = json.loads(decode_text(text))
+        materials = tree.get("materials", [])
+    except (ValueError, AttributeError):
+        return None
+    changed = False
+    for index, material in enumerate(materials if isinstance(materials, list) else []):
+        extensions = material.get("extensions") if isinstance(material, dict) else None
+        if not isinstance(extensions, dict) or _EMISSIVE_STRENGTH not in extensions:
+            continue
+        name = material.get("name", f"#{index}")
+        spec = extensions.pop(_EMISSIVE_STRENGTH)
+        strength = spec.get("emissiveStrength", 1.0) if isinstance(spec, dict) else spec
+        if isinstance(strength, bool) or not isinstance(strength, (int, float)) or not strength >= 0:
+            raise InputError(
+                f"{where}: material {name!r}: {_EMISSIVE_STRENGTH} emissiveStrength must be a number >= 0, "
+                f"got {strength!r}"
+            )
+        factor = material.get("emissiveFactor", [0.0, 0.0, 0.0])
+        if not (isinstance(factor, list) and all(isinstance(f, (int, float)) for f in factor)):
+            continue  # trimesh reports a malformed factor
+        material["emissiveFactor"] = [f * strength for f in factor]
+        changed = True
+    if not changed:
+        return None
+    text = json.dumps(tree).encode("utf-8")
+    if not binary:
+        return text
+    text += b" " * (-len(text) % 4)  # chunks are 4-byte aligned, JSON padded with spaces
+    header = _GLB_MAGIC + struct.pack("<II", 2, 12 + 8 + len(text) + len(rest))
+    return header + struct.pack("<II", len(text), _GLB_JSON) + text + rest
 
 
 def _read_single_mesh(path, where):
@@ -250,6 +391,14 @@ def _load_mesh_scene(path):
     """A scene from one mesh file, one object per (node, material), its materials mapped."""
     where = str(path)
     loaded = _trimesh_load(path, where)
+    if path.suffix.lower() == ".obj":
+        for name in _missing_material_libraries(path):
+            warnings.warn(
+                f"{where}: material library {name!r} not found; its materials get the default "
+                "(diffuse 0.8)",
+                SceneWarning,
+                stacklevel=3,
+            )
     if isinstance(loaded, trimesh.Trimesh):
         loaded = trimesh.Scene(loaded)
     if not isinstance(loaded, trimesh.Scene) or not loaded.geometry:
@@ -347,9 +496,8 @@ def _from_pbr(mat, name, here):
         alpha = max(roughness, 1e-3) ** 2
         exponent = float(min(max(2.0 / alpha**2 - 2.0, 0.0) / 4.0, 1e4))
     kd = base * (1.0 - metallic) * (1.0 - ks)
+    # KHR_materials_emissive_strength is already in the factor (``_gltf_emissive``)
     emissive = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, dtype=np.float64)[:3]
-    strength = (getattr(mat, "extensions", None) or {}).get("KHR_materials_emissive_strength", {})
-    emissive = emissive * float(strength.get("emissiveStrength", 1.0))
     return _material(
         name, diffuse=tuple(kd), specular=tuple(ks), exponent=exponent,
         emission=tuple(emissive), where=here[:-2] + ": ",

@@ -23,6 +23,14 @@ from radiosity.scene import geometry
 from radiosity.scene.materials import Material
 
 DEFAULT_CREASE_ANGLE_DEG = 40.0
+# The ray tracer (Embree) works in single precision. Beyond about 1e12 its intersection
+# arithmetic overflows and every ray misses; below about 1e-13 its hit distances are
+# noise; and where float32 coordinates are coarse against the scene's size (a small
+# scene far from the origin) surfaces are quantised and rays re-hit the surface they
+# leave. Scenes outside these limits are refused rather than solved wrongly.
+MAX_COORDINATE = 1e10
+MIN_SCENE_SIZE = 1e-9
+MAX_RELATIVE_SPACING = 1e-4  # float32 spacing at the farthest coordinate / the scene's diagonal
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,6 +117,30 @@ class Scene:
         duplicate = sorted({n for n in names if names.count(n) > 1})
         if duplicate:
             raise InputError(f"scene {self.name!r}: object names must be unique: {duplicate[0]!r} repeats")
+        self._check_precision()
+
+    def _check_precision(self):
+        """Refuse a scene the single-precision ray tracer cannot resolve (InputError)."""
+        far = max(self.objects, key=lambda o: np.abs(o.positions).max())
+        reach = float(np.abs(far.positions).max())
+        if not reach <= MAX_COORDINATE:
+            raise InputError(
+                f"scene {self.name!r}: object {far.name!r} reaches {reach:.3g} from the origin, beyond the "
+                f"+-{MAX_COORDINATE:g} the single-precision ray tracer handles"
+            )
+        size = self.diagonal
+        if size < MIN_SCENE_SIZE:
+            raise InputError(
+                f"scene {self.name!r} is {size:.3g} units across, below the {MIN_SCENE_SIZE:g} the "
+                "single-precision ray tracer resolves; scale it up ('scale')"
+            )
+        spacing = float(np.spacing(np.float32(reach)))
+        if spacing > MAX_RELATIVE_SPACING * size:
+            raise InputError(
+                f"scene {self.name!r} is {size:.3g} units across but reaches {reach:.3g} from the origin, where "
+                f"single-precision coordinates are {spacing:.3g} apart (more than {MAX_RELATIVE_SPACING:g} of its "
+                "size); move it nearer the origin ('translate')"
+            )
 
     @property
     def materials(self):
@@ -194,6 +226,11 @@ def build_object(
     if bad.any():
         raise InputError(
             f"{where}: {int(bad.sum())} of {len(positions)} vertices have NaN or infinite coordinates"
+        )
+    if len(positions) and np.abs(positions).max() > MAX_COORDINATE:
+        raise InputError(
+            f"{where}: coordinates reach {np.abs(positions).max():.3g}, beyond the +-{MAX_COORDINATE:g} "
+            "the single-precision ray tracer handles; scale the mesh down"
         )
     faces = faces.astype(np.int64)
     if faces.min() < 0 or faces.max() >= len(positions):

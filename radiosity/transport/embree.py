@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numpy as np
 from embreex import rtcore_scene
@@ -20,10 +21,39 @@ from embreex.mesh_construction import TriangleMesh
 
 MISS = -1
 RELATIVE_EPSILON = 1e-5  # ray-origin offset, as a fraction of the scene's bounding-box diagonal
+OFFSET_ULPS = 8  # ... and at least this many float32 spacings of the largest coordinate
+
+
+class Hits(NamedTuple):
+    """Closest hits of a batch of N rays (``RayTracer.intersect``).
+
+    triangle : (N,) int32    row of the tracer's ``faces``; MISS (-1) where nothing is hit
+    t        : (N,) float32  distance along the (unit) direction to the hit
+    u, v     : (N,) float32  barycentrics: the hit is (1 - u - v) p0 + u p1 + v p2
+    """
+
+    triangle: np.ndarray
+    t: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
 
 
 def default_threads():
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+def origin_offset(positions):
+    """How far off a surface a ray must start (scene units) not to hit it again.
+
+    RELATIVE_EPSILON of the bounding-box diagonal, and at least OFFSET_ULPS float32
+    spacings at the largest coordinate: a scene far from the origin has coarse
+    single-precision coordinates, and an offset below their spacing would round away.
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    relative = RELATIVE_EPSILON * float(np.linalg.norm(hi - lo))
+    spacing = float(np.spacing(np.float32(np.abs(positions).max())))
+    return max(relative, OFFSET_ULPS * spacing)
 
 
 class RayTracer:
@@ -32,14 +62,15 @@ class RayTracer:
     positions : (N, 3) float32 and faces : (T, 3) int32 of the merged scene mesh.
     The triangle index returned is the row of ``faces``; u and v are Embree's
     barycentrics (the hit is (1 - u - v) p0 + u p1 + v p2 of that row's vertices).
+    Triangles are hit from both sides. ``epsilon`` is the ray-origin offset callers
+    must apply (``origin_offset``).
     """
 
     def __init__(self, positions, faces, threads=None):
         triangles = np.ascontiguousarray(positions[faces], dtype=np.float32)
         self.n_triangles = len(triangles)
         self.threads = threads or default_threads()
-        lo, hi = positions.min(axis=0), positions.max(axis=0)
-        self.epsilon = float(RELATIVE_EPSILON * np.linalg.norm(hi.astype(np.float64) - lo))
+        self.epsilon = origin_offset(positions)
         self._scene = rtcore_scene.EmbreeScene()
         self._mesh = TriangleMesh(self._scene, triangles)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
@@ -72,8 +103,8 @@ class RayTracer:
     def intersect(self, origins, directions):
         """Closest hits of rays (origins, directions: (N, 3) float32; directions unit).
 
-        Returns (triangle (N,) int32, MISS where nothing is hit; t (N,) float32;
-        u (N,) float32; v (N,) float32).
+        Returns ``Hits`` (triangle (N,) int32, MISS where nothing is hit; t, u, v (N,)
+        float32).
         """
         n = len(origins)
         triangle = np.empty(n, dtype=np.int32)
@@ -81,7 +112,7 @@ class RayTracer:
         u = np.empty(n, dtype=np.float32)
         v = np.empty(n, dtype=np.float32)
         if n == 0:
-            return triangle, t, u, v
+            return Hits(triangle, t, u, v)
         origins = np.ascontiguousarray(origins, dtype=np.float32)
         directions = np.ascontiguousarray(directions, dtype=np.float32)
 
@@ -94,7 +125,7 @@ class RayTracer:
 
         self._map(run, n)
         self.rays_cast += n
-        return triangle, t, u, v
+        return Hits(triangle, t, u, v)
 
     def occluded(self, origins, directions, distances):
         """Whether each segment origin + s * direction, 0 < s < distance, hits anything.

@@ -1,13 +1,20 @@
 """numba kernels of the solver: photon emission and scattering, density deposits, and
-the vertex gather. Orchestration (batches, threads, Embree calls) is in ``solver``.
+the vertex gather. Orchestration (batches, threads, Embree calls) is in ``solve``.
 
 The kernels work wavefront-style: one kernel makes rays, Embree traces them (in
 ``embree``), the next kernel reads the hits. Every random number comes from a
 counter-based hash of (seed, stream, item, dimension), so a result depends on the
 seed and the item's index only, never on how work is split into batches or threads.
 
-Scene data reach the kernels as one ``SceneArrays`` named tuple (merged over all
-objects; vertex and triangle indices are those of ``Scene.merged()``).
+Kernels take named tuples of arrays, never long lists of them:
+
+    SceneArrays   the merged scene (vertex and triangle indices of ``Scene.merged()``)
+    Rays          a batch of rays with an RGB value each: photons or gather paths
+    embree.Hits   where each ray of a batch landed (triangle, t, u, v)
+    PhotonTally   a photon batch's additive accumulators (density moments, energy tally)
+    GatherBlock   a block of glossy vertices and how they are sampled (seed, counts)
+    LightSamples  the light samples (shadow rays) of a gather block
+    GatherSamples the gather rays of a gather block and the radiance they bring back
 """
 
 from __future__ import annotations
@@ -77,6 +84,124 @@ class SceneArrays(NamedTuple):
     epsilon: float
 
 
+class Rays(NamedTuple):
+    """A batch of rays, each carrying an RGB value: photons (power) or gather paths
+    (throughput). Kernels write the rays that go on into another ``Rays``.
+
+    ids        : (R,) int64      photon id, or gather sample index within its block
+    values     : (R, 3) float64  power (photons) or throughput (gather paths)
+    origins    : (R, 3) float32  already offset off the surface they leave
+    directions : (R, 3) float32  unit
+    """
+
+    ids: np.ndarray
+    values: np.ndarray
+    origins: np.ndarray
+    directions: np.ndarray
+
+
+def empty_rays(count):
+    """Uninitialised ``Rays`` for ``count`` rays."""
+    return Rays(
+        ids=np.empty(count, dtype=np.int64),
+        values=np.empty((count, 3)),
+        origins=np.empty((count, 3), dtype=np.float32),
+        directions=np.empty((count, 3), dtype=np.float32),
+    )
+
+
+class PhotonTally(NamedTuple):
+    """What a photon batch accumulates; every field is additive over batches.
+
+    moment0 : (N, 3) float64     sum of power * lambda_j per vertex j (density moments)
+    moment1 : (N, 3, 2) float64  sum of power * lambda_j * (x - p_j) in vertex j's tangent frame
+    tally   : (T_LENGTH,) float64 energy bookkeeping, slots T_*
+    """
+
+    moment0: np.ndarray
+    moment1: np.ndarray
+    tally: np.ndarray
+
+
+def empty_tally(n_vertices):
+    """A zeroed ``PhotonTally`` for a scene of ``n_vertices`` vertices."""
+    return PhotonTally(np.zeros((n_vertices, 3)), np.zeros((n_vertices, 3, 2)), np.zeros(T_LENGTH))
+
+
+class GatherBlock(NamedTuple):
+    """A block of glossy vertices and how each is sampled.
+
+    seed      : int           the solve's seed
+    vertices  : (B,) int64    merged-scene vertex indices
+    n_light   : int           light samples (shadow rays) per vertex
+    strata    : int           gather rays per vertex: strata^2, stratified
+    max_depth : int           segments of a gather path at most
+    """
+
+    seed: int
+    vertices: np.ndarray
+    n_light: int
+    strata: int
+    max_depth: int
+
+
+class LightSamples(NamedTuple):
+    """The light samples of a gather block, ``n_light`` per vertex, vertex-major.
+
+    origins, directions : (L, 3) float32  shadow rays (direction: the vertex normal where unused)
+    distances           : (L,) float32    to the sampled light point (0 where unused)
+    wi                  : (L, 3) float64  direction to the light in the vertex's local frame
+    radiance            : (L, 3) float64  emitted radiance of the sampled light
+    pdf                 : (L,) float64    solid-angle density, 0 for a sample that cannot contribute
+    visible             : (L,) bool       the shadow ray reaches the light (filled in by the tracer)
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+    distances: np.ndarray
+    wi: np.ndarray
+    radiance: np.ndarray
+    pdf: np.ndarray
+    visible: np.ndarray
+
+
+def empty_light_samples(count):
+    """``LightSamples`` for ``count`` samples: pdf, wi and radiance zero, none visible."""
+    return LightSamples(
+        origins=np.empty((count, 3), np.float32),
+        directions=np.empty((count, 3), np.float32),
+        distances=np.empty(count, np.float32),
+        wi=np.zeros((count, 3)),
+        radiance=np.zeros((count, 3)),
+        pdf=np.zeros(count),
+        visible=np.zeros(count, dtype=bool),
+    )
+
+
+class GatherSamples(NamedTuple):
+    """The gather rays of a block, strata^2 per vertex, vertex-major.
+
+    origins, directions : (G, 3) float32  the first segment of each gather path
+    wi                  : (G, 3) float64  its direction in the vertex's local frame
+    incoming            : (G, 3) float64  radiance arriving along it (accumulated by ``shade_paths``)
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+    wi: np.ndarray
+    incoming: np.ndarray
+
+
+def empty_gather_samples(count):
+    """``GatherSamples`` for ``count`` rays, nothing arrived yet (incoming zero)."""
+    return GatherSamples(
+        origins=np.empty((count, 3), np.float32),
+        directions=np.empty((count, 3), np.float32),
+        wi=np.empty((count, 3)),
+        incoming=np.zeros((count, 3)),
+    )
+
+
 # -- random numbers -------------------------------------------------------------------
 
 
@@ -118,9 +243,10 @@ def _barycentric_point(sa, tri, u, v):
 
 
 @numba.njit(cache=True, nogil=True)
-def _shading_normal(sa, tri, u, v, dx, dy, dz):
-    """Interpolated shading normal at a hit, or the geometric one where the
-    interpolated normal would put the incoming ray's side behind the surface."""
+def _shading_normal(sa, tri, u, v, d):
+    """Interpolated shading normal at a hit reached along direction d = (dx, dy, dz),
+    or the geometric one where the interpolated normal would put the incoming ray's
+    side behind the surface."""
     i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
     w = 1.0 - u - v
     n = sa.normals
@@ -128,7 +254,7 @@ def _shading_normal(sa, tri, u, v, dx, dy, dz):
     ny = w * n[i0, 1] + u * n[i1, 1] + v * n[i2, 1]
     nz = w * n[i0, 2] + u * n[i1, 2] + v * n[i2, 2]
     length = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if length > 0.0 and (nx * dx + ny * dy + nz * dz) < 0.0:
+    if length > 0.0 and (nx * d[0] + ny * d[1] + nz * d[2]) < 0.0:
         return nx / length, ny / length, nz / length
     g = sa.face_normals[tri]
     return g[0], g[1], g[2]
@@ -165,78 +291,116 @@ def _cosine_direction(u1, u2):
 
 
 @numba.njit(cache=True, nogil=True)
-def _scatter(sa, t, u, v, dx, dy, dz, u1, u2, u3):
-    """Sample the BRDF at a hit on triangle t reached along (dx, dy, dz), in the shading
-    frame there, with the uniform numbers (u1, u2, u3) of ``brdf_sample``.
+def _scatter(sa, t, u, v, d, rnd):
+    """Sample the BRDF at a hit on triangle t reached along d = (dx, dy, dz), in the
+    shading frame there, with the uniform numbers rnd = (u1, u2, u3) of ``brdf_sample``.
 
-    Returns (wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok): wo and wi in the local
-    frame, the mixture pdf, the sampled direction in world space, and whether it leaves
-    above both the shading and the true (geometric) surface.
+    Returns (wo, wi, pdf, world, ok): wo and wi in the local frame, the mixture pdf,
+    the sampled direction in world space (3-tuples), and whether it leaves above both
+    the shading and the true (geometric) surface.
     """
     mat = sa.materials[sa.face_material[t]]
-    nx, ny, nz = _shading_normal(sa, t, u, v, dx, dy, dz)
+    nx, ny, nz = _shading_normal(sa, t, u, v, d)
     tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+    dx, dy, dz = d
     wox = -(dx * tx + dy * ty + dz * tz)
     woy = -(dx * bx + dy * by + dz * bz)
     woz = -(dx * nx + dy * ny + dz * nz)
-    wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, u1, u2, u3)
+    wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, rnd[0], rnd[1], rnd[2])
     ox = wix * tx + wiy * bx + wiz * nx
     oy = wix * ty + wiy * by + wiz * ny
     oz = wix * tz + wiy * bz + wiz * nz
     g = sa.face_normals[t]
     ok = wiz > 0.0 and pdf > 0.0 and ox * g[0] + oy * g[1] + oz * g[2] > 0.0
-    return wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok
+    return (wox, woy, woz), (wix, wiy, wiz), pdf, (ox, oy, oz), ok
 
 
-@numba.njit(inline="always")
-def _push_ray(origins, directions, values, i, x, y, z, g, epsilon, dx, dy, dz, v0, v1, v2):
-    """Write outgoing ray i: origin (x, y, z) offset along the front normal g, direction
-    (dx, dy, dz), and its RGB payload (power or throughput)."""
-    origins[i, 0] = x + epsilon * g[0]
-    origins[i, 1] = y + epsilon * g[1]
-    origins[i, 2] = z + epsilon * g[2]
-    directions[i, 0], directions[i, 1], directions[i, 2] = dx, dy, dz
-    values[i, 0], values[i, 1], values[i, 2] = v0, v1, v2
+@numba.njit(cache=True, nogil=True)
+def _roulette(value, reference, u):
+    """Russian roulette on a path's RGB weight ``value`` after a bounce.
+
+    The path survives with probability q = min(1, max(value) / reference) (0 if
+    reference <= 0), decided by the uniform number u, and then carries value / q: the
+    estimate stays unbiased and a surviving weight stays about ``reference`` (the
+    photon's power before the bounce; 1 for gather throughput). Returns (survives,
+    the surviving weight as an RGB tuple).
+    """
+    survive = min(1.0, max(value[0], value[1], value[2]) / reference) if reference > 0.0 else 0.0
+    if survive <= 0.0 or u >= survive:
+        return False, (0.0, 0.0, 0.0)
+    return True, (value[0] / survive, value[1] / survive, value[2] / survive)
+
+
+@numba.njit(cache=True, nogil=True)
+def _push_ray(out, i, item, point, g, epsilon, direction, value):
+    """Write ray i of ``out`` (``Rays``): id ``item``, origin ``point`` offset by
+    ``epsilon`` along the front normal g, ``direction`` and its RGB ``value``."""
+    out.ids[i] = item
+    for c in range(3):
+        out.origins[i, c] = point[c] + epsilon * g[c]
+        out.directions[i, c] = direction[c]
+        out.values[i, c] = value[c]
 
 
 # -- photons --------------------------------------------------------------------------
 
 
 @numba.njit(cache=True, nogil=True)
-def emit_photons(sa, seed, first_id, count, total, origins, directions, power, ids):
-    """Emit photons first_id .. first_id + count - 1 of ``total``: a triangle in
-    proportion to its power, a uniform point on it, a cosine-distributed direction
-    about its front. Each carries pi Le / (total * area pdf), so the batch's power sums
-    to the emitters' power in expectation."""
-    for i in range(count):
+def emit_photons(sa, seed, first_id, total, out):
+    """Emit photons first_id .. first_id + len(out.ids) - 1 of ``total`` into ``out``
+    (``Rays``): a triangle in proportion to its power, a uniform point on it, a
+    cosine-distributed direction about its front. Each carries pi Le / (total * area
+    pdf), so the batch's power sums to the emitters' power in expectation."""
+    for i in range(len(out.ids)):
         pid = first_id + i
         tri = _pick_emitter(sa, rand(seed, STREAM_EMIT, pid, 0))
         s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
         u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
         v = s - u
-        px, py, pz = _barycentric_point(sa, tri, u, v)
+        point = _barycentric_point(sa, tri, u, v)
         g = sa.face_normals[tri]
         lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
         tx, ty, tz, bx, by, bz = onb(g[0], g[1], g[2])
-        directions[i, 0] = lx * tx + ly * bx + lz * g[0]
-        directions[i, 1] = lx * ty + ly * by + lz * g[1]
-        directions[i, 2] = lx * tz + ly * bz + lz * g[2]
-        origins[i, 0] = px + sa.epsilon * g[0]
-        origins[i, 1] = py + sa.epsilon * g[1]
-        origins[i, 2] = pz + sa.epsilon * g[2]
+        direction = (lx * tx + ly * bx + lz * g[0], lx * ty + ly * by + lz * g[1], lx * tz + ly * bz + lz * g[2])
         m = sa.face_material[tri]
         scale = math.pi / (total * sa.emit_area_pdf[tri])
-        for c in range(3):
-            power[i, c] = sa.materials[m, EMISSION + c] * scale
-        ids[i] = pid
+        power = (
+            sa.materials[m, EMISSION] * scale,
+            sa.materials[m, EMISSION + 1] * scale,
+            sa.materials[m, EMISSION + 2] * scale,
+        )
+        _push_ray(out, i, pid, point, g, sa.epsilon, direction, power)
 
 
 @numba.njit(cache=True, nogil=True)
-def bounce_photons(
-    sa, seed, depth, max_depth, ids, origins, directions, power, tri, u, v,
-    moment0, moment1, tally, out_ids, out_origins, out_directions, out_power,
-):
+def _deposit(sa, t, point, lam, power, acc):
+    """Add a photon's incident power to the density moments of triangle t's vertices."""
+    x, y, z = point
+    for j in range(3):
+        vert = sa.faces[t, j]
+        ox = x - sa.positions[vert, 0]
+        oy = y - sa.positions[vert, 1]
+        oz = z - sa.positions[vert, 2]
+        tn = sa.tangents[vert]
+        nn = sa.normals[vert]
+        bx = nn[1] * tn[2] - nn[2] * tn[1]
+        by = nn[2] * tn[0] - nn[0] * tn[2]
+        bz = nn[0] * tn[1] - nn[1] * tn[0]
+        along_t = ox * tn[0] + oy * tn[1] + oz * tn[2]
+        along_b = ox * bx + oy * by + oz * bz
+        for c in range(3):
+            w = power[c] * lam[j]
+            acc.moment0[vert, c] += w
+            acc.moment1[vert, c, 0] += w * along_t
+            acc.moment1[vert, c, 1] += w * along_b
+
+
+@numba.njit(cache=True, nogil=True)
+def bounce_photons(sa, seed, depth, max_depth, photons, hits, acc, out):
     """Deposit each photon where it landed and scatter it on; returns the survivors' count.
+
+    photons : ``Rays`` in flight (values: power); hits : their ``embree.Hits``;
+    acc : the batch's ``PhotonTally``; out : ``Rays`` receiving the survivors.
 
     At a front-face hit the incident power is added to the density moments of the
     triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power *
@@ -244,76 +408,59 @@ def bounce_photons(
     the hat function of vertex j). The photon then scatters by BRDF sampling with
     Russian roulette that keeps its power about constant. Backs absorb.
 
-    ``tally`` (float64, T_LENGTH) gains escaped power, the expected absorbed power
-    (incident * (1 - true albedo)), incident power, back-face and forced-termination
-    losses, and the hit count: emitted = escaped + absorbed + backface + terminated
-    in expectation, which tests check.
+    ``acc.tally`` gains escaped power, the expected absorbed power (incident * (1 -
+    true albedo)), incident power, back-face and forced-termination losses, and the
+    hit count: emitted = escaped + absorbed + backface + terminated in expectation,
+    which tests check.
     """
+    tally = acc.tally
     n_out = 0
-    for k in range(len(ids)):
-        t = tri[k]
-        pid = ids[k]
+    for k in range(len(photons.ids)):
+        t = hits.triangle[k]
+        pid = photons.ids[k]
+        power = (photons.values[k, 0], photons.values[k, 1], photons.values[k, 2])
         if t < 0:
             for c in range(3):
-                tally[T_ESCAPED + c] += power[k, c]
+                tally[T_ESCAPED + c] += power[c]
             continue
         tally[T_HITS] += 1.0
-        dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
+        d = (photons.directions[k, 0], photons.directions[k, 1], photons.directions[k, 2])
         g = sa.face_normals[t]
-        if dx * g[0] + dy * g[1] + dz * g[2] >= 0.0:
+        if d[0] * g[0] + d[1] * g[1] + d[2] * g[2] >= 0.0:
             for c in range(3):
-                tally[T_BACKFACE + c] += power[k, c]
+                tally[T_BACKFACE + c] += power[c]
             continue
-        uk, vk = float(u[k]), float(v[k])
-        x, y, z = _barycentric_point(sa, t, uk, vk)
-        lam0 = 1.0 - uk - vk
-        for j in range(3):
-            vert = sa.faces[t, j]
-            lam = lam0 if j == 0 else (uk if j == 1 else vk)
-            ox = x - sa.positions[vert, 0]
-            oy = y - sa.positions[vert, 1]
-            oz = z - sa.positions[vert, 2]
-            tn = sa.tangents[vert]
-            nn = sa.normals[vert]
-            bx = nn[1] * tn[2] - nn[2] * tn[1]
-            by = nn[2] * tn[0] - nn[0] * tn[2]
-            bz = nn[0] * tn[1] - nn[1] * tn[0]
-            along_t = ox * tn[0] + oy * tn[1] + oz * tn[2]
-            along_b = ox * bx + oy * by + oz * bz
-            for c in range(3):
-                w = power[k, c] * lam
-                moment0[vert, c] += w
-                moment1[vert, c, 0] += w * along_t
-                moment1[vert, c, 1] += w * along_b
+        uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
+        point = _barycentric_point(sa, t, uk, vk)
+        _deposit(sa, t, point, (1.0 - uk - vk, uk, vk), power, acc)
         for c in range(3):
-            tally[T_INCIDENT + c] += power[k, c]
+            tally[T_INCIDENT + c] += power[c]
 
         m = sa.face_material[t]
-        mat = sa.materials[m]
         base = depth * 8
-        wox, woy, woz, wix, wiy, wiz, pdf, ox, oy, oz, ok = _scatter(
-            sa, t, uk, vk, dx, dy, dz,
-            rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
+        rnd = (
+            rand(seed, STREAM_BOUNCE, pid, base),
+            rand(seed, STREAM_BOUNCE, pid, base + 1),
             rand(seed, STREAM_BOUNCE, pid, base + 2),
         )
+        wo, wi, pdf, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
         for c in range(3):
-            tally[T_ABSORBED + c] += power[k, c] * (1.0 - _albedo(sa, m, woz, c))
+            tally[T_ABSORBED + c] += power[c] * (1.0 - _albedo(sa, m, wo[2], c))
         if depth + 1 >= max_depth:
             for c in range(3):
-                tally[T_TERMINATED + c] += power[k, c] * _albedo(sa, m, woz, c)
+                tally[T_TERMINATED + c] += power[c] * _albedo(sa, m, wo[2], c)
             continue
         if not ok:
             continue  # below the shading or the true surface: absorbed
-        fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
-        scale = wiz / pdf
-        new0, new1, new2 = power[k, 0] * fr * scale, power[k, 1] * fg * scale, power[k, 2] * fb * scale
-        old = max(power[k, 0], power[k, 1], power[k, 2])
-        survive = min(1.0, max(new0, new1, new2) / old) if old > 0.0 else 0.0
-        if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+        fr, fg, fb = brdf_eval(sa.materials[m], wi[0], wi[1], wi[2], wo[0], wo[1], wo[2])
+        scale = wi[2] / pdf
+        scattered = (power[0] * fr * scale, power[1] * fg * scale, power[2] * fb * scale)
+        survives, carried = _roulette(
+            scattered, max(power[0], power[1], power[2]), rand(seed, STREAM_BOUNCE, pid, base + 3)
+        )
+        if not survives:
             continue
-        out_ids[n_out] = pid
-        _push_ray(out_origins, out_directions, out_power, n_out, x, y, z, g, sa.epsilon,
-                  ox, oy, oz, new0 / survive, new1 / survive, new2 / survive)
+        _push_ray(out, n_out, pid, point, g, sa.epsilon, direction, carried)
         n_out += 1
     return n_out
 
@@ -322,21 +469,20 @@ def bounce_photons(
 
 
 @numba.njit(cache=True, nogil=True)
-def make_gather_rays(
-    sa, seed, vertices, n_light, strata,
-    light_origins, light_directions, light_distances, light_wi, light_radiance, light_pdf,
-    gather_origins, gather_directions, gather_wi,
-):
-    """Rays for the vertices of one block: ``n_light`` light samples (shadow rays) and
-    ``strata``^2 stratified cosine-weighted gather rays per vertex. Directions are also
-    kept in the vertex's local frame (x tangent, y bitangent, z normal).
+def make_gather_rays(sa, block, light, samples):
+    """Rays for the vertices of one ``GatherBlock``: ``block.n_light`` light samples
+    (shadow rays, into ``light``: ``LightSamples``) and ``block.strata``^2 stratified
+    cosine-weighted gather rays (into ``samples``: ``GatherSamples``) per vertex.
+    Directions are also kept in the vertex's local frame (x tangent, y bitangent,
+    z normal).
 
-    light_pdf is the solid-angle density of the light sample, 0 for a sample that
+    light.pdf is the solid-angle density of the light sample, 0 for a sample that
     cannot contribute (behind the vertex or seeing the light's back).
     """
+    seed, n_light, strata = block.seed, block.n_light, block.strata
     n_gather = strata * strata
-    for b in range(len(vertices)):
-        vert = vertices[b]
+    for b in range(len(block.vertices)):
+        vert = block.vertices[b]
         px, py, pz = sa.positions[vert, 0], sa.positions[vert, 1], sa.positions[vert, 2]
         nx, ny, nz = sa.normals[vert, 0], sa.normals[vert, 1], sa.normals[vert, 2]
         tx, ty, tz = sa.tangents[vert, 0], sa.tangents[vert, 1], sa.tangents[vert, 2]
@@ -353,10 +499,10 @@ def make_gather_rays(
             qx, qy, qz = qx + sa.epsilon * g[0], qy + sa.epsilon * g[1], qz + sa.epsilon * g[2]
             dx, dy, dz = qx - ox, qy - oy, qz - oz
             dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-            light_origins[i, 0], light_origins[i, 1], light_origins[i, 2] = ox, oy, oz
-            light_pdf[i] = 0.0
-            light_distances[i] = 0.0
-            light_directions[i, 0], light_directions[i, 1], light_directions[i, 2] = nx, ny, nz
+            light.origins[i, 0], light.origins[i, 1], light.origins[i, 2] = ox, oy, oz
+            light.pdf[i] = 0.0
+            light.distances[i] = 0.0
+            light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = nx, ny, nz
             if dist <= 0.0:
                 continue
             dx, dy, dz = dx / dist, dy / dist, dz / dist
@@ -364,15 +510,15 @@ def make_gather_rays(
             wz = dx * nx + dy * ny + dz * nz
             if cos_light <= 0.0 or wz <= 0.0:
                 continue
-            light_directions[i, 0], light_directions[i, 1], light_directions[i, 2] = dx, dy, dz
-            light_distances[i] = dist
-            light_wi[i, 0] = dx * tx + dy * ty + dz * tz
-            light_wi[i, 1] = dx * bx + dy * by + dz * bz
-            light_wi[i, 2] = wz
-            light_pdf[i] = sa.emit_area_pdf[tri] * dist * dist / cos_light
+            light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = dx, dy, dz
+            light.distances[i] = dist
+            light.wi[i, 0] = dx * tx + dy * ty + dz * tz
+            light.wi[i, 1] = dx * bx + dy * by + dz * bz
+            light.wi[i, 2] = wz
+            light.pdf[i] = sa.emit_area_pdf[tri] * dist * dist / cos_light
             mat = sa.face_material[tri]
             for c in range(3):
-                light_radiance[i, c] = sa.materials[mat, EMISSION + c]
+                light.radiance[i, c] = sa.materials[mat, EMISSION + c]
         for k in range(n_gather):
             i = b * n_gather + k
             item = vert * n_gather + k
@@ -381,11 +527,11 @@ def make_gather_rays(
                 (kx + rand(seed, STREAM_GATHER, item, 0)) / strata,
                 (ky + rand(seed, STREAM_GATHER, item, 1)) / strata,
             )
-            gather_wi[i, 0], gather_wi[i, 1], gather_wi[i, 2] = lx, ly, lz
-            gather_directions[i, 0] = lx * tx + ly * bx + lz * nx
-            gather_directions[i, 1] = lx * ty + ly * by + lz * ny
-            gather_directions[i, 2] = lx * tz + ly * bz + lz * nz
-            gather_origins[i, 0], gather_origins[i, 1], gather_origins[i, 2] = ox, oy, oz
+            samples.wi[i, 0], samples.wi[i, 1], samples.wi[i, 2] = lx, ly, lz
+            samples.directions[i, 0] = lx * tx + ly * bx + lz * nx
+            samples.directions[i, 1] = lx * ty + ly * by + lz * ny
+            samples.directions[i, 2] = lx * tz + ly * bz + lz * nz
+            samples.origins[i, 0], samples.origins[i, 1], samples.origins[i, 2] = ox, oy, oz
 
 
 @numba.njit(cache=True, nogil=True)
@@ -396,80 +542,78 @@ def _hit_distance(origins, k, sa, t, u, v):
 
 
 @numba.njit(cache=True, nogil=True)
-def shade_paths(
-    sa, irradiance, seed, depth, max_depth, n_light, n_gather, vertices,
-    ids, throughput, origins, directions, first_cos, tri, u, v, incoming,
-    out_ids, out_throughput, out_origins, out_directions,
-):
+def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
     """Radiance arriving along gather paths; returns the number of paths that go on.
 
-    ``incoming[ids[k]]`` gains throughput * (emitted + diffusely reflected radiance) at
-    each path's hit. On the first segment (depth 0) the emitted part is weighted by
-    the balance heuristic against the ``n_light`` light samples, which also saw the
-    light (``first_cos`` is the ray's cosine at the vertex, so its density is
-    first_cos / pi); later segments count emission in full. The diffuse part is kd / pi
-    times the irradiance interpolated at the hit. At a glossy surface the path goes on
-    through the specular lobe (the diffuse lobe's light is in the irradiance), with
-    Russian roulette, so light that passes from glossy to glossy is not lost.
+    paths : ``Rays`` in flight (values: throughput) at segment ``depth``; hits : their
+    ``embree.Hits``; samples : the block's ``GatherSamples``; out : ``Rays`` receiving
+    the paths that go on.
 
-    ``ids`` index the block's gather samples (vertex ``vertices[id // n_gather]``,
-    sample ``id % n_gather``), which also key the random numbers.
+    ``samples.incoming[paths.ids[k]]`` gains throughput * (emitted + diffusely
+    reflected radiance) at each path's hit. On the first segment (depth 0) the emitted
+    part is weighted by the balance heuristic against the ``block.n_light`` light
+    samples, which also saw the light (the gather ray's density is cos / pi, its cosine
+    at the vertex being ``samples.wi[id, 2]``); later segments count emission in full.
+    The diffuse part is kd / pi times the irradiance interpolated at the hit. At a
+    glossy surface the path goes on through the specular lobe (the diffuse lobe's
+    light is in the irradiance), with Russian roulette, so light that passes from
+    glossy to glossy is not lost.
+
+    ``paths.ids`` index the block's gather samples (vertex ``block.vertices[id //
+    n_gather]``, sample ``id % n_gather``), which also key the random numbers.
     """
+    seed, n_light, max_depth = block.seed, block.n_light, block.max_depth
+    n_gather = block.strata * block.strata
     n_out = 0
-    for k in range(len(ids)):
-        t = tri[k]
+    for k in range(len(paths.ids)):
+        t = hits.triangle[k]
         if t < 0:
             continue
-        dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
+        d = (paths.directions[k, 0], paths.directions[k, 1], paths.directions[k, 2])
         g = sa.face_normals[t]
-        if dx * g[0] + dy * g[1] + dz * g[2] >= 0.0:
+        if d[0] * g[0] + d[1] * g[1] + d[2] * g[2] >= 0.0:
             continue
-        uk, vk = float(u[k]), float(v[k])
+        uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
         m = sa.face_material[t]
         mat = sa.materials[m]
-        target = ids[k]
+        target = paths.ids[k]
         weight = 1.0
         if depth == 0 and n_light > 0 and sa.emit_area_pdf[t] > 0.0:
-            cos_light = -(dx * g[0] + dy * g[1] + dz * g[2])
-            dist = _hit_distance(origins, k, sa, t, uk, vk)
+            cos_light = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
+            dist = _hit_distance(paths.origins, k, sa, t, uk, vk)
             p_light = sa.emit_area_pdf[t] * dist * dist / cos_light
-            p_gather = first_cos[k] / math.pi
+            p_gather = samples.wi[target, 2] / math.pi
             weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
         for c in range(3):
             radiance = weight * mat[EMISSION + c] + mat[KD + c] / math.pi * _interpolate3(irradiance, sa, t, uk, vk, c)
-            incoming[target, c] += throughput[k, c] * radiance
+            samples.incoming[target, c] += paths.values[k, c] * radiance
         ks_max = max(mat[KS], mat[KS + 1], mat[KS + 2])
         if ks_max <= 0.0 or depth + 1 >= max_depth:
             continue
-        item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+        item = (block.vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
         # u1 = 0 picks the specular lobe (the diffuse lobe's light is in the irradiance)
-        _, _, _, wix, wiy, wiz, _, ox, oy, oz, ok = _scatter(
-            sa, t, uk, vk, dx, dy, dz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
-        )
+        rnd = (0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1))
+        _, wi, _, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
         if not ok:
             continue
         # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
-        lobe_weight = (mat[EXPONENT] + 2.0) / (mat[EXPONENT] + 1.0) * wiz
-        t0 = throughput[k, 0] * mat[KS] * lobe_weight
-        t1 = throughput[k, 1] * mat[KS + 1] * lobe_weight
-        t2 = throughput[k, 2] * mat[KS + 2] * lobe_weight
-        survive = min(1.0, max(t0, t1, t2))
-        if survive <= 0.0 or rand(seed, STREAM_GATHER + 1, item, 2) >= survive:
+        lobe_weight = (mat[EXPONENT] + 2.0) / (mat[EXPONENT] + 1.0) * wi[2]
+        scattered = (
+            paths.values[k, 0] * mat[KS] * lobe_weight,
+            paths.values[k, 1] * mat[KS + 1] * lobe_weight,
+            paths.values[k, 2] * mat[KS + 2] * lobe_weight,
+        )
+        survives, carried = _roulette(scattered, 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+        if not survives:
             continue
-        x, y, z = _barycentric_point(sa, t, uk, vk)
-        out_ids[n_out] = target
-        _push_ray(out_origins, out_directions, out_throughput, n_out, x, y, z, g, sa.epsilon,
-                  ox, oy, oz, t0 / survive, t1 / survive, t2 / survive)
+        _push_ray(out, n_out, target, _barycentric_point(sa, t, uk, vk), g, sa.epsilon, direction, carried)
         n_out += 1
     return n_out
 
 
 @numba.njit(cache=True, nogil=True)
-def gather_outputs(
-    mat, emission, diffuse_radiance, n_light, n_gather,
-    light_wi, light_radiance, light_pdf, light_visible, gather_wi, incoming, grid_n, directions, out,
-):
-    """Outgoing radiance of a block of vertices in every direction of an n x n grid.
+def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out):
+    """Outgoing radiance of a block of B vertices in every direction of an n x n grid.
 
     out[b, d] = emission + diffuse_radiance[b] + the specular lobe's integral of the
     incoming light for wo = directions[d], estimated from the vertex's light samples
@@ -486,10 +630,15 @@ def gather_outputs(
     interpolated (relative error ~1e-6 whatever n).
 
     mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
-    (B, 3) kd E / pi; light_* : (B * n_light, ...); gather_wi, incoming :
-    (B * n_gather, 3); directions : (grid_n^2, 3) local, ``directions.grid_directions``;
-    out : (B, grid_n^2, 3) float64.
+    (B, 3) kd E / pi; light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
+    ``pdf`` and ``visible`` read); samples : ``GatherSamples`` (B * n_gather, its ``wi``
+    and ``incoming`` read); directions : (n^2, 3) local, ``directions.grid_directions``;
+    out : (B, n^2, 3) float64.
     """
+    n_blocks = out.shape[0]
+    n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
+    n_gather = samples.wi.shape[0] // n_blocks if n_blocks > 0 else 0
+    grid_n = int(round(math.sqrt(directions.shape[0])))
     n = mat[EXPONENT]
     norm = (n + 2.0) / (2.0 * math.pi)
     cos_min = math.exp(math.log(LOBE_CUTOFF) / n) if n > 1e-9 else 0.0
@@ -502,25 +651,27 @@ def gather_outputs(
     n_samples = n_light + n_gather
     mirror = np.empty((n_samples, 3))
     weight = np.empty((n_samples, 3))
-    for b in range(out.shape[0]):
+    for b in range(n_blocks):
         used = 0
         for m in range(n_light):
             i = b * n_light + m
-            p = light_pdf[i]
-            if p <= 0.0 or not light_visible[i]:
+            p = light.pdf[i]
+            if p <= 0.0 or not light.visible[i]:
                 continue
-            wz = light_wi[i, 2]
+            wz = light.wi[i, 2]
             p_gather = wz / math.pi
             scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
-            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -light_wi[i, 0], -light_wi[i, 1], wz
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -light.wi[i, 0], -light.wi[i, 1], wz
             for c in range(3):
-                weight[used, c] = scale * light_radiance[i, c]
+                weight[used, c] = scale * light.radiance[i, c]
             used += 1
         for k in range(n_gather):
             i = b * n_gather + k
+            incoming = samples.incoming
             if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
                 continue
-            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -gather_wi[i, 0], -gather_wi[i, 1], gather_wi[i, 2]
+            wi = samples.wi
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -wi[i, 0], -wi[i, 1], wi[i, 2]
             for c in range(3):
                 weight[used, c] = math.pi / n_gather * incoming[i, c]
             used += 1

@@ -12,19 +12,28 @@ Phases
 
 Threads: batches (photons) and vertex blocks (gather) run concurrently, a thread
 each; the numba kernels and Embree both release the GIL.
+
+Knobs are checked before the work: a photon count beyond 2^40, or photons, gather and
+light samples, grid and threads whose arrays would not fit in the machine's memory
+(``memory_estimate``, ``check_memory``: once with the scene as given, again after
+refinement) are refused with an InputError naming the estimate and the memory.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import time
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from radiosity.formats import directions, presets
-from radiosity.formats.errors import InputError
+from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.transport import density, kernels
@@ -34,6 +43,16 @@ MAX_PHOTON_DEPTH = 64
 MAX_GATHER_DEPTH = 8
 PHOTON_BATCH = 1 << 16
 ALBEDO_TABLE_SIZE = 129
+MAX_PHOTONS = 1 << 40  # ~1e12: days of tracing on any machine this runs on
+GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
+
+# bytes per element of the arrays that grow with the knobs (see ``memory_estimate``)
+_PHOTON_RAY_BYTES = 2 * (8 + 24 + 12 + 12) + 16  # two ``Rays`` buffers and the hits, per photon of a batch
+_PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
+_LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
+_GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 56 + 48  # GatherSamples, paths, next paths, hits, copies, weights
+_OUTPUT_BYTES = 3 * (8 + 4)  # per vertex and direction: float64 radiance, then its float32 copy
+
 
 @dataclass(frozen=True)
 class SolveOptions:
@@ -75,6 +94,8 @@ class SolveOptions:
             "threads": default_threads() if self.threads is None else self.threads,
         }
         out["max_edge"], out["max_edge_chosen_by"] = presets.max_edge(scene, self.quality, self.max_edge)
+        if not math.isfinite(out["max_edge"]):
+            raise InputError(f"--max-edge must be a finite length, got {out['max_edge']}")
         for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
             if int(out[key]) != out[key] or out[key] < low:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")
@@ -82,9 +103,108 @@ class SolveOptions:
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
         if not 0 <= self.seed < 2**63:
             raise InputError(f"--seed must be between 0 and 2^63, got {self.seed}")
+        if out["photons"] > MAX_PHOTONS:
+            raise InputError(
+                f"--photons {out['photons']:,} is more than the {MAX_PHOTONS:,} (2^40) one run can trace; "
+                "use fewer photons"
+            )
         strata = math.isqrt(out["gather_samples"] - 1) + 1
         out["gather_samples"] = strata * strata
+        # the sizes before refinement (a lower bound): refuse hopeless knobs before any work;
+        # ``solve`` checks again with the refined mesh
+        check_memory(out, scene.n_vertices, _glossy_sizes(scene.objects, out))
         return out
+
+
+def _glossy_sizes(objects, settings):
+    """[(name, vertices, grid n)] of the glossy objects."""
+    return [
+        (o.name, o.n_vertices, settings["grid"] or directions.grid_size(o.material.exponent, settings["quality"]))
+        for o in objects
+        if o.material.is_glossy
+    ]
+
+
+def available_memory():
+    """Bytes of memory the machine can give this process now (MemAvailable), or None."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _gather_block_size(n_light, n_gather):
+    """Vertices per gather block: small blocks balance the threads."""
+    return max(8, min(256, GATHER_BLOCK_SAMPLES // (n_light + n_gather)))
+
+
+def memory_estimate(settings, n_vertices, glossy):
+    """Peak bytes of the arrays that grow with the knobs, by part.
+
+    settings : ``SolveOptions.resolved``; n_vertices : vertices of the scene;
+    glossy : [(name, vertices, grid n)] of its glossy objects. Returns {part: bytes}:
+    ``photons`` (the batches in flight: rays and density moments), ``gather
+    buffers`` (the blocks in flight: light samples, gather rays and paths, outputs)
+    and ``gather output`` (every glossy object's radiance, V x D x 3).
+    """
+    in_flight = 2 * settings["threads"] + 1  # ``_run_ordered`` keeps at most this many jobs
+    photons = settings["photons"]
+    batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
+    per_batch = n_vertices * _PHOTON_VERTEX_BYTES + min(PHOTON_BATCH, photons) * _PHOTON_RAY_BYTES
+    n_light, n_gather = settings["light_samples"], settings["gather_samples"]
+    block = _gather_block_size(n_light, n_gather)
+    buffers = output = 0
+    for _, vertices, grid_n in glossy:
+        directions_count = grid_n * grid_n
+        per_block = block * (n_light * _LIGHT_SAMPLE_BYTES + n_gather * _GATHER_SAMPLE_BYTES + directions_count * 24)
+        blocks = min(in_flight, -(-vertices // block))
+        buffers = max(buffers, blocks * per_block)
+        output += vertices * directions_count * _OUTPUT_BYTES
+    return {"photons": batches * per_batch, "gather buffers": buffers, "gather output": output}
+
+
+_MEMORY_ADVICE = {
+    "photons": "use fewer --threads or a larger --max-edge",
+    "gather buffers": "lower --gather-samples, --light-samples or --threads",
+    "gather output": "lower --grid or choose a larger --max-edge",
+}
+
+
+def check_memory(settings, n_vertices, glossy, available=None):
+    """Refuse (InputError) a solve whose arrays cannot fit in the machine's memory.
+
+    ``available`` : bytes; default ``available_memory()`` (unknown: no check).
+    """
+    available = available_memory() if available is None else available
+    if available is None:
+        return
+    parts = memory_estimate(settings, n_vertices, glossy)
+    need = sum(parts.values())
+    if need <= available:
+        return
+    worst = max(parts, key=parts.get)
+    detail = f"{worst} {_bytes(parts[worst])}"
+    if worst == "gather output":
+        name, vertices, grid_n = max(glossy, key=lambda g: g[1] * g[2] ** 2)
+        detail += f"; {name!r}: {vertices:,} vertices x {grid_n * grid_n:,} directions"
+    raise InputError(
+        f"the solve would need about {_bytes(need)} of memory ({detail}), more than the "
+        f"{_bytes(available)} available; {_MEMORY_ADVICE[worst]}"
+    )
+
+
+def _bytes(n):
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n / 1e3:.3g} kB"
 
 
 class _NullProgress:
@@ -151,38 +271,31 @@ def scene_arrays(scene, merged, epsilon):
 def trace_photon_batch(tracer, sa, seed, first_id, count, total):
     """Trace photons first_id .. first_id + count - 1 of ``total``.
 
-    Returns (moment0 (N, 3), moment1 (N, 3, 2), tally (T_LENGTH,)) float64, all additive.
+    Returns their ``kernels.PhotonTally``: moment0 (N, 3), moment1 (N, 3, 2), tally
+    (T_LENGTH,), float64, all additive.
     """
-    n_vertices = len(sa.positions)
-    moment0 = np.zeros((n_vertices, 3))
-    moment1 = np.zeros((n_vertices, 3, 2))
-    tally = np.zeros(kernels.T_LENGTH)
-    org = np.empty((count, 3), dtype=np.float32)
-    dirn = np.empty((count, 3), dtype=np.float32)
-    power = np.empty((count, 3))
-    ids = np.empty(count, dtype=np.int64)
-    kernels.emit_photons(sa, seed, first_id, count, total, org, dirn, power, ids)
-    out = (np.empty_like(ids), np.empty_like(org), np.empty_like(dirn), np.empty_like(power))
+    acc = kernels.empty_tally(len(sa.positions))
+    photons = kernels.empty_rays(count)
+    kernels.emit_photons(sa, seed, first_id, total, photons)
+    out = kernels.empty_rays(count)
     depth = 0
-    while len(ids):
-        tri, _, u, v = tracer.intersect(org, dirn)
-        n = kernels.bounce_photons(
-            sa, seed, depth, MAX_PHOTON_DEPTH, ids, org, dirn, power, tri, u, v,
-            moment0, moment1, tally, *out,
-        )
-        ids, org, dirn, power = (a[:n].copy() for a in out)
+    while len(photons.ids):
+        hits = tracer.intersect(photons.origins, photons.directions)
+        n = kernels.bounce_photons(sa, seed, depth, MAX_PHOTON_DEPTH, photons, hits, acc, out)
+        photons = kernels.Rays(*(a[:n].copy() for a in out))
         depth += 1
-    return moment0, moment1, tally
+    return acc
 
 
-def _run_ordered(pool, threads, fn, jobs, combine, progress, weights):
-    """Run ``fn(job)`` for every job, a few at a time, and ``combine`` the results in
-    job order (deterministic sums); stops early and cleanly on KeyboardInterrupt."""
+def _run_ordered(workers, fn, jobs, combine, progress, weights):
+    """Run ``fn(job)`` for every job on ``workers.pool``, a few at a time (jobs and
+    weights may be lazy iterables), and ``combine`` the results in job order
+    (deterministic sums); stops early and cleanly on KeyboardInterrupt."""
     pending = []
     try:
         for job, weight in zip(jobs, weights):
-            pending.append((pool.submit(fn, job), weight))
-            if len(pending) > 2 * threads:
+            pending.append((workers.pool.submit(fn, job), weight))
+            if len(pending) > 2 * workers.threads:
                 future, w = pending.pop(0)
                 combine(future.result())
                 progress.update(w)
@@ -195,13 +308,35 @@ def _run_ordered(pool, threads, fn, jobs, combine, progress, weights):
         raise
 
 
+class _Workers(NamedTuple):
+    """What every parallel phase of a solve uses: the pool, its size, the tracer, the
+    merged scene and the seed."""
+
+    pool: ThreadPoolExecutor
+    threads: int
+    tracer: RayTracer
+    sa: kernels.SceneArrays
+    seed: int
+
+
 def solve(scene, opts=SolveOptions(), progress=False):
-    """The view-independent solution of ``scene`` (Contract 1), as a ``Solution``."""
+    """The view-independent solution of ``scene`` (Contract 1), as a ``Solution``.
+
+    Raises InputError for knobs the machine cannot run (``check_memory``) or a
+    radiance beyond single precision; warns (SceneWarning) if nothing emits light.
+    """
     settings = opts.resolved(scene)
+    if not scene.emitters:
+        warnings.warn(
+            f"scene {scene.name!r} has no emitters (no material with emission > 0): every radiance is 0",
+            SceneWarning,
+            stacklevel=2,
+        )
     make_bar = _progress_factory(progress)
     times = {}
     t0 = time.perf_counter()
     refined = scene.refined(settings["max_edge"])
+    check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings))
     merged = refined.merged()
     tracer = RayTracer(merged.positions, merged.faces, threads=1)
     sa = scene_arrays(refined, merged, tracer.epsilon)
@@ -210,36 +345,34 @@ def solve(scene, opts=SolveOptions(), progress=False):
     seed = settings["seed"]
 
     with ThreadPoolExecutor(threads) as pool:
+        workers = _Workers(pool, threads, tracer, sa, seed)
         # -- photons ------------------------------------------------------------------
         t0 = time.perf_counter()
         total = settings["photons"]
-        moment0 = np.zeros((len(sa.positions), 3))
-        moment1 = np.zeros((len(sa.positions), 3, 2))
-        tally = np.zeros(kernels.T_LENGTH)
+        photon_sums = kernels.empty_tally(len(sa.positions))
         emitted = np.zeros(3)
         for o in refined.emitters:
             emitted += o.emitted_power
         rays_before = tracer.rays_cast
 
         def combine_photons(result):
-            moment0.__iadd__(result[0])
-            moment1.__iadd__(result[1])
-            tally.__iadd__(result[2])
+            for acc, part in zip(photon_sums, result):
+                acc += part
 
-        starts = list(range(0, total, PHOTON_BATCH))
-        counts = [min(PHOTON_BATCH, total - s) for s in starts]
         if refined.emitters:
             bar = make_bar(total=total, desc="photons", unit="photon")
+            starts = range(0, total, PHOTON_BATCH)  # lazily: 2^40 photons are 2^24 batches
+            counts = (min(PHOTON_BATCH, total - s) for s in starts)
             _run_ordered(
-                pool,
-                threads,
-                lambda job: trace_photon_batch(tracer, sa, seed, job[0], job[1], total),
-                list(zip(starts, counts)),
+                workers,
+                lambda job: trace_photon_batch(tracer, sa, seed, job, min(PHOTON_BATCH, total - job), total),
+                starts,
                 combine_photons,
                 bar,
                 counts,
             )
             bar.close()
+        moment0, moment1, tally = photon_sums
         photon_rays = tracer.rays_cast - rays_before
         times["photons"] = time.perf_counter() - t0
 
@@ -258,12 +391,8 @@ def solve(scene, opts=SolveOptions(), progress=False):
         t0 = time.perf_counter()
         rays_before = tracer.rays_cast
         results = []
-        glossy = [o for o in refined.objects if o.material.is_glossy]
-        grid_sizes = {
-            o.name: settings["grid"] or directions.grid_size(o.material.exponent, settings["quality"])
-            for o in glossy
-        }
-        work = sum(o.n_vertices for o in glossy)
+        grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
+        work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
         bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
         for i, o in enumerate(refined.objects):
             sl = slice(offsets[i], offsets[i + 1])
@@ -274,7 +403,7 @@ def solve(scene, opts=SolveOptions(), progress=False):
                 radiance = diffuse[:, None, :]
             else:
                 dirs = directions.grid_directions(grid_sizes[o.name])
-                radiance = _gather_object(pool, tracer, sa, irradiance, o, offsets[i], dirs, settings, bar)
+                radiance = _gather_object(workers, irradiance, o, offsets[i], dirs, settings, bar)
             results.append((o, dirs, radiance))
         if bar is not None:
             bar.close()
@@ -306,6 +435,13 @@ def solve(scene, opts=SolveOptions(), progress=False):
             "photon_hits": int(tally[kernels.T_HITS]),
         },
     }
+    for o, _, radiance in results:
+        peak = float(np.max(radiance))
+        if peak > FLOAT32_MAX:
+            raise InputError(
+                f"object {o.name!r}: radiance reaches {peak:.3g}, beyond the largest single-precision number "
+                f"({FLOAT32_MAX:.3g}) the solution file can hold; lower the emission"
+            )
     objects = tuple(
         ObjectSolution(
             name=o.name,
@@ -324,74 +460,60 @@ def solve(scene, opts=SolveOptions(), progress=False):
     )
 
 
-def _gather_object(pool, tracer, sa, irradiance, obj, offset, dirs, settings, bar):
+def _gather_object(workers, irradiance, obj, offset, dirs, settings, bar):
     """Radiance (V, D, 3) float64 of one glossy object's vertices."""
+    sa = workers.sa
     n_light = settings["light_samples"] if len(sa.emit_triangles) and sa.emit_area_pdf.any() else 0
-    n_gather = settings["gather_samples"]
-    strata = math.isqrt(n_gather)
-    block = max(8, min(256, (1 << 16) // (n_light + n_gather)))  # small blocks balance the threads
+    strata = math.isqrt(settings["gather_samples"])
+    block = _gather_block_size(n_light, settings["gather_samples"])
     vertices = np.arange(offset, offset + obj.n_vertices, dtype=np.int64)
-    blocks = [vertices[s:s + block] for s in range(0, len(vertices), block)]
-    mat = pack_materials([obj.material])[0]
-    emission = np.asarray(obj.material.emission, dtype=np.float64)
-    kd = np.asarray(obj.material.diffuse) / np.pi
+    blocks = [
+        kernels.GatherBlock(workers.seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
+        for s in range(0, len(vertices), block)
+    ]
     radiance = np.empty((obj.n_vertices, len(dirs), 3))
     dirs64 = np.asarray(dirs, dtype=np.float64)
 
-    def run(verts):
-        return verts, gather_block(tracer, sa, irradiance, verts, mat, emission, kd, n_light, n_gather, strata, dirs64, settings["seed"])
+    def run(job):
+        return job.vertices, gather_block(workers.tracer, sa, irradiance, job, obj.material, dirs64)
 
     def combine(result):
         verts, values = result
         radiance[verts - offset] = values
 
-    _run_ordered(pool, settings["threads"], run, blocks, combine, bar, [len(b) for b in blocks])
+    _run_ordered(workers, run, blocks, combine, bar, [len(b.vertices) for b in blocks])
     return radiance
 
 
-def gather_block(tracer, sa, irradiance, verts, mat, emission, kd, n_light, n_gather, strata, dirs, seed):
-    """Outgoing radiance (B, D, 3) of a block of vertices of one glossy object."""
-    b = len(verts)
-    nl, ng = b * n_light, b * n_gather
-    light_org = np.empty((nl, 3), np.float32)
-    light_dir = np.empty((nl, 3), np.float32)
-    light_dist = np.empty(nl, np.float32)
-    light_wi = np.zeros((nl, 3))
-    light_le = np.zeros((nl, 3))
-    light_pdf = np.zeros(nl)
-    g_org = np.empty((ng, 3), np.float32)
-    g_dir = np.empty((ng, 3), np.float32)
-    g_wi = np.empty((ng, 3))
-    kernels.make_gather_rays(
-        sa, seed, verts, n_light, strata, light_org, light_dir, light_dist, light_wi, light_le, light_pdf,
-        g_org, g_dir, g_wi,
-    )
-    visible = np.zeros(nl, dtype=bool)
-    valid = light_pdf > 0
+def gather_block(tracer, sa, irradiance, block, material, dirs):
+    """Outgoing radiance (B, D, 3) float64 of a ``kernels.GatherBlock`` of vertices of
+    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64."""
+    b = len(block.vertices)
+    n_gather = block.strata * block.strata
+    light = kernels.empty_light_samples(b * block.n_light)
+    samples = kernels.empty_gather_samples(b * n_gather)
+    kernels.make_gather_rays(sa, block, light, samples)
+    valid = light.pdf > 0
     if valid.any():
-        visible[valid] = ~tracer.occluded(light_org[valid], light_dir[valid], light_dist[valid])
+        light.visible[valid] = ~tracer.occluded(light.origins[valid], light.directions[valid], light.distances[valid])
 
-    incoming = np.zeros((ng, 3))
-    ids = np.arange(ng, dtype=np.int64)
-    throughput = np.ones((ng, 3))
-    first_cos = g_wi[:, 2].copy()
-    org, dirn = g_org, g_dir
-    out = (np.empty_like(ids), np.empty_like(throughput), np.empty_like(org), np.empty_like(dirn))
-    for depth in range(MAX_GATHER_DEPTH):
-        if not len(ids):
+    paths = kernels.Rays(
+        ids=np.arange(len(samples.wi), dtype=np.int64),
+        values=np.ones((len(samples.wi), 3)),
+        origins=samples.origins,
+        directions=samples.directions,
+    )
+    out = kernels.empty_rays(len(paths.ids))
+    for depth in range(block.max_depth):
+        if not len(paths.ids):
             break
-        tri, _, u, v = tracer.intersect(org, dirn)
-        n = kernels.shade_paths(
-            sa, irradiance, seed, depth, MAX_GATHER_DEPTH, n_light, n_gather, verts,
-            ids, throughput, org, dirn, first_cos, tri, u, v, incoming, *out,
-        )
-        ids, throughput, org, dirn = (a[:n].copy() for a in out)
+        hits = tracer.intersect(paths.origins, paths.directions)
+        n = kernels.shade_paths(sa, irradiance, block, depth, paths, hits, samples, out)
+        paths = kernels.Rays(*(a[:n].copy() for a in out))
 
     values = np.empty((b, len(dirs), 3))
-    diffuse = kd[None, :] * irradiance[verts]
-    kernels.gather_outputs(
-        mat, emission, diffuse, n_light, n_gather, light_wi, light_le, light_pdf, visible,
-        g_wi, incoming, math.isqrt(len(dirs)), dirs, values,
-    )
+    mat = pack_materials([material])[0]
+    emission = np.asarray(material.emission, dtype=np.float64)
+    diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
+    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, values)
     return values
-

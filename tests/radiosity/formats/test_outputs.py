@@ -4,7 +4,6 @@ written, cleaned up when writing fails half-way, never the input file."""
 import errno
 import os
 
-import numpy as np
 import pytest
 
 from radiosity.formats import InputError, atomic_output, check_output

@@ -187,6 +187,7 @@ def test_duplicate_names_are_refused():
         ({"directions": DIFFUSE_DIRECTIONS * 2.0}, "unit"),
         ({"directions": grid_directions(2)[::-1].copy(), "radiance": np.zeros((9, 4, 3))}, "grid"),
         ({"radiance": np.full((9, 1, 3), np.inf)}, "infinite"),
+        ({"radiance": np.full((9, 1, 3), -1e-3)}, "27 negative values"),
         ({"material": {"diffuse": [0.7, 0.7, 0.7]}}, "material"),
     ],
 )
@@ -398,6 +399,16 @@ def test_nan_radiance(tmp_path, solution):
     arrays[f"{GLOSSY_NAME}/radiance"] = arrays[f"{GLOSSY_NAME}/radiance"].copy()
     arrays[f"{GLOSSY_NAME}/radiance"][3, 5, 1] = np.nan
     refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{GLOSSY_NAME}/radiance'", "NaN")
+
+
+def test_negative_radiance(tmp_path, solution):
+    meta, arrays = contents(solution)
+    arrays[f"{GLOSSY_NAME}/radiance"][3, 5, 1] = -0.25
+    arrays[f"{GLOSSY_NAME}/radiance"][4, 0, 0] = -2.0
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{GLOSSY_NAME}/radiance'", "2 negative values", "-2")
+    arrays[f"{GLOSSY_NAME}/radiance"][4, 0, 0] = -0.0  # a negative zero is zero
+    arrays[f"{GLOSSY_NAME}/radiance"][3, 5, 1] = 0.0
+    assert load_solution(write_npz(tmp_path / "z.npz", meta, arrays)).object(GLOSSY_NAME).radiance[4, 0, 0] == 0
 
 
 @pytest.mark.parametrize(

@@ -76,6 +76,12 @@ CHI2_ANGLES = (0, 30, 60, 85)
 CHI2_CASES = [
     (kind, n, angle) for kind in CHI2_MATERIALS for n in CHI2_EXPONENTS for angle in CHI2_ANGLES
 ]
+# By default a Latin-square subset runs (~5 s): every exponent with both materials, each
+# material at every angle; the whole grid (~20 s) is marked slow.
+CHI2_FAST = {
+    ("glossy", 1, 85), ("glossy", 10, 60), ("glossy", 100, 30), ("glossy", 1000, 0),
+    ("mixed", 1, 30), ("mixed", 10, 0), ("mixed", 100, 85), ("mixed", 1000, 60),
+}
 # Family-wise 1% false-alarm rate over all goodness-of-fit cases (Sidak).
 CHI2_LEVEL = 1.0 - (1.0 - 0.01) ** (1.0 / len(CHI2_CASES))
 FINE_ALPHA_BINS, COARSE_ALPHA_BINS, PHI_BINS = 40, 20, 32
@@ -175,7 +181,10 @@ def chi_square_test(
     return p_value, "\n".join(lines)
 
 
-@pytest.mark.parametrize("kind,exponent,theta_deg", CHI2_CASES)
+@pytest.mark.parametrize(
+    "kind,exponent,theta_deg",
+    [pytest.param(*case, marks=() if case in CHI2_FAST else pytest.mark.slow) for case in CHI2_CASES],
+)
 def test_sample_matches_pdf_chi_square(kind, exponent, theta_deg):
     material = glossy(*CHI2_MATERIALS[kind], exponent)
     rng = rng_for(1, exponent, theta_deg, kind == "mixed")
@@ -200,8 +209,21 @@ ENERGY_SAMPLES = 200_000
 ENERGY_ANGLES = (0, 30, 60, 75, 85)
 
 
-@pytest.mark.parametrize("exponent", [1, 10, 100, 1000, 1e4])
-@pytest.mark.parametrize("kd,ks", [(0.0, 1.0), (0.5, 0.5), (0.2, 0.8)])
+ENERGY_MATERIALS = [(0.0, 1.0), (0.5, 0.5), (0.2, 0.8)]
+ENERGY_EXPONENTS = [1, 10, 100, 1000, 1e4]
+# By default the mixed material at every exponent and the others at one each (~4 s);
+# the whole grid (~9 s) is marked slow.
+ENERGY_FAST = {(0.2, 0.8, n) for n in ENERGY_EXPONENTS} | {(0.0, 1.0, 1000), (0.5, 0.5, 10)}
+
+
+@pytest.mark.parametrize(
+    "kd,ks,exponent",
+    [
+        pytest.param(kd, ks, n, marks=() if (kd, ks, n) in ENERGY_FAST else pytest.mark.slow)
+        for n in ENERGY_EXPONENTS
+        for kd, ks in ENERGY_MATERIALS
+    ],
+)
 def test_monte_carlo_albedo(kd, ks, exponent):
     material = glossy(kd, ks, exponent)
     rng = rng_for(3, kd, exponent)

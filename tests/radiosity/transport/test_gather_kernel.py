@@ -43,10 +43,11 @@ def test_windowed_outputs_equal_brute_force(rng, exponent, grid_n):
     emission = np.array([0.1, 0.0, 0.2])
     diffuse = rng.uniform(0, 1, (blocks, 3))
     out = np.empty((blocks, len(dirs), 3))
-    kernels.gather_outputs(
-        mat, emission, diffuse, n_light, n_gather, light_wi, light_le, light_pdf, visible,
-        gather_wi, incoming, grid_n, dirs, out,
+    light = kernels.empty_light_samples(blocks * n_light)._replace(
+        wi=light_wi, radiance=light_le, pdf=light_pdf, visible=visible
     )
+    samples = kernels.empty_gather_samples(blocks * n_gather)._replace(wi=gather_wi, incoming=incoming)
+    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, out)
 
     expected = np.empty_like(out)
     truncated = np.empty_like(out)
