@@ -1,0 +1,104 @@
+"""Where a virtual light sits, read from the data.
+
+A highlight seen at vertex v from view w comes from the mirror direction
+m = 2 (n . w) n - w. The mirror rays of several vertices that see the same highlight
+meet near the light that makes it (``meeting_point``: the point closest to all of them
+in least squares); and the solution's own geometry says what one such ray hits
+(``first_hits``: the nearest triangle along each ray, brute force in numba, for the few
+rays a seed needs). A ray that meets nothing, or rays that are parallel, say the light
+is far away: it stays directional.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["first_hits", "meeting_point", "mirror"]
+
+
+def mirror(normals, views):
+    """Mirror directions (..., 3) of unit ``views`` about unit ``normals``."""
+    normals = np.asarray(normals, np.float64)
+    views = np.asarray(views, np.float64)
+    m = 2.0 * np.sum(normals * views, axis=-1, keepdims=True) * normals - views
+    return m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-300)
+
+
+def meeting_point(origins, directions, weights=None, min_spread=1e-3):
+    """The point nearest, in weighted least squares, to the rays (origins (N, 3),
+    unit directions (N, 3)) and in front of them; None when the rays are too close to
+    parallel to fix a point (the smallest eigenvalue of sum w (I - d d^T), relative to
+    the largest, below ``min_spread``) or the point lies behind most of them.
+
+    Returns (point (3,), spread): spread in [0, 1] says how well the rays pin it down.
+    """
+    o = np.asarray(origins, np.float64)
+    d = np.asarray(directions, np.float64)
+    w = np.ones(len(o)) if weights is None else np.asarray(weights, np.float64)
+    if len(o) < 2 or not np.isfinite(o).all() or not np.isfinite(d).all():
+        return None, 0.0
+    projector = np.eye(3)[None] - d[:, :, None] * d[:, None, :]  # (N, 3, 3)
+    A = np.einsum("n,nij->ij", w, projector)
+    b = np.einsum("n,nij,nj->i", w, projector, o)
+    eigenvalues = np.linalg.eigvalsh(A)
+    spread = float(eigenvalues[0] / eigenvalues[-1]) if eigenvalues[-1] > 0 else 0.0
+    if spread < min_spread:
+        return None, spread
+    point = np.linalg.solve(A, b)
+    ahead = np.einsum("ni,ni->n", point[None] - o, d) > 0
+    if np.sum(w * ahead) < 0.5 * np.sum(w):
+        return None, spread
+    return point, spread
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _hits(origins, directions, v0, e1, e2, t_min, out_t, out_tri):
+    n_rays, n_tri = origins.shape[0], v0.shape[0]
+    for r in numba.prange(n_rays):
+        ox, oy, oz = origins[r, 0], origins[r, 1], origins[r, 2]
+        dx, dy, dz = directions[r, 0], directions[r, 1], directions[r, 2]
+        best, which = np.inf, -1
+        for t in range(n_tri):
+            # Moller-Trumbore, both sides
+            px = dy * e2[t, 2] - dz * e2[t, 1]
+            py = dz * e2[t, 0] - dx * e2[t, 2]
+            pz = dx * e2[t, 1] - dy * e2[t, 0]
+            det = e1[t, 0] * px + e1[t, 1] * py + e1[t, 2] * pz
+            if abs(det) < 1e-300:
+                continue
+            inv = 1.0 / det
+            sx, sy, sz = ox - v0[t, 0], oy - v0[t, 1], oz - v0[t, 2]
+            u = (sx * px + sy * py + sz * pz) * inv
+            if u < 0.0 or u > 1.0:
+                continue
+            qx = sy * e1[t, 2] - sz * e1[t, 1]
+            qy = sz * e1[t, 0] - sx * e1[t, 2]
+            qz = sx * e1[t, 1] - sy * e1[t, 0]
+            v = (dx * qx + dy * qy + dz * qz) * inv
+            if v < 0.0 or u + v > 1.0:
+                continue
+            dist = (e2[t, 0] * qx + e2[t, 1] * qy + e2[t, 2] * qz) * inv
+            if dist > t_min and dist < best:
+                best, which = dist, t
+        out_t[r] = best
+        out_tri[r] = which
+
+
+def first_hits(origins, directions, triangles, t_min):
+    """Nearest hit along each ray: (distance (N,) with inf for a miss, triangle (N,)
+    with -1). triangles (T, 3, 3) world space; hits nearer than ``t_min`` are ignored
+    (the surface the ray starts on)."""
+    tri = np.ascontiguousarray(triangles, np.float64)
+    o = np.ascontiguousarray(origins, np.float64).reshape(-1, 3)
+    d = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
+    out_t = np.empty(len(o))
+    out_tri = np.empty(len(o), np.int64)
+    if len(tri) == 0:
+        out_t[:] = np.inf
+        out_tri[:] = -1
+        return out_t, out_tri
+    v0 = np.ascontiguousarray(tri[:, 0])
+    _hits(o, d, v0, np.ascontiguousarray(tri[:, 1] - v0), np.ascontiguousarray(tri[:, 2] - v0), float(t_min), out_t,
+          out_tri)
+    return out_t, out_tri

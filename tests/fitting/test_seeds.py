@@ -1,0 +1,46 @@
+"""Seeds of positional lights: mirror rays, their meeting point, what they hit."""
+
+import numpy as np
+
+from fitting.seeds import first_hits, meeting_point, mirror
+
+
+def test_mirror_about_the_normal():
+    n = np.array([0.0, 0.0, 1.0])
+    w = np.array([0.6, 0.0, 0.8])
+    np.testing.assert_allclose(mirror(n, w), [-0.6, 0.0, 0.8])
+
+
+def test_rays_from_a_plane_meet_at_the_light(rng):
+    light = np.array([0.3, -0.2, 2.0])
+    origins = np.column_stack([rng.uniform(-1, 1, 30), rng.uniform(-1, 1, 30), np.zeros(30)])
+    dirs = light - origins
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    dirs += rng.normal(scale=1e-3, size=dirs.shape)  # noisy peaks
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    point, spread = meeting_point(origins, dirs)
+    assert spread > 0.01 and np.linalg.norm(point - light) < 0.02
+
+
+def test_parallel_rays_say_directional(rng):
+    origins = rng.uniform(-1, 1, (20, 3))
+    dirs = np.tile([0.0, 0.6, 0.8], (20, 1))
+    point, spread = meeting_point(origins, dirs)
+    assert point is None and spread < 1e-3
+
+
+def test_a_point_behind_the_rays_is_refused():
+    origins = np.array([[-1.0, 0, 0], [1.0, 0, 0]])
+    dirs = np.array([[-0.6, 0.8, 0], [0.6, 0.8, 0]])  # diverging: they meet behind
+    point, _ = meeting_point(origins, dirs)
+    assert point is None
+
+
+def test_first_hits_on_a_quad():
+    quad = np.array([[[-1, -1, 2], [1, -1, 2], [1, 1, 2]], [[-1, -1, 2], [1, 1, 2], [-1, 1, 2]]], float)
+    origins = np.array([[0.2, 0.3, 0.0], [0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 0.0, 2.0]])
+    dirs = np.array([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 1.0], [0, 0, 1.0]])
+    t, tri = first_hits(origins, dirs, quad, t_min=1e-6)
+    assert t[0] == np.float64(2.0) and tri[0] in (0, 1)
+    assert np.isinf(t[1]) and np.isinf(t[2]) and tri[1] == tri[2] == -1
+    assert np.isinf(t[3])  # starting on the quad: ignored within t_min
