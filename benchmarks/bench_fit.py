@@ -103,7 +103,7 @@ def main(argv=None):
                     "question": "fit time and error", "object": obj.name, "V": data.n_vertices,
                     "D": data.n_directions, "K": k, "method": method, "seconds": seconds,
                     "relative_rms": error["relative_rms"], "worst_vertex": error["worst_vertex"],
-                    "shininess": [float(p) for p in result["shininess"]],
+                    "shininess": [float(p) for p in result.shininess],
                 })
 
     by = {(r["object"], r["K"], r["method"]): r for r in rows if r["question"] == "fit time and error"}

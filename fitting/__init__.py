@@ -1,10 +1,26 @@
 """The fitting stage: virtual lights fitted to a solution (Contract 2).
 
-    fit(solution, FitOptions(...)) -> FittedModel     fit.npz via FittedModel.save
+    fit(solution, FitOptions(...)) -> FittedModel     fit.npz via FittedModel.save, load_fit
     shade(model, name, world_dirs)                    the one reference of the shading formula
+    LightSet, FitResult                               what the steps of a fit pass between them
+
+Modules: ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels), ``paper``
+(section 3.2), ``refine`` (variable projection), ``fit`` (orchestration), ``model``
+(Contract 2 and ``shade``), ``results``, ``data``, ``baselines``, ``cli``.
 """
 
 from .fit import FitOptions, fit
 from .model import FittedModel, FittedObject, load_fit, shade, shade_arrays
+from .results import FitResult, LightSet
 
-__all__ = ["FitOptions", "FittedModel", "FittedObject", "fit", "load_fit", "shade", "shade_arrays"]
+__all__ = [
+    "FitOptions",
+    "FitResult",
+    "FittedModel",
+    "FittedObject",
+    "LightSet",
+    "fit",
+    "load_fit",
+    "shade",
+    "shade_arrays",
+]

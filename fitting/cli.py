@@ -1,10 +1,22 @@
-"""The fitting stage's subcommand: ``fit``."""
+"""The fitting stage's subcommand: ``fit``.
+
+A thin layer: the output path is checked first (``check_output``: not the input, a
+writable ``.npz``), the flags become ``FitOptions`` (``--quality`` and the solution's
+own quality give the defaults of ``--lights`` and ``--iterations``; a flag given
+explicitly wins), then ``fit`` runs and ``format_report`` prints the errors.
+"""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
+from radiosity.formats.atomic import check_output
 from radiosity.formats.errors import InputError
+from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
+from radiosity.formats.solution import load_solution
+
+from .fit import FitOptions, fit
 
 
 def _lights(text):
@@ -24,9 +36,14 @@ def register(subparsers, not_built):
         "shading formula reproduces the solution (Walter et al. 1997, section 3.2), then refine "
         "them (variable projection); writes Contract 2's fit.npz and prints each object's error.",
     )
+    table = ", ".join(f"{q} {preset(q).fit_lights} / {preset(q).fit_iterations}" for q in QUALITIES)
     p.add_argument("solution", help="a solution.npz from 'vlights solve'")
     p.add_argument("-o", "--output", default="fit.npz", help="output file (default: %(default)s)")
-    p.add_argument("--lights", default="8", metavar="K", help="lights per glossy object, or 'auto' (default: %(default)s)")
+    p.add_argument("--quality", choices=QUALITIES, default=None,
+                   help=f"sets the defaults of --lights / --iterations ({table}); a flag given explicitly wins "
+                   f"(default: the quality the solution was solved at, else {DEFAULT_QUALITY})")
+    p.add_argument("--lights", default=None, metavar="K",
+                   help="lights per glossy object, or 'auto' (default: the quality preset's)")
     p.add_argument("--target", type=float, default=0.1, metavar="E", help="relative RMS error target of --lights auto (default: %(default)s)")
     p.add_argument("--max-lights", type=int, default=16, metavar="N", help="most lights --lights auto may use (default: %(default)s)")
     p.add_argument("--method", choices=("paper", "refined", "per-light"), default="refined",
@@ -35,41 +52,71 @@ def register(subparsers, not_built):
                    help="error measure to minimise: linear least squares, or relative to the radiance (default: %(default)s)")
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
-    p.add_argument("--iterations", type=int, default=100, metavar="N", help="refinement iterations (default: %(default)s)")
+    p.add_argument("--iterations", type=int, default=None, metavar="N",
+                   help="refinement iterations (default: the quality preset's)")
     p.set_defaults(func=_fit)
 
 
-def _fit(args):
-    from radiosity.cli import _output_path
-    from radiosity.formats.solution import load_solution
+def fit_quality(args_quality, solution):
+    """(quality, how it was chosen): ``--quality`` if given, else the quality recorded
+    in the solution's ``settings["quality"]`` if it is one we know, else the default."""
+    if args_quality is not None:
+        return args_quality, "--quality"
+    recorded = solution.settings.get("quality")
+    if isinstance(recorded, str) and recorded in QUALITIES:
+        return recorded, "the solution's quality"
+    return DEFAULT_QUALITY, "default"
 
-    from .fit import FitOptions, fit
 
-    out = _output_path(args.output)
-    options = FitOptions(
-        lights=_lights(args.lights), target=args.target, max_lights=args.max_lights, method=args.method,
-        loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=args.iterations,
+def fit_options(args, quality):
+    """The ``FitOptions`` of the command line: explicit flags win over ``quality``'s preset."""
+    knobs = preset(quality)
+    lights = _lights(args.lights) if args.lights is not None else knobs.fit_lights
+    iterations = args.iterations if args.iterations is not None else knobs.fit_iterations
+    return FitOptions(
+        lights=lights, target=args.target, max_lights=args.max_lights, method=args.method,
+        loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
     ).check()
+
+
+def _fit(args):
+    out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
+    fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
     solution = load_solution(args.solution)
+    quality, chosen_by = fit_quality(args.quality, solution)
+    options = fit_options(args, quality)
     model = fit(solution, options, progress=True)
+    model = replace(model, settings={**model.settings, "quality": quality, "quality_chosen_by": chosen_by})
     model.save(out)
     print(format_report(model, out))
     return 0
 
 
+def _number(value, width, digits=4):
+    return f"{'-':>{width}}" if value is None else f"{value:>{width}.{digits}f}"
+
+
 def format_report(model, path):
-    """Per object: lights, exponents, error of the fit and of its diffuse part alone."""
+    """Per glossy object: lights, exponents, error of the fit and of its diffuse part
+    alone; diffuse objects (no lights, nothing fitted) in one row each, without numbers."""
     lines = [
         f"{'object':<14} {'K':>3} {'exponent(s)':<22} {'rel. RMS':>9} {'worst vertex':>13} {'diffuse only':>13} {'time':>7}"
     ]
     for o in model.objects:
+        if o.info.get("method") == "diffuse":
+            lines.append(f"{o.name:<14} {'-':>3} diffuse, no lights")
+            continue
         e = o.info["error"]
         exps = o.info["shininess"]
         shown = "-" if not exps else (f"{exps[0]:.4g}" if len(set(exps)) == 1 else f"{min(exps):.3g} .. {max(exps):.3g}")
         lines.append(
-            f"{o.name:<14} {o.n_lights:>3} {shown:<22} {e['relative_rms']:>9.4f} {e['worst_vertex']:>13.4f} "
-            f"{e['diffuse_only_relative_rms']:>13.4f} {o.info['time_s']:>6.2f}s"
+            f"{o.name:<14} {o.n_lights:>3} {shown:<22} {_number(e['relative_rms'], 9)} {_number(e['worst_vertex'], 13)} "
+            f"{_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
         )
     size = Path(path).stat().st_size
-    lines.append(f"wrote {path} ({size / 1e6:.2f} MB); method {model.settings['method']}, loss {model.settings['loss']}")
+    settings = model.settings
+    how = f"method {settings['method']}, loss {settings['loss']}"
+    if "quality" in settings:
+        how += f", quality {settings['quality']} (lights {settings['lights']}, iterations {settings['iterations']})"
+    lines.append(f"wrote {path} ({size / 1e6:.2f} MB); {how}")
     return "\n".join(lines)

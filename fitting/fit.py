@@ -8,8 +8,9 @@ chosen as the smallest K whose error reaches a target.
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from radiosity.formats.errors import InputError
 from . import paper, refine
 from .data import fit_data, relative_error
 from .model import FittedModel, FittedObject, shade_arrays
+from .results import FitResult, LightSet
 
 METHODS = ("paper", "refined", "per-light")
 TRIAL_ITERATIONS = 15  # refinement of each start before the best one is refined further
@@ -64,62 +66,61 @@ class FitOptions:
 
 
 def reconstruct(data, result):
-    """The model's colours (V, D, 3) at the data's samples."""
+    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``FitResult``."""
     return shade_arrays(
-        result["emitted"][:, None], result["specular"][:, None], data.normals[:, None],
-        result["light_dirs"], result["light_rgb"], result["shininess"], data.views,
+        result.emitted[:, None], result.specular[:, None], data.normals[:, None],
+        result.light_dirs, result.light_rgb, result.shininess, data.views,
     )
 
 
 def fit_lights(data, n_lights, options, previous=None):
-    """One object's fit with ``n_lights`` lights by ``options.method``.
+    """One object's fit (a ``FitResult``) with ``n_lights`` lights by ``options.method``.
 
     The refined methods start from the paper's fit and from ``paper.greedy_least_squares``
-    at the paper's exponent, each light polished by a short refinement before the next. With ``previous`` (a refined fit with fewer lights) they also try
-    that fit plus the paper's next light at zero intensity, a model with ``n_lights``
-    lights whose error is the previous one, and keep the better of the two: the error
-    then never grows when a light is added.
+    at the paper's exponent, each light polished by a short refinement before the next.
+    With ``previous`` (a refined ``FitResult`` with fewer lights) they also try that fit
+    plus the paper's next light at zero intensity, a model with ``n_lights`` lights
+    whose error is the previous one, and keep the better of the two: the error then
+    never grows when a light is added.
     """
     lw = refine.loss_weights(data, options.loss)
-    result = paper.fit_paper(data, n_lights, options.exponent_bounds, loss_weights=lw)
-    if options.method == "paper" or not len(result["light_dirs"]):
+    result = paper.fit_paper(data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw)
+    if options.method == "paper" or not result.n_lights:
         return result
-    search = result["search"]
-    starts = [result]
+    starts = [result.lights]
     kw = dict(per_light_exponents=options.method == "per-light", exponent_bounds=options.exponent_bounds, loss=options.loss)
     alternative = paper.greedy_least_squares(
-        data, result["shininess"][0], n_lights, lw,
-        polish=lambda fit: refine.refine(data, fit, max_iterations=POLISH_ITERATIONS, **kw),
+        data, result.shininess[0], n_lights, lw,
+        polish=lambda lights: refine.refine(data, lights, max_iterations=POLISH_ITERATIONS, **kw),
     )
-    if len(alternative["light_dirs"]):
+    if alternative.n_lights:
         starts.append(alternative)
-    if previous is not None and 0 < len(previous["light_dirs"]) < len(result["light_dirs"]):
-        extra = len(result["light_dirs"]) - len(previous["light_dirs"])
-        starts.append({
-            "light_dirs": np.vstack([previous["light_dirs"], result["light_dirs"][-extra:]]),
-            "light_rgb": np.vstack([previous["light_rgb"], np.zeros((extra, 3))]),
-            "shininess": np.append(previous["shininess"], np.full(extra, previous["shininess"][-1])),
-        })
+    if previous is not None and 0 < previous.n_lights < result.n_lights:
+        extra = result.n_lights - previous.n_lights
+        starts.append(previous.lights.extended(
+            result.light_dirs[-extra:], np.zeros((extra, 3)), np.full(extra, previous.shininess[-1]),
+        ))
     # a short refinement of every start, then the best one to the end
     trials = [refine.refine(data, start, max_iterations=min(options.iterations, TRIAL_ITERATIONS), **kw) for start in starts]
-    best = min(trials, key=lambda r: r["sq_error"])
+    best = min(trials, key=lambda r: r.sq_error)
     if options.iterations > TRIAL_ITERATIONS:
         best = refine.refine(data, best, max_iterations=options.iterations - TRIAL_ITERATIONS, **kw)
-    best["search"] = search
-    return best
+    return replace(best, search=result.search)
+
+
+def _json_number(value):
+    """A float for the file's meta, None where it is not finite (strict JSON)."""
+    value = float(value)
+    return value if math.isfinite(value) else None
 
 
 def fit_object(obj, options):
     """FittedObject for one ``ObjectSolution``."""
     t0 = time.perf_counter()
     data = fit_data(obj)
-    diffuse_part = None
     if obj.is_diffuse:
         emitted = data.radiance[:, 0, :]
-        result = {
-            "light_dirs": np.zeros((0, 3)), "light_rgb": np.zeros((0, 3)), "shininess": np.zeros(0),
-            "emitted": emitted, "specular": np.zeros_like(emitted),
-        }
+        result = FitResult(lights=LightSet.empty(), emitted=emitted, specular=np.zeros_like(emitted))
         chosen_by = "diffuse: no lights"
     elif options.lights == "auto":
         result, chosen_by = _auto_lights(data, options)
@@ -127,33 +128,33 @@ def fit_object(obj, options):
         result = fit_lights(data, options.lights, options)
         chosen_by = f"--lights {options.lights}"
     error = relative_error(data, reconstruct(data, result))
-    diffuse_part = relative_error(data, np.broadcast_to(result["emitted"][:, None, :], data.radiance.shape))
+    diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
     info = {
         "method": "diffuse" if obj.is_diffuse else options.method,
         "loss": options.loss,
         "chosen_by": chosen_by,
-        "shininess": [round(float(p), 4) for p in result["shininess"]],
+        "shininess": [round(float(p), 4) for p in result.shininess],
         "error": {
-            "relative_rms": error["relative_rms"],
-            "worst_vertex": error["worst_vertex"],
+            "relative_rms": _json_number(error["relative_rms"]),
+            "worst_vertex": _json_number(error["worst_vertex"]),
             "worst_vertex_index": error["worst_vertex_index"],
-            "diffuse_only_relative_rms": diffuse_part["relative_rms"],
-            "diffuse_only_worst_vertex": diffuse_part["worst_vertex"],
+            "diffuse_only_relative_rms": _json_number(diffuse_part["relative_rms"]),
+            "diffuse_only_worst_vertex": _json_number(diffuse_part["worst_vertex"]),
         },
         "time_s": round(time.perf_counter() - t0, 4),
     }
-    if "iterations" in result:
-        info["iterations"] = result["iterations"]
+    if result.iterations is not None:
+        info["iterations"] = result.iterations
     return FittedObject(
         name=obj.name,
         positions=np.asarray(obj.positions, np.float32),
         normals=np.asarray(obj.normals, np.float32),
         faces=np.asarray(obj.faces, np.int32),
-        emitted=np.asarray(result["emitted"], np.float32),
-        specular=np.asarray(result["specular"], np.float32),
-        light_dirs=np.asarray(result["light_dirs"], np.float32).reshape(-1, 3),
-        light_rgb=np.asarray(result["light_rgb"], np.float32).reshape(-1, 3),
-        shininess=np.asarray(result["shininess"], np.float32).reshape(-1),
+        emitted=np.asarray(result.emitted, np.float32),
+        specular=np.asarray(result.specular, np.float32),
+        light_dirs=np.asarray(result.light_dirs, np.float32).reshape(-1, 3),
+        light_rgb=np.asarray(result.light_rgb, np.float32).reshape(-1, 3),
+        shininess=np.asarray(result.shininess, np.float32).reshape(-1),
         info=info,
     )
 

@@ -18,10 +18,14 @@ For one non-diffuse object:
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numba
 import numpy as np
 from scipy.optimize import nnls
+
+from .lobes import light_sum, one_light
+from .results import FitResult, LightSet
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 # a vertex's highlight may exceed its brightest sample this many times (a true peak can
@@ -29,42 +33,17 @@ GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 CAP_FACTOR = 8.0
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def lobe(normals, views, light, shininess, out):
-    """out[v, d] = max(0, n_v . normalize(light + views[v, d]))^shininess (0 where the
-    half vector vanishes). normals (V, 3), views (V, D, 3), light (3,), out (V, D)."""
-    for v in numba.prange(views.shape[0]):
-        nx, ny, nz = normals[v, 0], normals[v, 1], normals[v, 2]
-        for d in range(views.shape[1]):
-            hx = views[v, d, 0] + light[0]
-            hy = views[v, d, 1] + light[1]
-            hz = views[v, d, 2] + light[2]
-            length = math.sqrt(hx * hx + hy * hy + hz * hz)
-            c = (nx * hx + ny * hy + nz * hz) / length if length > 0.0 else 0.0
-            out[v, d] = c**shininess if c > 0.0 else 0.0
-    return out
-
-
-def lobes(data, light_dirs, shininess):
-    """(K, V, D) lobe values of every light; ``shininess`` a number or (K,)."""
-    shininess = np.broadcast_to(np.asarray(shininess, np.float64), (len(light_dirs),))
-    out = np.empty((len(light_dirs),) + data.weights.shape)
-    for k, (l, p) in enumerate(zip(np.asarray(light_dirs, np.float64), shininess)):
-        lobe(data.normals, data.views, l, float(p), out[k])
-    return out
-
-
 def mirror(normal, view):
     """The light direction whose half vector with ``view`` is ``normal``."""
-    l = 2.0 * np.dot(normal, view) * normal - view
-    return l / np.linalg.norm(l)
+    light = 2.0 * np.dot(normal, view) * normal - view
+    return light / np.linalg.norm(light)
 
 
 def greedy_lights(data, shininess, n_lights):
     """Up to ``n_lights`` lights for one exponent, as the paper places them.
 
-    Returns (light_dirs (K, 3), light_rgb (K, 3), lobe values (K, V, D)); fewer than
-    ``n_lights`` when the data have nothing left above the lights' sum.
+    Returns (``LightSet``, lobe values (K, V, D) of its lights); fewer than
+    ``n_lights`` lights when the data have nothing left above the lights' sum.
     """
     radiance = data.radiance
     score_data = radiance.sum(axis=2)
@@ -77,7 +56,7 @@ def greedy_lights(data, shininess, n_lights):
         if not score[v, d] > 0:
             break
         dirs.append(mirror(data.normals[v], data.views[v, d]))
-        lobe(data.normals, data.views, dirs[-1], float(shininess), values[k])
+        one_light(data.normals, data.views, dirs[-1], float(shininess), values[k])
         peaks.append((v, d))
         # intensities that reproduce the data at every light's maximum
         pv, pd = np.array(peaks).T
@@ -85,7 +64,8 @@ def greedy_lights(data, shininess, n_lights):
         target = radiance[pv, pd]
         rgb = np.stack([nnls(at_peaks, target[:, c])[0] for c in range(3)], axis=1)
         score = score_data - np.tensordot(rgb.sum(axis=1), values[: k + 1], axes=1)
-    return np.array(dirs).reshape(-1, 3), rgb, values[: len(dirs)]
+    lights = LightSet(np.array(dirs).reshape(-1, 3), rgb, np.full(len(dirs), float(shininess)))
+    return lights, values[: len(dirs)]
 
 
 def vertex_coefficients(data, basis, loss_weights=None, lights=None):
@@ -94,19 +74,20 @@ def vertex_coefficients(data, basis, loss_weights=None, lights=None):
     Minimises sum_d w (L - e - s B)^2 for each vertex and channel, B = ``basis`` (V, D, 3)
     (the lights' sum with specular 1), w = the sample weights (times ``loss_weights``
     (V, D, 3) if given), subject to e >= 0 and 0 <= s <= cap. The cap keeps a vertex
-    from showing, in any direction, a highlight brighter than twice the brightest
-    radiance it has: s * max_k light_rgb[k] <= 2 max_d L. Without it a lobe too sharp
-    to touch any sample direction would be scaled up without bound to reach the data
-    at one sample, and blaze between samples. Returns (emitted (V, 3), specular (V, 3),
+    from showing, in any direction, a highlight brighter than ``CAP_FACTOR`` times the
+    brightest radiance it has: s * (the lights' peak over the hemisphere) <=
+    CAP_FACTOR max_d L, the peak taken over the samples and, given ``lights`` (the
+    ``LightSet`` behind ``basis``), over every view. Without it a lobe too sharp to
+    touch any sample direction would be scaled up without bound to reach the data at
+    one sample, and blaze between samples. Returns (emitted (V, 3), specular (V, 3),
     weighted squared error).
     """
     if loss_weights is None:
         loss_weights = np.ones((1, 1, 1))
     s1, sb, sbb, sl, slb, sll = _sums(data.radiance, basis, data.weights, np.ascontiguousarray(loss_weights, np.float64))
     peak = basis.max(axis=1)  # (V, 3)
-    if lights is not None and len(lights[0]):
-        dirs, rgb = (np.asarray(a, np.float64) for a in lights[:2])
-        exponents = np.broadcast_to(np.asarray(lights[2], np.float64), (len(dirs),)) if len(lights) > 2 else np.ones(len(dirs))
+    if lights is not None and lights.n_lights:
+        dirs, rgb, exponents = lights.light_dirs, lights.light_rgb, lights.shininess
         # over all views of the hemisphere a light's lobe peaks at 1 if the light is above
         # the horizon, else at the grazing view opposite it: half-vector angle (theta - 90) / 2
         theta = np.arccos(np.clip(data.normals @ dirs.T, -1.0, 1.0))  # (V, K)
@@ -175,50 +156,40 @@ def greedy_least_squares(data, shininess, n_lights, loss_weights=None, polish=No
     peaks beside a highlight a light already explains, so its next light often lands
     there). The new light takes the residual at that peak as its intensity.
 
-    ``polish(fit) -> fit``, if given, improves the lights after each addition (a short
-    refinement), so that a light is where it belongs before the next one is placed.
+    ``polish(LightSet) -> LightSet or FitResult``, if given, improves the lights after
+    each addition (a short refinement), so that a light is where it belongs before the
+    next one is placed. Returns the ``LightSet``.
     """
-    dirs, rgb = np.zeros((0, 3)), np.zeros((0, 3))
-    shininess_k = np.zeros(0)
+    lights = LightSet.empty()
     basis = np.zeros_like(data.radiance)
     for _ in range(n_lights):
-        e, s, _ = vertex_coefficients(data, basis, loss_weights, (dirs, rgb, shininess_k))
+        e, s, _ = vertex_coefficients(data, basis, loss_weights, lights)
         residual = data.radiance - e[:, None] - s[:, None] * basis
         score = residual.sum(axis=2)
         v, d = np.unravel_index(np.argmax(score), score.shape)
         if not score[v, d] > 0:
             break
         light = mirror(data.normals[v], data.views[v, d])
-        scale = max(float(s[v].max()), 1.0) if len(dirs) else 1.0
+        scale = max(float(s[v].max()), 1.0) if lights.n_lights else 1.0
         new_rgb = np.maximum(residual[v, d], 0.0) / scale
-        p_new = float(shininess) if not len(shininess_k) else float(shininess_k[-1])
-        dirs, rgb = np.vstack([dirs, light]), np.vstack([rgb, new_rgb])
-        shininess_k = np.append(shininess_k, p_new)
+        p_new = float(shininess) if not lights.n_lights else float(lights.shininess[-1])
+        lights = lights.extended(light, new_rgb, p_new)
         if polish is not None:
-            polished = polish({"light_dirs": dirs, "light_rgb": rgb, "shininess": shininess_k})
-            dirs, rgb, shininess_k = polished["light_dirs"], polished["light_rgb"], polished["shininess"]
-        basis = np.zeros_like(data.radiance)
-        for k in range(len(dirs)):
-            basis += lobe(data.normals, data.views, dirs[k], float(shininess_k[k]), np.empty(score.shape))[:, :, None] * rgb[k]
-    return {"light_dirs": dirs, "light_rgb": rgb, "shininess": shininess_k}
+            polished = polish(lights)
+            lights = polished.lights if isinstance(polished, FitResult) else polished
+        basis = light_sum(data.normals, data.views, lights.kernel_arrays(), np.empty_like(data.radiance))
+    return lights
 
 
 def fit_exponent(data, shininess, n_lights, loss_weights=None):
     """The paper's inner loop for one exponent: lights, then vertex coefficients.
 
-    Returns a dict with light_dirs, light_rgb, shininess (K,), emitted, specular, sq_error.
+    Returns a ``FitResult`` (``shininess`` repeated for each light).
     """
-    dirs, rgb, values = greedy_lights(data, shininess, n_lights)
-    basis = np.tensordot(values, rgb, axes=([0], [0])) if len(dirs) else np.zeros_like(data.radiance)
-    emitted, specular, err = vertex_coefficients(data, basis, loss_weights, (dirs, rgb, shininess))
-    return {
-        "light_dirs": dirs,
-        "light_rgb": rgb,
-        "shininess": np.full(len(dirs), float(shininess)),
-        "emitted": emitted,
-        "specular": specular,
-        "sq_error": err,
-    }
+    lights, values = greedy_lights(data, shininess, n_lights)
+    basis = np.tensordot(values, lights.light_rgb, axes=([0], [0])) if lights.n_lights else np.zeros_like(data.radiance)
+    emitted, specular, err = vertex_coefficients(data, basis, loss_weights, lights)
+    return FitResult(lights=lights, emitted=emitted, specular=specular, sq_error=err)
 
 
 def golden_section(f, lo, hi, tolerance):
@@ -243,23 +214,21 @@ def golden_section(f, lo, hi, tolerance):
     return x, fx, evaluations
 
 
-def fit_paper(data, n_lights=8, exponent_bounds=(1.0, 1e4), log_tolerance=0.05, loss_weights=None):
-    """The paper's fit of one object. Returns fit_exponent's dict for the best exponent,
-    plus "search": [(exponent, sq_error), ...] in evaluation order."""
+def fit_paper(data, n_lights=8, *, exponent_bounds=(1.0, 1e4), log_tolerance=0.05, loss_weights=None):
+    """The paper's fit of one object: ``fit_exponent``'s ``FitResult`` for the best
+    exponent, its ``search`` the [(exponent, sq_error), ...] in evaluation order."""
     lo, hi = (math.log(b) for b in exponent_bounds)
     cache = {}
 
     def error_at(log_p):
         result = fit_exponent(data, math.exp(log_p), n_lights, loss_weights)
         cache[log_p] = result
-        return result["sq_error"]
+        return result.sq_error
 
     if hi - lo <= log_tolerance:
         best = 0.5 * (lo + hi)
         error_at(best)
-        evaluations = [(best, cache[best]["sq_error"])]
+        evaluations = [(best, cache[best].sq_error)]
     else:
         best, _, evaluations = golden_section(error_at, lo, hi, log_tolerance)
-    result = dict(cache[best])
-    result["search"] = [(math.exp(x), fx) for x, fx in evaluations]
-    return result
+    return replace(cache[best], search=tuple((math.exp(x), fx) for x, fx in evaluations))

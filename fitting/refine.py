@@ -21,17 +21,17 @@ small fraction of the mean radiance so black regions do not dominate).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-import numba
 import numpy as np
 from scipy.optimize import minimize
 
+from .lobes import Residual, light_sum, loss_and_gradient
 from .paper import vertex_coefficients
+from .results import FitResult, LightSet
 
 LOSSES = ("linear", "relative")
 RELATIVE_FLOOR = 0.05  # eps of the relative loss, as a fraction of the mean radiance
-# a lobe c^p is skipped when (1 - c) p exceeds this: then p log c < -30 and c^p < 1e-13
-NEGLIGIBLE = 30.0
 
 
 def loss_weights(data, loss):
@@ -45,152 +45,96 @@ def loss_weights(data, loss):
     raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def _basis(normals, views, dirs, rgb, shininess, out):
-    """out[v, d, c] = sum_k rgb[k, c] * max(0, n_v . normalize(l_k + w_vd))^p_k."""
-    n_v, n_d = views.shape[0], views.shape[1]
-    for v in numba.prange(n_v):
-        for d in range(n_d):
-            b0, b1, b2 = 0.0, 0.0, 0.0
-            for k in range(dirs.shape[0]):
-                hx = views[v, d, 0] + dirs[k, 0]
-                hy = views[v, d, 1] + dirs[k, 1]
-                hz = views[v, d, 2] + dirs[k, 2]
-                length = math.sqrt(hx * hx + hy * hy + hz * hz)
-                if length <= 0.0:
-                    continue
-                c = (normals[v, 0] * hx + normals[v, 1] * hy + normals[v, 2] * hz) / length
-                if c <= 0.0 or (1.0 - c) * shininess[k] > NEGLIGIBLE:
-                    continue
-                lobe = c ** shininess[k]
-                b0 += rgb[k, 0] * lobe
-                b1 += rgb[k, 1] * lobe
-                b2 += rgb[k, 2] * lobe
-            out[v, d, 0], out[v, d, 1], out[v, d, 2] = b0, b1, b2
+def basis(data, lights):
+    """(V, D, 3) sum_k light_rgb[k] * lobe_k at the data's samples (specular 1)."""
+    return light_sum(data.normals, data.views, lights.kernel_arrays(), np.empty_like(data.radiance))
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def _loss_and_gradient(normals, views, dirs, rgb, shininess, radiance, emitted, specular, weights, lw, partial):
-    """Weighted squared residual at fixed (emitted, specular), and its gradient.
+@dataclass(frozen=True, eq=False)
+class Parameters:
+    """How the refinement's parameter vector x maps to lights.
 
-    partial[v, k] receives vertex v's contribution to light k's gradient:
-    [d/d rgb (3), d/d log p (1), d/d light direction (3)]. Returns the loss.
+    x = [raw directions (3K), colours / ``scale`` (3K), log exponents (1 or K)]; a
+    direction is its raw vector normalised.
     """
-    n_v, n_d, n_k = views.shape[0], views.shape[1], dirs.shape[0]
-    full = lw.shape[0] > 1
-    losses = np.zeros(n_v)
-    for v in numba.prange(n_v):
-        nx, ny, nz = normals[v, 0], normals[v, 1], normals[v, 2]
-        lobes = np.empty(n_k)
-        cosines = np.empty(n_k)
-        halves = np.empty((n_k, 4))
-        for d in range(n_d):
-            b0, b1, b2 = 0.0, 0.0, 0.0
-            for k in range(n_k):
-                hx = views[v, d, 0] + dirs[k, 0]
-                hy = views[v, d, 1] + dirs[k, 1]
-                hz = views[v, d, 2] + dirs[k, 2]
-                length = math.sqrt(hx * hx + hy * hy + hz * hz)
-                c = (nx * hx + ny * hy + nz * hz) / length if length > 0.0 else 0.0
-                lobe = c ** shininess[k] if c > 0.0 and (1.0 - c) * shininess[k] <= NEGLIGIBLE else 0.0
-                lobes[k], cosines[k] = lobe, c
-                halves[k, 0], halves[k, 1], halves[k, 2], halves[k, 3] = hx, hy, hz, length
-                b0 += rgb[k, 0] * lobe
-                b1 += rgb[k, 1] * lobe
-                b2 += rgb[k, 2] * lobe
-            coef = np.empty(3)
-            for c_ in range(3):
-                b = b0 if c_ == 0 else (b1 if c_ == 1 else b2)
-                w = weights[v, d] * (lw[v, d, c_] if full else 1.0)
-                r = radiance[v, d, c_] - emitted[v, c_] - specular[v, c_] * b
-                losses[v] += w * r * r
-                coef[c_] = -2.0 * w * r * specular[v, c_]  # d loss / d B[v, d, c]
-            for k in range(n_k):
-                lobe = lobes[k]
-                if lobe <= 0.0:
-                    continue
-                common = coef[0] * rgb[k, 0] + coef[1] * rgb[k, 1] + coef[2] * rgb[k, 2]
-                partial[v, k, 0] += coef[0] * lobe
-                partial[v, k, 1] += coef[1] * lobe
-                partial[v, k, 2] += coef[2] * lobe
-                p = shininess[k]
-                c = cosines[k]
-                partial[v, k, 3] += common * lobe * math.log(c) * p  # d/d log p
-                # d lobe / d h = p c^(p-1) (n - c h/|h|) / |h|; h = w + l
-                hx, hy, hz, length = halves[k, 0], halves[k, 1], halves[k, 2], halves[k, 3]
-                scale = common * p * lobe / c / length
-                partial[v, k, 4] += scale * (nx - c * hx / length)
-                partial[v, k, 5] += scale * (ny - c * hy / length)
-                partial[v, k, 6] += scale * (nz - c * hz / length)
-    return losses.sum()
 
+    n_lights: int
+    per_light_exponents: bool
+    scale: float
 
-def basis(data, dirs, rgb, shininess):
-    out = np.empty_like(data.radiance)
-    _basis(data.normals, data.views, np.ascontiguousarray(dirs, np.float64), np.ascontiguousarray(rgb, np.float64),
-           np.ascontiguousarray(shininess, np.float64), out)
-    return out
+    def pack(self, lights):
+        log_p = np.log(lights.shininess)
+        log_p = log_p if self.per_light_exponents else log_p[:1]
+        return np.concatenate([lights.light_dirs.ravel(), lights.light_rgb.ravel() / self.scale, log_p])
 
-
-def refine(data, start, per_light_exponents=False, exponent_bounds=(1.0, 1e4), loss="linear", max_iterations=200):
-    """Refine a fit (dict with light_dirs, light_rgb, shininess) by variable projection.
-
-    Returns a dict like ``paper.fit_exponent``'s (light_dirs, light_rgb, shininess,
-    emitted, specular, sq_error) plus "iterations" and "evaluations".
-    """
-    dirs0 = np.asarray(start["light_dirs"], np.float64).reshape(-1, 3)
-    n_k = len(dirs0)
-    lw = loss_weights(data, loss)
-    lw_array = np.ones((1, 1, 1)) if lw is None else np.ascontiguousarray(lw)
-    if n_k == 0:
-        e, s, err = vertex_coefficients(data, np.zeros_like(data.radiance), lw)
-        return {**_pack(dirs0, np.zeros((0, 3)), np.zeros(0), e, s, err), "iterations": 0, "evaluations": 0}
-
-    scale = float(np.max(np.asarray(start["light_rgb"]))) or 1.0
-    log_lo, log_hi = math.log(exponent_bounds[0]), math.log(exponent_bounds[1])
-    n_p = n_k if per_light_exponents else 1
-    p0 = np.log(np.clip(np.asarray(start["shininess"], np.float64), *exponent_bounds))
-    p0 = p0 if per_light_exponents else p0[:1]
-    x0 = np.concatenate([dirs0.ravel(), np.asarray(start["light_rgb"], np.float64).ravel() / scale, p0])
-    bounds = [(None, None)] * (3 * n_k) + [(0.0, None)] * (3 * n_k) + [(log_lo, log_hi)] * n_p
-    state = {"evaluations": 0}
-
-    def unpack(x):
+    def unpack(self, x):
+        """(``LightSet``, the raw directions' lengths (K, 1))."""
+        n_k = self.n_lights
         raw = x[: 3 * n_k].reshape(n_k, 3)
         norm = np.linalg.norm(raw, axis=1, keepdims=True)
         dirs = raw / np.where(norm > 0, norm, 1.0)
-        rgb = x[3 * n_k: 6 * n_k].reshape(n_k, 3) * scale
+        rgb = x[3 * n_k: 6 * n_k].reshape(n_k, 3) * self.scale
         shininess = np.exp(np.broadcast_to(x[6 * n_k:], (n_k,)))
-        return raw, norm, dirs, rgb, np.ascontiguousarray(shininess)
+        return LightSet(dirs, rgb, shininess), norm
 
-    def objective(x):
-        state["evaluations"] += 1
-        raw, norm, dirs, rgb, shininess = unpack(x)
-        e, s, _ = vertex_coefficients(data, basis(data, dirs, rgb, shininess), lw, (dirs, rgb, shininess))
-        partial = np.zeros((data.n_vertices, n_k, 7))
-        loss_value = _loss_and_gradient(
-            data.normals, data.views, dirs, rgb, shininess, data.radiance, e, s, data.weights, lw_array, partial,
-        )
-        g = partial.sum(axis=0)
-        g_dir = g[:, 4:7]
-        # through the normalisation l = raw / |raw|: project out the radial part
-        g_dir = (g_dir - np.sum(g_dir * dirs, axis=1, keepdims=True) * dirs) / np.where(norm > 0, norm, 1.0)
-        g_logp = g[:, 3] if per_light_exponents else np.array([g[:, 3].sum()])
-        grad = np.concatenate([g_dir.ravel(), (g[:, 0:3] * scale).ravel(), g_logp])
-        return loss_value, grad
+    def bounds(self, exponent_bounds):
+        n_k = self.n_lights
+        log_lo, log_hi = math.log(exponent_bounds[0]), math.log(exponent_bounds[1])
+        n_p = n_k if self.per_light_exponents else 1
+        return [(None, None)] * (3 * n_k) + [(0.0, None)] * (3 * n_k) + [(log_lo, log_hi)] * n_p
+
+
+def objective(data, lw, params, x):
+    """The reduced objective F at parameters ``x`` and its gradient with respect to x.
+
+    ``lw`` the loss weights (None: linear), ``params`` the ``Parameters`` of x. The
+    per-vertex coefficients are solved for first (``vertex_coefficients``); the
+    gradient is the partial one at those coefficients (variable projection).
+    """
+    lights, norm = params.unpack(x)
+    e, s, _ = vertex_coefficients(data, basis(data, lights), lw, lights)
+    lw_array = np.ones((1, 1, 1)) if lw is None else np.ascontiguousarray(lw, np.float64)
+    residual = Residual(data.radiance, data.weights, lw_array, e, s)
+    partial = np.zeros((data.n_vertices, lights.n_lights, 7))
+    loss_value = loss_and_gradient(data.normals, data.views, lights.kernel_arrays(), residual, partial)
+    g = partial.sum(axis=0)
+    g_dir = g[:, 4:7]
+    dirs = lights.light_dirs
+    # through the normalisation l = raw / |raw|: project out the radial part
+    g_dir = (g_dir - np.sum(g_dir * dirs, axis=1, keepdims=True) * dirs) / np.where(norm > 0, norm, 1.0)
+    g_logp = g[:, 3] if params.per_light_exponents else np.array([g[:, 3].sum()])
+    grad = np.concatenate([g_dir.ravel(), (g[:, 0:3] * params.scale).ravel(), g_logp])
+    return loss_value, grad
+
+
+def refine(data, start, *, per_light_exponents=False, exponent_bounds=(1.0, 1e4), loss="linear", max_iterations=200):
+    """Refine lights by variable projection; ``start`` a ``LightSet`` or ``FitResult``.
+
+    Returns a ``FitResult`` (its ``iterations`` and ``evaluations`` those of L-BFGS-B).
+    """
+    start = start.lights if isinstance(start, FitResult) else start
+    lw = loss_weights(data, loss)
+    if start.n_lights == 0:
+        e, s, err = vertex_coefficients(data, np.zeros_like(data.radiance), lw)
+        return FitResult(lights=LightSet.empty(), emitted=e, specular=s, sq_error=err, iterations=0, evaluations=0)
+
+    params = Parameters(start.n_lights, per_light_exponents, float(np.max(start.light_rgb)) or 1.0)
+    clipped = LightSet(start.light_dirs, start.light_rgb, np.clip(start.shininess, *exponent_bounds))
+    x0 = params.pack(clipped)
+    evaluations = 0
+
+    def counted(x):
+        nonlocal evaluations
+        evaluations += 1
+        return objective(data, lw, params, x)
 
     result = minimize(
-        objective, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+        counted, x0, jac=True, method="L-BFGS-B", bounds=params.bounds(exponent_bounds),
         options={"maxiter": max_iterations, "ftol": 1e-12, "gtol": 1e-12},
     )
-    x = result.x if result.fun <= objective(x0)[0] else x0
-    _, _, dirs, rgb, shininess = unpack(x)
-    e, s, err = vertex_coefficients(data, basis(data, dirs, rgb, shininess), lw, (dirs, rgb, shininess))
-    return {**_pack(dirs, rgb, shininess, e, s, err), "iterations": int(result.nit), "evaluations": state["evaluations"]}
-
-
-def _pack(dirs, rgb, shininess, emitted, specular, err):
-    return {
-        "light_dirs": dirs, "light_rgb": rgb, "shininess": np.asarray(shininess, np.float64),
-        "emitted": emitted, "specular": specular, "sq_error": err,
-    }
+    x = result.x if result.fun <= counted(x0)[0] else x0
+    lights, _ = params.unpack(x)
+    e, s, err = vertex_coefficients(data, basis(data, lights), lw, lights)
+    return FitResult(
+        lights=lights, emitted=e, specular=s, sq_error=err, iterations=int(result.nit), evaluations=evaluations,
+    )

@@ -151,7 +151,7 @@ class Archive:
             expected = "integers" if kinds == "iu" else "numbers"
             raise self.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
         if shape is not None and (a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape))):
-            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
             raise self.fail(f"'{key}' has shape {tuple(a.shape)}, expected {want}")
         return a
 

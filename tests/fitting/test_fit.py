@@ -72,8 +72,8 @@ def test_refined_fit_recovers_the_lights(rng):
     error = relative_error(data, reconstruct(data, refined))["relative_rms"]
     assert paper_error < 0.25  # the heuristic alone: placed at maxima, intensities matched there
     assert error < 1e-3
-    assert matched_angles(refined["light_dirs"], truth["light_dirs"]).max() < 1.0
-    assert refined["shininess"][0] == pytest.approx(40.0, rel=0.02)
+    assert matched_angles(refined.light_dirs, truth["light_dirs"]).max() < 1.0
+    assert refined.shininess[0] == pytest.approx(40.0, rel=0.02)
     assert error < paper_error
 
 
@@ -82,7 +82,7 @@ def test_single_light_found_by_the_paper_heuristic_alone(rng):
     data = fit_data(solution.objects[0])
     result = fit_paper(data, 1)
     # the brightest sample sits on a grid direction: the light is within about a grid cell
-    assert matched_angles(result["light_dirs"], truth["light_dirs"]).max() < 6.0
+    assert matched_angles(result.light_dirs, truth["light_dirs"]).max() < 6.0
     assert relative_error(data, reconstruct(data, result))["relative_rms"] < 0.2
 
 
@@ -91,10 +91,11 @@ def test_per_light_exponents_recover_two_widths(rng):
     data = fit_data(solution.objects[0])
     start = fit_paper(data, 1)
     refined = refine(data, start, per_light_exponents=True, max_iterations=300)
-    assert refined["shininess"][0] == pytest.approx(30.0, rel=0.02)
+    assert refined.shininess[0] == pytest.approx(30.0, rel=0.02)
     assert relative_error(data, reconstruct(data, refined))["relative_rms"] < 1e-3
 
 
+@pytest.mark.slow  # ~15 s of CPU: six refined fits with warm starts
 def test_adding_a_light_never_increases_the_error(rng):
     solution, _ = synthetic(rng, lights=4, shininess=25.0)
     data = fit_data(solution.objects[0])
@@ -105,6 +106,19 @@ def test_adding_a_light_never_increases_the_error(rng):
         errors.append(relative_error(data, reconstruct(data, previous))["relative_rms"])
     assert all(b <= a * (1 + 1e-9) for a, b in zip(errors, errors[1:])), errors
     assert errors[3] < 0.01 * errors[0]  # four true lights: four fitted ones suffice
+
+
+def test_adding_a_light_never_increases_the_error_small(rng):
+    """The fast cousin of the test above: a coarser dome, three lights, short refinements."""
+    solution, _ = synthetic(rng, lights=3, shininess=25.0, grid=8, subdivisions=1)
+    data = fit_data(solution.objects[0])
+    options = FitOptions(lights=1, method="refined", iterations=20)
+    errors, previous = [], None
+    for k in range(1, 4):
+        previous = fit_lights(data, k, options, previous=previous)
+        errors.append(relative_error(data, reconstruct(data, previous))["relative_rms"])
+    assert all(b <= a * (1 + 1e-9) for a, b in zip(errors, errors[1:])), errors
+    assert errors[2] < 0.1 * errors[0]
 
 
 def test_zero_data_gives_zeros(rng):
@@ -202,12 +216,23 @@ def test_vertex_coefficients_closed_form_matches_nnls(rng):
             assert np.sum((a @ got - w * target[v, :, c]) ** 2) <= np.sum((a @ ref - w * target[v, :, c]) ** 2) * (1 + 1e-9) + 1e-15
 
 
+@pytest.mark.slow  # ~10 s of CPU: a bisection over K of refined fits
 def test_auto_lights_reaches_the_target_with_fewest_lights(rng):
     solution, _ = synthetic(rng, lights=3, shininess=40.0)
     model = fit(solution, FitOptions(lights="auto", target=0.01, max_lights=8, method="refined"))
     o = model.objects[0]
     assert o.info["error"]["relative_rms"] <= 0.01
     assert 1 <= o.n_lights <= 3 and o.info["chosen_by"].startswith("auto")
+
+
+def test_auto_lights_small(rng):
+    """The fast cousin of the test above: a coarser dome, short refinements; three true
+    lights, so K = 1, 2, 4 bracket the answer and bisection finds 3."""
+    solution, _ = synthetic(rng, lights=3, shininess=30.0, grid=8, subdivisions=1)
+    model = fit(solution, FitOptions(lights="auto", target=0.02, max_lights=4, method="refined", iterations=20))
+    o = model.objects[0]
+    assert o.info["error"]["relative_rms"] <= 0.02
+    assert o.n_lights == 3 and o.info["chosen_by"].startswith("auto: smallest K")
 
 
 def test_relative_loss_lowers_the_relative_error_of_dim_regions(rng):
@@ -232,8 +257,8 @@ def test_fit_file_round_trip_and_shade(rng, tmp_path):
     with np.load(path, allow_pickle=False) as npz:
         keys = set(npz.files)
     assert keys == {"meta"} | {f"dome/{k}" for k in ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")}
-    o, l = model.object("dome"), loaded.object("dome")
-    assert np.array_equal(o.light_dirs, l.light_dirs) and l.info["error"] == pytest.approx(o.info["error"])
+    o, back = model.object("dome"), loaded.object("dome")
+    assert np.array_equal(o.light_dirs, back.light_dirs) and back.info["error"] == pytest.approx(o.info["error"])
     # shade() reproduces the data the model was fitted to
     data = fit_data(solution.objects[0])
     colours = shade(loaded, "dome", data.views)

@@ -1,0 +1,220 @@
+"""The one Blinn-Phong lobe of the shading formula, its gradient, and the kernels that evaluate them.
+
+For a unit normal n, a unit direction w towards the eye and a unit direction l towards
+a directional light, with h = l + w the (unnormalised) half vector:
+
+    lobe(n, h, p) = max(0, n . h / |h|)^p        (0 where |h| = 0: the light opposite the eye)
+
+Cut-off (the one policy, applied by every caller): with c = n . h / |h|, the lobe is
+set to 0 when c <= 0 or when (1 - c) p > ``NEGLIGIBLE`` = 30. Because log c <= c - 1,
+the second case implies p log c < -30, so c^p < e^-30 ~ 9.4e-14: only terms below
+1e-13 of the lobe's peak (1) are dropped, and the pow is not evaluated for them (most
+(vertex, direction, light) triples of a sharp lobe). The gradient is 0 wherever the
+lobe is.
+
+Gradient (``lobe_gradient``), with value = c^p:
+
+    d value / d l       = p c^(p-1) (n - c h / |h|) / |h|      (h = l + w, so dh/dl = I)
+    d value / d log p   = value log(c) p
+
+Contents:
+
+- scalar numba functions ``lobe(n, h, p)`` and ``lobe_gradient(n, h, p)`` (n, h are
+  3-tuples of floats), the one definition of the formula;
+- ``lobe_vectorised``: the same as a numpy ufunc, ``(nx, ny, nz, hx, hy, hz, p)``,
+  broadcasting, for the numpy reference ``fitting.model.shade_arrays``;
+- the kernels of the fit: ``one_light`` (the paper's fit), ``light_sum`` and
+  ``loss_and_gradient`` (the refinement), taking plain arrays and the ``Lights`` /
+  ``Residual`` named tuples.
+
+Every kernel that calls ``lobe`` lives in this module on purpose: numba's on-disk cache
+(``cache=True``) checks only the file a kernel is defined in, so a kernel elsewhere that
+inlined ``lobe`` would keep the old formula after this file changed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+__all__ = [
+    "NEGLIGIBLE",
+    "Lights",
+    "Residual",
+    "light_sum",
+    "lobe",
+    "lobe_gradient",
+    "lobe_vectorised",
+    "loss_and_gradient",
+    "one_light",
+]
+
+NEGLIGIBLE = 30.0  # lobe set to 0 where (1 - c) p > NEGLIGIBLE: then c^p < e^-30 ~ 9.4e-14
+
+
+class Lights(NamedTuple):
+    """K directional lights as the kernels take them (C-contiguous float64).
+
+    dirs      : (K, 3) unit vectors towards each light (world)
+    rgb       : (K, 3) each light's colour
+    shininess : (K,) exponent per light
+    """
+
+    dirs: np.ndarray
+    rgb: np.ndarray
+    shininess: np.ndarray
+
+
+class Residual(NamedTuple):
+    """What the weighted residual w (L - e - s B) of the refinement needs (float64).
+
+    radiance     : (V, D, 3) the data L
+    weights      : (V, D) sample weights (area x solid angle)
+    loss_weights : (V, D, 3) loss weights, or (1, 1, 1) ones for the linear loss
+    emitted      : (V, 3) e
+    specular     : (V, 3) s
+    """
+
+    radiance: np.ndarray
+    weights: np.ndarray
+    loss_weights: np.ndarray
+    emitted: np.ndarray
+    specular: np.ndarray
+
+
+@numba.njit(cache=True, nogil=True)
+def _half_cosine(n, h):
+    """(c, |h|): the cosine between n and h, 0 where |h| = 0."""
+    length = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+    if length > 0.0:
+        return (n[0] * h[0] + n[1] * h[1] + n[2] * h[2]) / length, length
+    return 0.0, 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _power(c, p):
+    """max(0, c)^p with the cut-off of the module docstring."""
+    if c <= 0.0 or (1.0 - c) * p > NEGLIGIBLE:
+        return 0.0
+    return c**p
+
+
+@numba.njit(cache=True, nogil=True)
+def lobe(n, h, p):
+    """max(0, n . h / |h|)^p with the cut-off; n, h 3-tuples (h = l + w), p >= 0."""
+    c, _ = _half_cosine(n, h)
+    return _power(c, p)
+
+
+@numba.njit(cache=True, nogil=True)
+def lobe_gradient(n, h, p):
+    """(value, (d/dl_x, d/dl_y, d/dl_z), d/d log p) of ``lobe(n, h, p)``, h = l + w."""
+    c, length = _half_cosine(n, h)
+    value = _power(c, p)
+    if value <= 0.0:
+        return 0.0, (0.0, 0.0, 0.0), 0.0
+    scale = p * value / c / length  # p c^(p-1) / |h|
+    dl = (
+        scale * (n[0] - c * h[0] / length),
+        scale * (n[1] - c * h[1] / length),
+        scale * (n[2] - c * h[2] / length),
+    )
+    return value, dl, value * math.log(c) * p
+
+
+@numba.vectorize(cache=True)
+def lobe_vectorised(nx, ny, nz, hx, hy, hz, p):
+    """``lobe((nx, ny, nz), (hx, hy, hz), p)`` as a broadcasting numpy ufunc (float64)."""
+    return lobe((nx, ny, nz), (hx, hy, hz), p)
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def one_light(normals, views, light, shininess, out):
+    """out[v, d] = lobe(n_v, light + views[v, d], shininess).
+
+    normals (V, 3), views (V, D, 3) unit towards the eye, light (3,) unit, out (V, D).
+    Returns out.
+    """
+    lx, ly, lz = light[0], light[1], light[2]
+    for v in numba.prange(views.shape[0]):
+        n = (normals[v, 0], normals[v, 1], normals[v, 2])
+        for d in range(views.shape[1]):
+            out[v, d] = lobe(n, (views[v, d, 0] + lx, views[v, d, 1] + ly, views[v, d, 2] + lz), shininess)
+    return out
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def light_sum(normals, views, lights, out):
+    """out[v, d, c] = sum_k lights.rgb[k, c] * lobe(n_v, l_k + views[v, d], p_k).
+
+    normals (V, 3), views (V, D, 3), lights a ``Lights``, out (V, D, 3). Returns out.
+    """
+    dirs, rgb, shininess = lights.dirs, lights.rgb, lights.shininess
+    for v in numba.prange(views.shape[0]):
+        n = (normals[v, 0], normals[v, 1], normals[v, 2])
+        for d in range(views.shape[1]):
+            b0, b1, b2 = 0.0, 0.0, 0.0
+            for k in range(dirs.shape[0]):
+                h = (views[v, d, 0] + dirs[k, 0], views[v, d, 1] + dirs[k, 1], views[v, d, 2] + dirs[k, 2])
+                value = lobe(n, h, shininess[k])
+                if value > 0.0:
+                    b0 += rgb[k, 0] * value
+                    b1 += rgb[k, 1] * value
+                    b2 += rgb[k, 2] * value
+            out[v, d, 0], out[v, d, 1], out[v, d, 2] = b0, b1, b2
+    return out
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def loss_and_gradient(normals, views, lights, residual, partial):
+    """The weighted squared residual sum_{v,d,c} w (L - e - s B)^2 at fixed (e, s), and
+    its gradient with respect to the lights.
+
+    B[v, d, c] = sum_k rgb[k, c] lobe(n_v, l_k + w_vd, p_k); w = weights[v, d] times
+    loss_weights[v, d, c] (or 1 when loss_weights is (1, 1, 1)). ``partial`` (V, K, 7),
+    zeroed by the caller, receives vertex v's part of light k's gradient:
+    [d/d rgb (3), d/d log p (1), d/d light direction (3)]. Returns the loss.
+    """
+    dirs, rgb, shininess = lights.dirs, lights.rgb, lights.shininess
+    radiance, weights, lw = residual.radiance, residual.weights, residual.loss_weights
+    emitted, specular = residual.emitted, residual.specular
+    n_v, n_d, n_k = views.shape[0], views.shape[1], dirs.shape[0]
+    full = lw.shape[0] > 1
+    losses = np.zeros(n_v)
+    for v in numba.prange(n_v):
+        n = (normals[v, 0], normals[v, 1], normals[v, 2])
+        values = np.empty(n_k)
+        grads = np.empty((n_k, 4))  # d/dl (3), d/d log p
+        coef = np.empty(3)
+        for d in range(n_d):
+            b0, b1, b2 = 0.0, 0.0, 0.0
+            for k in range(n_k):
+                h = (views[v, d, 0] + dirs[k, 0], views[v, d, 1] + dirs[k, 1], views[v, d, 2] + dirs[k, 2])
+                value, dl, dlogp = lobe_gradient(n, h, shininess[k])
+                values[k] = value
+                grads[k, 0], grads[k, 1], grads[k, 2], grads[k, 3] = dl[0], dl[1], dl[2], dlogp
+                b0 += rgb[k, 0] * value
+                b1 += rgb[k, 1] * value
+                b2 += rgb[k, 2] * value
+            for c in range(3):
+                b = b0 if c == 0 else (b1 if c == 1 else b2)
+                w = weights[v, d] * (lw[v, d, c] if full else 1.0)
+                r = radiance[v, d, c] - emitted[v, c] - specular[v, c] * b
+                losses[v] += w * r * r
+                coef[c] = -2.0 * w * r * specular[v, c]  # d loss / d B[v, d, c]
+            for k in range(n_k):
+                value = values[k]
+                if value <= 0.0:
+                    continue
+                common = coef[0] * rgb[k, 0] + coef[1] * rgb[k, 1] + coef[2] * rgb[k, 2]  # d loss / d lobe
+                partial[v, k, 0] += coef[0] * value
+                partial[v, k, 1] += coef[1] * value
+                partial[v, k, 2] += coef[2] * value
+                partial[v, k, 3] += common * grads[k, 3]
+                partial[v, k, 4] += common * grads[k, 0]
+                partial[v, k, 5] += common * grads[k, 1]
+                partial[v, k, 6] += common * grads[k, 2]
+    return losses.sum()

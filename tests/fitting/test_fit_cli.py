@@ -1,0 +1,124 @@
+"""``vlights fit``: the output checked before any work, --quality, and the report."""
+
+import hashlib
+import os
+
+import numpy as np
+import pytest
+from test_fit import synthetic
+
+from display.cli import main
+from fitting import load_fit
+from fitting.cli import format_report
+from radiosity.formats.presets import preset
+from radiosity.formats.solution import ObjectSolution, Solution
+
+DIFFUSE_MATERIAL = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
+
+
+def small_solution(path, quality="medium"):
+    """A glossy dome (a known two-light model, 6 x 6 directions) and a diffuse floor."""
+    glossy, _ = synthetic(np.random.default_rng(1), lights=2, shininess=30.0, grid=6, subdivisions=1)
+    dome = glossy.objects[0]
+    floor = ObjectSolution(
+        name="floor", positions=np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32),
+        normals=np.tile(np.float32([0, 0, 1]), (3, 1)), tangents=np.tile(np.float32([1, 0, 0]), (3, 1)),
+        faces=np.array([[0, 1, 2]], np.int32), directions=np.float32([[0, 0, 1]]),
+        radiance=np.full((3, 1, 3), 0.25, np.float32), material=DIFFUSE_MATERIAL,
+    )
+    settings = {} if quality is None else {"quality": quality}
+    Solution(objects=(dome, floor), settings=settings, scene="test").save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def solution_file(tmp_path_factory):
+    return small_solution(tmp_path_factory.mktemp("sol") / "s.npz")
+
+
+def run(argv, capsys):
+    capsys.readouterr()
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse exits by itself
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest(), os.stat(path).st_mtime_ns
+
+
+@pytest.mark.parametrize("how", ["same path", "another path", "symlink", "hard link"])
+def test_output_onto_the_input_is_refused_and_the_input_kept(how, tmp_path, capsys):
+    solution = small_solution(tmp_path / "s.npz")
+    (tmp_path / "sub").mkdir()
+    if how == "same path":
+        output = solution
+    elif how == "another path":
+        output = tmp_path / "sub" / ".." / "s.npz"
+    elif how == "symlink":
+        output = tmp_path / "link.npz"
+        output.symlink_to(solution)
+    else:
+        output = tmp_path / "hard.npz"
+        os.link(solution, output)
+    before = digest(solution)
+    code, out, err = run(["fit", str(solution), "-o", str(output), "--method", "paper"], capsys)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "-o" in err and "input" in err, err
+    assert digest(solution) == before
+    assert not [p for p in tmp_path.iterdir() if p.suffix == ".tmp"]
+
+
+@pytest.mark.parametrize("output, message", [("fit.txt", "must end in .npz"), ("nowhere/fit.npz", "does not exist"),
+                                             (".", "is a directory")])
+def test_bad_outputs_are_refused_before_any_work(output, message, solution_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(["fit", str(solution_file), "-o", output], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "recorded, flags, quality, lights, iterations",
+    [
+        ("medium", [], "medium", preset("medium").fit_lights, preset("medium").fit_iterations),
+        (None, [], "draft", preset("draft").fit_lights, preset("draft").fit_iterations),
+        ("ultra", [], "draft", preset("draft").fit_lights, preset("draft").fit_iterations),
+        ("medium", ["--quality", "high"], "high", preset("high").fit_lights, preset("high").fit_iterations),
+        ("medium", ["--quality", "high", "--iterations", "3", "--lights", "2"], "high", 2, 3),
+        ("draft", ["--lights", "1"], "draft", 1, preset("draft").fit_iterations),
+    ],
+)
+def test_quality_sets_lights_and_iterations_explicit_flags_win(recorded, flags, quality, lights, iterations,
+                                                                tmp_path, capsys):
+    solution = small_solution(tmp_path / "s.npz", quality=recorded)
+    out = tmp_path / "f.npz"
+    code, stdout, err = run(["fit", str(solution), "-o", str(out), "--method", "paper"] + flags, capsys)
+    assert code == 0, err
+    model = load_fit(out)
+    assert model.settings["quality"] == quality
+    assert model.settings["lights"] == lights and model.settings["iterations"] == iterations
+    assert model.object("dome").n_lights == lights
+    assert f"quality {quality} (lights {lights}, iterations {iterations})" in stdout
+
+
+def test_unknown_quality_is_refused(solution_file, tmp_path, capsys):
+    code, out, err = run(["fit", str(solution_file), "-o", str(tmp_path / "f.npz"), "--quality", "ultra"], capsys)
+    assert code == 2 and out == "" and "--quality" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_report_shows_no_numbers_for_diffuse_objects(solution_file, tmp_path, capsys):
+    out = tmp_path / "f.npz"
+    code, stdout, err = run(["fit", str(solution_file), "-o", str(out), "--method", "paper", "--lights", "2"], capsys)
+    assert code == 0, err
+    lines = stdout.splitlines()
+    assert "rel. RMS" in lines[0] and "diffuse only" in lines[0]
+    [floor] = [line for line in lines if line.startswith("floor")]
+    assert "diffuse, no lights" in floor and "0.0000" not in floor
+    [dome] = [line for line in lines if line.startswith("dome")]
+    assert dome.split()[1] == "2" and len(dome.split()) == 7  # name, K, exponent, three errors, time
+    assert format_report(load_fit(out), out) == stdout.rstrip("\n")
