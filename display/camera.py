@@ -1,4 +1,4 @@
-"""Cameras for the display commands. The camera type itself is Contract 3's
+"""Cameras for the display commands. The camera type itself is
 ``radiosity.formats.Camera``; this module adds the display's own choices: a view
 that frames a box, and the camera the command-line flags ask for.
 """

@@ -44,11 +44,14 @@ def _size(text):
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"takes WIDTHxHEIGHT, e.g. 800x600, got {text!r}") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"takes WIDTHxHEIGHT of at least 1x1, got {text!r}")
     return w, h
 
 
 def add_camera_flags(parser, size):
-    """Contract 3's camera flags; the default camera is the scene's."""
+    """The camera flags (eye, look-at, up, field of view, size, named views); the
+    default camera is the scene's."""
     parser.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
@@ -67,8 +70,8 @@ def register(subparsers, not_built):
         "top, background 0; -o writes the tone-mapped picture (exposure, then sRGB).",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit")
-    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"), help="default: fitted for a fit, reference for a solution")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit.npz")
+    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"), help="default: fitted for a fit.npz, reference for a solution.npz")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
     add_camera_flags(p, (800, 800))
     p.add_argument("--hdr", metavar="FILE.npy", help="write linear radiance")
@@ -90,7 +93,7 @@ def register(subparsers, not_built):
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("solution", help="the solution.npz it was fitted to")
-    p.add_argument("--out", default="compare", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--out", default="compare", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
     add_camera_flags(p, (512, 512))
     p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
@@ -103,7 +106,7 @@ def register(subparsers, not_built):
         "M mode, G Gouraud/per-pixel, L 2/all lights, +/- exposure, P screenshot, ESC quit.",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit.npz")
     p.add_argument("--mode", choices=("fitted", "reference", "diffuse"))
     add_camera_flags(p, (1280, 720))
     p.add_argument("--exposure", type=float, default=1.0)
@@ -119,24 +122,59 @@ def register(subparsers, not_built):
         "figures 5-7 with error images and numbers, an error-against-lights plot, report.md and summary.json.",
     )
     p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY, help="every knob of every stage at once (default: %(default)s)")
-    p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
     p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
     p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")
     p.set_defaults(func=_demo)
 
 
+FIT, SOLUTION = "vlights.fit", "vlights.solution"
+_FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
+
+
+def _input_format(path, accepted, label):
+    """The format of the input file ``path`` (FIT or SOLUTION), which must be one of
+    ``accepted``; InputError naming ``label`` (the argument) and what is wrong otherwise.
+    What a file is comes from ``radiosity.formats.file_format``."""
+    import os
+
+    from radiosity.formats import file_format
+
+    shown = str(path)
+    want = " or a ".join(_FILE_NAMES[f] for f in accepted)
+    if not os.path.exists(path):
+        raise InputError(f"{label} {shown!r} not found")
+    if os.path.isdir(path):
+        raise InputError(f"{label} {shown!r} is a directory, not a {want}")
+    fmt = file_format(path)
+    if fmt in accepted:
+        return fmt
+    if fmt in _FILE_NAMES:
+        raise InputError(f"{label} {shown!r} is a {_FILE_NAMES[fmt]}, not a {want}")
+    found = f"an .npz file of format {fmt!r}" if fmt is not None else "not one of this program's .npz files"
+    raise InputError(f"{label} {shown!r} is not a {want}: it is {found}")
+
+
+def _check_model_files(path, extra_solution=None):
+    """The format of ``path`` (a fit or a solution), and ``extra_solution`` (--solution)
+    checked to be a solution next to a fit; cheap: reads no arrays."""
+    fmt = _input_format(path, (FIT, SOLUTION), "input")
+    if extra_solution is not None:
+        _input_format(extra_solution, (SOLUTION,), "--solution")
+        if fmt == SOLUTION:
+            raise InputError(f"--solution goes next to a fit.npz; {str(path)!r} is already a solution.npz")
+    return fmt
+
+
 def _read_model_files(path, extra_solution=None):
     """(fit or None, solution or None) from a file that is either, plus an optional solution."""
     from fitting import load_fit
-    from radiosity.formats import file_format, load_solution
+    from radiosity.formats import load_solution
 
-    fmt = file_format(path)
-    if fmt == "vlights.fit":
+    if _check_model_files(path, extra_solution) == FIT:
         fit, solution = load_fit(path), None
-    elif fmt == "vlights.solution":
-        fit, solution = None, load_solution(path)
     else:
-        raise InputError(f"{path!r} is neither a fit.npz nor a solution.npz")
+        fit, solution = None, load_solution(path)
     if extra_solution is not None:
         solution = load_solution(extra_solution)
     return fit, solution
@@ -155,105 +193,150 @@ def resolve_view(args, bounds, fit=None, solution=None):
 
 
 def _render(args):
+    import contextlib
+
     import numpy as np
     from PIL import Image
 
-    from display.gl import headless_context
+    from display.gl import check_image_memory, check_image_size, headless_context
     from display.renderer import Renderer, tonemap
-    from radiosity.formats.atomic import atomic_output
+    from radiosity.formats import atomic_output, check_output
 
     if args.video is not None:
+        if args.output is not None or args.hdr is not None:
+            raise InputError("--video writes a video, -o and --hdr a picture: give one or the other")
         return _video(args)
-    png = args.output or (None if args.hdr else "render.png")
-    if png is not None and not png.lower().endswith(".png"):
-        raise InputError(f"-o {png!r} must end in .png")
-    if args.hdr is not None and not args.hdr.endswith(".npy"):
-        raise InputError(f"--hdr {args.hdr!r} must end in .npy")
     if args.lights is not None and args.lights < 0:
         raise InputError(f"--lights must be >= 0, got {args.lights}")
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
-    fit, solution = _read_model_files(args.file, args.solution)
-    mode = args.mode or ("fitted" if fit is not None else "reference")
+    inputs = (args.file, args.solution)
+    png = args.output or (None if args.hdr else "render.png")
+    # every output refused before any work: no file half written, no context made for nothing
+    if png is not None:
+        check_output(png, ".png", inputs, flag="-o")
+    if args.hdr is not None:
+        check_output(args.hdr, ".npy", inputs, flag="--hdr")
+    _check_model_files(args.file, args.solution)
     ctx = headless_context()
-    renderer = Renderer(ctx, fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, fit, solution)
-    hdr = renderer.render(view, mode, args.shading, args.lights)
-    renderer.release()
+    try:
+        check_image_size(ctx, *args.size)
+        check_image_memory(*args.size)
+        fit, solution = _read_model_files(args.file, args.solution)
+        mode = args.mode or ("fitted" if fit is not None else "reference")
+        renderer = Renderer(ctx, fit=fit, solution=solution)
+        view = resolve_view(args, renderer.bounds, fit, solution)
+        hdr = renderer.render(view, mode, args.shading, args.lights)
+        renderer.release()
+    finally:
+        ctx.release()
+    # both files or neither: each is committed only when both are written
+    with contextlib.ExitStack() as stack:
+        if args.hdr:
+            np.save(_Writer(stack.enter_context(atomic_output(args.hdr))), hdr.astype(np.float32))
+        if png:
+            Image.fromarray(tonemap(hdr, args.exposure)).save(stack.enter_context(atomic_output(png)), format="PNG")
     if args.hdr:
-        with atomic_output(args.hdr) as f:
-            np.save(f, hdr.astype(np.float32))
         print(f"wrote {args.hdr} (linear radiance {hdr.shape[1]}x{hdr.shape[0]}, max {hdr.max():.4g})")
     if png:
-        with atomic_output(png) as f:
-            Image.fromarray(tonemap(hdr, args.exposure)).save(f, format="PNG")
         print(f"wrote {png} ({mode}, {args.shading} shading, exposure {args.exposure:g})")
     return 0
 
 
+class _Writer:
+    """A file object numpy writes an .npy through ``write`` (a short write is then an
+    OSError with its reason, "No space left on device"; numpy's own fwrite path only
+    says how many bytes it wrote)."""
+
+    def __init__(self, f):
+        self.write = f.write
+
+
 def _video(args):
-    from display.gl import headless_context
+    from display.gl import check_image_memory, check_image_size, headless_context
     from display.renderer import Renderer
     from display.video import write_video
+    from radiosity.formats import check_output
 
-    if not args.video.lower().endswith(".mp4"):
-        raise InputError(f"--video {args.video!r} must end in .mp4")
     if not 2 <= args.frames <= 100_000 or not 1 <= args.fps <= 240:
         raise InputError("--frames must be 2 to 100000 and --fps 1 to 240")
-    fit, solution = _read_model_files(args.file, args.solution)
-    mode = args.mode or ("fitted" if fit is not None else "reference")
-    renderer = Renderer(headless_context(), fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, fit, solution)
-    if mode not in renderer.modes:
-        raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
-    frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure, progress=True)
+    if not args.exposure > 0:
+        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_output(args.video, ".mp4", (args.file, args.solution), flag="--video")
+    _check_model_files(args.file, args.solution)
+    ctx = headless_context()
+    try:
+        check_image_size(ctx, *args.size)
+        check_image_memory(*args.size)
+        fit, solution = _read_model_files(args.file, args.solution)
+        mode = args.mode or ("fitted" if fit is not None else "reference")
+        renderer = Renderer(ctx, fit=fit, solution=solution)
+        view = resolve_view(args, renderer.bounds, fit, solution)
+        if mode not in renderer.modes:
+            raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
+        frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure,
+                             progress=True)
+        renderer.release()
+    finally:
+        ctx.release()
     print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode})")
     return 0
 
 
 def _view(args):
-    from display.window import has_display
+    from display.gl import check_image_memory
+    from display.window import display_problem
+    from radiosity.formats import check_output
 
-    if not has_display():
-        raise InputError("no display to open a window on (DISPLAY is not set); use 'vlights render' for pictures")
+    problem = display_problem()
+    if problem is not None:
+        raise InputError(f"no display to open a window on ({problem}); use 'vlights render' for pictures")
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames must be >= 1, got {args.frames}")
+    if set(args.press) - set("mgl+-p"):
+        raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
+    if args.screenshot is not None:
+        if args.frames is None:
+            raise InputError("--screenshot saves the last of --frames N: give --frames too")
+        check_output(args.screenshot, ".png", (args.file, args.solution), flag="--screenshot")
+    _check_model_files(args.file, args.solution)
+    check_image_memory(*args.size)
+    fit, solution = _read_model_files(args.file, args.solution)
+
     import moderngl_window as mglw
 
     from display.window import Walkthrough
 
-    fit, solution = _read_model_files(args.file, args.solution)
     positions = np.concatenate([o.positions for o in (fit or solution).objects])
     view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), fit, solution)
-    if set(args.press) - set("mgl+-p"):
-        raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
     Walkthrough.configure(fit, solution, view, args.exposure, args.frames, args.screenshot, args.mode, args.press)
     try:
         mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
-    except Exception as exc:  # the window library's own failure to open a window
-        if "display" in str(exc).lower() or "xlib" in str(exc).lower():
+    except Exception as exc:  # the window library's own failure to open a window (pyglet's NoSuchDisplayException)
+        said = f"{type(exc).__name__} {exc}".lower()
+        if "display" in said or "xlib" in said:
             raise InputError(f"cannot open a window: {' '.join(str(exc).split())}") from None
         raise
+    if Walkthrough.failure is not None:
+        raise Walkthrough.failure
     return 0
 
 
 def _demo(args):
-    from pathlib import Path
+    from display.demo import FILES, key_numbers, run_demo
+    from display.outputs import check_output_dir
 
-    from display.demo import key_numbers, run_demo
-
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {args.out!r} exists and is not a directory")
+    out = check_output_dir(args.out, "--out", files=FILES)
     summary = run_demo(out, args.quality, args.size)
     print(key_numbers(summary, out))
     if args.view:
-        from display.window import has_display
+        from display.window import display_problem
 
-        if not has_display():
-            print("no display: skipping the walkthrough (run 'vlights view' where there is one)")
+        problem = display_problem()
+        if problem is not None:
+            print(f"no display ({problem}): skipping the walkthrough (run 'vlights view' where there is one)")
         else:
             import moderngl_window as mglw
 
@@ -267,25 +350,44 @@ def _demo(args):
     return 0
 
 
-def _compare(args):
-    from pathlib import Path
+def _check_compare_inputs(fit_path, solution_path):
+    """compare takes a fit.npz, then a solution.npz: say so plainly when they are swapped."""
+    fmt_fit = _input_format(fit_path, (FIT, SOLUTION), "the fit")
+    fmt_solution = _input_format(solution_path, (FIT, SOLUTION), "the solution")
+    if fmt_fit == SOLUTION and fmt_solution == FIT:
+        raise InputError(f"the files are the wrong way round: {str(fit_path)!r} is a solution.npz and "
+                         f"{str(solution_path)!r} a fit.npz; give the fit.npz first")
+    if fmt_fit != FIT:
+        raise InputError(f"the fit {str(fit_path)!r} is a solution.npz, not a fit.npz (compare takes a fit.npz, then "
+                         "the solution.npz it was fitted to)")
+    if fmt_solution != SOLUTION:
+        raise InputError(f"the solution {str(solution_path)!r} is a fit.npz, not a solution.npz (compare takes a "
+                         "fit.npz, then the solution.npz it was fitted to)")
 
-    from display.compare import compare
-    from display.gl import headless_context
+
+def _compare(args):
+    from display.compare import FILES, compare
+    from display.gl import COMPARE_BYTES_PER_PIXEL, check_image_memory, check_image_size, headless_context
+    from display.outputs import check_output_dir
     from display.renderer import Renderer
     from fitting import load_fit
-    from radiosity.formats.solution import load_solution
+    from radiosity.formats import load_solution
 
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {args.out!r} exists and is not a directory")
-    fit, solution = load_fit(args.fit), load_solution(args.solution)
-    renderer = Renderer(headless_context(), fit=fit, solution=solution)
-    view = resolve_view(args, renderer.bounds, fit, solution)
-    results = compare(renderer, out, view, args.exposure, args.shading)
-    renderer.release()
+    _check_compare_inputs(args.fit, args.solution)
+    out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
+    ctx = headless_context()
+    try:
+        check_image_size(ctx, *args.size)
+        check_image_memory(*args.size, COMPARE_BYTES_PER_PIXEL)
+        fit, solution = load_fit(args.fit), load_solution(args.solution)
+        renderer = Renderer(ctx, fit=fit, solution=solution)
+        view = resolve_view(args, renderer.bounds, fit, solution)
+        results = compare(renderer, out, view, args.exposure, args.shading)
+        renderer.release()
+    finally:
+        ctx.release()
     print(f"wrote figures 5, 6, 7 and compare.json to {out}/")
     print(f"  {'':<32} {'whole image':^28} {'glossy objects only':^28}")
     print(f"  {'':<32} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10}")
@@ -296,6 +398,8 @@ def _compare(args):
         glossy = (f"{m['flip_mean_glossy']:>8.4f} {m['psnr_db_glossy']:>8.2f} {m['relative_mse_glossy']:>10.4g}"
                   if "flip_mean_glossy" in m else "")
         print(f"  {label:<32} {m['flip_mean']:>8.4f} {m['psnr_db']:>8.2f} {m['relative_mse']:>10.4g} {glossy}")
+    if any(m[k] == float("inf") for _, m in rows for k in ("psnr_db", "psnr_db_glossy") if k in m):
+        print("  (PSNR inf: the pictures are identical; compare.json has null there, explained in its notes)")
     return 0
 
 

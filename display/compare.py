@@ -16,25 +16,44 @@ dilute every difference the virtual lights make.
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from radiosity.formats import Camera
+from radiosity.formats import Camera, InputError
 from radiosity.formats.atomic import atomic_output
 
+from .outputs import staged_directory
 from .renderer import tonemap
+
+FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
+BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
+
+
+def is_black(image):
+    """True if ``image`` has no positive value: errors relative to it are undefined."""
+    return not np.nanmax(image, initial=0.0) > 0
 
 
 def metrics(reference, test, exposure=1.0, mask=None):
     """FLIP mean, PSNR and relative MSE of ``test`` against ``reference`` ((H, W, 3) linear),
     over the whole image and, with ``mask`` ((H, W) bool), over the masked pixels alone
-    (keys suffixed "_glossy"); and the FLIP error image ((H, W, 3) uint8, magma)."""
+    (keys suffixed "_glossy"); and the FLIP error image ((H, W, 3) uint8, magma).
+
+    A black reference is refused (InputError): FLIP's exposure range comes from the
+    reference and does not exist for a black one (FLIP would end the process). FLIP
+    sees both images scaled so the reference's brightest value is 1: its HDR mode
+    is scale-invariant, and so very dim references (units of 1e-9) work too."""
     import flip_evaluator
 
     ref = np.ascontiguousarray(np.maximum(reference, 0), np.float32)
     tst = np.ascontiguousarray(np.maximum(test, 0), np.float32)
-    error_map, _, _ = flip_evaluator.evaluate(ref, tst, "HDR", applyMagma=False)
+    if is_black(ref):
+        raise InputError(f"the reference image {BLACK}")
+    peak = ref.max()
+    scaled_test = np.minimum(tst / peak, np.finfo(np.float32).max / 4)  # a dim reference must not overflow the test
+    error_map, _, _ = flip_evaluator.evaluate(ref / peak, scaled_test, "HDR", applyMagma=False)
     flip_values = np.asarray(error_map, np.float64).reshape(ref.shape[:2] + (-1,))[..., 0]
     a = tonemap(ref, exposure).astype(np.float64) / 255
     b = tonemap(tst, exposure).astype(np.float64) / 255
@@ -88,13 +107,44 @@ def _panel_row(images, labels, path):
         canvas.save(f, format="PNG")
 
 
+def json_ready(value, notes, where=""):
+    """``value`` (dicts, lists, numbers) with every non-finite float replaced by None,
+    so that it is strict JSON; each replacement is explained in ``notes``."""
+    if isinstance(value, dict):
+        return {k: json_ready(v, notes, f"{where}.{k}" if where else str(k)) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v, notes, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, float | np.floating) and not math.isfinite(value):
+        if where.split(".")[-1].startswith("psnr_db") and value > 0:
+            notes.append(f"{where} is null: the two pictures are identical, so the PSNR is infinite")
+        else:
+            notes.append(f"{where} is null: the value is {float(value)!r}, not a finite number")
+        return None
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def json_text(results):
+    """``results`` as strict JSON (no NaN or Infinity): non-finite numbers become null
+    and a "notes" list says which and why."""
+    notes = []
+    ready = json_ready(results, notes)
+    if notes:
+        ready["notes"] = notes
+    return json.dumps(ready, indent=2, allow_nan=False)
+
+
 def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None):
     """Write figures 5 to 7 and compare.json into ``out_dir``; returns the numbers.
 
     ``renderer`` must hold both a fitted model and a solution. ``views``: the three
     viewpoints of figure 5 (default: ``base_view`` and it turned 35 degrees each way).
+    ``out_dir`` is created if missing (not its parents). The files appear together at
+    the end (``display.outputs.staged_directory``): a failure or Ctrl-C leaves none.
+    The returned numbers keep infinities (the PSNR of identical pictures); compare.json
+    has null there, explained in its "notes".
     """
-    out_dir.mkdir(parents=True, exist_ok=True)
     views = views or [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
     k_max = max((o.n_lights for o in renderer.objects), default=0)
     results = {"figure5": {}, "figure6": {}, "figure7": {}, "exposure": exposure, "shading": shading}
@@ -105,36 +155,44 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
     def shot(view, mode, lights=None):
         return renderer.render(view, mode, shading, lights)
 
+    references = []  # all three first: a black one is refused before any work or file
     for i, view in enumerate(views):
-        reference, fitted = shot(view, "reference"), shot(view, "fitted")
-        numbers, error = metrics(reference, fitted, exposure, renderer.object_mask(view, glossy))
-        results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
-        _panel_row([tonemap(reference, exposure), tonemap(fitted, exposure), error],
-                   ["reference (solution)", f"fitted, {k_max} virtual lights", f"FLIP error, mean {numbers['flip_mean']:.3f}"],
-                   out_dir / f"figure5_view{i + 1}.png")
+        references.append(shot(view, "reference"))
+        if is_black(references[-1]):
+            raise InputError(f"the reference image (the solution seen from view {i + 1}) {BLACK}; is the scene lit, "
+                             "and does the camera see it?")
 
-    view = views[0]
-    mask = renderer.object_mask(view, glossy)
-    reference = shot(view, "reference")
-    few = min(2, k_max)
-    panels, labels = [tonemap(reference, exposure)], ["reference"]
-    for k in (few, k_max):
-        image = shot(view, "fitted", lights=k)
-        numbers, error = metrics(reference, image, exposure, mask)
-        results["figure6"][f"{k}_lights"] = numbers
-        panels += [tonemap(image, exposure), error]
-        labels += [f"{k} virtual lights", f"FLIP error, mean {numbers['flip_mean']:.3f}"]
-    _panel_row(panels, labels, out_dir / "figure6.png")
+    with staged_directory(out_dir) as stage:
+        for i, (view, reference) in enumerate(zip(views, references)):
+            fitted = shot(view, "fitted")
+            numbers, error = metrics(reference, fitted, exposure, renderer.object_mask(view, glossy))
+            results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
+            _panel_row([tonemap(reference, exposure), tonemap(fitted, exposure), error],
+                       ["reference (solution)", f"fitted, {k_max} virtual lights",
+                        f"FLIP error, mean {numbers['flip_mean']:.3f}"],
+                       stage / f"figure5_view{i + 1}.png")
 
-    fitted, diffuse = shot(view, "fitted"), shot(view, "diffuse")
-    with_lights, error_with = metrics(reference, fitted, exposure, mask)
-    without, error_without = metrics(reference, diffuse, exposure, mask)
-    results["figure7"] = {"with_virtual_lights": with_lights, "diffuse_only": without}
-    _panel_row([tonemap(fitted, exposure), tonemap(diffuse, exposure), error_with, error_without],
-               ["with virtual lights", "diffuse only (lights off)", f"FLIP with, mean {with_lights['flip_mean']:.3f}",
-                f"FLIP without, mean {without['flip_mean']:.3f}"],
-               out_dir / "figure7.png")
+        view, reference = views[0], references[0]
+        mask = renderer.object_mask(view, glossy)
+        few = min(2, k_max)
+        panels, labels = [tonemap(reference, exposure)], ["reference"]
+        for k in (few, k_max):
+            image = shot(view, "fitted", lights=k)
+            numbers, error = metrics(reference, image, exposure, mask)
+            results["figure6"][f"{k}_lights"] = numbers
+            panels += [tonemap(image, exposure), error]
+            labels += [f"{k} virtual lights", f"FLIP error, mean {numbers['flip_mean']:.3f}"]
+        _panel_row(panels, labels, stage / "figure6.png")
 
-    with atomic_output(out_dir / "compare.json") as f:
-        f.write(json.dumps(results, indent=2).encode())
+        fitted, diffuse = shot(view, "fitted"), shot(view, "diffuse")
+        with_lights, error_with = metrics(reference, fitted, exposure, mask)
+        without, error_without = metrics(reference, diffuse, exposure, mask)
+        results["figure7"] = {"with_virtual_lights": with_lights, "diffuse_only": without}
+        _panel_row([tonemap(fitted, exposure), tonemap(diffuse, exposure), error_with, error_without],
+                   ["with virtual lights", "diffuse only (lights off)", f"FLIP with, mean {with_lights['flip_mean']:.3f}",
+                    f"FLIP without, mean {without['flip_mean']:.3f}"],
+                   stage / "figure7.png")
+
+        with atomic_output(stage / "compare.json") as f:
+            f.write(json_text(results).encode())
     return results

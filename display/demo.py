@@ -2,19 +2,56 @@
 
 Writes into ``out``: solution.npz, fit.npz, the comparison figures (compare/), an
 error-against-lights plot, report.md (the pictures and a table of times and errors)
-and summary.json (times per phase, errors per object, sizes).
+and summary.json (times per phase, errors per object, sizes). The files appear
+together at the end: a failure or Ctrl-C on the way leaves none of them.
 """
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 from radiosity.formats.atomic import atomic_output
 
+from . import compare as _compare
+from .outputs import staged_directory
+
+FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png") + tuple(
+    f"compare/{name}" for name in _compare.FILES
+)
+
 
 def run_demo(out, quality="draft", size=(512, 512), log=print):
+    """Run the pipeline into ``out`` (created if missing, not its parents); returns the summary.
+
+    Everything is written into a hidden directory inside ``out`` and moved into place
+    when all of it is done (``display.outputs.staged_directory``). The OpenGL context
+    is made first, so a machine without one is told so before the solve.
+    """
+    out = Path(out)
+    ctx = _context(size)
+    try:
+        with staged_directory(out) as stage:
+            return _run(stage, ctx, quality, size, log)
+    finally:
+        ctx.release()
+
+
+def _context(size):
+    """The headless context, after checking the figures' size against its limits and memory."""
+    from .gl import COMPARE_BYTES_PER_PIXEL, check_image_memory, check_image_size, headless_context
+
+    ctx = headless_context()
+    try:
+        check_image_size(ctx, *size)
+        check_image_memory(*size, COMPARE_BYTES_PER_PIXEL)
+    except BaseException:
+        ctx.release()
+        raise
+    return ctx
+
+
+def _run(out, ctx, quality, size, log):
     from fitting import FitOptions, fit
     from fitting.data import fit_data, relative_error
     from fitting.fit import fit_lights, reconstruct
@@ -22,12 +59,8 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.solve import SolveOptions, solve
 
-    from .compare import compare
-    from .gl import headless_context
     from .renderer import Renderer
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     times = {}
     scene = load_scene("cornell-teapot")
 
@@ -45,8 +78,8 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
 
     log("[3/4] rendering the paper's figures")
     t = time.perf_counter()
-    renderer = Renderer(headless_context(), fit=model, solution=solution)
-    numbers = compare(renderer, out / "compare", scene.camera.sized(*size))
+    renderer = Renderer(ctx, fit=model, solution=solution)
+    numbers = _compare.compare(renderer, out / "compare", scene.camera.sized(*size))
     renderer.release()
     times["compare_s"] = time.perf_counter() - t
 
@@ -77,7 +110,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print):
         "paper_error_vs_lights": sweep, "figures": numbers,
     }
     with atomic_output(out / "summary.json") as f:
-        f.write(json.dumps(summary, indent=2).encode())
+        f.write(_compare.json_text(summary).encode())
     with atomic_output(out / "report.md") as f:
         f.write(_report(summary).encode())
     return summary

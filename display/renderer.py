@@ -5,7 +5,7 @@ into its own float framebuffer and reads back linear radiance, (H, W, 3) float32
 at the top, background 0. Exposure and sRGB come last, in ``tonemap``.
 
 Modes
-    fitted     the shading formula of Contract 2 (any number of lights per object)
+    fitted     the fitted model's shading formula (``fitting.model``; any number of lights per object)
     diffuse    the emitted colour alone: the fitted model without its virtual lights
                (the paper's figure 7); from a solution alone, its radiance averaged
                over directions
@@ -26,6 +26,8 @@ import moderngl
 import numpy as np
 
 from radiosity.formats.errors import InputError
+
+from .gl import check_image_size
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
@@ -132,10 +134,10 @@ LOOKUP_GLSL = """
 uniform sampler2D radiance;  // every object's radiance, texel base + vertex * D + d
 uniform int base;
 uniform int grid_n;          // 0 for a diffuse object (D = 1)
-const int TEXTURE_WIDTH = %d;
+const int TEXTURE_WIDTH = RADIANCE_TEXTURE_WIDTH;
 const float FOUR_OVER_PI = 1.2732395447351628;
 vec3 fetch(int index) {
-    return texelFetch(radiance, ivec2(index %% TEXTURE_WIDTH, index / TEXTURE_WIDTH), 0).rgb;
+    return texelFetch(radiance, ivec2(index % TEXTURE_WIDTH, index / TEXTURE_WIDTH), 0).rgb;
 }
 vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere_to_square
     w = normalize(w);
@@ -167,7 +169,7 @@ vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directi
     vec3 high = mix(fetch(row + j1 * grid_n + i0), fetch(row + j1 * grid_n + i1), f.x);
     return mix(low, high, f.y);
 }
-""" % RADIANCE_TEXTURE_WIDTH
+""".replace("RADIANCE_TEXTURE_WIDTH", str(RADIANCE_TEXTURE_WIDTH))
 
 REFERENCE_GOURAUD_VS = """
 #version 330
@@ -417,6 +419,7 @@ class Renderer:
         size = (view.width, view.height)
         fbo = self._framebuffers.get((size, targets))
         if fbo is None:  # kept for the next frame of this size: a walkthrough draws many
+            check_image_size(ctx, *size, flag="image")
             colour = [ctx.texture(size, 4, dtype="f4") for _ in range(targets)]
             fbo = ctx.framebuffer(color_attachments=colour, depth_attachment=ctx.depth_renderbuffer(size))
             self._framebuffers[(size, targets)] = fbo

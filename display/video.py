@@ -1,13 +1,19 @@
 """A walkthrough video: the camera glides along a smooth path through the scene, the
-paper's "live walkthrough" as an MP4 (imageio-ffmpeg, H.264)."""
+paper's "live walkthrough" as an MP4 (H.264, by the ffmpeg executable imageio-ffmpeg ships)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import secrets
+import subprocess
+import tempfile
 
 import numpy as np
 
-from radiosity.formats import Camera
+from radiosity.formats import Camera, InputError
+from radiosity.formats.atomic import OutputError
 
 from .renderer import tonemap
 
@@ -31,30 +37,87 @@ def walkthrough_path(view, frames):
     return out
 
 
-def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0, progress=False):
-    """Render the walkthrough and encode it; returns the number of frames written."""
-    import imageio.v2 as imageio
+def _ffmpeg_exe():
+    import imageio_ffmpeg
 
+    try:
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except RuntimeError as exc:  # neither its own binary nor one on the PATH
+        raise InputError(f"no ffmpeg to encode the video with: {' '.join(str(exc).split())}") from None
+
+
+def _ffmpeg_command(path, width, height, fps):
+    """H.264 (yuv420p, crf 10, as imageio's quality 8) from raw RGB frames on stdin.
+    yuv420p needs even sides: an odd one gets a black line of padding."""
+    command = [_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
+               "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}", "-pix_fmt", "rgb24", "-r", str(fps),
+               "-i", "-", "-an", "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "10"]
+    if width % 2 or height % 2:
+        command += ["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"]
+    return command + ["-f", "mp4", os.fspath(path)]
+
+
+def _ffmpeg_reason(log):
+    """ffmpeg's error, on one line: its last message but the closing "Conversion failed!",
+    without the "[muxer @ 0x...]" prefix."""
+    log.seek(0)
+    lines = [line.strip() for line in log.read().decode(errors="replace").splitlines()]
+    lines = [line for line in lines if line and line != "Conversion failed!"]
+    if not lines:
+        return "it failed without saying why"
+    return re.sub(r"^\[[^]]*\]\s*", "", lines[-1])
+
+
+def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0, progress=False):
+    """Render the walkthrough and encode it; returns the number of frames written.
+
+    ffmpeg (imageio-ffmpeg's executable) writes to a temporary name beside ``path``,
+    renamed into place once ffmpeg has finished without error: a failure (a full disk,
+    ffmpeg's own error) raises ``OutputError`` (one line, with ffmpeg's reason), and
+    any failure, Ctrl-C included, stops ffmpeg and removes the temporary file, so
+    no truncated video is ever left behind.
+    """
     views = walkthrough_path(base_view, frames)
     if progress:
         from tqdm import tqdm
 
         views = tqdm(views, desc="video", unit="frame", disable=None, dynamic_ncols=True)
-    # ffmpeg writes to a path, not a file object: a temporary name beside the target,
-    # renamed into place at the end (an interrupted run leaves no truncated video)
     target = os.path.abspath(path)
-    temporary = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.{os.getpid()}.partial.mp4")
-    try:
-        writer = imageio.get_writer(temporary, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=8,
-                                    macro_block_size=2)
+    directory, name = os.path.split(target)
+    temporary = os.path.join(directory, f".{name}.{secrets.token_hex(6)}.partial.mp4")
+    shown = os.fspath(path)
+    process = None
+    with tempfile.TemporaryFile() as log:
         try:
-            for view in views:
-                writer.append_data(tonemap(renderer.render(view, mode, shading), exposure))
+            command = _ffmpeg_command(temporary, base_view.width, base_view.height, fps)
+            try:  # its own session: a Ctrl-C reaches us, and we stop ffmpeg, rather than ffmpeg finishing the file
+                process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=log,
+                                           start_new_session=True)
+            except OSError as exc:
+                raise InputError(f"cannot run ffmpeg {command[0]!r}: {exc.strerror or exc}") from None
+            stopped = False
+            try:
+                for view in views:
+                    process.stdin.write(tonemap(renderer.render(view, mode, shading), exposure).tobytes())
+                process.stdin.close()
+            except BrokenPipeError:  # ffmpeg stopped reading: it failed, and says why in its log
+                stopped = True
+            if process.wait() != 0 or stopped:
+                raise OutputError(f"cannot write {shown!r}: ffmpeg: {_ffmpeg_reason(log)}")
+            os.replace(temporary, target)
+        except BaseException as exc:
+            if process is not None and process.poll() is None:
+                process.kill()
+                process.wait()
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(temporary)
+            if isinstance(exc, OSError) and not isinstance(exc, InputError):
+                raise OutputError(f"cannot write {shown!r}: {exc.strerror or exc}") from None
+            raise
         finally:
-            writer.close()
-        os.replace(temporary, target)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-        raise
+            if process is not None and process.stdin and not process.stdin.closed:
+                with contextlib.suppress(OSError):
+                    process.stdin.close()
+            if hasattr(views, "close"):  # the progress bar, before any error line
+                views.close()
     return frames

@@ -15,18 +15,35 @@ writes the last frame; ``--press KEYS`` presses keys (m g l + - p) after the fir
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import os
+import re
+import socket
+import sys
 import time
+import warnings
 
 import moderngl
-import moderngl_window as mglw
 import numpy as np
-from moderngl_window.scene.camera import KeyboardCamera
 
-from radiosity.formats import Camera
+from radiosity.formats import Camera, InputError, atomic_output
 
 from .renderer import Renderer
+
+with warnings.catch_warnings():  # moderngl-window imports PyGLM by its old name, which warns
+    warnings.simplefilter("ignore", PendingDeprecationWarning)
+    import moderngl_window as mglw
+    from moderngl_window.scene.camera import KeyboardCamera
+
+X11_SOCKET_DIR = "/tmp/.X11-unix"
+X11_TCP_PORT = 6000
+
+
+def quiet_window_library():
+    """moderngl-window logs INFO lines ("Context Version", ...) to stderr: keep its warnings only."""
+    logging.getLogger("moderngl_window").setLevel(logging.WARNING)
 
 TONEMAP_VS = """
 #version 330
@@ -57,13 +74,17 @@ class Walkthrough(mglw.WindowConfig):
     aspect_ratio = None
     resizable = True
     vsync = False
+    log_level = logging.WARNING  # moderngl-window's own default, INFO, prints a line per context detail
     setup = {}
+    failure = None  # an InputError met while the window ran (--screenshot could not be written)
 
     @classmethod
     def configure(cls, fit, solution, view, exposure=1.0, frames=None, screenshot=None, mode=None, press=""):
         cls.setup = dict(fit=fit, solution=solution, view=view, exposure=exposure, frames=frames,
                          screenshot=screenshot, mode=mode, press=press)
         cls.window_size = (view.width, view.height)
+        cls.failure = None
+        quiet_window_library()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -135,12 +156,23 @@ class Walkthrough(mglw.WindowConfig):
                 self.wnd.close()
 
     def save_screenshot(self, path=None):
+        """The window's picture as a PNG, written atomically. A failure to write (a full
+        disk, ...) is one line on stderr, and the walkthrough goes on; for --screenshot,
+        it is kept in ``failure`` for the command to report after the window closes."""
         from PIL import Image
 
         w, h = self.wnd.buffer_size
         data = np.frombuffer(self.wnd.fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1]
         path = path or os.path.abspath(f"vlights-{time.strftime('%Y%m%d-%H%M%S')}.png")
-        Image.fromarray(data).save(path)
+        try:
+            with atomic_output(path) as f:
+                Image.fromarray(data).save(f, format="PNG")
+        except InputError as exc:
+            if path == self.screenshot_path:  # --screenshot: the run's output; its failure is the run's
+                type(self).failure = exc
+            else:
+                print(f"vlights view: screenshot not saved: {exc}", file=sys.stderr)
+            return None
         print(f"screenshot: {path}")
         return path
 
@@ -169,5 +201,57 @@ class Walkthrough(mglw.WindowConfig):
         self.camera.projection.update(aspect_ratio=self.wnd.aspect_ratio)
 
 
-def has_display():
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+def _parse_display(name):
+    """(host, display number) of an X display name "[host]:number[.screen]"; None if it is not one."""
+    match = re.fullmatch(r"(?P<host>[^:]*):(?P<number>\d+)(\.\d+)?", name.strip())
+    return (match["host"], int(match["number"])) if match else None
+
+
+def _x_server_answers(host, number, timeout=1.0):
+    """Whether something accepts a connection where an X server of display ``number``
+    listens: its Unix socket (the file, then Linux's abstract name) for a local
+    display, TCP port 6000 + number for a remote one. Nothing is sent."""
+    if host in ("", "unix"):
+        path = f"{X11_SOCKET_DIR}/X{number}"
+        addresses = [path] + (["\0" + path] if sys.platform.startswith("linux") else [])
+        for address in addresses:
+            with contextlib.closing(socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)) as s:
+                s.settimeout(timeout)
+                try:
+                    s.connect(address)
+                    return True
+                except OSError:
+                    continue
+        return False
+    try:
+        with socket.create_connection((host, X11_TCP_PORT + number), timeout=timeout):
+            return True
+    except OSError:
+        return False
+
+
+def display_problem(environ=None):
+    """Why no window can be opened here (a phrase), or None if one can.
+
+    On Linux and the BSDs the window (pyglet) needs an X server: DISPLAY must be set
+    and a server must answer there (Wayland sessions provide one through XWayland).
+    macOS and Windows always have a display."""
+    env = os.environ if environ is None else environ
+    if sys.platform in ("darwin", "win32"):
+        return None
+    display = env.get("DISPLAY", "")
+    if not display:
+        if env.get("WAYLAND_DISPLAY"):
+            return "DISPLAY is not set; the window needs X, and this Wayland session offers no XWayland"
+        return "DISPLAY is not set"
+    parsed = _parse_display(display)
+    if parsed is None:
+        return f"DISPLAY={display} is not an X display name such as :0"
+    if not _x_server_answers(*parsed):
+        return f"no X server answers on DISPLAY={display}"
+    return None
+
+
+def has_display(environ=None):
+    """True if a window can be opened here (see ``display_problem``)."""
+    return display_problem(environ) is None

@@ -66,3 +66,39 @@ def test_view_without_a_display_says_so(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     run = subprocess.run(["vlights", "view", "nothing.npz"], capture_output=True, text=True, env=env, timeout=60)
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and "display" in run.stderr
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_the_window_says_nothing_on_stderr(x_display, tiny_pair, tmp_path):
+    # moderngl-window logs "moderngl_window - INFO - Context Version ..." unless told not to
+    env = dict(os.environ, DISPLAY=x_display)
+    shot = tmp_path / "shot.png"
+    run = subprocess.run(["vlights", "view", str(tiny_pair[0]), "--frames", "2", "--size", "64x48", "--screenshot",
+                          str(shot)], capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 0 and run.stderr == "", run.stderr[-800:]
+    assert run.stdout.strip() == f"screenshot: {shot}" and Image.open(shot).size == (64, 48)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shot.png"]  # written atomically: no temporary left
+
+
+FULL_DISK = """
+import errno, os, sys
+from PIL import Image
+
+def full(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+Image.Image.save = full
+from display.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_screenshot_on_a_full_disk_fails_the_run(x_display, tiny_pair, tmp_path):
+    import sys
+
+    env = dict(os.environ, DISPLAY=x_display)
+    run = subprocess.run([sys.executable, "-c", FULL_DISK, "view", str(tiny_pair[0]), "--frames", "2", "--size", "64x48",
+                          "--screenshot", str(tmp_path / "shot.png")], capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr[-800:]
+    assert "shot.png" in run.stderr and "No space left on device" in run.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,79 @@
+"""Helpers of the display tests: a tiny hand-made scene (no solve, no fit: made in
+milliseconds) and checks of a command's refusal. The scene is a wall (diffuse) with a
+tile (glossy, one virtual light) in front of it, seen by the framing view from -z."""
+
+import numpy as np
+
+from fitting import FittedModel, FittedObject
+from radiosity.formats import directions
+from radiosity.formats.solution import ObjectSolution, Solution
+
+DIFFUSE = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
+GLOSSY = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 20.0, "emission": [0.0, 0.0, 0.0]}
+GRID = 4
+
+
+def square(half, z):
+    """A square in the plane z facing -z (towards the framing view's camera)."""
+    positions = np.array([[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]], np.float32)
+    faces = np.array([[0, 2, 1], [0, 3, 2]], np.int32)
+    normals = np.tile(np.float32([0, 0, -1]), (4, 1))
+    tangents = np.tile(np.float32([1, 0, 0]), (4, 1))
+    return positions, faces, normals, tangents
+
+
+def tiny_solution(scale=1.0, glossy=True):
+    """Radiance ``scale`` times a fixed pattern (0: a scene with no light)."""
+    rng = np.random.default_rng(7)
+    p, f, n, t = square(1.0, 0.0)
+    wall = ObjectSolution("wall", p, n, t, f, directions.grid_directions(1).astype(np.float32),
+                          np.full((4, 1, 3), 0.5 * scale, np.float32), DIFFUSE)
+    objects = [wall]
+    if glossy:
+        p, f, n, t = square(0.4, -0.2)
+        radiance = (rng.uniform(0.2, 2.0, (4, GRID * GRID, 3)) * scale).astype(np.float32)
+        objects.append(ObjectSolution("tile", p, n, t, f, directions.grid_directions(GRID).astype(np.float32),
+                                      radiance, GLOSSY))
+    return Solution(objects=tuple(objects), settings={}, stats={}, scene="test")
+
+
+def tiny_fit(solution, lights=1):
+    """A fit of ``solution``: its radiance averaged over directions as the emitted
+    colour, and ``lights`` virtual lights on its glossy objects."""
+    objects = []
+    for o in solution.objects:
+        k = 0 if o.is_diffuse else lights
+        dirs = np.tile(np.float32([0.2, 0.3, -0.9]) / np.linalg.norm([0.2, 0.3, -0.9]), (k, 1)).astype(np.float32)
+        objects.append(FittedObject(
+            name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
+            emitted=o.radiance.mean(axis=1).astype(np.float32),
+            specular=np.full((o.num_vertices, 3), 0.5 if k else 0.0, np.float32),
+            light_dirs=dirs.reshape(k, 3), light_rgb=np.full((k, 3), 1.5, np.float32),
+            shininess=np.full(k, 10.0, np.float32),
+        ))
+    return FittedModel(objects=tuple(objects), source="test")
+
+
+def write_pair(directory, solution, lights=1):
+    directory.mkdir(parents=True, exist_ok=True)
+    solution_path, fit_path = directory / "solution.npz", directory / "fit.npz"
+    solution.save(solution_path)
+    tiny_fit(solution, lights).save(fit_path)
+    return fit_path, solution_path
+
+
+def assert_refused(result, *fragments, command=None):
+    """Exit status 2, nothing on stdout, one line on stderr holding every fragment."""
+    code, out, err = result
+    assert code == 2, (code, out, err)
+    assert out == "", out
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    if command is not None:
+        assert err.startswith(f"vlights {command}: error: "), err
+    for fragment in fragments:
+        assert fragment in err, (fragment, err)
+
+
+def listing(path):
+    """Every file and directory under ``path`` (hidden ones included), relative."""
+    return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
