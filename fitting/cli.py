@@ -11,12 +11,14 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from radiosity.formats.atomic import check_output
 from radiosity.formats.errors import InputError
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import load_solution
 
-from .fit import FitOptions, fit
+from .fit import COEFFICIENTS, LIGHT_KINDS, FitOptions, fit
 
 
 def _lights(text):
@@ -32,9 +34,11 @@ def register(subparsers, not_built):
     p = subparsers.add_parser(
         "fit",
         help="fit virtual lights to a solution (fit.npz)",
-        description="Fit a few virtual directional lights per glossy object so that the Phong "
-        "shading formula reproduces the solution (Walter et al. 1997, section 3.2), then refine "
-        "them (variable projection); writes Contract 2's fit.npz and prints each object's error.",
+        description="Fit a few virtual lights per glossy object so that the Phong shading formula "
+        "reproduces the solution (Walter et al. 1997): by default each light directional or positional "
+        "as the data require, with a specular coefficient per light at each vertex, refined by variable "
+        "projection; --method paper runs the paper's section 3.2 exactly. Writes fit.npz (its format: "
+        "docs/formats.md) and prints each object's error.",
     )
     table = ", ".join(f"{q} {preset(q).fit_lights} / {preset(q).fit_iterations}" for q in QUALITIES)
     p.add_argument("solution", help="a solution.npz from 'vlights solve'")
@@ -48,6 +52,12 @@ def register(subparsers, not_built):
     p.add_argument("--max-lights", type=int, default=16, metavar="N", help="most lights --lights auto may use (default: %(default)s)")
     p.add_argument("--method", choices=("paper", "refined", "per-light"), default="refined",
                    help="paper: section 3.2 exactly; refined: then non-linear refinement; per-light: refined with an exponent per light (default: %(default)s)")
+    p.add_argument("--light-kind", choices=LIGHT_KINDS, default="auto",
+                   help="auto: each light directional or positional, whichever the error asks for; or all of one kind "
+                   "(refined methods; default: %(default)s)")
+    p.add_argument("--coefficients", choices=COEFFICIENTS, default="per-light",
+                   help="per-light: a specular coefficient per light at each vertex (3 + 3K numbers a vertex); shared: one "
+                   "for all lights, the paper's model (6 numbers a vertex) (refined methods; default: %(default)s)")
     p.add_argument("--loss", choices=("linear", "relative"), default="linear",
                    help="error measure to minimise: linear least squares, or relative to the radiance (default: %(default)s)")
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
@@ -75,7 +85,7 @@ def fit_options(args, quality):
     iterations = args.iterations if args.iterations is not None else knobs.fit_iterations
     return FitOptions(
         lights=lights, target=args.target, max_lights=args.max_lights, method=args.method,
-        loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
+        light_kind=args.light_kind, coefficients=args.coefficients, loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
     ).check()
 
 
@@ -100,7 +110,8 @@ def format_report(model, path):
     """Per glossy object: lights, exponents, error of the fit and of its diffuse part
     alone; diffuse objects (no lights, nothing fitted) in one row each, without numbers."""
     lines = [
-        f"{'object':<14} {'K':>3} {'exponent(s)':<22} {'rel. RMS':>9} {'worst vertex':>13} {'diffuse only':>13} {'time':>7}"
+        f"{'object':<14} {'K':>3} {'kinds':<10} {'floats/v':>8} {'exponent(s)':<18} {'rel. RMS':>9} {'worst vertex':>13} "
+        f"{'diffuse only':>13} {'time':>7}"
     ]
     for o in model.objects:
         if o.info.get("method") == "diffuse":
@@ -109,13 +120,19 @@ def format_report(model, path):
         e = o.info["error"]
         exps = o.info["shininess"]
         shown = "-" if not exps else (f"{exps[0]:.4g}" if len(set(exps)) == 1 else f"{min(exps):.3g} .. {max(exps):.3g}")
+        n_point = int(np.count_nonzero(o.positional))
+        kinds = f"{n_point}P {o.n_lights - n_point}D"
         lines.append(
-            f"{o.name:<14} {o.n_lights:>3} {shown:<22} {_number(e['relative_rms'], 9)} {_number(e['worst_vertex'], 13)} "
-            f"{_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
+            f"{o.name:<14} {o.n_lights:>3} {kinds:<10} {o.floats_per_vertex:>8} {shown:<18} {_number(e['relative_rms'], 9)} "
+            f"{_number(e['worst_vertex'], 13)} {_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
         )
+        if "target not reached" in o.info.get("chosen_by", ""):
+            lines.append(f"{'':<14} {o.info['chosen_by']}")
     size = Path(path).stat().st_size
     settings = model.settings
     how = f"method {settings['method']}, loss {settings['loss']}"
+    if settings["method"] != "paper":
+        how += f", light kinds {settings.get('light_kind')}, coefficients {settings.get('coefficients')}"
     if "quality" in settings:
         how += f", quality {settings['quality']} (lights {settings['lights']}, iterations {settings['iterations']})"
     lines.append(f"wrote {path} ({size / 1e6:.2f} MB); {how}")

@@ -19,12 +19,15 @@ class FitData:
     views    : (V, D, 3) float64, world-space unit directions towards the eye
     normals  : (V, 3) float64, world-space unit normals
     weights  : (V, D) float64, area x solid angle, summing to 1
+    positions: (V, 3) float64, world-space vertex positions (None: not known; point
+               lights need them)
     """
 
     radiance: np.ndarray
     views: np.ndarray
     normals: np.ndarray
     weights: np.ndarray
+    positions: np.ndarray | None = None
 
     @property
     def n_vertices(self):
@@ -65,6 +68,7 @@ def fit_data(obj):
         views=views,
         normals=normals,
         weights=np.ascontiguousarray(weights),
+        positions=np.asarray(obj.positions, np.float64),
     )
 
 

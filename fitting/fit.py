@@ -1,29 +1,31 @@
-"""The fitting stage: ``fit(solution, options) -> FittedModel`` (Contract 2).
+"""The fitting stage: ``fit(solution, options) -> FittedModel`` (Contract 2, version 2).
 
 Per object: diffuse objects keep their radiance as the emitted colour and get no
-lights; glossy objects get the paper's fit (``paper``), optionally refined by variable
-projection with one exponent or one per light (``refine``), with K lights given or
-chosen as the smallest K whose error reaches a target.
+lights. Glossy objects get either the paper's fit exactly (``paper``: directional
+lights, one specular coefficient per vertex) or, by default, virtual lights of the
+kind the data require (directional or positional), with one coefficient per light at
+each vertex or one shared, fitted by variable projection (``mixed``), with K lights
+given or chosen as the fewest reaching an error target.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from radiosity.formats.errors import InputError
 
-from . import paper, refine
+from . import mixed, paper, refine
 from .data import fit_data, relative_error
-from .model import FittedModel, FittedObject, shade_arrays
-from .results import FitResult, LightSet
+from .model import FittedModel, FittedObject, directional
 
 METHODS = ("paper", "refined", "per-light")
-TRIAL_ITERATIONS = 15  # refinement of each start before the best one is refined further
-POLISH_ITERATIONS = 8  # refinement after each light the least-squares greedy start adds
+LIGHT_KINDS = mixed.KINDS
+COEFFICIENTS = mixed.COEFFICIENTS
+PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
 
 
 @dataclass(frozen=True)
@@ -31,8 +33,13 @@ class FitOptions:
     """lights          : K per glossy object, or "auto" (smallest K reaching ``target``)
     target          : relative RMS error target of "auto"
     max_lights      : the cap of "auto"
-    method          : "paper" (section 3.2 exactly), "refined" (then variable projection,
-                      one exponent), "per-light" (refined with an exponent per light)
+    method          : "paper" (section 3.2 exactly: directional lights, shared
+                      coefficients), "refined" (variable projection, one exponent),
+                      "per-light" (refined with an exponent per light)
+    light_kind      : "auto" (each light directional or positional as the data
+                      require), "directional", "positional" (refined methods)
+    coefficients    : "per-light" (a specular coefficient per light at each vertex) or
+                      "shared" (one per vertex, the paper's model) (refined methods)
     loss            : "linear" or "relative" (see ``refine.loss_weights``)
     exponent_bounds : the exponent search's range
     iterations      : L-BFGS iterations of the refinement
@@ -42,6 +49,8 @@ class FitOptions:
     target: float = 0.1
     max_lights: int = 16
     method: str = "refined"
+    light_kind: str = "auto"
+    coefficients: str = "per-light"
     loss: str = "linear"
     exponent_bounds: tuple[float, float] = (1.0, 1e4)
     iterations: int = 100
@@ -51,6 +60,10 @@ class FitOptions:
             raise InputError(f"--lights must be a whole number from 0 to 64 or 'auto', got {self.lights!r}")
         if self.method not in METHODS:
             raise InputError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
+        if self.light_kind not in LIGHT_KINDS:
+            raise InputError(f"unknown light kind {self.light_kind!r}; choose one of {', '.join(LIGHT_KINDS)}")
+        if self.coefficients not in COEFFICIENTS:
+            raise InputError(f"unknown coefficients {self.coefficients!r}; choose one of {', '.join(COEFFICIENTS)}")
         if self.loss not in refine.LOSSES:
             raise InputError(f"unknown loss {self.loss!r}; choose one of {', '.join(refine.LOSSES)}")
         lo, hi = self.exponent_bounds
@@ -65,47 +78,44 @@ class FitOptions:
         return self
 
 
-def reconstruct(data, result):
-    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``FitResult``."""
-    return shade_arrays(
-        result.emitted[:, None], result.specular[:, None], data.normals[:, None],
-        result.light_dirs, result.light_rgb, result.shininess, data.views,
+def reconstruct(problem, result):
+    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``mixed.MixedFit``."""
+    return mixed.model_colours(problem, result.lights(), result.emitted, result.specular)
+
+
+def _from_paper(result):
+    """The paper's ``FitResult`` as a ``mixed.MixedFit`` (directional lights, shared)."""
+    return mixed.MixedFit(
+        pos=directional(result.light_dirs), rgb=np.asarray(result.light_rgb, np.float64),
+        shininess=np.asarray(result.shininess, np.float64), emitted=result.emitted, specular=result.specular,
+        sq_error=result.sq_error,
     )
 
 
-def fit_lights(data, n_lights, options, previous=None):
-    """One object's fit (a ``FitResult``) with ``n_lights`` lights by ``options.method``.
+def start_exponent(obj, options):
+    """Where the refinement's exponent starts: the Blinn-Phong exponent that matches the
+    material's modified-Phong lobe about the mirror direction (about 4 n: the half vector
+    turns half as far as the view), within the bounds."""
+    n = float(obj.material.get("exponent", 0.0)) if isinstance(obj.material, dict) else 0.0
+    guess = 4.0 * n + 1.0 if n > 0 else 100.0
+    return float(np.clip(guess, *options.exponent_bounds))
 
-    The refined methods start from the paper's fit and from ``paper.greedy_least_squares``
-    at the paper's exponent, each light polished by a short refinement before the next.
-    With ``previous`` (a refined ``FitResult`` with fewer lights) they also try that fit
-    plus the paper's next light at zero intensity, a model with ``n_lights`` lights
-    whose error is the previous one, and keep the better of the two: the error then
-    never grows when a light is added.
-    """
+
+def problem_for(data, options, scene):
     lw = refine.loss_weights(data, options.loss)
-    result = paper.fit_paper(data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw)
-    if options.method == "paper" or not result.n_lights:
-        return result
-    starts = [result.lights]
-    kw = dict(per_light_exponents=options.method == "per-light", exponent_bounds=options.exponent_bounds, loss=options.loss)
-    alternative = paper.greedy_least_squares(
-        data, result.shininess[0], n_lights, lw,
-        polish=lambda lights: refine.refine(data, lights, max_iterations=POLISH_ITERATIONS, **kw),
+    per_light = options.coefficients == "per-light" and options.method != "paper"
+    return mixed.Problem.make(data, lw, per_light, scene, options.exponent_bounds)
+
+
+def fit_lights(problem, n_lights, options, exponent, previous=None, log=None):
+    """One object's fit (a ``mixed.MixedFit``) with at most ``n_lights`` lights."""
+    if options.method == "paper":
+        lw = refine.loss_weights(problem.data, options.loss)
+        return _from_paper(paper.fit_paper(problem.data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw))
+    return mixed.fit_mixed(
+        problem, n_lights, exponent, light_kind=options.light_kind, per_light_exponents=options.method == "per-light",
+        iterations=options.iterations, previous=previous, log=log,
     )
-    if alternative.n_lights:
-        starts.append(alternative)
-    if previous is not None and 0 < previous.n_lights < result.n_lights:
-        extra = result.n_lights - previous.n_lights
-        starts.append(previous.lights.extended(
-            result.light_dirs[-extra:], np.zeros((extra, 3)), np.full(extra, previous.shininess[-1]),
-        ))
-    # a short refinement of every start, then the best one to the end
-    trials = [refine.refine(data, start, max_iterations=min(options.iterations, TRIAL_ITERATIONS), **kw) for start in starts]
-    best = min(trials, key=lambda r: r.sq_error)
-    if options.iterations > TRIAL_ITERATIONS:
-        best = refine.refine(data, best, max_iterations=options.iterations - TRIAL_ITERATIONS, **kw)
-    return replace(best, search=result.search)
 
 
 def _json_number(value):
@@ -114,25 +124,36 @@ def _json_number(value):
     return value if math.isfinite(value) else None
 
 
-def fit_object(obj, options):
-    """FittedObject for one ``ObjectSolution``."""
+def fit_object(obj, options, scene=None, progress=None):
+    """FittedObject for one ``ObjectSolution``; ``scene`` the ``mixed.SceneGeometry`` of
+    the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None."""
     t0 = time.perf_counter()
     data = fit_data(obj)
+    problem = problem_for(data, options, scene)
     if obj.is_diffuse:
         emitted = data.radiance[:, 0, :]
-        result = FitResult(lights=LightSet.empty(), emitted=emitted, specular=np.zeros_like(emitted))
+        result = mixed.MixedFit(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0), emitted, np.zeros_like(emitted), 0.0)
         chosen_by = "diffuse: no lights"
-    elif options.lights == "auto":
-        result, chosen_by = _auto_lights(data, options)
     else:
-        result = fit_lights(data, options.lights, options)
-        chosen_by = f"--lights {options.lights}"
-    error = relative_error(data, reconstruct(data, result))
+        log = None
+        if progress is not None:
+            def log(fit):
+                progress.set_postfix_str(f"{obj.name}: {fit.n_lights} lights", refresh=True)
+        exponent = start_exponent(obj, options)
+        if options.lights == "auto":
+            result, chosen_by = _auto_lights(problem, options, exponent, log)
+        else:
+            result = fit_lights(problem, options.lights, options, exponent, log=log)
+            chosen_by = f"--lights {options.lights}"
+    error = relative_error(data, reconstruct(problem, result))
     diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
+    kinds = ["positional" if w == 1 else "directional" for w in result.pos[:, 3]]
     info = {
         "method": "diffuse" if obj.is_diffuse else options.method,
         "loss": options.loss,
         "chosen_by": chosen_by,
+        "coefficients": "none" if obj.is_diffuse else ("per-light" if result.per_light else "shared"),
+        "kinds": kinds,
         "shininess": [round(float(p), 4) for p in result.shininess],
         "error": {
             "relative_rms": _json_number(error["relative_rms"]),
@@ -143,7 +164,7 @@ def fit_object(obj, options):
         },
         "time_s": round(time.perf_counter() - t0, 4),
     }
-    if result.iterations is not None:
+    if result.iterations:
         info["iterations"] = result.iterations
     return FittedObject(
         name=obj.name,
@@ -152,57 +173,68 @@ def fit_object(obj, options):
         faces=np.asarray(obj.faces, np.int32),
         emitted=np.asarray(result.emitted, np.float32),
         specular=np.asarray(result.specular, np.float32),
-        light_dirs=np.asarray(result.light_dirs, np.float32).reshape(-1, 3),
-        light_rgb=np.asarray(result.light_rgb, np.float32).reshape(-1, 3),
+        light_pos=np.asarray(result.pos, np.float32).reshape(-1, 4),
+        light_rgb=np.asarray(result.rgb, np.float32).reshape(-1, 3),
         shininess=np.asarray(result.shininess, np.float32).reshape(-1),
         info=info,
     )
 
 
-def _auto_lights(data, options):
-    """The smallest K <= max_lights whose fit reaches the target, by the chosen method:
-    K = 1, 2, 4, ... brackets it, bisection finds it; every fit is warm-started from
-    the fit with fewer lights below it, so the error only falls as K grows."""
-    fits = {}
-
-    def fit_k(k, below):
-        fits[k] = fit_lights(data, k, options, previous=fits.get(below))
-        return relative_error(data, reconstruct(data, fits[k]))["relative_rms"]
-
-    low, k = 0, 1
-    while fit_k(k, low) > options.target and k < options.max_lights:
-        low, k = k, min(2 * k, options.max_lights)
-    high = k
-    while high - low > 1:
-        mid = (low + high) // 2
-        if fit_k(mid, low) <= options.target:
-            high = mid
-        else:
-            low = mid
-    result = fits[high]
-    reached = relative_error(data, reconstruct(data, result))["relative_rms"] <= options.target
-    why = f"auto: smallest K reaching {options.target:g}" if reached else f"auto: target {options.target:g} not reached by {options.max_lights} lights"
-    return result, why
+def _auto_lights(problem, options, exponent, log=None):
+    """The fewest lights (up to ``max_lights``) reaching the target: lights are added
+    one by one (each fit continues the one before, so the error only falls), and the
+    search stops when the target is reached, or when a light no longer pays (lowers
+    the relative error by less than ``PAYS`` of it), or at ``max_lights``."""
+    data = problem.data
+    fit, last = None, relative_error(data, np.broadcast_to(
+        mixed.coefficients(problem, mixed.evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)).lights())[0][:, None, :],
+        data.radiance.shape))["relative_rms"]
+    why = None
+    for k in range(1, options.max_lights + 1):
+        trial = fit_lights(problem, k, options, exponent, previous=fit, log=log)
+        error = relative_error(data, reconstruct(problem, trial))["relative_rms"]
+        if fit is not None and error > last * (1 - PAYS):
+            why = (f"auto: target {options.target:g} not reached; a light more lowered the error by less than "
+                   f"{PAYS:.0%} ({last:.4g} -> {error:.4g}), so {fit.n_lights} lights")
+            break
+        fit, last = trial, error
+        if error <= options.target:
+            why = f"auto: fewest lights reaching {options.target:g}"
+            break
+        if fit.n_lights < k:  # nothing left to explain
+            break
+    if why is None:
+        why = f"auto: target {options.target:g} not reached by {fit.n_lights} lights (--max-lights {options.max_lights})"
+    return fit, why
 
 
 def fit(solution, options=FitOptions(), progress=False):
     """The fitted model of every object of ``solution``."""
     options.check()
+    scene = mixed.SceneGeometry.of_solution(solution)
     objects = []
-    items = solution.objects
+    bar = None
     if progress:
         from tqdm import tqdm
 
-        items = tqdm(items, desc="fit", unit="object", disable=None, dynamic_ncols=True)
-    for obj in items:
-        objects.append(fit_object(obj, options))
+        bar = tqdm(total=len(solution.objects), desc="fit", unit="object", disable=None, dynamic_ncols=True)
+    try:
+        for obj in solution.objects:
+            objects.append(fit_object(obj, options, scene, bar))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
     return FittedModel(
         objects=tuple(objects),
         source=str(solution.scene),
-        model="virtual lights: emitted + Blinn-Phong directional lights (Walter et al. 1997)",
+        model=("virtual lights (Walter et al. 1997): emitted + Blinn-Phong lights"
+               + ("" if options.method == "paper" else f", kinds {options.light_kind}, coefficients {options.coefficients}")),
         settings={
             "lights": options.lights, "target": options.target, "max_lights": options.max_lights,
-            "method": options.method, "loss": options.loss,
+            "method": options.method, "loss": options.loss, "light_kind": options.light_kind,
+            "coefficients": "shared" if options.method == "paper" else options.coefficients,
             "exponent_bounds": list(options.exponent_bounds), "iterations": options.iterations,
         },
         camera=solution.camera,

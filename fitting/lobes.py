@@ -218,3 +218,213 @@ def loss_and_gradient(normals, views, lights, residual, partial):
                 partial[v, k, 5] += common * grads[k, 1]
                 partial[v, k, 6] += common * grads[k, 2]
     return losses.sum()
+
+
+# ---------------------------------------------------------------------------------------
+# Lights of either kind (Contract 2 version 2) and per-light coefficients: the kernels
+# of ``fitting.mixed``. A light is pos[k] = (x, y, z, w): w = 0 a unit direction towards
+# a distant light, w = 1 a point light; at a vertex x the light vector is
+# l = normalize(xyz - w x) (no distance attenuation).
+
+
+class MixedLights(NamedTuple):
+    """K lights of either kind as the kernels take them (C-contiguous float64).
+
+    pos       : (K, 4) (x, y, z, w), w = 0 directional (xyz unit), w = 1 positional
+    rgb       : (K, 3) each light's colour (ones where the coefficients are per light)
+    shininess : (K,) exponent per light
+    """
+
+    pos: np.ndarray
+    rgb: np.ndarray
+    shininess: np.ndarray
+
+
+class Samples(NamedTuple):
+    """The data a fit is measured against (float64).
+
+    positions    : (V, 3) vertex positions (world)
+    radiance     : (V, D, 3) the data L
+    weights      : (V, D) sample weights (area x solid angle)
+    loss_weights : (V, D, 3) loss weights, or (1, 1, 1) ones for the linear loss
+    """
+
+    positions: np.ndarray
+    radiance: np.ndarray
+    weights: np.ndarray
+    loss_weights: np.ndarray
+
+
+@numba.njit(cache=True, nogil=True)
+def light_vector(pos, k, x, y, z):
+    """(lx, ly, lz, distance) of light k seen from (x, y, z): unit; distance 1 for a
+    directional light, 0 (and a zero vector) for a point light at the point itself."""
+    w = pos[k, 3]
+    lx, ly, lz = pos[k, 0] - w * x, pos[k, 1] - w * y, pos[k, 2] - w * z
+    length = math.sqrt(lx * lx + ly * ly + lz * lz)
+    if length <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    return lx / length, ly / length, lz / length, length if w != 0.0 else 1.0
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def mixed_light_sum(normals, views, lights, samples, coefficients, out):
+    """out[v, d, c] = sum_k coefficients[v, k or 0, c] * rgb[k, c] * lobe(n_v, l_k(x_v) + w_vd, p_k).
+
+    coefficients (V, K, 3) per light or (V, 1, 3) shared (ones: the lights' plain sum).
+    Returns out (V, D, 3)."""
+    pos, rgb, shininess = lights.pos, lights.rgb, lights.shininess
+    positions = samples.positions
+    n_k = pos.shape[0]
+    shared = coefficients.shape[1] == 1
+    for v in numba.prange(views.shape[0]):
+        n = (normals[v, 0], normals[v, 1], normals[v, 2])
+        ls = np.empty((n_k, 4))
+        for k in range(n_k):
+            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        for d in range(views.shape[1]):
+            b0, b1, b2 = 0.0, 0.0, 0.0
+            for k in range(n_k):
+                if ls[k, 3] <= 0.0:
+                    continue
+                value = lobe(n, (views[v, d, 0] + ls[k, 0], views[v, d, 1] + ls[k, 1], views[v, d, 2] + ls[k, 2]),
+                             shininess[k])
+                if value > 0.0:
+                    j = 0 if shared else k
+                    b0 += coefficients[v, j, 0] * rgb[k, 0] * value
+                    b1 += coefficients[v, j, 1] * rgb[k, 1] * value
+                    b2 += coefficients[v, j, 2] * rgb[k, 2] * value
+            out[v, d, 0], out[v, d, 1], out[v, d, 2] = b0, b1, b2
+    return out
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
+    """Each vertex's least-squares problem for its coefficients, per channel c:
+    unknowns [emitted, coefficient of light 1, ..., light K] (``per_light``) or
+    [emitted, shared specular] with design rows [1, lobe_1, ..., lobe_K] or
+    [1, sum_k rgb[k, c] lobe_k]. Writes the normal equations G (V, 3, n, n), h (V, 3, n)
+    and the weighted data energy yy (V, 3) (sum w L^2)."""
+    pos, rgb, shininess = lights.pos, lights.rgb, lights.shininess
+    positions, radiance, weights, lw = samples.positions, samples.radiance, samples.weights, samples.loss_weights
+    n_k = pos.shape[0]
+    n = G.shape[2]
+    full = lw.shape[0] > 1
+    for v in numba.prange(views.shape[0]):
+        nv = (normals[v, 0], normals[v, 1], normals[v, 2])
+        ls = np.empty((n_k, 4))
+        for k in range(n_k):
+            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        values = np.empty(n_k)
+        row = np.empty(n)
+        for c in range(3):
+            for i in range(n):
+                h[v, c, i] = 0.0
+                for j in range(n):
+                    G[v, c, i, j] = 0.0
+            yy[v, c] = 0.0
+        for d in range(views.shape[1]):
+            for k in range(n_k):
+                values[k] = 0.0 if ls[k, 3] <= 0.0 else lobe(
+                    nv, (views[v, d, 0] + ls[k, 0], views[v, d, 1] + ls[k, 1], views[v, d, 2] + ls[k, 2]), shininess[k])
+            for c in range(3):
+                wt = weights[v, d] * (lw[v, d, c] if full else 1.0)
+                if wt == 0.0:
+                    continue
+                row[0] = 1.0
+                if per_light:
+                    for k in range(n_k):
+                        row[1 + k] = values[k]
+                else:
+                    s = 0.0
+                    for k in range(n_k):
+                        s += rgb[k, c] * values[k]
+                    row[1] = s
+                y = radiance[v, d, c]
+                for i in range(n):
+                    ri = wt * row[i]
+                    h[v, c, i] += ri * y
+                    for j in range(i + 1):
+                        G[v, c, i, j] += ri * row[j]
+                yy[v, c] += wt * y * y
+        for c in range(3):
+            for i in range(n):
+                for j in range(i):
+                    G[v, c, j, i] = G[v, c, i, j]
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def mixed_loss_and_gradient(normals, views, lights, samples, emitted, coefficients, partial):
+    """sum_{v,d,c} w (L - e - sum_k S[v, k or 0, c] rgb[k, c] lobe_k)^2 at fixed
+    coefficients, and its gradient with respect to the lights.
+
+    ``partial`` (V, K, 7), zeroed by the caller, receives vertex v's part of light k's
+    gradient: [d/d rgb (3), d/d log p, d/d xyz (3)], where d/d xyz is with respect to
+    the unit vector l for a directional light (the caller projects it through its own
+    parametrisation) and with respect to the position for a point light (l = (P - x) /
+    |P - x|: d/dP = (I - l l^T) / |P - x| d/dl). Returns the loss."""
+    pos, rgb, shininess = lights.pos, lights.rgb, lights.shininess
+    positions, radiance, weights, lw = samples.positions, samples.radiance, samples.weights, samples.loss_weights
+    n_v, n_d, n_k = views.shape[0], views.shape[1], pos.shape[0]
+    full = lw.shape[0] > 1
+    shared = coefficients.shape[1] == 1
+    losses = np.zeros(n_v)
+    for v in numba.prange(n_v):
+        nv = (normals[v, 0], normals[v, 1], normals[v, 2])
+        ls = np.empty((n_k, 4))
+        for k in range(n_k):
+            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        values = np.empty(n_k)
+        grads = np.empty((n_k, 4))
+        dl = np.zeros((n_k, 3))
+        coef = np.empty(3)
+        for d in range(n_d):
+            b0, b1, b2 = 0.0, 0.0, 0.0
+            for k in range(n_k):
+                if ls[k, 3] <= 0.0:
+                    values[k] = 0.0
+                    continue
+                hv = (views[v, d, 0] + ls[k, 0], views[v, d, 1] + ls[k, 1], views[v, d, 2] + ls[k, 2])
+                value, g, dlogp = lobe_gradient(nv, hv, shininess[k])
+                values[k] = value
+                grads[k, 0], grads[k, 1], grads[k, 2], grads[k, 3] = g[0], g[1], g[2], dlogp
+                if value > 0.0:
+                    j = 0 if shared else k
+                    b0 += coefficients[v, j, 0] * rgb[k, 0] * value
+                    b1 += coefficients[v, j, 1] * rgb[k, 1] * value
+                    b2 += coefficients[v, j, 2] * rgb[k, 2] * value
+            for c in range(3):
+                b = b0 if c == 0 else (b1 if c == 1 else b2)
+                wt = weights[v, d] * (lw[v, d, c] if full else 1.0)
+                r = radiance[v, d, c] - emitted[v, c] - b
+                losses[v] += wt * r * r
+                coef[c] = -2.0 * wt * r  # d loss / d model[v, d, c]
+            for k in range(n_k):
+                value = values[k]
+                if value <= 0.0:
+                    continue
+                j = 0 if shared else k
+                s0 = coef[0] * coefficients[v, j, 0]
+                s1 = coef[1] * coefficients[v, j, 1]
+                s2 = coef[2] * coefficients[v, j, 2]
+                common = s0 * rgb[k, 0] + s1 * rgb[k, 1] + s2 * rgb[k, 2]  # d loss / d lobe_k
+                partial[v, k, 0] += s0 * value
+                partial[v, k, 1] += s1 * value
+                partial[v, k, 2] += s2 * value
+                partial[v, k, 3] += common * grads[k, 3]
+                dl[k, 0] += common * grads[k, 0]
+                dl[k, 1] += common * grads[k, 1]
+                dl[k, 2] += common * grads[k, 2]
+        for k in range(n_k):
+            if ls[k, 3] <= 0.0:
+                continue
+            gx, gy, gz = dl[k, 0], dl[k, 1], dl[k, 2]
+            if pos[k, 3] != 0.0:
+                # through l = (P - x) / |P - x|
+                radial = gx * ls[k, 0] + gy * ls[k, 1] + gz * ls[k, 2]
+                inv = 1.0 / ls[k, 3]
+                gx, gy, gz = (gx - radial * ls[k, 0]) * inv, (gy - radial * ls[k, 1]) * inv, (gz - radial * ls[k, 2]) * inv
+            partial[v, k, 4] += gx
+            partial[v, k, 5] += gy
+            partial[v, k, 6] += gz
+    return losses.sum()

@@ -1,24 +1,31 @@
-"""The fitted model (shared/DESIGN.md, "Contract 2") and the one reference of its shading.
+"""The fitted model (Contract 2, docs/formats.md) and the one reference of its shading.
 
 ``fit.npz``, written with ``numpy.savez_compressed``, readable with ``allow_pickle=False``:
 
-- ``meta``: 0-d str array of JSON ``{"format": "vlights.fit", "version": 1, "source":
+- ``meta``: 0-d str array of JSON ``{"format": "vlights.fit", "version": 2, "source":
   "...", "model": "...", "objects": {name: {"lights": K, "error": {...}, ...}}}``;
 - per object ``<name>/positions`` (V, 3) float32, ``<name>/normals`` (V, 3) float32,
   ``<name>/faces`` (F, 3) int32 (copied from the solution), ``<name>/emitted`` (V, 3)
-  float32, ``<name>/specular`` (V, 3) float32, ``<name>/light_dirs`` (K, 3) float32
-  (world-space unit vectors towards each virtual light), ``<name>/light_rgb`` (K, 3)
+  float32, ``<name>/specular`` (V, 3) float32 (one coefficient for all lights, the
+  paper's model) or (V, K, 3) (one per light), ``<name>/light_pos`` (K, 4) float32 in
+  OpenGL's ``GL_POSITION`` convention ((x, y, z, 0) a unit vector towards a distant
+  light, (x, y, z, 1) a point light's world position), ``<name>/light_rgb`` (K, 3)
   float32 and ``<name>/shininess`` (K,) float32. Diffuse objects have K = 0.
 
-The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate):
+Version 1 files (``light_dirs`` (K, 3) instead of ``light_pos``, ``specular`` (V, 3))
+are still read: their lights are directional (w = 0).
 
-    colour(v, w) = emitted[v] + sum_k max(0, dot(n[v], normalize(l_k + w)))^shininess[k]
-                                      * light_rgb[k] * specular[v]
+The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
+distance attenuation), at a surface point x with unit normal n:
 
-with w the unit vector from the surface point towards the eye; the lobe
-max(0, ...)^shininess is ``fitting.lobes.lobe`` (with its cut-off: terms below e^-30 of
-the lobe's peak are 0). ``shade_arrays`` is the numpy reference the fitter, the display
-and every test use.
+    l_k(x)  = normalize(xyz_k - w_k x)
+    colour  = emitted + sum_k max(0, dot(n, normalize(l_k(x) + w)))^shininess[k]
+                              * light_rgb[k] * specular[(k)]
+
+with w the unit vector from x towards the eye; the lobe max(0, ...)^shininess is
+``fitting.lobes.lobe`` (with its cut-off: terms below e^-30 of the lobe's peak are 0).
+A point light exactly at x, or a half vector of zero length, gives no light.
+``shade_arrays`` is the numpy reference the fitter, the display and every test use.
 
 ``load_fit`` reads a file through ``radiosity.formats.npz.open_archive`` and checks
 everything a reader relies on: a bad file is refused with one ``InputError`` line that
@@ -31,41 +38,71 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from radiosity.formats.camera import Camera, camera_from_dict
-from radiosity.formats.errors import InputError
+from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.npz import open_archive, write_archive
 
 from .lobes import lobe_vectorised
 
 FORMAT = "vlights.fit"
-VERSION = 1
-ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")
+VERSION = 2
+READS = (1, 2)
+ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
+ARRAY_KEYS_V1 = ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")
 UNIT_TOLERANCE = 1e-3  # a stored light direction's length may be off 1 by this much (float32 storage)
 
 
-def shade_arrays(emitted, specular, normals, light_dirs, light_rgb, shininess, w):
+def light_vectors(light_pos, positions):
+    """Unit vectors (..., K, 3) from surface points ``positions`` (..., 3) towards each
+    light of ``light_pos`` (K, 4): xyz - w x, normalised (zero where a point light sits
+    exactly at the point)."""
+    light_pos = np.asarray(light_pos, np.float64).reshape(-1, 4)
+    x = np.asarray(positions, np.float64)[..., None, :]
+    toward = light_pos[:, :3] - light_pos[:, 3:4] * x
+    length = np.linalg.norm(toward, axis=-1, keepdims=True)
+    return np.where(length > 0, toward / np.where(length > 0, length, 1.0), 0.0)
+
+
+def shade_arrays(emitted, specular, normals, positions, lights, w):
     """The shading formula, broadcast over leading axes.
 
-    emitted, specular, normals : (..., 3); w : (..., 3) unit, towards the eye;
-    light_dirs, light_rgb : (K, 3); shininess : (K,). Returns (..., 3) float64.
-    A half vector of zero length (the light exactly opposite the eye) gives no light.
+    emitted, normals, positions : (..., 3); w : (..., 3) unit, towards the eye;
+    specular : (..., 3) shared by the lights or (..., K, 3) one per light;
+    lights : (light_pos (K, 4), light_rgb (K, 3), shininess (K,)). Returns (..., 3) float64.
     """
+    light_pos, light_rgb, shininess = (np.asarray(a, np.float64) for a in lights)
+    light_pos, light_rgb, shininess = light_pos.reshape(-1, 4), light_rgb.reshape(-1, 3), shininess.reshape(-1)
     emitted = np.asarray(emitted, dtype=np.float64)
     w = np.asarray(w, dtype=np.float64)
     normals = np.asarray(normals, dtype=np.float64)
-    out = np.broadcast_to(emitted, np.broadcast_shapes(emitted.shape, w.shape, normals.shape)).copy()
+    positions = np.asarray(positions, dtype=np.float64)
     specular = np.asarray(specular, dtype=np.float64)
+    per_light = specular.ndim == emitted.ndim + 1
+    shape = np.broadcast_shapes(emitted.shape, w.shape, normals.shape, positions.shape)
+    out = np.broadcast_to(emitted, shape).copy()
+    if not len(light_pos):
+        return out
+    toward = light_vectors(light_pos, positions)  # (..., K, 3)
     nx, ny, nz = normals[..., 0], normals[..., 1], normals[..., 2]
-    for light, rgb, p in zip(np.asarray(light_dirs, np.float64), np.asarray(light_rgb, np.float64), np.asarray(shininess, np.float64)):
-        h = w + light
-        lobe = lobe_vectorised(nx, ny, nz, h[..., 0], h[..., 1], h[..., 2], p)
-        out = out + lobe[..., None] * rgb * specular
+    for k in range(len(light_pos)):
+        lk = toward[..., k, :]
+        h = w + lk
+        lobe = lobe_vectorised(nx, ny, nz, h[..., 0], h[..., 1], h[..., 2], shininess[k])
+        lobe = np.where(np.any(lk != 0, axis=-1), lobe, 0.0)
+        coefficient = specular[..., k, :] if per_light else specular
+        out = out + lobe[..., None] * light_rgb[k] * coefficient
     return out
+
+
+def directional(light_dirs):
+    """(K, 4) ``light_pos`` of distant lights from unit directions (K, 3)."""
+    d = np.asarray(light_dirs, np.float64).reshape(-1, 3)
+    return np.concatenate([d, np.zeros((len(d), 1))], axis=1)
 
 
 @dataclass(frozen=True, eq=False)
 class FittedObject:
-    """One object's fitted model; arrays as in the module docstring."""
+    """One object's fitted model; arrays as in the module docstring (``light_pos`` (K, 4),
+    ``specular`` (V, 3) shared or (V, K, 3) per light)."""
 
     name: str
     positions: np.ndarray
@@ -73,34 +110,60 @@ class FittedObject:
     faces: np.ndarray
     emitted: np.ndarray
     specular: np.ndarray
-    light_dirs: np.ndarray
+    light_pos: np.ndarray
     light_rgb: np.ndarray
     shininess: np.ndarray
     info: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        v, k = len(self.positions), len(self.light_dirs)
+        v, k = len(self.positions), len(self.light_pos)
         expect = {
-            "positions": (v, 3), "normals": (v, 3), "emitted": (v, 3), "specular": (v, 3),
-            "light_dirs": (k, 3), "light_rgb": (k, 3), "shininess": (k,),
+            "positions": (v, 3), "normals": (v, 3), "emitted": (v, 3),
+            "light_pos": (k, 4), "light_rgb": (k, 3), "shininess": (k,),
         }
         for key, shape in expect.items():
             if np.shape(getattr(self, key)) != shape:
                 raise ValueError(f"object {self.name!r}: '{key}' has shape {np.shape(getattr(self, key))}, expected {shape}")
+        if np.shape(self.specular) not in ((v, 3), (v, k, 3)):
+            raise ValueError(
+                f"object {self.name!r}: 'specular' has shape {np.shape(self.specular)}, expected ({v}, 3) or ({v}, {k}, 3)"
+            )
         if np.ndim(self.faces) != 2 or np.shape(self.faces)[1] != 3:
             raise ValueError(f"object {self.name!r}: 'faces' must be (F, 3)")
         if "/" in self.name:
             raise ValueError(f"object name {self.name!r} contains '/'")
+        w = np.asarray(self.light_pos)[:, 3] if k else np.zeros(0)
+        if not np.isin(w, (0.0, 1.0)).all():
+            raise ValueError(f"object {self.name!r}: 'light_pos' w must be 0 (directional) or 1 (positional), got {w}")
 
     @property
     def n_lights(self):
-        return len(self.light_dirs)
+        return len(self.light_pos)
+
+    @property
+    def per_light(self):
+        """True when each light has its own per-vertex coefficient ((V, K, 3) specular)."""
+        return np.ndim(self.specular) == 3
+
+    @property
+    def positional(self):
+        """(K,) bool: which lights are point lights."""
+        return np.asarray(self.light_pos)[:, 3] == 1.0
+
+    @property
+    def lights(self):
+        return self.light_pos, self.light_rgb, self.shininess
+
+    @property
+    def floats_per_vertex(self):
+        """Numbers stored per vertex besides the mesh: emitted and specular."""
+        return 3 + int(np.prod(np.shape(self.specular)[1:]))
 
     def shade(self, w, vertices=slice(None)):
         """Colour (..., 3) of ``vertices`` seen from unit directions ``w`` (..., 3) (world)."""
         return shade_arrays(
-            self.emitted[vertices], self.specular[vertices], self.normals[vertices],
-            self.light_dirs, self.light_rgb, self.shininess, w,
+            self.emitted[vertices], self.specular[vertices], self.normals[vertices], self.positions[vertices],
+            self.lights, w,
         )
 
     def arrays(self):
@@ -110,7 +173,7 @@ class FittedObject:
             "faces": np.asarray(self.faces, np.int32),
             "emitted": np.asarray(self.emitted, np.float32),
             "specular": np.asarray(self.specular, np.float32),
-            "light_dirs": np.asarray(self.light_dirs, np.float32).reshape(-1, 3),
+            "light_pos": np.asarray(self.light_pos, np.float32).reshape(-1, 4),
             "light_rgb": np.asarray(self.light_rgb, np.float32).reshape(-1, 3),
             "shininess": np.asarray(self.shininess, np.float32).reshape(-1),
         }
@@ -184,7 +247,7 @@ def shade(model, name, world_dirs, vertices=slice(None)):
     if w.ndim == 3:
         return shade_arrays(
             obj.emitted[index][:, None], obj.specular[index][:, None], obj.normals[index][:, None],
-            obj.light_dirs, obj.light_rgb, obj.shininess, w,
+            obj.positions[index][:, None], obj.lights, w,
         )
     return obj.shade(w, index)
 
@@ -194,24 +257,31 @@ def _kind_error(archive, key, a, kinds):
     return archive.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
 
 
-def _read_object(archive, name, info):
+def _read_object(archive, name, info, version):
     """One object's arrays, checked; InputError naming the file and the key."""
     fail = archive.fail
-    missing = [k for k in ARRAY_KEYS if f"{name}/{k}" not in archive.keys]
+    keys = ARRAY_KEYS if version >= 2 else ARRAY_KEYS_V1
+    missing = [k for k in keys if f"{name}/{k}" not in archive.keys]
     if missing:
         raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
     arrays = {}
     positions = archive.array(f"{name}/positions", "fiu", (None, 3))
     n_v = positions.shape[0]
-    lights = archive.array(f"{name}/light_dirs", "fiu", (None, 3))
+    light_key = "light_pos" if version >= 2 else "light_dirs"
+    lights = archive.array(f"{name}/{light_key}", "fiu", (None, 4 if version >= 2 else 3))
     n_k = lights.shape[0]
     shapes = {
-        "positions": (n_v, 3), "normals": (n_v, 3), "faces": (None, 3), "emitted": (n_v, 3), "specular": (n_v, 3),
-        "light_dirs": (n_k, 3), "light_rgb": (n_k, 3), "shininess": (n_k,),
+        "positions": (n_v, 3), "normals": (n_v, 3), "faces": (None, 3), "emitted": (n_v, 3),
+        light_key: lights.shape, "light_rgb": (n_k, 3), "shininess": (n_k,),
     }
     for key, shape in shapes.items():
         kinds = "iu" if key == "faces" else "fiu"
         arrays[key] = archive.array(f"{name}/{key}", kinds, shape)
+    specular = archive.array(f"{name}/specular", "fiu")
+    if specular.shape != (n_v, 3) and not (version >= 2 and specular.shape == (n_v, n_k, 3)):
+        allowed = f"({n_v}, 3)" + (f" or ({n_v}, {n_k}, 3)" if version >= 2 else "")
+        raise fail(f"'{name}/specular' has shape {tuple(specular.shape)}, expected {allowed}")
+    arrays["specular"] = specular
     for key, a in arrays.items():
         if key != "faces" and not np.isfinite(a).all():
             bad = int(np.count_nonzero(~np.isfinite(a)))
@@ -223,9 +293,20 @@ def _read_object(archive, name, info):
         raise fail(f"'{name}/faces' has vertex indices from {faces.min()} to {faces.max()}, outside [0, {n_v})")
     if (arrays["shininess"] < 0).any():
         raise fail(f"'{name}/shininess' has a negative exponent ({float(arrays['shininess'].min()):g})")
-    length = np.linalg.norm(arrays["light_dirs"].astype(np.float64), axis=1)
+    if (arrays["specular"] < 0).any() or (arrays["light_rgb"] < 0).any() or (arrays["emitted"] < 0).any():
+        raise fail(f"object {name!r}: emitted, specular and light_rgb must not be negative")
+    if version >= 2:
+        w = arrays["light_pos"][:, 3]
+        if not np.isin(w, (0.0, 1.0)).all():
+            raise fail(f"'{name}/light_pos' has w = {float(w[~np.isin(w, (0.0, 1.0))][0]):g}; w is 0 (a direction) or 1 (a point)")
+        directions = arrays["light_pos"][w == 0, :3]
+    else:
+        directions = arrays.pop("light_dirs")
+        arrays["light_pos"] = directional(directions)
+    length = np.linalg.norm(np.asarray(directions, np.float64), axis=1)
     if (np.abs(length - 1.0) > UNIT_TOLERANCE).any():
-        raise fail(f"'{name}/light_dirs' are not unit vectors (a length of {float(length[np.argmax(np.abs(length - 1))]):g})")
+        raise fail(f"'{name}/{light_key}': directional lights must be unit vectors "
+                   f"(a length of {float(length[np.argmax(np.abs(length - 1))]):g})")
     lights_meta = info.get("lights", n_k)
     if isinstance(lights_meta, bool) or not isinstance(lights_meta, int) or lights_meta != n_k:
         raise fail(f"meta 'objects' says object {name!r} has {lights_meta!r} lights; its arrays hold {n_k}")
@@ -240,9 +321,9 @@ def _read_object(archive, name, info):
 
 
 def load_fit(path):
-    """Read and check a ``fit.npz`` (Contract 2, version 1); a bad file raises
+    """Read and check a ``fit.npz`` (Contract 2, version 2 or 1); a bad file raises
     InputError with one line naming the file and the key at fault."""
-    with open_archive(path, FORMAT, (VERSION,)) as archive:
+    with open_archive(path, FORMAT, READS) as archive:
         meta, fail = archive.meta, archive.fail
         objects_meta = meta.get("objects")
         if not isinstance(objects_meta, dict):
@@ -258,13 +339,8 @@ def load_fit(path):
                 raise fail(f"meta 'objects' has an object name {name!r}: names are non-empty and contain no '/'")
             if not isinstance(info, dict):
                 raise fail(f"meta 'objects': the info of object {name!r} must be a JSON object, got {_json_type(info)}")
-            objects.append(_read_object(archive, name, info))
-        camera = None
-        if meta.get("camera") is not None:
-            try:
-                camera = camera_from_dict(meta["camera"], where="meta 'camera'")
-            except InputError as exc:
-                raise fail(str(exc)) from None
+            objects.append(_read_object(archive, name, info, meta["version"]))
+        camera = camera_from_meta(meta, fail)
     return FittedModel(
         objects=tuple(objects), source=meta.get("source", ""), model=meta.get("model", ""),
         settings=meta.get("settings", {}), camera=camera,

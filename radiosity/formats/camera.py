@@ -19,7 +19,7 @@ import numpy as np
 
 from radiosity.formats.errors import InputError
 
-__all__ = ["DEFAULT_FOV_Y_DEG", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "load_views"]
+__all__ = ["DEFAULT_FOV_Y_DEG", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "camera_from_meta", "load_views"]
 
 DEFAULT_FOV_Y_DEG = 39.3
 MAX_IMAGE_SIDE = 16384
@@ -136,6 +136,17 @@ def camera_from_dict(data, width=512, height=512, where="camera"):
                       data.get("fov_y_deg", DEFAULT_FOV_Y_DEG), width, height)
     except InputError as exc:
         raise InputError(f"{where}: {str(exc).removeprefix('camera: ')}") from None
+
+
+def camera_from_meta(meta, fail):
+    """The optional ``camera`` of a file's meta, or None; ``fail(problem)`` makes the
+    error naming the file."""
+    if meta.get("camera") is None:
+        return None
+    try:
+        return camera_from_dict(meta["camera"], where="meta 'camera'")
+    except InputError as exc:
+        raise fail(str(exc)) from None
 
 
 def load_views(path):

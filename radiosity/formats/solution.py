@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from radiosity.formats.camera import Camera, camera_from_dict
+from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.directions import grid_directions
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
@@ -336,12 +336,7 @@ def _read(archive) -> Solution:
         if not isinstance(value, kind):
             kind_name = "object" if kind is dict else "string"
             raise fail(f"meta '{key}' must be a JSON {kind_name}")
-    camera = None
-    if meta.get("camera") is not None:
-        try:
-            camera = camera_from_dict(meta["camera"], where="meta 'camera'")
-        except InputError as exc:
-            raise fail(str(exc)) from None
+    camera = camera_from_meta(meta, fail)
 
     objects = []
     for name in names:
