@@ -304,12 +304,17 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
     unknowns [emitted, coefficient of light 1, ..., light K] (``per_light``) or
     [emitted, shared specular] with design rows [1, lobe_1, ..., lobe_K] or
     [1, sum_k rgb[k, c] lobe_k]. Writes the normal equations G (V, 3, n, n), h (V, 3, n)
-    and the weighted data energy yy (V, 3) (sum w L^2)."""
+    and the weighted data energy yy (V, 3) (sum w L^2).
+
+    Per light with the linear loss the rows do not depend on the channel, so G is
+    accumulated once and copied; only the lobes that are not zero (a sharp lobe's are
+    mostly zero) enter the outer products."""
     pos, rgb, shininess = lights.pos, lights.rgb, lights.shininess
     positions, radiance, weights, lw = samples.positions, samples.radiance, samples.weights, samples.loss_weights
     n_k = pos.shape[0]
     n = G.shape[2]
     full = lw.shape[0] > 1
+    same = per_light and not full
     for v in numba.prange(views.shape[0]):
         nv = (normals[v, 0], normals[v, 1], normals[v, 2])
         ls = np.empty((n_k, 4))
@@ -317,6 +322,7 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
             ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
         values = np.empty(n_k)
         row = np.empty(n)
+        nz = np.empty(n, np.int64)
         for c in range(3):
             for i in range(n):
                 h[v, c, i] = 0.0
@@ -332,22 +338,39 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
                 if wt == 0.0:
                     continue
                 row[0] = 1.0
+                nz[0] = 0
+                m = 1
                 if per_light:
                     for k in range(n_k):
                         row[1 + k] = values[k]
+                        if values[k] != 0.0:
+                            nz[m] = 1 + k
+                            m += 1
                 else:
                     s = 0.0
                     for k in range(n_k):
                         s += rgb[k, c] * values[k]
                     row[1] = s
+                    if s != 0.0:
+                        nz[m] = 1
+                        m += 1
                 y = radiance[v, d, c]
-                for i in range(n):
-                    ri = wt * row[i]
-                    h[v, c, i] += ri * y
-                    for j in range(i + 1):
-                        G[v, c, i, j] += ri * row[j]
                 yy[v, c] += wt * y * y
+                for a in range(m):
+                    h[v, c, nz[a]] += wt * row[nz[a]] * y
+                if same and c > 0:
+                    continue
+                for a in range(m):
+                    ri = wt * row[nz[a]]
+                    for b in range(a + 1):
+                        G[v, c, nz[a], nz[b]] += ri * row[nz[b]]
         for c in range(3):
+            if same and c > 0:
+                for i in range(n):
+                    for j in range(n):
+                        G[v, c, i, j] = G[v, 0, i, j]
+                continue
+            # nz is increasing, so entries went to the lower triangle; mirror them
             for i in range(n):
                 for j in range(i):
                     G[v, c, j, i] = G[v, c, i, j]

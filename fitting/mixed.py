@@ -52,9 +52,9 @@ COEFFICIENTS = ("shared", "per-light")
 CAP_FACTOR = 8.0  # as paper.CAP_FACTOR: a vertex's highlight stays below 8x its brightest sample
 AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error grows less than this (relative)
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
-DUPLICATE_ANGLE = math.radians(0.5)
-DUPLICATE_DISTANCE = 0.01  # of the object's size
+DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
 POLISH_ITERATIONS = 6
+FIRST_POLISH_ITERATIONS = 20
 SPREAD = 4  # point lights spread over an emitter a mirror ray hits (per-light coefficients)
 SPREAD_SHARPENING = 0.35  # their exponent: the single light's times count^this (measured: 1, 4, 9 lights ~ 230, 360, 470)
 
@@ -393,10 +393,13 @@ def degenerate_lights(problem, fit):
         for j in range(k):
             if j in bad or fit.pos[j, 3] != fit.pos[k, 3]:
                 continue
+            width = DUPLICATE_LOBE / math.sqrt(max(fit.shininess[j], fit.shininess[k]) + 1.0)
             if fit.pos[k, 3] == 0:
-                same = math.acos(np.clip(np.dot(fit.pos[j, :3], fit.pos[k, :3]), -1, 1)) < DUPLICATE_ANGLE
+                same = math.acos(np.clip(np.dot(fit.pos[j, :3], fit.pos[k, :3]), -1, 1)) < width
             else:
-                same = np.linalg.norm(fit.pos[j, :3] - fit.pos[k, :3]) < DUPLICATE_DISTANCE * problem.size
+                # seen from the object's centre: the same direction and about the same distance
+                a, b = fit.pos[j, :3] - problem.centre, fit.pos[k, :3] - problem.centre
+                same = np.linalg.norm(a - b) < width * max(np.linalg.norm(a), np.linalg.norm(b), problem.size)
             if same and abs(math.log(fit.shininess[j] / fit.shininess[k])) < 0.1:
                 bad.append(k)
                 break
@@ -452,8 +455,11 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
                 pos = [np.append(c, 1.0) for c in problem.scene.spread(hit, count)]
                 rgb = [rgb[0]] * count
                 p = [p[0] * count**SPREAD_SHARPENING] * count
+        first = fit.n_lights == 0
         trial = evaluate(problem, np.vstack([fit.pos, *pos]), np.vstack([fit.rgb, *rgb]), np.append(fit.shininess, p))
-        fit = refine(problem, trial, per_light_exponents=per_light_exponents, max_iterations=polish)
+        # the first light settles the exponent (it starts from a guess): polish it longer
+        fit = refine(problem, trial, per_light_exponents=per_light_exponents,
+                     max_iterations=max(polish, FIRST_POLISH_ITERATIONS) if first else polish)
         if log is not None:
             log(fit)
     fit = refine(problem, fit, per_light_exponents=per_light_exponents, max_iterations=max(iterations - polish, 0))

@@ -293,8 +293,9 @@ def _read_object(archive, name, info, version):
         raise fail(f"'{name}/faces' has vertex indices from {faces.min()} to {faces.max()}, outside [0, {n_v})")
     if (arrays["shininess"] < 0).any():
         raise fail(f"'{name}/shininess' has a negative exponent ({float(arrays['shininess'].min()):g})")
-    if (arrays["specular"] < 0).any() or (arrays["light_rgb"] < 0).any() or (arrays["emitted"] < 0).any():
-        raise fail(f"object {name!r}: emitted, specular and light_rgb must not be negative")
+    for key in ("emitted", "specular", "light_rgb"):
+        if (arrays[key] < 0).any():
+            raise fail(f"'{name}/{key}' has a negative value ({float(arrays[key].min()):g}); it must not be negative")
     if version >= 2:
         w = arrays["light_pos"][:, 3]
         if not np.isin(w, (0.0, 1.0)).all():

@@ -6,7 +6,9 @@ import trimesh
 
 from fitting import FitOptions, fit, load_fit, shade
 from fitting.data import fit_data, relative_error
-from fitting.fit import fit_lights, reconstruct
+from fitting.fit import fit_lights, problem_for, reconstruct
+from fitting.mixed import SceneGeometry
+from fitting.model import directional, shade_arrays
 from fitting.paper import fit_paper, vertex_coefficients
 from fitting.refine import refine
 from radiosity.formats import directions
@@ -39,10 +41,8 @@ def synthetic(rng, lights=3, shininess=40.0, grid=12, noise=0.0, scale=1.0, subd
     local = directions.grid_directions(grid)
     bitangents = np.cross(normals, tangents)
     views = local[None, :, :1] * tangents[:, None] + local[None, :, 1:2] * bitangents[:, None] + local[None, :, 2:] * normals[:, None]
-    from fitting.model import shade_arrays
-
-    radiance = shade_arrays(emitted[:, None], specular[:, None], normals[:, None], light_dirs, light_rgb,
-                            np.full(len(light_dirs), shininess), views)
+    lights = (directional(light_dirs), light_rgb, np.full(len(light_dirs), shininess))
+    radiance = shade_arrays(emitted[:, None], specular[:, None], normals[:, None], positions[:, None], lights, views)
     radiance = radiance * (1 + noise * rng.normal(size=radiance.shape))
     radiance = np.maximum(radiance, 0) * scale
     obj = ObjectSolution(
@@ -52,6 +52,20 @@ def synthetic(rng, lights=3, shininess=40.0, grid=12, noise=0.0, scale=1.0, subd
     )
     truth = {"light_dirs": light_dirs, "light_rgb": light_rgb, "shininess": shininess, "emitted": emitted, "specular": specular}
     return Solution(objects=(obj,), settings={}, stats={}, scene="synthetic"), truth
+
+
+def colours(data, result):
+    """The model of a paper / refine ``FitResult`` (directional, shared) at the data's samples."""
+    lights = (directional(result.light_dirs), result.light_rgb, result.shininess)
+    return shade_arrays(result.emitted[:, None], result.specular[:, None], data.normals[:, None],
+                        data.positions[:, None], lights, data.views)
+
+
+def lights_of(solution, options, k, previous=None):
+    """A refined fit (``mixed.MixedFit``) of the solution's one object with k lights."""
+    obj = solution.objects[0]
+    problem = problem_for(fit_data(obj), options, SceneGeometry.of_solution(solution))
+    return problem, fit_lights(problem, k, options, 4 * obj.material["exponent"] + 1, previous=previous)
 
 
 def angle_deg(a, b):
@@ -67,9 +81,9 @@ def test_refined_fit_recovers_the_lights(rng):
     solution, truth = synthetic(rng, lights=3, shininess=40.0)
     data = fit_data(solution.objects[0])
     paper_result = fit_paper(data, 3)
-    paper_error = relative_error(data, reconstruct(data, paper_result))["relative_rms"]
+    paper_error = relative_error(data, colours(data, paper_result))["relative_rms"]
     refined = refine(data, paper_result, max_iterations=300)
-    error = relative_error(data, reconstruct(data, refined))["relative_rms"]
+    error = relative_error(data, colours(data, refined))["relative_rms"]
     assert paper_error < 0.25  # the heuristic alone: placed at maxima, intensities matched there
     assert error < 1e-3
     assert matched_angles(refined.light_dirs, truth["light_dirs"]).max() < 1.0
@@ -83,7 +97,7 @@ def test_single_light_found_by_the_paper_heuristic_alone(rng):
     result = fit_paper(data, 1)
     # the brightest sample sits on a grid direction: the light is within about a grid cell
     assert matched_angles(result.light_dirs, truth["light_dirs"]).max() < 6.0
-    assert relative_error(data, reconstruct(data, result))["relative_rms"] < 0.2
+    assert relative_error(data, colours(data, result))["relative_rms"] < 0.2
 
 
 def test_per_light_exponents_recover_two_widths(rng):
@@ -92,18 +106,17 @@ def test_per_light_exponents_recover_two_widths(rng):
     start = fit_paper(data, 1)
     refined = refine(data, start, per_light_exponents=True, max_iterations=300)
     assert refined.shininess[0] == pytest.approx(30.0, rel=0.02)
-    assert relative_error(data, reconstruct(data, refined))["relative_rms"] < 1e-3
+    assert relative_error(data, colours(data, refined))["relative_rms"] < 1e-3
 
 
 @pytest.mark.slow  # ~15 s of CPU: six refined fits with warm starts
 def test_adding_a_light_never_increases_the_error(rng):
     solution, _ = synthetic(rng, lights=4, shininess=25.0)
-    data = fit_data(solution.objects[0])
     options = FitOptions(lights=1, method="refined", iterations=60)
     errors, previous = [], None
     for k in range(1, 7):
-        previous = fit_lights(data, k, options, previous=previous)
-        errors.append(relative_error(data, reconstruct(data, previous))["relative_rms"])
+        problem, previous = lights_of(solution, options, k, previous)
+        errors.append(relative_error(problem.data, reconstruct(problem, previous))["relative_rms"])
     assert all(b <= a * (1 + 1e-9) for a, b in zip(errors, errors[1:])), errors
     assert errors[3] < 0.01 * errors[0]  # four true lights: four fitted ones suffice
 
@@ -111,12 +124,11 @@ def test_adding_a_light_never_increases_the_error(rng):
 def test_adding_a_light_never_increases_the_error_small(rng):
     """The fast cousin of the test above: a coarser dome, three lights, short refinements."""
     solution, _ = synthetic(rng, lights=3, shininess=25.0, grid=8, subdivisions=1)
-    data = fit_data(solution.objects[0])
     options = FitOptions(lights=1, method="refined", iterations=20)
     errors, previous = [], None
     for k in range(1, 4):
-        previous = fit_lights(data, k, options, previous=previous)
-        errors.append(relative_error(data, reconstruct(data, previous))["relative_rms"])
+        problem, previous = lights_of(solution, options, k, previous)
+        errors.append(relative_error(problem.data, reconstruct(problem, previous))["relative_rms"])
     assert all(b <= a * (1 + 1e-9) for a, b in zip(errors, errors[1:])), errors
     assert errors[2] < 0.1 * errors[0]
 
@@ -125,7 +137,7 @@ def test_zero_data_gives_zeros(rng):
     solution, _ = synthetic(rng, scale=0.0)
     model = fit(solution, FitOptions(lights=4))
     o = model.objects[0]
-    for a in (o.emitted, o.specular, o.light_rgb, o.light_dirs):
+    for a in (o.emitted, o.specular, o.light_rgb, o.light_pos):
         assert np.isfinite(a).all()
     assert (o.emitted == 0).all() and (o.specular == 0).all()
     assert o.info["error"]["relative_rms"] == 0.0
@@ -138,7 +150,7 @@ def test_scaled_data_scale_the_coefficients(rng, scale):
     options = FitOptions(lights=3, method="paper")
     a, b = fit(base_solution, options).objects[0], fit(scaled_solution, options).objects[0]
     assert np.allclose(b.shininess, a.shininess, rtol=1e-4)
-    assert np.allclose(b.light_dirs, a.light_dirs, atol=1e-4)
+    assert np.allclose(b.light_pos, a.light_pos, atol=1e-4)
     model_a = a.emitted.astype(float), a.specular[:, None] * a.light_rgb[None]
     model_b = b.emitted.astype(float), b.specular[:, None] * b.light_rgb[None]
     assert np.allclose(model_b[0], model_a[0] * scale, rtol=1e-3, atol=1e-6 * scale)
@@ -151,7 +163,7 @@ def test_exponents_at_the_bounds_stay_finite(rng, bounds):
     solution, _ = synthetic(rng, shininess=50.0)
     for method in ("paper", "refined", "per-light"):
         o = fit(solution, FitOptions(lights=3, method=method, exponent_bounds=bounds, iterations=20)).objects[0]
-        for a in (o.emitted, o.specular, o.light_rgb, o.light_dirs, o.shininess):
+        for a in (o.emitted, o.specular, o.light_rgb, o.light_pos, o.shininess):
             assert np.isfinite(a).all()
         assert np.allclose(o.shininess, bounds[0])
 
@@ -171,7 +183,7 @@ def test_directions_only_near_grazing(rng):
     solution, truth = synthetic(rng, lights=2, shininess=20.0,
                                 light_dirs=np.array([[1.0, 0.0, 0.05], [0.0, -1.0, 0.08]]))
     o = fit(solution, FitOptions(lights=2)).objects[0]
-    assert np.isfinite(o.light_dirs).all()
+    assert np.isfinite(o.light_pos).all()
     assert o.info["error"]["relative_rms"] < 0.05
 
 
@@ -180,7 +192,8 @@ def test_noisy_data_stay_stable(rng):
     noisy, _ = synthetic(np.random.default_rng(5), lights=2, shininess=30.0, noise=0.05)
     a = fit(clean, FitOptions(lights=2)).objects[0]
     b = fit(noisy, FitOptions(lights=2)).objects[0]
-    assert matched_angles(b.light_dirs, truth["light_dirs"]).max() < 3.0
+    assert (b.light_pos[:, 3] == 0).all()
+    assert matched_angles(b.light_pos[:, :3], truth["light_dirs"]).max() < 3.0
     assert b.shininess[0] == pytest.approx(a.shininess[0], rel=0.15)
     assert b.info["error"]["relative_rms"] < 0.08  # about the noise itself
 
@@ -205,7 +218,7 @@ def test_vertex_coefficients_closed_form_matches_nnls(rng):
     data = fit_data(solution.objects[0])
     basis = rng.uniform(0, 2, data.radiance.shape)
     target = data.radiance - 0.5 * basis  # pushes some optima to the bounds
-    data_shifted = type(data)(radiance=target, views=data.views, normals=data.normals, weights=data.weights)
+    data_shifted = type(data)(radiance=target, views=data.views, normals=data.normals, weights=data.weights, positions=data.positions)
     e, s, _ = vertex_coefficients(data_shifted, basis)
     for v in range(0, data.n_vertices, 7):
         for c in range(3):
@@ -232,17 +245,17 @@ def test_auto_lights_small(rng):
     model = fit(solution, FitOptions(lights="auto", target=0.02, max_lights=4, method="refined", iterations=20))
     o = model.objects[0]
     assert o.info["error"]["relative_rms"] <= 0.02
-    assert o.n_lights == 3 and o.info["chosen_by"].startswith("auto: smallest K")
+    assert o.n_lights == 3 and o.info["chosen_by"].startswith("auto: fewest")
 
 
 def test_relative_loss_lowers_the_relative_error_of_dim_regions(rng):
     solution, _ = synthetic(rng, lights=5, shininess=60.0, noise=0.02)
     data = fit_data(solution.objects[0])
-    lin = fit_lights(data, 2, FitOptions(lights=2, loss="linear"))
-    rel = fit_lights(data, 2, FitOptions(lights=2, loss="relative"))
+    problem_lin, lin = lights_of(solution, FitOptions(lights=2, loss="linear", coefficients="shared"), 2)
+    problem_rel, rel = lights_of(solution, FitOptions(lights=2, loss="relative", coefficients="shared"), 2)
 
     def relative_to_radiance(result):
-        r = reconstruct(data, result)
+        r = reconstruct(problem_lin, result)
         return np.sqrt(np.sum(data.weights[:, :, None] * ((r - data.radiance) / (data.radiance + 1e-3)) ** 2))
 
     assert relative_to_radiance(rel) < relative_to_radiance(lin)
@@ -256,9 +269,9 @@ def test_fit_file_round_trip_and_shade(rng, tmp_path):
     loaded = load_fit(path)
     with np.load(path, allow_pickle=False) as npz:
         keys = set(npz.files)
-    assert keys == {"meta"} | {f"dome/{k}" for k in ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")}
+    assert keys == {"meta"} | {f"dome/{k}" for k in ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")}
     o, back = model.object("dome"), loaded.object("dome")
-    assert np.array_equal(o.light_dirs, back.light_dirs) and back.info["error"] == pytest.approx(o.info["error"])
+    assert np.array_equal(o.light_pos, back.light_pos) and back.info["error"] == pytest.approx(o.info["error"])
     # shade() reproduces the data the model was fitted to
     data = fit_data(solution.objects[0])
     colours = shade(loaded, "dome", data.views)

@@ -120,5 +120,6 @@ def test_report_shows_no_numbers_for_diffuse_objects(solution_file, tmp_path, ca
     [floor] = [line for line in lines if line.startswith("floor")]
     assert "diffuse, no lights" in floor and "0.0000" not in floor
     [dome] = [line for line in lines if line.startswith("dome")]
-    assert dome.split()[1] == "2" and len(dome.split()) == 7  # name, K, exponent, three errors, time
+    # name, K, kinds (point and directional), floats per vertex, exponent, three errors, time
+    assert dome.split()[1] == "2" and dome.split()[2:4] == ["0P", "2D"] and len(dome.split()) == 10
     assert format_report(load_fit(out), out) == stdout.rstrip("\n")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from fitting import FittedModel, FittedObject, load_fit, shade
+from fitting.model import directional
 from radiosity.formats import Camera, InputError
 
 NAME = "ball"
@@ -21,7 +22,7 @@ def model(rng, n_vertices=5, lights=2, camera=None, info=None):
         faces=np.array([[0, 1, 2], [2, 3, 4]], np.int32)[: max(1, n_vertices - 3)],
         emitted=rng.uniform(0, 1, (n_vertices, 3)).astype(np.float32),
         specular=rng.uniform(0, 1, (n_vertices, 3)).astype(np.float32),
-        light_dirs=dirs.astype(np.float32), light_rgb=rng.uniform(0, 2, (lights, 3)).astype(np.float32),
+        light_pos=directional(dirs).astype(np.float32), light_rgb=rng.uniform(0, 2, (lights, 3)).astype(np.float32),
         shininess=np.full(lights, 30.0, np.float32), info=info or {"method": "paper", "error": {"relative_rms": 0.1}},
     )
     return FittedModel(objects=(obj,), source="scene.toml", model="test", settings={"lights": lights}, camera=camera)
@@ -67,7 +68,7 @@ def test_round_trip_keeps_everything(rng, tmp_path):
     m.save(tmp_path / "fit.npz")
     back = load_fit(tmp_path / "fit.npz")
     a, b = m.object(NAME), back.object(NAME)
-    for key in ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess"):
+    for key in ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess"):
         assert np.array_equal(getattr(a, key), getattr(b, key)), key
     assert b.info == a.info and back.settings == m.settings and back.source == m.source and back.model == m.model
     assert back.camera.eye == camera.eye and back.camera.fov_y_deg == camera.fov_y_deg
@@ -105,7 +106,7 @@ META_CASES = {
     "zero objects": (_set("objects", {}), ["meta 'objects' is empty"]),
     "lights miscounted": (_set_info({"lights": 3}), [f"object {NAME!r}", "3 lights", "hold 2"]),
     "bad camera": (_set("camera", {"eye": [0, 0, 0]}), ["meta 'camera'", "look_at"]),
-    "wrong version": (_set("version", 2), ["version 2"]),
+    "wrong version": (_set("version", 3), ["version 3"]),
     "wrong format": (_set("format", "vlights.solution"), ["format 'vlights.solution'"]),
 }
 
@@ -128,14 +129,17 @@ ARRAY_CASES = {
     "negative shininess": ("shininess", np.array([30.0, -1.0], np.float32), "negative exponent"),
     "NaN": ("emitted", np.full((V, 3), np.nan, np.float32), "NaN or infinite"),
     "infinity": ("light_rgb", np.array([[1, 1, np.inf], [1, 1, 1]], np.float32), "NaN or infinite"),
-    "NaN light direction": ("light_dirs", np.array([[0, 0, 1], [0, np.nan, 1]], np.float32), "NaN or infinite"),
+    "NaN light direction": ("light_pos", np.array([[0, 0, 1, 0], [0, np.nan, 1, 0]], np.float32), "NaN or infinite"),
+    "w neither 0 nor 1": ("light_pos", np.array([[0, 0, 1, 0], [0, 0, 1, 0.5]], np.float32), "w = 0.5"),
+    "negative coefficient": ("specular", -np.ones((V, 3), np.float32), "must not be negative"),
+    "per-light coefficients of other lights": ("specular", np.ones((V, K + 1, 3), np.float32), "expected (5, 3) or (5, 2, 3)"),
     "wrong width": ("specular", np.ones((V, 2), np.float32), "expected (5, 3)"),
     "wrong vertex count": ("normals", np.ones((V + 1, 3), np.float32), "expected (5, 3)"),
     "too many exponents": ("shininess", np.ones(K + 1, np.float32), "expected (2"),
     "colours of other lights": ("light_rgb", np.ones((K + 1, 3), np.float32), "expected (2, 3)"),
     "exponents as a matrix": ("shininess", np.ones((K, 1), np.float32), "expected (2"),
     "positions flat": ("positions", np.ones(3 * V, np.float32), "expected (N, 3)"),
-    "light directions not unit": ("light_dirs", np.array([[0, 0, 2], [0, 0, 1]], np.float32), "not unit"),
+    "light directions not unit": ("light_pos", np.array([[0, 0, 2, 0], [0, 0, 1, 0]], np.float32), "unit vectors"),
 }
 
 
