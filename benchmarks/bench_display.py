@@ -8,7 +8,10 @@ Headless (EGL; on machines without a GPU, Mesa llvmpipe on the CPU), at 1280 x 7
      (fitted, diffuse, reference) and shading (gouraud, pixel), for the demo scene
      (cornell-teapot, draft solve, K = 8 fit) and for a scene of about 1 M triangles
      (the teapot tessellated at 128 segments per patch side, 8 synthetic lights, a
-     synthetic 6 x 6 direction grid for the reference mode);
+     synthetic 6 x 6 direction grid for the reference mode); and for each scene the
+     fitted model turned into Contract 2 version 2's other kind (``variant``: the K = 8
+     lights as point lights, one coefficient per light and vertex, (V, 8, 3)), whose
+     coefficients the shaders read from a texture by vertex id;
   2. bytes each mode needs on the GPU;
   3. the targets: fitted Gouraud within 1.5x the frame time of diffuse-only; the fitted
      model at least 10x smaller than the solution (files and arrays).
@@ -29,42 +32,78 @@ import numpy as np
 from _common import RESULTS, Recorder
 
 CONFIGURATIONS = [(m, s) for m in ("fitted", "diffuse", "reference") for s in ("gouraud", "pixel")]
+STANDARD = "directional, shared"  # the paper's model: distant lights, one coefficient per vertex
+VARIANT = "point, per light"      # version 2's other end: point lights, a coefficient per light
+VARIANT_CONFIGURATIONS = [("fitted", "gouraud"), ("fitted", "pixel")]
 
 
-def frame_times(renderer, view, frames):
-    """Median ms per frame of every (mode, shading), the configurations interleaved frame
-    by frame so that drift in the machine's speed hits them all alike."""
-    for mode, shading in CONFIGURATIONS:  # compile, allocate
+def frame_times(renderers, view, frames):
+    """Median ms per frame of every (lights, mode, shading) of ``renderers`` (a dict of
+    lights kind -> (renderer, configurations)), interleaved frame by frame so that drift
+    in the machine's speed hits them all alike."""
+    runs = [(kind, r, c) for kind, (r, configurations) in renderers.items() for c in configurations]
+    for _, renderer, (mode, shading) in runs:  # compile, allocate
         renderer.draw(view, mode, shading)
-    renderer.ctx.finish()
-    times = {c: [] for c in CONFIGURATIONS}
+        renderer.ctx.finish()
+    times = {(kind, *c): [] for kind, _, c in runs}
     for _ in range(frames):
-        for mode, shading in CONFIGURATIONS:
+        for kind, renderer, (mode, shading) in runs:
             t = time.perf_counter()
             renderer.draw(view, mode, shading)
             renderer.ctx.finish()
-            times[(mode, shading)].append(time.perf_counter() - t)
+            times[(kind, mode, shading)].append(time.perf_counter() - t)
     return {c: float(np.median(t)) * 1000 for c, t in times.items()}
 
 
 def mode_bytes(fit, solution, mode):
-    """GPU bytes a mode needs: vertex attributes and indices (+ light tables, + radiance)."""
+    """GPU bytes a mode needs: vertex attributes and indices (+ light tables and
+    per-light coefficients, + radiance)."""
     objects = (fit or solution).objects
     total = 0
     for o in objects:
         v, f = len(o.positions), len(o.faces)
-        attributes = {"fitted": 4, "diffuse": 2, "reference": 3}[mode]  # vec3 each
+        per_light = mode == "fitted" and o.per_light and o.n_lights > 0
+        attributes = {"fitted": 3 if per_light else 4, "diffuse": 2, "reference": 3}[mode]  # vec3 each
         total += v * attributes * 12 + f * 12
         if mode == "fitted":
-            total += max(o.n_lights, 1) * 32
+            total += max(o.n_lights, 1) * 32 + (v * o.n_lights * 12 if per_light else 0)
     if mode == "reference":
         total += sum(o.radiance.size * 4 for o in solution.objects)
     return int(total)
 
 
+def point_light_variant(model, rng):
+    """``model`` with every glossy object's lights made point lights (each on its light's
+    direction, two bounding radii from the object's centre) and its coefficient split
+    into one per light (the shared one times a random factor in [0.5, 1.5])."""
+    from fitting import FittedModel, FittedObject
+
+    objects = []
+    for o in model.objects:
+        if not o.n_lights:
+            objects.append(o)
+            continue
+        p = np.asarray(o.positions, np.float64)
+        centre = 0.5 * (p.min(axis=0) + p.max(axis=0))
+        radius = 0.5 * np.linalg.norm(p.max(axis=0) - p.min(axis=0))
+        light_pos = np.asarray(o.light_pos, np.float64).copy()
+        directional = light_pos[:, 3] == 0
+        light_pos[directional, :3] = centre + 2 * radius * light_pos[directional, :3]
+        light_pos[:, 3] = 1.0
+        shared = o.specular if not o.per_light else o.specular.mean(axis=1)
+        specular = shared[:, None, :] * rng.uniform(0.5, 1.5, (len(p), o.n_lights, 1))
+        objects.append(FittedObject(name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
+                                    emitted=o.emitted, specular=specular.astype(np.float32),
+                                    light_pos=light_pos.astype(np.float32), light_rgb=o.light_rgb,
+                                    shininess=o.shininess, info=o.info))
+    return FittedModel(objects=tuple(objects), source=model.source, model=model.model, settings=model.settings,
+                       camera=model.camera)
+
+
 def big_scene(rng):
     """About 1 M triangles: the teapot at 128 segments per patch side."""
     from fitting import FittedModel, FittedObject
+    from fitting.model import directional
     from radiosity.formats import directions
     from radiosity.formats.solution import ObjectSolution, Solution
     from radiosity.scene import geometry, teapot
@@ -79,7 +118,7 @@ def big_scene(rng):
     fit = FittedModel(objects=(FittedObject(
         name="teapot", positions=positions.astype(np.float32), normals=normals.astype(np.float32), faces=faces.astype(np.int32),
         emitted=rng.uniform(0, 0.2, (v, 3)).astype(np.float32), specular=rng.uniform(0, 1, (v, 3)).astype(np.float32),
-        light_dirs=dirs.astype(np.float32), light_rgb=rng.uniform(0.5, 2, (8, 3)).astype(np.float32),
+        light_pos=directional(dirs).astype(np.float32), light_rgb=rng.uniform(0.5, 2, (8, 3)).astype(np.float32),
         shininess=np.full(8, 120.0, np.float32)),), source="")
     grid = 6
     solution = Solution(objects=(ObjectSolution(
@@ -129,18 +168,28 @@ def main(argv=None):
         hi = big_fit.objects[0].positions.max(axis=0)
         scenes.append(("teapot 1M triangles", big_fit, big_solution, framing_view(lo, hi, width, height)))
     for name, f, s, view in scenes:
+        variant = point_light_variant(f, np.random.default_rng(1))
         renderer = Renderer(ctx, fit=f, solution=s)
+        variant_renderer = Renderer(ctx, fit=variant)
         triangles = sum(len(o.faces) for o in f.objects)
-        results = frame_times(renderer, view, frames)
-        for (mode, shading), ms in results.items():
-            record({"question": "frame time", "scene": name, "triangles": triangles, "mode": mode, "shading": shading,
-                    "width": width, "height": height, "frame_ms": ms, "bytes": mode_bytes(f, s, mode)})
+        results = frame_times({STANDARD: (renderer, CONFIGURATIONS), VARIANT: (variant_renderer, VARIANT_CONFIGURATIONS)},
+                              view, frames)
+        for (kind, mode, shading), ms in results.items():
+            fit_of = f if kind == STANDARD else variant
+            record({"question": "frame time", "scene": name, "triangles": triangles, "lights": kind, "mode": mode,
+                    "shading": shading, "width": width, "height": height, "frame_ms": ms,
+                    "bytes": mode_bytes(fit_of, s, mode)})
         a = renderer.render(view, "fitted", "pixel")
         b = renderer.render(view, "fitted", "pixel")
+        c = variant_renderer.render(view, "fitted", "pixel")
+        d = variant_renderer.render(view, "fitted", "pixel")
+        diffuse = results[(STANDARD, "diffuse", "gouraud")]
         record({"question": "targets", "scene": name,
-                "fitted_gouraud_over_diffuse": results[("fitted", "gouraud")] / results[("diffuse", "gouraud")],
-                "target": 1.5, "same_image_twice": bool(np.array_equal(a, b))})
+                "fitted_gouraud_over_diffuse": results[(STANDARD, "fitted", "gouraud")] / diffuse,
+                "variant_gouraud_over_diffuse": results[(VARIANT, "fitted", "gouraud")] / diffuse,
+                "target": 1.5, "same_image_twice": bool(np.array_equal(a, b) and np.array_equal(c, d))})
         renderer.release()
+        variant_renderer.release()
 
     record.save("display.jsonl")
     plot(rows, RESULTS / "display.png")
@@ -154,11 +203,16 @@ def plot(rows, path):
     import matplotlib.pyplot as plt
 
     scenes = list(dict.fromkeys(r["scene"] for r in rows if r["question"] == "frame time"))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4), squeeze=False)
+    fig, axes = plt.subplots(1, len(scenes), figsize=(7.5 * len(scenes), 4), squeeze=False)
+    colours = {"fitted": "tab:orange", "diffuse": "tab:green", "reference": "tab:blue"}
     for ax, scene in zip(axes[0], scenes):
         sel = [r for r in rows if r["question"] == "frame time" and r["scene"] == scene]
-        labels = [f"{r['mode']}\n{r['shading']}" for r in sel]
-        ax.bar(labels, [r["frame_ms"] for r in sel], color=["tab:orange", "tab:orange", "tab:green", "tab:green", "tab:blue", "tab:blue"])
+        variant = [r.get("lights", STANDARD) == VARIANT for r in sel]
+        suffix = " (point,\nper light)"
+        labels = [f"{r['mode']}{suffix if v else ''}\n{r['shading']}" for r, v in zip(sel, variant)]
+        ax.bar(labels, [r["frame_ms"] for r in sel], color=[colours[r["mode"]] for r in sel],
+               edgecolor=["black" if v else "none" for v in variant])
+        ax.tick_params(axis="x", labelsize=7)
         ax.set_ylabel("frame time (ms)")
         ax.set_title(f"{scene} ({sel[0]['triangles']:,} triangles), {sel[0]['width']}x{sel[0]['height']}")
     fig.suptitle(rows[0].get("gl_renderer", ""), fontsize=9)

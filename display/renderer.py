@@ -5,7 +5,10 @@ into its own float framebuffer and reads back linear radiance, (H, W, 3) float32
 at the top, background 0. Exposure and sRGB come last, in ``tonemap``.
 
 Modes
-    fitted     the fitted model's shading formula (``fitting.model``; any number of lights per object)
+    fitted     the fitted model's shading formula (``fitting.model.shade_arrays``): any number
+               of lights per object, directional and point lights mixed (GL_POSITION w = 0
+               or 1, the light vector taken from the shaded point), coefficients shared
+               by the lights or one per light
     diffuse    the emitted colour alone: the fitted model without its virtual lights
                (the paper's figure 7); from a solution alone, its radiance averaged
                over directions
@@ -13,9 +16,10 @@ Modes
                of each vertex (read in that vertex's frame) for the view direction
 Shading
     gouraud    evaluated at the vertices and interpolated (as in 1997)
-    pixel      evaluated per fragment: for "fitted" with interpolated normal and
-               coefficients, for "reference" the three vertices' grids read with the
-               fragment's own view direction and blended barycentrically
+    pixel      evaluated per fragment: for "fitted" at the interpolated position with
+               the interpolated normal and coefficients, for "reference" the three
+               vertices' grids read with the fragment's own view direction and blended
+               barycentrically
 """
 
 from __future__ import annotations
@@ -31,26 +35,54 @@ from .gl import check_image_size
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
-RADIANCE_TEXTURE_WIDTH = 4096
+FLOAT_TEXTURE_WIDTH = 4096
+RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
 
 SHADE_GLSL = """
-uniform int n_lights;
-uniform sampler2D lights;   // row k: (direction, shininess), (rgb, 0)
-vec3 shade(vec3 n, vec3 w, vec3 emitted, vec3 specular) {
+uniform int n_lights;          // lights drawn: the object's first n_lights (--lights)
+uniform int light_stride;      // the object's K: per-light coefficients per vertex
+uniform int per_light;         // 1: light k's coefficient of vertex v is texel coefficient_base + v * K + k
+uniform int coefficient_base;
+uniform sampler2D lights;      // row k: (light_pos xyzw as GL_POSITION), (rgb, shininess)
+uniform sampler2D coefficients;
+const int COEFFICIENT_WIDTH = FLOAT_TEXTURE_WIDTH;
+const float NEGLIGIBLE = 30.0;  // fitting.lobes.NEGLIGIBLE: the lobe is 0 where (1 - c) p > 30
+vec3 coefficient_at(int vertex, int k) {
+    int i = coefficient_base + vertex * light_stride + k;
+    return texelFetch(coefficients, ivec2(i % COEFFICIENT_WIDTH, i / COEFFICIENT_WIDTH), 0).rgb;
+}
+// light k's lobe times its colour at point x, unit normal n, unit w towards the eye
+vec3 light_term(int k, vec3 n, vec3 x, vec3 w) {
+    vec4 p = texelFetch(lights, ivec2(0, k), 0);
+    vec4 rgb_p = texelFetch(lights, ivec2(1, k), 0);
+    vec3 l = p.xyz - p.w * x;      // l_k(x) = normalize(xyz - w x)
+    float l_len = length(l);
+    if (!(l_len > 0.0)) return vec3(0.0);   // a point light at x: no light
+    vec3 h = l / l_len + w;
+    float h_len = length(h);
+    if (!(h_len > 0.0)) return vec3(0.0);
+    float c = dot(n, h) / h_len;
+    if (!(c > 0.0) || (1.0 - c) * rgb_p.a > NEGLIGIBLE) return vec3(0.0);
+    return pow(c, rgb_p.a) * rgb_p.rgb;
+}
+// the shading formula; per-light coefficients are the three vertices' blended by weights
+// (per pixel: barycentrics; at a vertex: (v, v, v), (1, 0, 0))
+vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) {
     vec3 colour = emitted;
     for (int k = 0; k < n_lights; ++k) {
-        vec4 a = texelFetch(lights, ivec2(0, k), 0);
-        vec3 rgb = texelFetch(lights, ivec2(1, k), 0).rgb;
-        vec3 h = a.xyz + w;
-        float len = length(h);
-        if (len > 0.0) {
-            float c = dot(n, h) / len;
-            if (c > 0.0) colour += pow(c, a.w) * rgb * specular;
+        vec3 term = light_term(k, n, x, w);
+        if (all(equal(term, vec3(0.0)))) continue;
+        vec3 c = specular;
+        if (per_light == 1) {
+            c = weights.x * coefficient_at(vertices.x, k);
+            if (weights.y != 0.0) c += weights.y * coefficient_at(vertices.y, k);
+            if (weights.z != 0.0) c += weights.z * coefficient_at(vertices.z, k);
         }
+        colour += term * c;
     }
     return colour;
 }
-"""
+""".replace("FLOAT_TEXTURE_WIDTH", str(FLOAT_TEXTURE_WIDTH))
 
 FITTED_VS = """
 #version 330
@@ -73,7 +105,9 @@ void main() {
     v_normal = in_normal;
     v_emitted = in_emitted;
     v_specular = in_specular;
-    v_colour = gouraud == 1 ? shade(normalize(in_normal), normalize(eye - in_position), in_emitted, in_specular) : vec3(0.0);
+    v_colour = gouraud == 1 ? shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted,
+                                    in_specular, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0))
+                            : vec3(0.0);
 }
 """
 
@@ -89,7 +123,8 @@ out vec3 v_colour;
 """ + SHADE_GLSL + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
-    v_colour = shade(normalize(in_normal), normalize(eye - in_position), in_emitted, in_specular);
+    v_colour = shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted, in_specular,
+                     ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
 }
 """
 
@@ -106,29 +141,113 @@ in vec3 v_colour;
 out vec4 f_colour;
 """ + SHADE_GLSL + """
 void main() {
-    vec3 c = gouraud == 1 ? v_colour : shade(normalize(v_normal), normalize(eye - v_position), v_emitted, v_specular);
+    vec3 c = gouraud == 1 ? v_colour : shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted,
+                                             v_specular, ivec3(0), vec3(1.0, 0.0, 0.0));
     f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
 }
 """
 
-ATTRIBUTES_FS = """
+# Per pixel with per-light coefficients: a geometry shader hands each fragment its
+# triangle's three vertex ids (flat) and barycentrics (interpolated like any varying),
+# and the fragment blends the three vertices' coefficients of each light from the texture.
+FITTED_PIXEL_VS = """
 #version 330
+uniform mat4 mvp;
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_emitted;
+in vec3 in_specular;
+out vec3 g_position;
+out vec3 g_normal;
+out vec3 g_emitted;
+out vec3 g_specular;
+flat out int g_vertex;
+void main() {
+    gl_Position = mvp * vec4(in_position, 1.0);
+    g_position = in_position;
+    g_normal = in_normal;
+    g_emitted = in_emitted;
+    g_specular = in_specular;
+    g_vertex = gl_VertexID;
+}
+"""
+
+FITTED_PIXEL_GS = """
+#version 330
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+in vec3 g_position[];
+in vec3 g_normal[];
+in vec3 g_emitted[];
+in vec3 g_specular[];
+flat in int g_vertex[];
+out vec3 v_position;
+out vec3 v_normal;
+out vec3 v_emitted;
+out vec3 v_specular;
+out vec3 v_bary;
+flat out ivec3 v_vertices;
+void main() {
+    for (int i = 0; i < 3; ++i) {
+        gl_Position = gl_in[i].gl_Position;
+        v_position = g_position[i];
+        v_normal = g_normal[i];
+        v_emitted = g_emitted[i];
+        v_specular = g_specular[i];
+        v_bary = vec3(i == 0, i == 1, i == 2);
+        v_vertices = ivec3(g_vertex[0], g_vertex[1], g_vertex[2]);
+        EmitVertex();
+    }
+    EndPrimitive();
+}
+"""
+
+FITTED_PIXEL_FS = """
+#version 330
+uniform vec3 eye;
+uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
 in vec3 v_position;
 in vec3 v_normal;
 in vec3 v_emitted;
 in vec3 v_specular;
-in vec3 v_colour;
+in vec3 v_bary;
+flat in ivec3 v_vertices;
+out vec4 f_colour;
+""" + SHADE_GLSL + """
+void main() {
+    vec3 c = shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_vertices, v_bary);
+    f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
+}
+"""
+
+# What the per-pixel programs interpolate, for tests: each object through the program
+# that draws it (rasterisation with and without a geometry shader may differ by an ulp),
+# the vertex ids and barycentrics only through the geometry shader's (-1 and 0 without).
+ATTRIBUTES_FS = """
+#version 330
+uniform int object_index;
+in vec3 v_position;
+in vec3 v_normal;
+in vec3 v_emitted;
+in vec3 v_specular;
+TRIANGLE_INPUTS
 layout(location = 0) out vec4 f_position;
 layout(location = 1) out vec4 f_normal;
 layout(location = 2) out vec4 f_emitted;
 layout(location = 3) out vec4 f_specular;
+layout(location = 4) out vec4 f_bary;
+layout(location = 5) out vec4 f_vertices;
 void main() {
     f_position = vec4(v_position, 1.0);
     f_normal = vec4(v_normal, 0.0);
     f_emitted = vec4(v_emitted, 0.0);
     f_specular = vec4(v_specular, 0.0);
+    f_bary = vec4(v_bary, 0.0);
+    f_vertices = vec4(vec3(v_vertices), float(object_index));
 }
 """
+ATTRIBUTES_PIXEL_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "in vec3 v_bary;\nflat in ivec3 v_vertices;")
+ATTRIBUTES_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "const vec3 v_bary = vec3(0.0);\nconst ivec3 v_vertices = ivec3(-1);")
 
 LOOKUP_GLSL = """
 uniform sampler2D radiance;  // every object's radiance, texel base + vertex * D + d
@@ -288,6 +407,9 @@ class _Object:
         self.index = ctx.buffer(np.asarray(faces, np.int32).tobytes())
         self.lights = None
         self.n_lights = 0
+        self.per_light = False  # True: (V, K, 3) coefficients in the renderer's coefficient texture
+        self.coefficient_base = 0
+        self.specular = None  # the fitted coefficients as given, (V, 3) or (V, K, 3) (render_attributes)
         self.base = 0
         self.grid_n = 0
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
@@ -296,8 +418,12 @@ class _Object:
         self.buffers[attribute] = ctx.buffer(np.asarray(values, np.float32).tobytes())
         self.bytes += self.buffers[attribute].size
 
-    def vao(self, ctx, program, attributes):
-        content = [(self.buffers[a], "3f", a) for a in attributes if a in program]
+    def vao(self, ctx, program, attributes, indexed=True):
+        # an attribute with no buffer (in_specular of per-light coefficients) reads the
+        # generic value, unused by the shaders
+        content = [(self.buffers[a], "3f", a) for a in attributes if a in program and a in self.buffers]
+        if not indexed:
+            return ctx.vertex_array(program, content)
         return ctx.vertex_array(program, content, index_buffer=self.index, index_element_size=4)
 
     def release(self):
@@ -307,9 +433,39 @@ class _Object:
             self.lights.release()
 
 
+def _float_texture(ctx, values, what):
+    """(N, 3) float values as an RGB32F texture FLOAT_TEXTURE_WIDTH texels wide, value i
+    at texel (i % width, i // width); InputError if it exceeds the context's textures."""
+    width = FLOAT_TEXTURE_WIDTH
+    height = max(1, math.ceil(len(values) / width))
+    if height > ctx.info["GL_MAX_TEXTURE_SIZE"]:
+        raise InputError(f"{what} ({len(values):,} values) exceeds this OpenGL's texture size")
+    data = np.zeros((height * width, 3), np.float32)
+    data[: len(values)] = values
+    texture = ctx.texture((width, height), 3, data.tobytes(), dtype="f4")
+    texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return texture
+
+
+def light_table(light_pos, light_rgb, shininess):
+    """The (K, 2, 4) float32 table the shaders read: row k = (light_pos xyzw), (rgb, shininess)."""
+    k = len(light_pos)
+    table = np.zeros((max(k, 1), 2, 4), np.float32)
+    table[:k, 0] = np.asarray(light_pos, np.float32).reshape(k, 4)
+    table[:k, 1, :3] = np.asarray(light_rgb, np.float32).reshape(k, 3)
+    table[:k, 1, 3] = np.asarray(shininess, np.float32).reshape(k)
+    return table
+
+
 class Renderer:
     """Draws ``fit`` (a ``fitting.FittedModel``) and/or ``solution`` (a
-    ``radiosity.formats.solution.Solution``) with a moderngl context ``ctx``."""
+    ``radiosity.formats.solution.Solution``) with a moderngl context ``ctx``.
+
+    Each object's lights are a (2, K) float texture (``light_table``). Coefficients
+    shared by the lights ((V, 3)) are a vertex attribute; per-light ones ((V, K, 3))
+    are one RGB32F texture for all objects, light k of vertex v at texel
+    base + v K + k, read by vertex id: ``gl_VertexID`` for Gouraud, and per pixel the
+    triangle's three ids (flat, from a geometry shader) blended by barycentrics."""
 
     def __init__(self, ctx, fit=None, solution=None):
         if fit is None and solution is None:
@@ -322,22 +478,36 @@ class Renderer:
         positions = np.concatenate([o.positions for o in self.objects])
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
         self.radiance = None
+        self.coefficients = None
         if fit is not None:
-            for obj, f in zip(self.objects, fit.objects):
-                obj.add(ctx, "in_emitted", f.emitted)
-                obj.add(ctx, "in_specular", f.specular)
-                obj.n_lights = f.n_lights
-                table = np.zeros((max(f.n_lights, 1), 2, 4), np.float32)
-                table[: f.n_lights, 0, :3] = f.light_dirs
-                table[: f.n_lights, 0, 3] = f.shininess
-                table[: f.n_lights, 1, :3] = f.light_rgb
-                obj.lights = ctx.texture((2, len(table)), 4, table.tobytes(), dtype="f4")
-                obj.lights.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._upload_fit(fit)
         if solution is not None:
             self._upload_solution(solution)
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
+
+    def _upload_fit(self, fit):
+        ctx = self.ctx
+        chunks, base = [], 0
+        for obj, f in zip(self.objects, fit.objects):
+            obj.add(ctx, "in_emitted", f.emitted)
+            obj.n_lights = f.n_lights
+            obj.per_light = bool(f.per_light) and f.n_lights > 0
+            obj.specular = np.asarray(f.specular, np.float32)
+            if obj.per_light:
+                obj.coefficient_base = base
+                values = obj.specular.reshape(-1, 3)
+                chunks.append(values)
+                base += len(values)
+            else:
+                obj.add(ctx, "in_specular", obj.specular.reshape(-1, 3) if f.n_lights else np.zeros((obj.n_vertices, 3)))
+            obj.lights = ctx.texture((2, max(f.n_lights, 1)), 4, light_table(*f.lights).tobytes(), dtype="f4")
+            obj.lights.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        values = np.concatenate(chunks) if chunks else np.zeros((1, 3), np.float32)
+        self.coefficients = _float_texture(
+            ctx, values, "the fitted model's per-light coefficients (vertices x lights)"
+        )
 
     def _upload_solution(self, solution):
         ctx = self.ctx
@@ -356,32 +526,29 @@ class Renderer:
             values = np.asarray(s.radiance, np.float32).reshape(-1, 3)
             chunks.append(values)
             base += len(values)
-        width = RADIANCE_TEXTURE_WIDTH
-        height = max(1, math.ceil(base / width))
-        limit = ctx.info["GL_MAX_TEXTURE_SIZE"]
-        if height > limit:
-            raise InputError(
-                f"the solution's radiance ({base:,} values) exceeds this OpenGL's texture size; use a coarser --grid or --max-edge"
-            )
-        data = np.zeros((height * width, 3), np.float32)
-        data[:base] = np.concatenate(chunks)
-        self.radiance = ctx.texture((width, height), 3, data.tobytes(), dtype="f4")
-        self.radiance.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        try:
+            self.radiance = _float_texture(ctx, np.concatenate(chunks), "the solution's radiance")
+        except InputError as exc:
+            raise InputError(f"{exc}; use a coarser --grid or --max-edge") from None
 
     @property
     def uploaded_bytes(self):
-        """Bytes on the GPU: vertex and index buffers, light tables, radiance texture."""
+        """Bytes on the GPU: vertex and index buffers, light tables, coefficient and radiance textures."""
         total = sum(o.bytes for o in self.objects)
         total += sum(o.lights.width * o.lights.height * 16 for o in self.objects if o.lights is not None)
-        if self.radiance is not None:
-            total += self.radiance.width * self.radiance.height * 12
+        for texture in (self.radiance, self.coefficients):
+            if texture is not None:
+                total += texture.width * texture.height * 12
         return total
 
     def _program(self, key):
         if key not in self._programs:
+            pixel = dict(vertex_shader=FITTED_PIXEL_VS, geometry_shader=FITTED_PIXEL_GS)
             sources = {
                 "fitted": dict(vertex_shader=FITTED_VS, fragment_shader=FITTED_FS),
+                "fitted-pixel": dict(pixel, fragment_shader=FITTED_PIXEL_FS),
                 "attributes": dict(vertex_shader=FITTED_VS, fragment_shader=ATTRIBUTES_FS),
+                "attributes-pixel": dict(pixel, fragment_shader=ATTRIBUTES_PIXEL_FS),
                 "reference-gouraud": dict(vertex_shader=REFERENCE_GOURAUD_VS, fragment_shader=COLOUR_FS),
                 "reference-pixel": dict(
                     vertex_shader=REFERENCE_PIXEL_VS, geometry_shader=REFERENCE_PIXEL_GS, fragment_shader=REFERENCE_PIXEL_FS
@@ -407,6 +574,30 @@ class Renderer:
         if name in program:
             program[name].value = value
 
+    def _light_count(self, obj, mode, lights):
+        """How many of ``obj``'s lights a ``mode`` draws with ``lights`` (None: all)."""
+        n = 0 if mode == "diffuse" or obj.lights is None else obj.n_lights
+        return n if lights is None else max(0, min(n, lights))
+
+    def _bind_fitted(self, program, obj, n):
+        """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights."""
+        if obj.lights is not None:
+            obj.lights.use(location=1)
+        if self.coefficients is not None:
+            self.coefficients.use(location=2)
+        self._set(program, "lights", 1)
+        self._set(program, "coefficients", 2)
+        self._set(program, "n_lights", n)
+        self._set(program, "light_stride", obj.n_lights)
+        self._set(program, "per_light", int(obj.per_light))
+        self._set(program, "coefficient_base", obj.coefficient_base)
+
+    def _bind_reference(self, program, obj):
+        self.radiance.use(location=0)
+        self._set(program, "radiance", 0)
+        self._set(program, "base", obj.base)
+        self._set(program, "grid_n", obj.grid_n)
+
     def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None):
         """Draw into the renderer's float framebuffer for this size (reused between calls,
         released with the renderer) and return it. With ``mask`` (a
@@ -428,32 +619,36 @@ class Renderer:
         ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)  # one-sided surfaces are still seen from behind
-        if program_key is None and mode in ("fitted", "diffuse"):
-            # per vertex: the colour alone crosses to the fragments; per pixel: the coefficients
-            program_key = "gouraud" if shading == "gouraud" and mask is None else "fitted"
-        key = program_key or f"reference-{shading}"
-        program = self._program(key)
         mvp = self._matrices(view)
-        program["mvp"].write(mvp)
-        self._set(program, "eye", tuple(float(v) for v in view.eye))
-        self._set(program, "gouraud", int(shading == "gouraud"))
-        for obj in self.objects:
+        eye = tuple(float(v) for v in view.eye)
+        ready = set()
+        for index, obj in enumerate(self.objects):
+            key = program_key
+            n = self._light_count(obj, mode, lights)
+            pixel = shading == "pixel" and obj.per_light  # per-light coefficients by vertex ids and barycentrics
+            if key == "attributes":  # what the per-pixel program of this object sees
+                key = "attributes-pixel" if pixel else "attributes"
+            elif key is None and mode == "reference":
+                key = f"reference-{shading}"
+            elif key is None:
+                # per vertex: the colour alone crosses to the fragments; per pixel: the
+                # coefficients (per-light ones through the geometry shader's program,
+                # in every mode, so that all modes rasterise alike)
+                key = "gouraud" if shading == "gouraud" and mask is None else "fitted-pixel" if pixel else "fitted"
+            program = self._program(key)
+            if key not in ready:
+                program["mvp"].write(mvp)
+                self._set(program, "eye", eye)
+                self._set(program, "gouraud", int(shading == "gouraud"))
+                ready.add(key)
             if key.startswith("reference"):
-                self.radiance.use(location=0)
-                self._set(program, "radiance", 0)
-                self._set(program, "base", obj.base)
-                self._set(program, "grid_n", obj.grid_n)
+                self._bind_reference(program, obj)
                 attributes = ("in_position", "in_normal", "in_tangent")
             else:
-                n = 0 if mode == "diffuse" or obj.lights is None else obj.n_lights
-                if lights is not None:
-                    n = min(n, lights)
-                if obj.lights is not None:
-                    obj.lights.use(location=1)
-                self._set(program, "lights", 1)
-                self._set(program, "n_lights", n)
+                self._bind_fitted(program, obj, n)
                 flat = (0.0, 0.0, 0.0, 0.0) if mask is None else ((1.0,) * 3 + (1.0,) if obj.name in mask else (0.0, 0.0, 0.0, 1.0))
                 self._set(program, "flat_colour", flat)
+                self._set(program, "object_index", index)
                 attributes = ("in_position", "in_normal", "in_emitted", "in_specular")
             vao = obj.vao(ctx, program, attributes)
             vao.render(moderngl.TRIANGLES)
@@ -470,12 +665,53 @@ class Renderer:
         """(H, W) bool: pixels where one of the objects ``names`` is the visible surface."""
         return self._read(self.draw(view, "diffuse", "pixel", mask=set(names)), 0)[..., 0] > 0.5
 
+    def _attribute_targets(self, view):
+        """One draw of the attributes program: its six targets read back (H, W, 4)."""
+        fbo = self.draw(view, "fitted", "pixel", targets=6, program_key="attributes")
+        return [self._read(fbo, i, components=4) for i in range(6)]
+
+    @staticmethod
+    def _triangles(targets):
+        covered = targets[0][..., 3] > 0  # alpha of target 0 marks coverage
+        ids = targets[5]  # vertex ids as float32: exact below 2^24
+        obj = np.where(covered, np.rint(ids[..., 3]).astype(np.int64), -1)
+        return obj, np.where(covered[..., None], np.rint(ids[..., :3]).astype(np.int64), -1), targets[4][..., :3]
+
+    def render_triangles(self, view):
+        """What each pixel's fragment interpolates from: (object (H, W) int, -1 for the
+        background; vertices (H, W, 3) int, its triangle's vertex ids; barycentrics
+        (H, W, 3) float32), row 0 at the top. Ids and barycentrics come from the
+        geometry shader of the per-light program: for objects whose coefficients are
+        shared (drawn without it) they are -1 and 0."""
+        return self._triangles(self._attribute_targets(view))
+
     def render_attributes(self, view):
         """Per-pixel interpolated (position, normal, emitted, specular, coverage) as
-        float arrays, row 0 at the top: what the per-pixel shader sees (for tests)."""
-        fbo = self.draw(view, "fitted", "pixel", targets=4, program_key="attributes")
-        out = [self._read(fbo, i, components=4) for i in range(4)]  # alpha of target 0 marks coverage
-        return out[0][..., :3], out[1][..., :3], out[2][..., :3], out[3][..., :3], out[0][..., 3] > 0
+        float arrays, row 0 at the top: what the per-pixel shader sees (for tests).
+
+        specular is (H, W, 3) when every object shares its coefficient among its lights;
+        when one has per-light coefficients, (H, W, K, 3) for K the most lights of an
+        object: per-light ones blended with the fragment's barycentrics over its
+        triangle's vertices (float64, as the fragment shader blends them), shared ones
+        repeated for each light, zero past an object's own lights."""
+        targets = self._attribute_targets(view)
+        position, normal, emitted, specular = (t[..., :3] for t in targets[:4])
+        covered = targets[0][..., 3] > 0
+        if any(o.per_light for o in self.objects):
+            obj_index, vertices, bary = self._triangles(targets)
+            k_max = max(o.n_lights for o in self.objects)
+            per_light = np.zeros(specular.shape[:2] + (k_max, 3))
+            for i, o in enumerate(self.objects):
+                here = obj_index == i
+                if not here.any() or not o.n_lights:
+                    continue
+                if o.per_light:
+                    c = np.asarray(o.specular, np.float64)[vertices[here]]  # (P, 3 vertices, K, 3)
+                    per_light[here, : o.n_lights] = np.einsum("pv,pvkc->pkc", bary[here].astype(np.float64), c)
+                else:
+                    per_light[here, : o.n_lights] = specular[here][:, None, :]
+            specular = per_light
+        return position, normal, emitted, specular, covered
 
     def vertex_colours(self, view, name, mode="fitted", lights=None):
         """The Gouraud vertex shader's colours (V, 3) of object ``name`` for ``mode``,
@@ -485,21 +721,13 @@ class Renderer:
         obj = next(o for o in self.objects if o.name == name)
         program["mvp"].write(self._matrices(view))
         self._set(program, "eye", tuple(float(v) for v in view.eye))
-        self._set(program, "gouraud", 1)
         if mode == "reference":
-            self.radiance.use(location=0)
-            self._set(program, "radiance", 0)
-            self._set(program, "base", obj.base)
-            self._set(program, "grid_n", obj.grid_n)
+            self._bind_reference(program, obj)
             attributes = ("in_position", "in_normal", "in_tangent")
         else:
-            n = 0 if mode == "diffuse" else (obj.n_lights if lights is None else min(lights, obj.n_lights))
-            obj.lights.use(location=1)
-            self._set(program, "lights", 1)
-            self._set(program, "n_lights", n)
+            self._bind_fitted(program, obj, self._light_count(obj, mode, lights))
             attributes = ("in_position", "in_normal", "in_emitted", "in_specular")
-        content = [(obj.buffers[a], "3f", a) for a in attributes if a in program]
-        vao = self.ctx.vertex_array(program, content)
+        vao = obj.vao(self.ctx, program, attributes, indexed=False)  # gl_VertexID = 0 .. V-1
         out = self.ctx.buffer(reserve=obj.n_vertices * 12)
         if self._scratch is None:  # transform feedback writes nothing without a bound framebuffer
             self._scratch = self.ctx.simple_framebuffer((1, 1))
@@ -528,8 +756,9 @@ class Renderer:
             o.release()
         for p in self._programs.values():
             p.release()
-        if self.radiance is not None:
-            self.radiance.release()
+        for texture in (self.radiance, self.coefficients):
+            if texture is not None:
+                texture.release()
         if self._scratch is not None:
             self._scratch.release()
         for fbo in self._framebuffers.values():

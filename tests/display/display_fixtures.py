@@ -5,6 +5,7 @@ tile (glossy, one virtual light) in front of it, seen by the framing view from -
 import numpy as np
 
 from fitting import FittedModel, FittedObject
+from fitting.model import directional
 from radiosity.formats import directions
 from radiosity.formats.solution import ObjectSolution, Solution
 
@@ -48,7 +49,7 @@ def tiny_fit(solution, lights=1):
             name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
             emitted=o.radiance.mean(axis=1).astype(np.float32),
             specular=np.full((o.num_vertices, 3), 0.5 if k else 0.0, np.float32),
-            light_dirs=dirs.reshape(k, 3), light_rgb=np.full((k, 3), 1.5, np.float32),
+            light_pos=directional(dirs.reshape(k, 3)), light_rgb=np.full((k, 3), 1.5, np.float32),
             shininess=np.full(k, 10.0, np.float32),
         ))
     return FittedModel(objects=tuple(objects), source="test")

@@ -100,7 +100,7 @@ def test_a_fit_with_no_light_of_its_own_compares(tmp_path, cli, gl_context):
     lit = tiny_fit(solution, lights=0)
     dark = FittedModel(objects=tuple(
         FittedObject(name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
-                     emitted=np.zeros_like(o.emitted), specular=o.specular, light_dirs=o.light_dirs,
+                     emitted=np.zeros_like(o.emitted), specular=o.specular, light_pos=o.light_pos,
                      light_rgb=o.light_rgb, shininess=o.shininess)
         for o in lit.objects))
     solution.save(tmp_path / "solution.npz")

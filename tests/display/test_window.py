@@ -43,13 +43,14 @@ def test_window_opens_draws_switches_mode_and_screenshots(x_display, tmp_path):
     import trimesh
 
     from fitting import FittedModel, FittedObject
+    from fitting.model import directional
 
     s = trimesh.creation.icosphere(subdivisions=2)
     n = len(s.vertices)
     obj = FittedObject(
         name="ball", positions=np.asarray(s.vertices, np.float32), normals=np.asarray(s.vertex_normals, np.float32),
         faces=np.asarray(s.faces, np.int32), emitted=np.full((n, 3), 0.1, np.float32), specular=np.ones((n, 3), np.float32),
-        light_dirs=np.array([[0.3, 0.5, 0.8]], np.float32) / np.linalg.norm([0.3, 0.5, 0.8]),
+        light_pos=directional(np.array([[0.3, 0.5, 0.8]]) / np.linalg.norm([0.3, 0.5, 0.8])),
         light_rgb=np.array([[2.0, 1.5, 1.0]], np.float32), shininess=np.array([20.0], np.float32),
     )
     model_path = tmp_path / "fit.npz"
@@ -60,6 +61,35 @@ def test_window_opens_draws_switches_mode_and_screenshots(x_display, tmp_path):
     assert not np.array_equal(fitted, diffuse)
     brighter = view(x_display, model_path, tmp_path, "bright", "--press", "++")
     assert brighter.astype(int).sum() > fitted.astype(int).sum()
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_window_draws_point_lights_with_per_light_coefficients(x_display, tmp_path):
+    # version 2: a directional and two point lights, a coefficient per light; L (2 / all
+    # lights) drops the third light, G switches to Gouraud
+    import trimesh
+
+    from fitting import FittedModel, FittedObject
+
+    s = trimesh.creation.icosphere(subdivisions=3)
+    n = len(s.vertices)
+    specular = np.ones((n, 3, 3), np.float32)
+    specular[:, 2] *= 3.0
+    obj = FittedObject(
+        name="ball", positions=np.asarray(s.vertices, np.float32), normals=np.asarray(s.vertex_normals, np.float32),
+        faces=np.asarray(s.faces, np.int32), emitted=np.full((n, 3), 0.05, np.float32), specular=specular,
+        light_pos=np.array([[0.0, 0.6, 0.8, 0.0], [1.2, 0.5, 1.5, 1.0], [-1.0, -0.6, 1.6, 1.0]], np.float32),
+        light_rgb=np.array([[1.0, 0.8, 0.6], [0.6, 0.8, 1.0], [1.0, 0.3, 0.3]], np.float32),
+        shininess=np.array([30.0, 60.0, 20.0], np.float32),
+    )
+    model_path = tmp_path / "fit.npz"
+    FittedModel(objects=(obj,), source="").save(model_path)
+    every = view(x_display, model_path, tmp_path, "all")
+    two = view(x_display, model_path, tmp_path, "two", "--press", "l")
+    gouraud = view(x_display, model_path, tmp_path, "gouraud", "--press", "g")
+    assert every.max() > 50 and two.max() > 50 and gouraud.max() > 50
+    assert two.astype(int).sum() < every.astype(int).sum()  # the third light's highlight is gone
+    assert not np.array_equal(every, gouraud)
 
 
 def test_view_without_a_display_says_so(tmp_path):
