@@ -54,6 +54,8 @@ AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
 DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
 POLISH_ITERATIONS = 6
+MEETING_RAYS = 256  # the strongest vertices whose mirror rays locate a light
+FAR = 1e4  # a point light with nothing to locate it starts this many object sizes away
 FIRST_POLISH_ITERATIONS = 20
 SPREAD = 4  # point lights spread over an emitter a mirror ray hits (per-light coefficients)
 SPREAD_SHARPENING = 0.35  # their exponent: the single light's times count^this (measured: 1, 4, 9 lights ~ 230, 360, 470)
@@ -220,7 +222,10 @@ def model_colours(problem, lights, emitted, specular):
 
 
 def evaluate(problem, pos, rgb, shininess):
-    """A ``MixedFit`` with the optimal coefficients for these lights."""
+    """A ``MixedFit`` with the optimal coefficients for these lights (with per-light
+    coefficients the lights' colours are ones: the coefficients carry the colour)."""
+    if problem.per_light:
+        rgb = np.ones((len(np.reshape(pos, (-1, 4))), 3))
     lights = MixedLights(np.ascontiguousarray(pos, np.float64).reshape(-1, 4), np.ascontiguousarray(rgb, np.float64).reshape(-1, 3),
                          np.ascontiguousarray(shininess, np.float64).reshape(-1))
     e, s, err = coefficients(problem, lights)
@@ -311,10 +316,15 @@ def refine(problem, start, *, per_light_exponents=False, max_iterations=50):
     x0 = params.pack(clipped)
     evaluations = 0
 
+    # the optimiser sees the error relative to the data's energy: its tolerances then
+    # mean the same for radiance 1e-8 and 1e8
+    norm = 1.0 / problem.energy if problem.energy > 0 else 1.0
+
     def counted(x):
         nonlocal evaluations
         evaluations += 1
-        return objective(problem, params, start.rgb, x)
+        loss, grad = objective(problem, params, start.rgb, x)
+        return loss * norm, grad * norm
 
     f0 = counted(x0)[0]
     result = minimize(counted, x0, jac=True, method="L-BFGS-B", bounds=params.bounds(problem.exponent_bounds),
@@ -349,25 +359,31 @@ def seed(problem, fit, light_kind, shininess, taken=()):
     t, tri = first_hits(x[None], m[None], problem.triangles, t_min=1e-4 * problem.size)
     hit = np.isfinite(t[0])
     hit_object = int(problem.scene.triangle_object[tri[0]]) if hit else -1
+    # the vertices that see a highlight as strong: the mirror rays of their own largest residual
+    peak_d = np.argmax(score, axis=1)
+    peak = score[np.arange(len(score)), peak_d]
+    strong = np.flatnonzero(peak > 0.5 * score[v, d])
+    strong = strong[np.argsort(-peak[strong])[:MEETING_RAYS]]
+    rays = mirror(data.normals[strong], data.views[strong, peak_d[strong]])
+    origins = problem.samples.positions[strong]
     if hit:
         point = x + t[0] * m
-        # the other vertices that see this highlight: mirror rays of their own largest
-        # residual pointing near the hit
-        peak_d = np.argmax(score, axis=1)
-        peak = score[np.arange(len(score)), peak_d]
-        strong = np.flatnonzero(peak > 0.5 * score[v, d])
-        if len(strong) >= 3:
-            rays = mirror(data.normals[strong], data.views[strong, peak_d[strong]])
-            to_point = point - problem.samples.positions[strong]
-            dist = np.linalg.norm(to_point, axis=1)
-            aligned = np.einsum("ni,ni->n", rays, to_point) / np.maximum(dist, 1e-300) > math.cos(math.radians(10))
-            if np.count_nonzero(aligned) >= 3:
-                meet, _ = meeting_point(problem.samples.positions[strong][aligned], rays[aligned], peak[strong][aligned])
-                if meet is not None and np.linalg.norm(meet - point) < 0.5 * t[0]:
-                    point = meet
+        # of those, the rays pointing near the hit meet near the light
+        to_point = point - origins
+        dist = np.linalg.norm(to_point, axis=1)
+        aligned = np.einsum("ni,ni->n", rays, to_point) / np.maximum(dist, 1e-300) > math.cos(math.radians(10))
+        if np.count_nonzero(aligned) >= 3:
+            meet, _ = meeting_point(origins[aligned], rays[aligned], peak[strong][aligned])
+            if meet is not None and np.linalg.norm(meet - point) < 0.5 * t[0]:
+                point = meet
         return np.append(point, 1.0), rgb, (v, d), hit_object
-    if light_kind == "positional":  # nothing there: far away along the ray
-        return np.append(x + 1e3 * problem.size * m, 1.0), rgb, (v, d), -1
+    # nothing in the scene there: where the rays meet, if they do (a point light the
+    # solution does not hold as geometry); parallel rays say the light is distant
+    meet, _ = meeting_point(origins, rays, peak[strong]) if len(strong) >= 3 else (None, 0.0)
+    if meet is not None:
+        return np.append(meet, 1.0), rgb, (v, d), -1
+    if light_kind == "positional":  # far away along the ray
+        return np.append(x + FAR * problem.size * m, 1.0), rgb, (v, d), -1
     return np.append(m, 0.0), rgb, (v, d), -1
 
 
