@@ -11,6 +11,16 @@ pictures, and relative MSE of the linear radiance, mean over pixels and channels
 Each is given over the whole image and over the glossy objects' pixels alone
 ("_glossy"): the diffuse walls are identical in every mode and would otherwise
 dilute every difference the virtual lights make.
+
+How to read them: FLIP is NVIDIA's perceptual difference of two pictures, per pixel
+from 0 (identical) to 1 (as different as can be), lower is better; every error image
+shows it through the magma colour map (black 0, pale yellow 1) with a colour bar of
+that scale beside it. PSNR: higher is better. Relative MSE: lower is better, 0 exact.
+
+Figure 7 is what the lights buy: ``compare.json``'s "glossy_flip" holds FLIP on the
+glossy objects with the lights and with the emitted colour alone (lights off), their
+ratio, and whether it meets the target (with lights at most ``FIGURE7_TARGET`` times
+diffuse-only).
 """
 
 from __future__ import annotations
@@ -29,6 +39,9 @@ from .renderer import tonemap
 
 FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
 BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
+FIGURE7_TARGET = 0.6  # issue 15: FLIP on the glossy objects with the lights <= 0.6 x diffuse-only
+CAPTION = 22  # height of the caption strip above each panel, pixels
+BAR_WIDTH = 44  # the colour bar column beside each FLIP error image, pixels
 
 
 def is_black(image):
@@ -94,15 +107,41 @@ def orbit(view, degrees):
     return Camera(tuple(centre + rotated), view.look_at, view.up, view.fov_y_deg, view.width, view.height)
 
 
-def _panel_row(images, labels, path):
-    """Images side by side with a caption strip above each; written atomically."""
+def colour_bar(height, width=BAR_WIDTH):
+    """(height, width, 3) uint8: FLIP's scale as drawn beside every error image, a
+    magma gradient from 1 (top) to 0 (bottom) with ticks at 1, 0.5 and 0."""
+    column = Image.new("RGB", (width, height), (255, 255, 255))
+    pad = 6 if height >= 40 else 1
+    span = max(height - 2 * pad, 2)
+    values = np.linspace(1.0, 0.0, span)[:, None].repeat(10, axis=1)
+    column.paste(Image.fromarray(_magma(values)), (3, pad))
+    draw = ImageDraw.Draw(column)
+    for value, text in ((1.0, "1"), (0.5, "0.5"), (0.0, "0")):
+        y = pad + round((1.0 - value) * (span - 1))
+        draw.line([(13, y), (16, y)], fill=(0, 0, 0))
+        draw.text((18, min(max(y - 5, 0), max(height - 11, 0))), text, fill=(0, 0, 0))
+    return np.asarray(column)
+
+
+def _panel_row(images, labels, path, errors=()):
+    """Images side by side with a caption strip above each; written atomically.
+
+    ``errors``: indices of the panels that are FLIP error images: each gets a colour
+    bar of FLIP's scale (0 to 1, magma) beside it, captioned "FLIP"."""
     h, w = images[0].shape[:2]
-    strip = 22
-    canvas = Image.new("RGB", (w * len(images), h + strip), (255, 255, 255))
+    errors = set(errors)
+    width = w * len(images) + BAR_WIDTH * len(errors)
+    canvas = Image.new("RGB", (width, h + CAPTION), (255, 255, 255))
     draw = ImageDraw.Draw(canvas)
+    x = 0
     for i, (image, label) in enumerate(zip(images, labels)):
-        canvas.paste(Image.fromarray(image), (i * w, strip))
-        draw.text((i * w + 6, 5), label, fill=(0, 0, 0))
+        canvas.paste(Image.fromarray(image), (x, CAPTION))
+        draw.text((x + 6, 5), label, fill=(0, 0, 0))
+        x += w
+        if i in errors:
+            canvas.paste(Image.fromarray(colour_bar(h)), (x, CAPTION))
+            draw.text((x + 3, 5), "FLIP", fill=(0, 0, 0))
+            x += BAR_WIDTH
     with atomic_output(path) as f:
         canvas.save(f, format="PNG")
 
@@ -133,6 +172,24 @@ def json_text(results):
     if notes:
         ready["notes"] = notes
     return json.dumps(ready, indent=2, allow_nan=False)
+
+
+def _glossy(numbers):
+    """FLIP over the glossy objects' pixels (over the whole image where none shows)."""
+    return numbers.get("flip_mean_glossy", numbers["flip_mean"])
+
+
+def glossy_flip(with_lights, diffuse_only, target=FIGURE7_TARGET):
+    """Figure 7's point in numbers: FLIP on the glossy objects with the virtual lights
+    and with the emitted colour alone, their ratio (lower is better: 1 means the lights
+    change nothing a viewer sees), and whether it meets ``target``."""
+    w, wo = _glossy(with_lights), _glossy(diffuse_only)
+    ratio = w / wo if wo > 0 else (1.0 if w == 0 else float("inf"))
+    return {
+        "over": "glossy objects" if "flip_mean_glossy" in with_lights else "whole image (no glossy object in view)",
+        "with_virtual_lights": w, "diffuse_only": wo, "ratio": ratio,
+        "target_ratio": target, "meets_target": bool(ratio <= target),
+    }
 
 
 def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None):
@@ -169,8 +226,8 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
             _panel_row([tonemap(reference, exposure), tonemap(fitted, exposure), error],
                        ["reference (solution)", f"fitted, {k_max} virtual lights",
-                        f"FLIP error, mean {numbers['flip_mean']:.3f}"],
-                       stage / f"figure5_view{i + 1}.png")
+                        f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"],
+                       stage / f"figure5_view{i + 1}.png", errors=(2,))
 
         view, reference = views[0], references[0]
         mask = renderer.object_mask(view, glossy)
@@ -182,16 +239,18 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             results["figure6"][f"{k}_lights"] = numbers
             panels += [tonemap(image, exposure), error]
             labels += [f"{k} virtual lights", f"FLIP error, mean {numbers['flip_mean']:.3f}"]
-        _panel_row(panels, labels, stage / "figure6.png")
+        _panel_row(panels, labels, stage / "figure6.png", errors=(2, 4))
 
         fitted, diffuse = shot(view, "fitted"), shot(view, "diffuse")
         with_lights, error_with = metrics(reference, fitted, exposure, mask)
         without, error_without = metrics(reference, diffuse, exposure, mask)
         results["figure7"] = {"with_virtual_lights": with_lights, "diffuse_only": without}
+        results["glossy_flip"] = glossy_flip(with_lights, without)
         _panel_row([tonemap(fitted, exposure), tonemap(diffuse, exposure), error_with, error_without],
-                   ["with virtual lights", "diffuse only (lights off)", f"FLIP with, mean {with_lights['flip_mean']:.3f}",
-                    f"FLIP without, mean {without['flip_mean']:.3f}"],
-                   stage / "figure7.png")
+                   ["with virtual lights", "diffuse only (lights off)",
+                    f"FLIP with lights: glossy {_glossy(with_lights):.3f}, image {with_lights['flip_mean']:.3f}",
+                    f"FLIP without: glossy {_glossy(without):.3f}, image {without['flip_mean']:.3f}"],
+                   stage / "figure7.png", errors=(2, 3))
 
         with atomic_output(stage / "compare.json") as f:
             f.write(json_text(results).encode())

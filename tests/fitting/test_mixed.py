@@ -94,8 +94,8 @@ def test_shade_of_a_point_light_by_hand():
     got = shade(model, "p", up)
     assert np.allclose(got[0], 0.5)
     # vertex (2, 0, 0): l = normalize(-1, 0, 2), h = l + (0, 0, 1); c = n.h / |h|
-    l = np.array([-1.0, 0.0, 2.0]) / np.sqrt(5.0)
-    h = l + np.array([0.0, 0.0, 1.0])
+    to_light = np.array([-1.0, 0.0, 2.0]) / np.sqrt(5.0)
+    h = to_light + np.array([0.0, 0.0, 1.0])
     c = h[2] / np.linalg.norm(h)
     assert np.allclose(got[1], 0.5 * c**10)
     # the same light made distant (w = 0, towards +z) lights both vertices fully
