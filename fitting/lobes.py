@@ -333,6 +333,29 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
             for k in range(n_k):
                 values[k] = 0.0 if ls[k, 3] <= 0.0 else lobe(
                     nv, (views[v, d, 0] + ls[k, 0], views[v, d, 1] + ls[k, 1], views[v, d, 2] + ls[k, 2]), shininess[k])
+            if same:
+                # one row for the three channels: G once, h per channel
+                wt = weights[v, d]
+                if wt == 0.0:
+                    continue
+                row[0] = 1.0
+                nz[0] = 0
+                m = 1
+                for k in range(n_k):
+                    row[1 + k] = values[k]
+                    if values[k] != 0.0:
+                        nz[m] = 1 + k
+                        m += 1
+                for c in range(3):
+                    y = radiance[v, d, c]
+                    yy[v, c] += wt * y * y
+                    for a in range(m):
+                        h[v, c, nz[a]] += wt * row[nz[a]] * y
+                for a in range(m):
+                    ri = wt * row[nz[a]]
+                    for b in range(a + 1):
+                        G[v, 0, nz[a], nz[b]] += ri * row[nz[b]]
+                continue
             for c in range(3):
                 wt = weights[v, d] * (lw[v, d, c] if full else 1.0)
                 if wt == 0.0:
@@ -358,8 +381,6 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
                 yy[v, c] += wt * y * y
                 for a in range(m):
                     h[v, c, nz[a]] += wt * row[nz[a]] * y
-                if same and c > 0:
-                    continue
                 for a in range(m):
                     ri = wt * row[nz[a]]
                     for b in range(a + 1):

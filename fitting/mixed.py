@@ -53,10 +53,11 @@ CAP_FACTOR = 8.0  # as paper.CAP_FACTOR: a vertex's highlight stays below 8x its
 AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error grows less than this (relative)
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
 DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
-POLISH_ITERATIONS = 6
+POLISH_ITERATIONS = 4
 MEETING_RAYS = 256  # the strongest vertices whose mirror rays locate a light
 FAR = 1e4  # a point light with nothing to locate it starts this many object sizes away
-FIRST_POLISH_ITERATIONS = 20
+FIRST_POLISH_ITERATIONS = 12
+NEAR_LOBES = 3.0  # "auto" does not try as distant a point light whose direction swings this many lobe widths
 SPREAD = 4  # point lights spread over an emitter a mirror ray hits (per-light coefficients)
 SPREAD_SHARPENING = 0.35  # their exponent: the single light's times count^this (measured: 1, 4, 9 lights ~ 230, 360, 470)
 
@@ -149,6 +150,8 @@ class Problem:
     size: float
     scene: SceneGeometry
     exponent_bounds: tuple[float, float]
+    brightest: np.ndarray  # (V, 3) each vertex's brightest sample (the coefficients' caps)
+    energy: float  # sum w |L|^2 (with the loss weights): the error of the empty model
 
     @property
     def triangles(self):
@@ -162,13 +165,9 @@ class Problem:
         size = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-12)
         samples = Samples(positions, np.ascontiguousarray(data.radiance), np.ascontiguousarray(data.weights), lw)
         scene = SceneGeometry.empty() if scene is None else scene
-        return cls(data, samples, per_light, 0.5 * (lo + hi), size, scene, tuple(exponent_bounds))
-
-    @property
-    def energy(self):
-        """sum w |L|^2 (with the loss weights): the error of the empty model."""
-        lw = self.samples.loss_weights
-        return float(np.sum(self.data.weights[:, :, None] * lw * self.data.radiance**2))
+        energy = float(np.sum(data.weights[:, :, None] * lw * data.radiance**2))
+        return cls(data, samples, per_light, 0.5 * (lo + hi), size, scene, tuple(exponent_bounds),
+                   data.radiance.max(axis=1), energy)
 
 
 def light_vectors(pos, positions):
@@ -195,7 +194,7 @@ def coefficients(problem, lights):
     cos_theta = np.clip(np.einsum("vi,vki->vk", data.normals, unit), -1.0, 1.0)
     theta = np.arccos(cos_theta)
     peak = np.cos(np.maximum(theta - np.pi / 2, 0.0) / 2) ** lights.shininess[None, :]  # (V, K)
-    brightest = data.radiance.max(axis=1)  # (V, 3)
+    brightest = problem.brightest
     cap = np.full((n_v, 3, n), np.inf)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if problem.per_light:
@@ -436,6 +435,8 @@ def to_directional(problem, fit):
         norm = np.linalg.norm(d)
         if norm == 0:
             continue
+        if problem.size / norm > NEAR_LOBES / math.sqrt(fit.shininess[k] + 1.0):
+            continue  # its direction swings across the object by several lobe widths: it is near
         pos[k] = np.append(d / norm, 0.0)
         trial = evaluate(problem, pos, fit.rgb, fit.shininess)
         if trial.sq_error <= fit.sq_error * (1 + AUTO_TOLERANCE) + 1e-300:
