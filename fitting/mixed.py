@@ -344,7 +344,9 @@ def seed(problem, fit, light_kind, shininess, taken=()):
     explain. ``taken``: (v, d) samples already used as seeds."""
     data = problem.data
     r = residual(problem, fit)
-    score = r.sum(axis=2) * np.sqrt(data.weights / data.weights.mean())
+    # the residual as the loss sees it (linear: as is; relative: over the radiance)
+    lw = problem.samples.loss_weights
+    score = (r * np.sqrt(lw)).sum(axis=2) * np.sqrt(data.weights / data.weights.mean())
     for v, d in taken:
         score[v, d] = -np.inf
     v, d = np.unravel_index(np.argmax(score), score.shape)
