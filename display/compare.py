@@ -109,7 +109,8 @@ def orbit(view, degrees):
 
 def colour_bar(height, width=BAR_WIDTH):
     """(height, width, 3) uint8: FLIP's scale as drawn beside every error image, a
-    magma gradient from 1 (top) to 0 (bottom) with ticks at 1, 0.5 and 0."""
+    magma gradient from 1 (top) to 0 (bottom) with short ticks at 1, 0.5 and 0 and
+    their values."""
     column = Image.new("RGB", (width, height), (255, 255, 255))
     pad = 6 if height >= 40 else 1
     span = max(height - 2 * pad, 2)
@@ -118,8 +119,8 @@ def colour_bar(height, width=BAR_WIDTH):
     draw = ImageDraw.Draw(column)
     for value, text in ((1.0, "1"), (0.5, "0.5"), (0.0, "0")):
         y = pad + round((1.0 - value) * (span - 1))
-        draw.line([(13, y), (16, y)], fill=(0, 0, 0))
-        draw.text((18, min(max(y - 5, 0), max(height - 11, 0))), text, fill=(0, 0, 0))
+        draw.line([(13, y), (14, y)], fill=(0, 0, 0))
+        draw.text((17, min(max(y - 5, 0), max(height - 11, 0))), text, fill=(0, 0, 0))
     return np.asarray(column)
 
 

@@ -13,22 +13,33 @@ pytestmark = pytest.mark.gl
 
 def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_context):
     tiny = dataclasses.replace(
-        presets.PRESETS["draft"], photons=30_000, gather_samples=16, light_samples=4, fit_iterations=2, demo_light_sweep=(1, 2)
+        presets.PRESETS["draft"], photons=30_000, gather_samples=16, light_samples=4, fit_lights=2, fit_iterations=2,
+        demo_light_sweep=(1, 2),
     )
     monkeypatch.setitem(presets.PRESETS, "draft", tiny)
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--size", "48x48"]) == 0
     printed = capsys.readouterr().out
     assert f"everything is in {out}" in printed and "teapot" in printed and "FLIP" in printed
+    assert printed.count("Virtual lights cut the relative RMS error of the") == 1
     names = {p.name for p in out.iterdir()}
     assert {"solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png", "compare"} <= names
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["times_s"]) == {"solve_s", "fit_s", "compare_s", "sweep_s", "total_s"}
     assert set(summary["objects"]) == {"tall_block", "teapot"}
+    assert summary["fit_settings"]["coefficients"] == "per-light" and summary["fit_settings"]["light_kind"] == "auto"
     for o in summary["objects"].values():
-        assert o["lights"] == 8 and 0 <= o["relative_rms"] <= o["diffuse_only_relative_rms"] * 1.5
-    assert summary["paper_error_vs_lights"]["teapot"].keys() == {"1", "2"}
+        assert 1 <= o["lights"] <= 2 and 0 <= o["relative_rms"] <= o["diffuse_only_relative_rms"] * 1.5
+        assert o["floats_per_vertex"] == 3 + 3 * o["lights"] and o["relative_rms"] <= o["diffuse_baseline_relative_rms"] * 1.5
+    sweep = summary["error_vs_lights"]
+    assert sweep["counts"] == [1, 2]
+    for curves in sweep["relative_rms"].values():
+        assert set(curves) == {"directional/shared", "auto/shared", "auto/per-light"}
+        assert all(curve.keys() == {"1", "2"} for curve in curves.values())
+    glossy = summary["figures"]["glossy_flip"]
+    assert glossy["ratio"] == pytest.approx(glossy["with_virtual_lights"] / glossy["diffuse_only"])
     report = (out / "report.md").read_text()
+    assert report.splitlines()[2] == f"**{summary['verdict']}**" and "lower is better" in report
     for picture in ("error_vs_lights.png", "compare/figure5_view1.png", "compare/figure6.png", "compare/figure7.png"):
         assert picture in report and (out / picture).exists()
 
