@@ -54,6 +54,7 @@ AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
 DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
 POLISH_ITERATIONS = 4
+PLACEMENT_VERTICES = 1000  # lights are placed on about this many vertices of a larger object, then refined on all
 MEETING_RAYS = 256  # the strongest vertices whose mirror rays locate a light
 FAR = 1e4  # a point light with nothing to locate it starts this many object sizes away
 FIRST_POLISH_ITERATIONS = 12
@@ -156,6 +157,22 @@ class Problem:
     @property
     def triangles(self):
         return self.scene.triangles
+
+    def subset(self, step):
+        """The same problem on every ``step``-th vertex (weights renormalised): where the
+        greedy placement polishes its lights before the full refinement."""
+        from .data import FitData
+
+        d = self.data
+        idx = np.arange(0, d.n_vertices, step)
+        weights = d.weights[idx]
+        weights = weights / weights.sum() if weights.sum() > 0 else weights
+        data = FitData(radiance=np.ascontiguousarray(d.radiance[idx]), views=np.ascontiguousarray(d.views[idx]),
+                       normals=np.ascontiguousarray(d.normals[idx]), weights=np.ascontiguousarray(weights),
+                       positions=np.ascontiguousarray(d.positions[idx]))
+        lw = self.samples.loss_weights
+        lw = lw if lw.shape[0] == 1 else np.ascontiguousarray(lw[idx])
+        return Problem.make(data, None if lw.shape[0] == 1 else lw, self.per_light, self.scene, self.exponent_bounds)
 
     @classmethod
     def make(cls, data, loss_weights, per_light, scene, exponent_bounds):
@@ -453,7 +470,14 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
     shininess: the starting exponent; previous: a ``MixedFit`` with fewer lights to
     continue from. Returns a ``MixedFit`` with at most ``n_lights`` lights.
     """
-    fit = previous if previous is not None else evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
+    full = problem
+    if problem.data.n_vertices > 2 * PLACEMENT_VERTICES:
+        # lights are placed and polished on a subset of the vertices, refined on all
+        problem = full.subset(int(math.ceil(full.data.n_vertices / PLACEMENT_VERTICES)))
+    if previous is not None:
+        fit = evaluate(problem, previous.pos, previous.rgb, previous.shininess)
+    else:
+        fit = evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
     taken = []
     spread = set()
     polish = min(POLISH_ITERATIONS, iterations)
@@ -481,6 +505,8 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
                      max_iterations=max(polish, FIRST_POLISH_ITERATIONS) if first else polish)
         if log is not None:
             log(fit)
+    problem = full
+    fit = evaluate(problem, fit.pos, fit.rgb, fit.shininess)
     fit = refine(problem, fit, per_light_exponents=per_light_exponents, max_iterations=max(iterations - polish, 0))
     # lights that carry nothing or duplicate another: seed them again where the error is
     for _ in range(2):
