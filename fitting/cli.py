@@ -126,7 +126,7 @@ def format_report(model, path):
             f"{o.name:<14} {o.n_lights:>3} {kinds:<10} {o.floats_per_vertex:>8} {shown:<18} {_number(e['relative_rms'], 9)} "
             f"{_number(e['worst_vertex'], 13)} {_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
         )
-        if "target not reached" in o.info.get("chosen_by", ""):
+        if "not reached" in o.info.get("chosen_by", ""):
             lines.append(f"{'':<14} {o.info['chosen_by']}")
     size = Path(path).stat().st_size
     settings = model.settings
