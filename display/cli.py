@@ -8,6 +8,7 @@ exits with 130; anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
@@ -193,13 +194,10 @@ def resolve_view(args, bounds, fit=None, solution=None):
 
 
 def _render(args):
-    import contextlib
-
     import numpy as np
     from PIL import Image
 
-    from display.gl import check_image_memory, check_image_size, headless_context
-    from display.renderer import Renderer, tonemap
+    from display.renderer import tonemap
     from radiosity.formats import atomic_output, check_output
 
     if args.video is not None:
@@ -217,19 +215,8 @@ def _render(args):
         check_output(png, ".png", inputs, flag="-o")
     if args.hdr is not None:
         check_output(args.hdr, ".npy", inputs, flag="--hdr")
-    _check_model_files(args.file, args.solution)
-    ctx = headless_context()
-    try:
-        check_image_size(ctx, *args.size)
-        check_image_memory(*args.size)
-        fit, solution = _read_model_files(args.file, args.solution)
-        mode = args.mode or ("fitted" if fit is not None else "reference")
-        renderer = Renderer(ctx, fit=fit, solution=solution)
-        view = resolve_view(args, renderer.bounds, fit, solution)
+    with _rendering(args) as (renderer, view, mode):
         hdr = renderer.render(view, mode, args.shading, args.lights)
-        renderer.release()
-    finally:
-        ctx.release()
     # both files or neither: each is committed only when both are written
     with contextlib.ExitStack() as stack:
         if args.hdr:
@@ -243,6 +230,29 @@ def _render(args):
     return 0
 
 
+@contextlib.contextmanager
+def _rendering(args):
+    """(renderer, camera, mode) for the input files of ``args``, after their size and
+    memory checks; the GL context is released on the way out."""
+    from display.gl import check_image_memory, check_image_size, headless_context
+    from display.renderer import Renderer
+
+    _check_model_files(args.file, args.solution)
+    ctx = headless_context()
+    try:
+        check_image_size(ctx, *args.size)
+        check_image_memory(*args.size)
+        fit, solution = _read_model_files(args.file, args.solution)
+        mode = args.mode or ("fitted" if fit is not None else "reference")
+        renderer = Renderer(ctx, fit=fit, solution=solution)
+        try:
+            yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
+        finally:
+            renderer.release()
+    finally:
+        ctx.release()
+
+
 class _Writer:
     """A file object numpy writes an .npy through ``write`` (a short write is then an
     OSError with its reason, "No space left on device"; numpy's own fwrite path only
@@ -253,8 +263,6 @@ class _Writer:
 
 
 def _video(args):
-    from display.gl import check_image_memory, check_image_size, headless_context
-    from display.renderer import Renderer
     from display.video import write_video
     from radiosity.formats import check_output
 
@@ -263,22 +271,11 @@ def _video(args):
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
     check_output(args.video, ".mp4", (args.file, args.solution), flag="--video")
-    _check_model_files(args.file, args.solution)
-    ctx = headless_context()
-    try:
-        check_image_size(ctx, *args.size)
-        check_image_memory(*args.size)
-        fit, solution = _read_model_files(args.file, args.solution)
-        mode = args.mode or ("fitted" if fit is not None else "reference")
-        renderer = Renderer(ctx, fit=fit, solution=solution)
-        view = resolve_view(args, renderer.bounds, fit, solution)
+    with _rendering(args) as (renderer, view, mode):
         if mode not in renderer.modes:
             raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
         frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure,
                              progress=True)
-        renderer.release()
-    finally:
-        ctx.release()
     print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode})")
     return 0
 
