@@ -186,9 +186,8 @@ def _auto_lights(problem, options, exponent, log=None):
     search stops when the target is reached, or when a light no longer pays (lowers
     the relative error by less than ``PAYS`` of it), or at ``max_lights``."""
     data = problem.data
-    fit, last = None, relative_error(data, np.broadcast_to(
-        mixed.coefficients(problem, mixed.evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)).lights())[0][:, None, :],
-        data.radiance.shape))["relative_rms"]
+    empty = mixed.no_lights(problem)
+    fit, last = None, relative_error(data, np.broadcast_to(empty.emitted[:, None, :], data.radiance.shape))["relative_rms"]
     why = None
     for k in range(1, options.max_lights + 1):
         trial = fit_lights(problem, k, options, exponent, previous=fit, log=log)

@@ -267,6 +267,16 @@ def light_vector(pos, k, x, y, z):
     return lx / length, ly / length, lz / length, length if w != 0.0 else 1.0
 
 
+@numba.njit(cache=True, nogil=True)
+def vertex_lights(pos, positions, v):
+    """(K, 4): every light's ``light_vector`` seen from vertex v."""
+    n_k = pos.shape[0]
+    ls = np.empty((n_k, 4))
+    for k in range(n_k):
+        ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+    return ls
+
+
 @numba.njit(cache=True, nogil=True, parallel=True)
 def mixed_light_sum(normals, views, lights, samples, coefficients, out):
     """out[v, d, c] = sum_k coefficients[v, k or 0, c] * rgb[k, c] * lobe(n_v, l_k(x_v) + w_vd, p_k).
@@ -279,9 +289,7 @@ def mixed_light_sum(normals, views, lights, samples, coefficients, out):
     shared = coefficients.shape[1] == 1
     for v in numba.prange(views.shape[0]):
         n = (normals[v, 0], normals[v, 1], normals[v, 2])
-        ls = np.empty((n_k, 4))
-        for k in range(n_k):
-            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        ls = vertex_lights(pos, positions, v)
         for d in range(views.shape[1]):
             b0, b1, b2 = 0.0, 0.0, 0.0
             for k in range(n_k):
@@ -317,9 +325,7 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
     same = per_light and not full
     for v in numba.prange(views.shape[0]):
         nv = (normals[v, 0], normals[v, 1], normals[v, 2])
-        ls = np.empty((n_k, 4))
-        for k in range(n_k):
-            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        ls = vertex_lights(pos, positions, v)
         values = np.empty(n_k)
         row = np.empty(n)
         nz = np.empty(n, np.int64)
@@ -415,9 +421,7 @@ def mixed_loss_and_gradient(normals, views, lights, samples, emitted, coefficien
     losses = np.zeros(n_v)
     for v in numba.prange(n_v):
         nv = (normals[v, 0], normals[v, 1], normals[v, 2])
-        ls = np.empty((n_k, 4))
-        for k in range(n_k):
-            ls[k, 0], ls[k, 1], ls[k, 2], ls[k, 3] = light_vector(pos, k, positions[v, 0], positions[v, 1], positions[v, 2])
+        ls = vertex_lights(pos, positions, v)
         values = np.empty(n_k)
         grads = np.empty((n_k, 4))
         dl = np.zeros((n_k, 3))

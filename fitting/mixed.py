@@ -44,6 +44,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .lobes import MixedLights, Samples, mixed_light_sum, mixed_loss_and_gradient, normal_equations
+from .model import light_vectors
 from .nnls import solve_many
 from .seeds import first_hits, meeting_point, mirror
 
@@ -187,14 +188,6 @@ class Problem:
                    data.radiance.max(axis=1), energy)
 
 
-def light_vectors(pos, positions):
-    """(V, K, 3) unit light vectors and (V, K) distances (1 for distant lights)."""
-    lv = pos[None, :, :3] - pos[None, :, 3:4] * positions[:, None, :]
-    length = np.linalg.norm(lv, axis=2)
-    unit = lv / np.where(length > 0, length, 1.0)[..., None]
-    return unit, np.where(pos[None, :, 3] != 0, length, 1.0)
-
-
 def coefficients(problem, lights):
     """The optimal per-vertex coefficients for these lights: (emitted (V, 3),
     specular (V, 3) or (V, K, 3), weighted squared error)."""
@@ -207,7 +200,7 @@ def coefficients(problem, lights):
     normal_equations(data.normals, data.views, lights, problem.samples, problem.per_light, G, h, yy)
     # caps: over every view of the hemisphere a lobe peaks at 1 if its light is above the
     # horizon, else at the grazing view opposite it (half-vector angle (theta - 90) / 2)
-    unit, _ = light_vectors(lights.pos, problem.samples.positions)
+    unit = light_vectors(lights.pos, problem.samples.positions)  # (V, K, 3)
     cos_theta = np.clip(np.einsum("vi,vki->vk", data.normals, unit), -1.0, 1.0)
     theta = np.arccos(cos_theta)
     peak = np.cos(np.maximum(theta - np.pi / 2, 0.0) / 2) ** lights.shininess[None, :]  # (V, K)
@@ -246,6 +239,11 @@ def evaluate(problem, pos, rgb, shininess):
                          np.ascontiguousarray(shininess, np.float64).reshape(-1))
     e, s, err = coefficients(problem, lights)
     return MixedFit(lights.pos, lights.rgb, lights.shininess, e, s, err)
+
+
+def no_lights(problem):
+    """The model without lights: the best emitted colour per vertex."""
+    return evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -477,7 +475,7 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
     if previous is not None:
         fit = evaluate(problem, previous.pos, previous.rgb, previous.shininess)
     else:
-        fit = evaluate(problem, np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
+        fit = no_lights(problem)
     taken = []
     spread = set()
     polish = min(POLISH_ITERATIONS, iterations)
