@@ -1,0 +1,516 @@
+"""A path tracer: the ground truth the walkthrough is measured against.
+
+Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
+emitters combined with BRDF sampling by multiple importance sampling (power
+heuristic), Russian roulette after ``ROULETTE_DEPTH`` bounces, a box pixel filter
+(uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
+(``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
+as the solver, so both see the same scene the same way: one-sided surfaces (backs
+absorb and do not emit), interpolated shading normals, light that must leave above
+both the shading and the true surface.
+
+Work is split into tiles: a run of pixels (row-major) and a run of sample numbers.
+Every random number is keyed by (seed, sample number * pixels + pixel, dimension),
+so an image depends on the seed and the sample count alone: not on tiles, threads
+or passes. Tiles are traced wavefront-style (a numba kernel shades a batch of hits
+and makes the next rays, Embree traces them), a tile per thread, and their pixel
+sums are added in tile order.
+
+Rendering is progressive: passes of 1, 1, 2, 4, ... samples per pixel (at most
+``MAX_PASS_SAMPLES``), each adding to the running sums; a callback sees the image
+after every pass.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from radiosity.formats.errors import InputError
+from radiosity.formats.material import Material
+from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, onb
+from radiosity.scene.model import Scene, SceneObject
+from radiosity.transport.embree import RayTracer, default_threads
+from radiosity.transport.kernels import (
+    _barycentric_point,
+    _pick_emitter,
+    _roulette,
+    _scatter,
+    _shading_normal,
+    rand,
+)
+
+STREAM_CAMERA, STREAM_PATH = 11, 12
+DIMS_PER_BOUNCE = 8  # light pick (1), point on the light (2), BRDF sample (3), roulette (1), spare (1)
+MAX_DEPTH = 64  # segments of a path at most; Russian roulette ends nearly all far sooner
+ROULETTE_DEPTH = 3  # bounces before Russian roulette may end a path
+TILE_PATHS = 1 << 16  # paths of a tile, about
+MIN_TILES = 8  # tiles of a pass at least, so that every thread has work (not a function of threads)
+MAX_PASS_SAMPLES = 16  # samples per pixel of one progressive pass, at most
+MAX_SPP = 1 << 20
+
+
+class CameraRays(NamedTuple):
+    """A pinhole camera as the kernel reads it: a ray through image point (sx, sy) in
+    [-1, 1]^2 (x right, y up) has direction forward + sx * right + sy * up.
+
+    eye, right, up, forward : (3,) float64 (right and up scaled by the half-extents
+    of the image plane at distance 1)
+    """
+
+    eye: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+    forward: np.ndarray
+
+
+def camera_rays(camera):
+    """``CameraRays`` of a ``formats.camera.Camera``."""
+    right, up, forward = camera.basis
+    half_height = math.tan(math.radians(camera.fov_y_deg) / 2)
+    half_width = half_height * camera.width / camera.height
+    return CameraRays(np.asarray(camera.eye, np.float64), right * half_width, up * half_height, forward)
+
+
+class Tile(NamedTuple):
+    """Pixels first_pixel .. first_pixel + pixels - 1 (row-major) of a width x height
+    image, samples first_sample .. first_sample + samples - 1 of each. Path k of the
+    tile is pixel first_pixel + k % pixels, sample first_sample + k // pixels."""
+
+    seed: int
+    first_pixel: int
+    pixels: int
+    first_sample: int
+    samples: int
+    width: int
+    height: int
+
+
+class Paths(NamedTuple):
+    """Paths in flight.
+
+    ids        : (R,) int64      path index within the tile
+    throughput : (R, 3) float64
+    origins    : (R, 3) float32  already offset off the surface they leave
+    directions : (R, 3) float32  unit
+    last_pdf   : (R,) float64    solid-angle density of the BRDF sample that made this
+                                 segment; 0 for a camera ray (emission seen by it counts in full)
+    """
+
+    ids: np.ndarray
+    throughput: np.ndarray
+    origins: np.ndarray
+    directions: np.ndarray
+    last_pdf: np.ndarray
+
+
+def empty_paths(count):
+    return Paths(
+        ids=np.empty(count, np.int64),
+        throughput=np.empty((count, 3)),
+        origins=np.empty((count, 3), np.float32),
+        directions=np.empty((count, 3), np.float32),
+        last_pdf=np.empty(count),
+    )
+
+
+class ShadowRays(NamedTuple):
+    """Next-event estimates waiting for their shadow ray.
+
+    ids        : (S,) int64     path index within the tile
+    origins    : (S, 3) float32
+    directions : (S, 3) float32 unit, toward the sampled point on a light
+    distances  : (S,) float32   to that point (offset off the light)
+    values     : (S, 3) float64 what the path gains if the point is visible
+    """
+
+    ids: np.ndarray
+    origins: np.ndarray
+    directions: np.ndarray
+    distances: np.ndarray
+    values: np.ndarray
+
+
+def empty_shadow_rays(count):
+    return ShadowRays(
+        ids=np.empty(count, np.int64),
+        origins=np.empty((count, 3), np.float32),
+        directions=np.empty((count, 3), np.float32),
+        distances=np.empty(count, np.float32),
+        values=np.empty((count, 3)),
+    )
+
+
+# -- kernels ------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def _key(tile, k):
+    """The random-number key of path k of a tile: sample * pixels of the image + pixel."""
+    pixel = tile.first_pixel + k % tile.pixels
+    sample = tile.first_sample + k // tile.pixels
+    return sample * (tile.width * tile.height) + pixel
+
+
+@numba.njit(cache=True, nogil=True)
+def start_paths(cam, tile, out):
+    """Camera rays of every path of ``tile`` into ``out`` (``Paths``): a uniform point
+    inside the pixel (the box filter), throughput 1, last_pdf 0."""
+    for k in range(tile.pixels * tile.samples):
+        pixel = tile.first_pixel + k % tile.pixels
+        key = _key(tile, k)
+        px = pixel % tile.width
+        py = pixel // tile.width
+        sx = 2.0 * (px + rand(tile.seed, STREAM_CAMERA, key, 0)) / tile.width - 1.0
+        sy = 1.0 - 2.0 * (py + rand(tile.seed, STREAM_CAMERA, key, 1)) / tile.height
+        dx = cam.forward[0] + sx * cam.right[0] + sy * cam.up[0]
+        dy = cam.forward[1] + sx * cam.right[1] + sy * cam.up[1]
+        dz = cam.forward[2] + sx * cam.right[2] + sy * cam.up[2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        out.ids[k] = k
+        for c in range(3):
+            out.origins[k, c] = cam.eye[c]
+            out.throughput[k, c] = 1.0
+        out.directions[k, 0] = dx / length
+        out.directions[k, 1] = dy / length
+        out.directions[k, 2] = dz / length
+        out.last_pdf[k] = 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, s, path, throughput):
+    """Next-event estimate at ``point`` (front normal g, shading frame ``shading`` =
+    (t, b, n) as a 9-tuple, outgoing ``wo`` local): a point on an emitter chosen in
+    proportion to power, its contribution weighted by the power heuristic against
+    BRDF sampling, written as shadow ray s. Returns whether it was written."""
+    tri = _pick_emitter(sa, rand(seed, STREAM_PATH, key, base))
+    area_pdf = sa.emit_area_pdf[tri]
+    if area_pdf <= 0.0:
+        return False
+    r = math.sqrt(rand(seed, STREAM_PATH, key, base + 1))
+    u = r * (1.0 - rand(seed, STREAM_PATH, key, base + 2))
+    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
+    gl = sa.face_normals[tri]
+    eps = sa.epsilon
+    ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
+    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if dist <= 0.0:
+        return False
+    dx, dy, dz = dx / dist, dy / dist, dz / dist
+    cos_light = -(dx * gl[0] + dy * gl[1] + dz * gl[2])
+    if cos_light <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
+        return False
+    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
+    wix = dx * tx + dy * ty + dz * tz
+    wiy = dx * bx + dy * by + dz * bz
+    wiz = dx * nx + dy * ny + dz * nz
+    if wiz <= 0.0:
+        return False
+    p_light = area_pdf * dist * dist / cos_light
+    p_brdf = brdf_pdf(mat, wo[0], wo[1], wo[2], wix, wiy, wiz)
+    ratio = p_brdf / p_light
+    weight = 1.0 / (1.0 + ratio * ratio)  # the power heuristic, written so that no square overflows
+    f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
+    le = sa.materials[sa.face_material[tri]]
+    scale = weight * wiz / p_light
+    shadow.ids[s] = path
+    shadow.origins[s, 0], shadow.origins[s, 1], shadow.origins[s, 2] = ox, oy, oz
+    shadow.directions[s, 0], shadow.directions[s, 1], shadow.directions[s, 2] = dx, dy, dz
+    shadow.distances[s] = dist
+    for c in range(3):
+        shadow.values[s, c] = throughput[c] * f[c] * le[EMISSION + c] * scale
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
+    """One bounce of the paths in flight; returns (shadow rays written, paths going on).
+
+    paths : ``Paths`` at segment ``depth``; hits : their ``embree.Hits``;
+    radiance : (tile paths, 3) float64, each path's radiance so far (emission seen is
+    added here, light samples once their shadow rays are traced: ``add_visible``);
+    shadow : ``ShadowRays`` receiving the light samples; out : ``Paths`` going on.
+
+    At a front-facing hit: emission, weighted by the power heuristic against the light
+    sample the previous vertex made (in full for camera rays); then, unless the path
+    has reached MAX_DEPTH segments, one light sample and one BRDF sample, which after
+    ROULETTE_DEPTH bounces survives Russian roulette on its throughput. Misses and
+    back faces end the path (the background is black, backs absorb).
+    """
+    seed = tile.seed
+    n_shadow = 0
+    n_out = 0
+    for k in range(len(paths.ids)):
+        t = hits.triangle[k]
+        if t < 0:
+            continue
+        d = (np.float64(paths.directions[k, 0]), np.float64(paths.directions[k, 1]), np.float64(paths.directions[k, 2]))
+        g = sa.face_normals[t]
+        cos_in = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
+        if cos_in <= 0.0:
+            continue
+        path = paths.ids[k]
+        key = _key(tile, path)
+        mat = sa.materials[sa.face_material[t]]
+        throughput = (paths.throughput[k, 0], paths.throughput[k, 1], paths.throughput[k, 2])
+        emits = mat[EMISSION] > 0.0 or mat[EMISSION + 1] > 0.0 or mat[EMISSION + 2] > 0.0
+        if emits:
+            weight = 1.0
+            p_brdf = paths.last_pdf[k]
+            if p_brdf > 0.0:
+                dist = np.float64(hits.t[k])
+                ratio = sa.emit_area_pdf[t] * dist * dist / cos_in / p_brdf  # p_light / p_brdf
+                weight = 1.0 / (1.0 + ratio * ratio)
+            for c in range(3):
+                radiance[path, c] += weight * throughput[c] * mat[EMISSION + c]
+        if depth + 1 >= MAX_DEPTH:
+            continue
+        if max(mat[KD], mat[KD + 1], mat[KD + 2], mat[KS], mat[KS + 1], mat[KS + 2]) <= 0.0:
+            continue  # a pure emitter (or black): reflects nothing
+        uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
+        point = _barycentric_point(sa, t, uk, vk)
+        nx, ny, nz = _shading_normal(sa, t, uk, vk, d)
+        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+        wo = (
+            -(d[0] * tx + d[1] * ty + d[2] * tz),
+            -(d[0] * bx + d[1] * by + d[2] * bz),
+            -(d[0] * nx + d[1] * ny + d[2] * nz),
+        )
+        base = depth * DIMS_PER_BOUNCE
+        shading = (tx, ty, tz, bx, by, bz, nx, ny, nz)
+        if _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, n_shadow, path, throughput):
+            n_shadow += 1
+        rnd = (
+            rand(seed, STREAM_PATH, key, base + 3),
+            rand(seed, STREAM_PATH, key, base + 4),
+            rand(seed, STREAM_PATH, key, base + 5),
+        )
+        wo_, wi, pdf, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
+        if not ok:
+            continue
+        f = brdf_eval(mat, wi[0], wi[1], wi[2], wo_[0], wo_[1], wo_[2])
+        scale = wi[2] / pdf
+        carried = (throughput[0] * f[0] * scale, throughput[1] * f[1] * scale, throughput[2] * f[2] * scale)
+        if depth + 1 >= ROULETTE_DEPTH:
+            survives, carried = _roulette(carried, 1.0, rand(seed, STREAM_PATH, key, base + 6))
+            if not survives:
+                continue
+        if carried[0] <= 0.0 and carried[1] <= 0.0 and carried[2] <= 0.0:
+            continue
+        out.ids[n_out] = path
+        for c in range(3):
+            out.origins[n_out, c] = point[c] + sa.epsilon * g[c]
+            out.directions[n_out, c] = direction[c]
+            out.throughput[n_out, c] = carried[c]
+        out.last_pdf[n_out] = pdf
+        n_out += 1
+    return n_shadow, n_out
+
+
+@numba.njit(cache=True, nogil=True)
+def add_visible(shadow, blocked, radiance):
+    """Add the light samples whose shadow rays reached the light to their paths."""
+    for s in range(len(blocked)):
+        if not blocked[s]:
+            path = shadow.ids[s]
+            for c in range(3):
+                radiance[path, c] += shadow.values[s, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def pixel_sums(tile, radiance, total, squares):
+    """Add every path's radiance (and its square) to its pixel, in sample order:
+    total, squares : (tile.pixels, 3) float64."""
+    for k in range(radiance.shape[0]):
+        p = k % tile.pixels
+        for c in range(3):
+            x = radiance[k, c]
+            total[p, c] += x
+            squares[p, c] += x * x
+
+
+# -- orchestration --------------------------------------------------------------------------
+
+
+def trace_tile(tracer, sa, cam, tile):
+    """Pixel sums of one tile: (tile, total (pixels, 3), squares (pixels, 3)) float64."""
+    n = tile.pixels * tile.samples
+    paths, spare = empty_paths(n), empty_paths(n)
+    shadow = empty_shadow_rays(n)
+    start_paths(cam, tile, paths)
+    radiance = np.zeros((n, 3))
+    for depth in range(MAX_DEPTH):
+        if n == 0:
+            break
+        live = Paths(*(a[:n] for a in paths))
+        hits = tracer.intersect(live.origins, live.directions)
+        n_shadow, n = shade(sa, tile, depth, live, hits, radiance, shadow, spare)
+        if n_shadow:
+            blocked = tracer.occluded(shadow.origins[:n_shadow], shadow.directions[:n_shadow], shadow.distances[:n_shadow])
+            add_visible(ShadowRays(*(a[:n_shadow] for a in shadow)), blocked, radiance)
+        paths, spare = spare, paths
+    total = np.zeros((tile.pixels, 3))
+    squares = np.zeros((tile.pixels, 3))
+    pixel_sums(tile, radiance, total, squares)
+    return tile, total, squares
+
+
+def pass_plan(spp):
+    """Samples per pixel of each progressive pass: 1, 1, 2, 4, ... up to
+    MAX_PASS_SAMPLES each, summing to ``spp``."""
+    plan, done = [], 0
+    while done < spp:
+        step = min(max(1, done), MAX_PASS_SAMPLES, spp - done)
+        plan.append(step)
+        done += step
+    return plan
+
+
+def tiles(seed, width, height, first_sample, samples):
+    """The tiles of one pass: runs of pixels holding about TILE_PATHS paths."""
+    n_pixels = width * height
+    per_tile = max(1, min(TILE_PATHS // samples, -(-n_pixels // MIN_TILES)))
+    return [
+        Tile(seed, start, min(per_tile, n_pixels - start), first_sample, samples, width, height)
+        for start in range(0, n_pixels, per_tile)
+    ]
+
+
+@dataclass(frozen=True)
+class PathTraced:
+    """A path-traced image and what it cost.
+
+    radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background 0
+    standard_error : (H, W, 3) float32 the Monte Carlo standard error of each pixel's mean
+    spp            : samples per pixel
+    stats          : JSON-ready: seed, threads, paths, rays, seconds, rays_per_s, paths_per_s
+    """
+
+    radiance: np.ndarray
+    standard_error: np.ndarray
+    spp: int
+    stats: dict = field(default_factory=dict)
+
+
+def _image(total, squares, spp, width, height):
+    mean = total / spp
+    variance = np.maximum(squares / spp - mean * mean, 0.0) / max(spp - 1, 1)
+    shape = (height, width, 3)
+    return mean.reshape(shape).astype(np.float32), np.sqrt(variance).reshape(shape).astype(np.float32)
+
+
+class PathTracer:
+    """Path-traces a scene (``Scene``) from cameras; build once, render many views.
+
+    threads: worker threads (default: one per core); the image does not depend on it.
+    """
+
+    def __init__(self, scene, threads=None):
+        from radiosity.transport.solve import scene_arrays  # the solver's own packing of the scene
+
+        self.scene = scene
+        self.threads = threads or default_threads()
+        merged = scene.merged()
+        self.tracer = RayTracer(merged.positions, merged.faces, threads=1)
+        self.arrays = scene_arrays(scene, merged, self.tracer.epsilon)
+
+    def close(self):
+        self.tracer.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def render(self, camera, spp, seed=1, progress=False, callback=None):
+        """Path-trace ``camera``'s image with ``spp`` samples per pixel; ``PathTraced``.
+
+        callback(spp_so_far, PathTraced) runs after every progressive pass.
+        """
+        if not (isinstance(spp, int | np.integer) and 1 <= spp <= MAX_SPP):
+            raise InputError(f"--spp must be a whole number from 1 to {MAX_SPP:,}, got {spp}")
+        if not 0 <= seed < 2**63:
+            raise InputError(f"--seed must be between 0 and 2^63, got {seed}")
+        from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers
+
+        width, height = camera.width, camera.height
+        n_pixels = width * height
+        cam = camera_rays(camera)
+        total = np.zeros((n_pixels, 3))
+        squares = np.zeros((n_pixels, 3))
+        bar = _progress_factory(progress)(total=spp * n_pixels, desc="path tracing", unit="path")
+        rays_before = self.tracer.rays_cast
+        t0 = time.perf_counter()
+        done = 0
+        try:
+            with ThreadPoolExecutor(self.threads) as pool:
+                workers = _Workers(pool, self.threads, self.tracer, self.arrays, seed)
+                for samples in pass_plan(spp):
+                    jobs = tiles(seed, width, height, done, samples)
+
+                    def combine(result):
+                        tile, tile_total, tile_squares = result
+                        sl = slice(tile.first_pixel, tile.first_pixel + tile.pixels)
+                        total[sl] += tile_total
+                        squares[sl] += tile_squares
+
+                    _run_ordered(
+                        workers,
+                        lambda tile: trace_tile(self.tracer, self.arrays, cam, tile),
+                        jobs,
+                        combine,
+                        bar,
+                        [t.pixels * t.samples for t in jobs],
+                    )
+                    done += samples
+                    if callback is not None:
+                        callback(done, self._result(total, squares, done, camera, seed, t0, rays_before))
+        finally:
+            bar.close()
+        return self._result(total, squares, spp, camera, seed, t0, rays_before)
+
+    def _result(self, total, squares, spp, camera, seed, t0, rays_before):
+        seconds = time.perf_counter() - t0
+        rays = self.tracer.rays_cast - rays_before
+        paths = spp * camera.width * camera.height
+        radiance, error = _image(total, squares, spp, camera.width, camera.height)
+        stats = {
+            "seed": int(seed),
+            "threads": self.threads,
+            "spp": int(spp),
+            "paths": int(paths),
+            "rays": int(rays),
+            "seconds": round(seconds, 4),
+            "rays_per_s": rays / seconds if seconds > 0 else 0.0,
+            "paths_per_s": paths / seconds if seconds > 0 else 0.0,
+        }
+        return PathTraced(radiance, error, int(spp), stats)
+
+
+def scene_of_solution(solution):
+    """The ``Scene`` a solution's meshes and materials make (what its displays show)."""
+    objects = []
+    for o in solution.objects:
+        m = o.material
+        material = Material(
+            name=o.name, diffuse=m["diffuse"], specular=m["specular"], exponent=m["exponent"], emission=m["emission"]
+        )
+        objects.append(
+            SceneObject(
+                name=o.name,
+                material=material,
+                positions=o.positions.astype(np.float64),
+                normals=o.normals.astype(np.float64),
+                tangents=o.tangents.astype(np.float64),
+                faces=o.faces.astype(np.int64),
+            )
+        )
+    return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera)

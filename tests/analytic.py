@@ -1,0 +1,36 @@
+"""Answers known in closed form or by deterministic quadrature, shared by the solver's
+and the path tracer's tests."""
+
+import numpy as np
+
+
+def glossy_furnace_reference(kd, ks, n, le, nodes=160, phi_points=2048):
+    """Radiance L(cos theta) leaving the inside of a sphere of this material.
+
+    By symmetry L depends on the outgoing polar angle only, and light arriving at
+    angle theta left its source at the same angle (chord of a sphere), so
+    L(mu_o) = Le + integral_0^1 K(mu_o, mu_i) L(mu_i) dmu_i with
+    K = integral_0^2pi f(wi, wo) mu_i dphi: solved by Nystrom on Gauss-Legendre nodes.
+    """
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    mu, weight = 0.5 * (x + 1), 0.5 * w
+    phi = (np.arange(phi_points) + 0.5) * 2 * np.pi / phi_points
+    sin = np.sqrt(1 - mu**2)
+    cos_alpha = mu[:, None, None] * mu[None, :, None] - sin[:, None, None] * sin[None, :, None] * np.cos(phi)
+    lobe = np.maximum(cos_alpha, 0.0) ** n
+    kernel = (kd / np.pi * 2 * np.pi + ks * (n + 2) / (2 * np.pi) * lobe.sum(axis=2) * (2 * np.pi / phi_points))
+    kernel = kernel * mu[None, :]  # (mu_o, mu_i)
+    radiance = np.linalg.solve(np.eye(nodes) - kernel * weight[None, :], np.full(nodes, le))
+    return mu, radiance
+
+
+def polygon_irradiance(points, normal, polygon, radiance):
+    """Irradiance at ``points`` (P, 3) with ``normal`` from a Lambertian polygon of
+    uniform radiance (Lambert's formula: E = L/2 sum_i theta_i n . unit(R_i x R_i+1))."""
+    total = np.zeros(len(points))
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
+        ra, rb = a - points, b - points
+        cross = np.cross(ra, rb)
+        theta = np.arctan2(np.linalg.norm(cross, axis=1), np.einsum("ij,ij->i", ra, rb))
+        total += theta * (cross @ normal) / np.linalg.norm(cross, axis=1)
+    return radiance / 2 * np.abs(total)
