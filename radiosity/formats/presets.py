@@ -33,6 +33,8 @@ class Preset:
     fit_lights       : virtual lights per glossy object
     fit_iterations   : L-BFGS iterations of the fit's refinement
     demo_light_sweep : light counts of the demo's error-against-lights plot
+    truth_spp        : path-traced samples per pixel of the ground truth (``vlights truth``,
+                       ``compare --truth-spp``, the demo)
     """
 
     photons: int
@@ -44,6 +46,7 @@ class Preset:
     fit_lights: int
     fit_iterations: int
     demo_light_sweep: tuple[int, ...]
+    truth_spp: int
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -51,9 +54,9 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8)),
-    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16)),
-    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16)),
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64),
+    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256),
+    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024),
 }
 QUALITIES = tuple(PRESETS)
 DEFAULT_QUALITY = "draft"

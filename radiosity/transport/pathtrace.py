@@ -430,13 +430,17 @@ class PathTracer:
     def __exit__(self, *exc):
         self.close()
 
-    def render(self, camera, spp, seed=1, progress=False, callback=None):
+    def render(self, camera, spp, seed=1, progress=False, callback=None, first_sample=0):
         """Path-trace ``camera``'s image with ``spp`` samples per pixel; ``PathTraced``.
 
-        callback(spp_so_far, PathTraced) runs after every progressive pass.
+        callback(spp_so_far, PathTraced) runs after every progressive pass. Samples
+        first_sample .. first_sample + spp - 1 of each pixel are traced: two renders of
+        disjoint ranges are independent, and together make the render of both.
         """
         if not (isinstance(spp, int | np.integer) and 1 <= spp <= MAX_SPP):
             raise InputError(f"--spp must be a whole number from 1 to {MAX_SPP:,}, got {spp}")
+        if not (isinstance(first_sample, int | np.integer) and 0 <= first_sample <= MAX_SPP):
+            raise InputError(f"first sample must be a whole number from 0 to {MAX_SPP:,}, got {first_sample}")
         if not 0 <= seed < 2**63:
             raise InputError(f"--seed must be between 0 and 2^63, got {seed}")
         from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers
@@ -454,7 +458,7 @@ class PathTracer:
             with ThreadPoolExecutor(self.threads) as pool:
                 workers = _Workers(pool, self.threads, self.tracer, self.arrays, seed)
                 for samples in pass_plan(spp):
-                    jobs = tiles(seed, width, height, done, samples)
+                    jobs = tiles(seed, width, height, first_sample + done, samples)
 
                     def combine(result):
                         tile, tile_total, tile_squares = result

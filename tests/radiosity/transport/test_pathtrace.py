@@ -247,3 +247,14 @@ def test_pass_plan_doubles_up_to_its_cap():
     assert pathtrace.pass_plan(11) == [1, 1, 2, 4, 3]
     plan = pathtrace.pass_plan(100)
     assert sum(plan) == 100 and max(plan) == pathtrace.MAX_PASS_SAMPLES
+
+
+def test_disjoint_sample_ranges_are_independent_halves_of_one_render():
+    scene = load_scene("cornell")
+    camera = scene.camera.sized(10, 8)
+    with PathTracer(scene) as tracer:
+        whole = tracer.render(camera, 8, seed=2).radiance.astype(np.float64)
+        first = tracer.render(camera, 4, seed=2).radiance.astype(np.float64)
+        second = tracer.render(camera, 4, seed=2, first_sample=4).radiance.astype(np.float64)
+    assert np.allclose((first + second) / 2, whole, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(first, second)
