@@ -15,8 +15,16 @@ On cornell-teapot, fixed seeds, 2 cores:
   4. scaling: triangles from about 1e3 to 1e6 (mesh refinement): solve time, peak
      memory (a fresh process each), fit time (paper's method, K = 8);
   5. the three presets: solve time and error against a high-quality reference
-     (32 M photons, 4096 gather rays).
-Results: JSON lines in benchmarks/results/trade.jsonl, plots in results/trade.png.
+     (32 M photons, 4096 gather rays);
+  6. the trade end to end, against the truth: a path-traced image of the scene's view
+     (``--truth-spp``, its noise floor measured as FLIP between its two halves); per
+     preset, solve + fit time against FLIP (HDR) and relative MSE of the walkthrough's
+     reference, fitted and diffuse-only displays against it (whole image and glossy
+     objects); and the path tracer's own progress (another seed) against the same
+     truth, giving the samples and seconds it needs to reach each display's FLIP: how
+     many path-traced seconds one walkthrough frame is worth.
+Results: JSON lines in benchmarks/results/trade.jsonl, plots in results/trade.png and
+results/trade_truth.png. ``--only truth`` runs question 6 alone (trade_truth.jsonl).
 """
 
 from __future__ import annotations
@@ -98,8 +106,18 @@ def scaling_run(max_edge):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--only", choices=("truth",), help="run question 6 alone")
+    parser.add_argument("--size", type=int, default=256, help="question 6: image side (default: %(default)s)")
+    parser.add_argument("--truth-spp", type=int, default=4096, help="question 6: samples of the truth (default: %(default)s)")
     args = parser.parse_args(argv)
     from radiosity.scene.loaders import load_scene
+
+    if args.only == "truth":
+        record = Recorder(question="truth")
+        truth_trade(record, args)
+        record.save("trade_truth.jsonl")
+        plot_truth(record.rows, RESULTS / "trade_truth.png")
+        return 0
 
     record = Recorder()
     rows = record.rows
@@ -154,9 +172,100 @@ def main(argv=None):
         record({"question": "presets", "quality": quality, "seconds": seconds, "vertices": sol.stats["vertices"],
                 "file_mb": file_size(sol) / 1e6, "relative_error_of_object_means": preset_error(sol, reference)})
 
+    # 6 the trade against the truth
+    truth_trade(record, args)
+
     record.save("trade.jsonl")
     plot(rows, RESULTS / "trade.png")
+    plot_truth(rows, RESULTS / "trade_truth.png")
     return 0
+
+
+def truth_trade(record, args):
+    """Question 6: presets end to end against a path-traced truth (see the module text)."""
+    from display.compare import metrics
+    from display.gl import headless_context
+    from display.renderer import Renderer
+    from display.truth import ground_truth
+    from fitting import FitOptions, fit
+    from radiosity.formats import presets
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.pathtrace import PathTracer
+
+    size, truth_spp = (96, 256) if args.quick else (args.size, args.truth_spp)
+    scene = load_scene("cornell-teapot")
+    camera = scene.camera.sized(size, size)
+    truth = ground_truth(scene, camera, truth_spp, seed=1000, progress=True)
+    record({"question": "truth", "what": "truth", "size": size, "spp": truth_spp, "seconds": truth.stats["seconds"],
+            "paths_per_s": truth.stats["paths_per_s"], "noise_flip": truth.noise_flip})
+
+    # the path tracer against the same truth, pass by pass (another seed)
+    progress = []
+
+    def seen(spp, image):
+        progress.append((spp, image.stats["seconds"], metrics(truth.radiance, image.radiance)[0]))
+
+    with PathTracer(scene) as tracer:
+        tracer.render(camera, max(1, truth_spp // 4), seed=2000, callback=seen)
+    for spp, seconds, numbers in progress:
+        record({"question": "truth", "what": "path tracer", "spp": spp, "seconds": seconds,
+                "flip": numbers["flip_mean"], "relative_mse": numbers["relative_mse"]})
+
+    ctx = headless_context()
+    try:
+        for quality in ("draft",) if args.quick else presets.QUALITIES:
+            knobs = presets.preset(quality)
+            solution, solve_s = timed_solve(scene, quality=quality)
+            t = time.perf_counter()
+            model = fit(solution, FitOptions(lights=knobs.fit_lights, iterations=knobs.fit_iterations))
+            fit_s = time.perf_counter() - t
+            renderer = Renderer(ctx, fit=model, solution=solution)
+            glossy = [o.name for o in renderer.objects if o.n_lights > 0]
+            mask = renderer.object_mask(camera, glossy)
+            for mode in ("reference", "fitted", "diffuse"):
+                t = time.perf_counter()
+                image = renderer.render(camera, mode)
+                frame_s = time.perf_counter() - t
+                numbers = metrics(truth.radiance, image, mask=mask)[0]
+                flip = numbers["flip_mean"]
+                reached = next(((spp, s) for spp, s, n in progress if n["flip_mean"] <= flip), (None, None))
+                record({"question": "truth", "what": "walkthrough", "quality": quality, "mode": mode,
+                        "solve_s": solve_s, "fit_s": fit_s, "frame_s": frame_s, "samples": renderer.plan.samples,
+                        "flip": flip, "relative_mse": numbers["relative_mse"],
+                        "flip_glossy": numbers.get("flip_mean_glossy"),
+                        "relative_mse_glossy": numbers.get("relative_mse_glossy"),
+                        "path_tracer_spp_to_match": reached[0], "path_tracer_seconds_to_match": reached[1]})
+            renderer.release()
+    finally:
+        ctx.release()
+
+
+def plot_truth(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tracer = [r for r in rows if r.get("what") == "path tracer"]
+    walk = [r for r in rows if r.get("what") == "walkthrough"]
+    truth = next((r for r in rows if r.get("what") == "truth"), None)
+    if not tracer or truth is None:
+        return
+    fig, ax = plt.subplots(figsize=(7, 5))
+    ax.loglog([r["seconds"] for r in tracer], [r["flip"] for r in tracer], "k.-", label="path tracer (progressive)")
+    markers = {"reference": "o", "fitted": "s", "diffuse": "^"}
+    colours = {"draft": "tab:blue", "medium": "tab:orange", "high": "tab:red"}
+    for r in walk:
+        ax.loglog(r["solve_s"] + r["fit_s"], r["flip"], markers[r["mode"]], color=colours[r["quality"]],
+                  label=f"{r['quality']} {r['mode']} (solve + fit)")
+    if truth["noise_flip"] is not None:
+        ax.axhline(truth["noise_flip"], color="grey", ls=":", label="truth's noise floor (FLIP of its halves)")
+    ax.set_xlabel("seconds (path tracer: to this image; walkthrough: solve + fit, then frames are free)")
+    ax.set_ylabel(f"FLIP against the truth ({truth['spp']} spp)")
+    ax.set_title(f"cornell-teapot {truth['size']}x{truth['size']}: what time buys")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
 
 
 def preset_error(test, reference):

@@ -34,14 +34,13 @@ import numpy as np
 
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
-from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, onb
+from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
 from radiosity.transport.embree import RayTracer, default_threads
 from radiosity.transport.kernels import (
     _barycentric_point,
     _pick_emitter,
     _roulette,
-    _scatter,
     _shading_normal,
     rand,
 )
@@ -183,7 +182,7 @@ def start_paths(cam, tile, out):
         out.last_pdf[k] = 0.0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, s, path, throughput):
     """Next-event estimate at ``point`` (front normal g, shading frame ``shading`` =
     (t, b, n) as a 9-tuple, outgoing ``wo`` local): a point on an emitter chosen in
@@ -287,16 +286,17 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         shading = (tx, ty, tz, bx, by, bz, nx, ny, nz)
         if _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, n_shadow, path, throughput):
             n_shadow += 1
-        rnd = (
+        wix, wiy, wiz, pdf = brdf_sample(
+            mat, wo[0], wo[1], wo[2],
             rand(seed, STREAM_PATH, key, base + 3),
             rand(seed, STREAM_PATH, key, base + 4),
             rand(seed, STREAM_PATH, key, base + 5),
         )
-        wo_, wi, pdf, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
-        if not ok:
-            continue
-        f = brdf_eval(mat, wi[0], wi[1], wi[2], wo_[0], wo_[1], wo_[2])
-        scale = wi[2] / pdf
+        direction = (wix * tx + wiy * bx + wiz * nx, wix * ty + wiy * by + wiz * ny, wix * tz + wiy * bz + wiz * nz)
+        if wiz <= 0.0 or pdf <= 0.0 or direction[0] * g[0] + direction[1] * g[1] + direction[2] * g[2] <= 0.0:
+            continue  # below the shading or the true surface: absorbed
+        f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
+        scale = wiz / pdf
         carried = (throughput[0] * f[0] * scale, throughput[1] * f[1] * scale, throughput[2] * f[2] * scale)
         if depth + 1 >= ROULETTE_DEPTH:
             survives, carried = _roulette(carried, 1.0, rand(seed, STREAM_PATH, key, base + 6))
@@ -433,7 +433,8 @@ class PathTracer:
     def render(self, camera, spp, seed=1, progress=False, callback=None, first_sample=0):
         """Path-trace ``camera``'s image with ``spp`` samples per pixel; ``PathTraced``.
 
-        callback(spp_so_far, PathTraced) runs after every progressive pass. Samples
+        callback(spp_so_far, PathTraced) runs after every progressive pass (the time it
+        takes is not counted in the stats' seconds). Samples
         first_sample .. first_sample + spp - 1 of each pixel are traced: two renders of
         disjoint ranges are independent, and together make the render of both.
         """
@@ -452,7 +453,7 @@ class PathTracer:
         squares = np.zeros((n_pixels, 3))
         bar = _progress_factory(progress)(total=spp * n_pixels, desc="path tracing", unit="path")
         rays_before = self.tracer.rays_cast
-        t0 = time.perf_counter()
+        clock = [time.perf_counter(), 0.0]  # start, time spent in the callback
         done = 0
         try:
             with ThreadPoolExecutor(self.threads) as pool:
@@ -476,13 +477,15 @@ class PathTracer:
                     )
                     done += samples
                     if callback is not None:
-                        callback(done, self._result(total, squares, done, camera, seed, t0, rays_before))
+                        paused = time.perf_counter()
+                        callback(done, self._result(total, squares, done, camera, seed, clock, rays_before))
+                        clock[1] += time.perf_counter() - paused
         finally:
             bar.close()
-        return self._result(total, squares, spp, camera, seed, t0, rays_before)
+        return self._result(total, squares, spp, camera, seed, clock, rays_before)
 
-    def _result(self, total, squares, spp, camera, seed, t0, rays_before):
-        seconds = time.perf_counter() - t0
+    def _result(self, total, squares, spp, camera, seed, clock, rays_before):
+        seconds = time.perf_counter() - clock[0] - clock[1]
         rays = self.tracer.rays_cast - rays_before
         paths = spp * camera.width * camera.height
         radiance, error = _image(total, squares, spp, camera.width, camera.height)
