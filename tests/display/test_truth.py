@@ -1,0 +1,113 @@
+"""The ground truth next to the display: the path tracer and the solution's reference
+display see the same diffuse box alike, and the truth's own machinery (halves, files)
+does what it says."""
+
+import numpy as np
+import pytest
+from scipy.ndimage import binary_dilation
+
+from display.renderer import Renderer
+from display.truth import against_truth, ground_truth, load_truth, scene_for_truth
+from radiosity.formats import Camera, InputError
+from radiosity.scene.loaders import load_scene
+from radiosity.transport.pathtrace import PathTracer, scene_of_solution
+from radiosity.transport.solve import SolveOptions, solve
+
+
+@pytest.fixture(scope="module")
+def diffuse_box():
+    return solve(load_scene("cornell"), SolveOptions(quality="draft", seed=3))
+
+
+def object_ids(renderer, camera, names):
+    """(H, W) index of the object each pixel's centre sees, -1 for none."""
+    ids = np.full((camera.height, camera.width), -1)
+    for i, name in enumerate(names):
+        ids[renderer.object_mask(camera, [name])] = i
+    return ids
+
+
+@pytest.mark.gl
+def test_path_tracer_and_reference_display_agree_on_the_diffuse_box(gl_context, diffuse_box):
+    camera = diffuse_box.camera.sized(96, 96)
+    renderer = Renderer(gl_context, solution=diffuse_box, samples=4)
+    display = renderer.render(camera, "reference").astype(np.float64)
+    ids = object_ids(renderer, camera, diffuse_box.names)
+    renderer.release()
+    with PathTracer(scene_of_solution(diffuse_box)) as tracer:
+        truth = tracer.render(camera, 256, seed=5)
+    # away from edges (where either image mixes two surfaces) and the light (its edge pixels are noisy)
+    edge = np.zeros(ids.shape, bool)
+    for axis in (0, 1):
+        step = np.diff(ids, axis=axis) != 0
+        lo = [slice(None), slice(None)]
+        hi = [slice(None), slice(None)]
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        edge[tuple(lo)] |= step
+        edge[tuple(hi)] |= step
+    keep = ~binary_dilation(edge) & (ids >= 0) & (ids != diffuse_box.names.index("light"))
+    assert keep.sum() > 5000
+    traced = truth.radiance.astype(np.float64)
+    assert abs(traced[keep].mean() / display[keep].mean() - 1) < 0.02
+    for i, name in enumerate(diffuse_box.names):
+        where = keep & (ids == i)
+        if where.sum() > 100:
+            assert abs(traced[where].mean() / display[where].mean() - 1) < 0.03, name
+    # most pixels within the path tracer's noise (the median |z| of pure noise is 0.67)
+    z = (traced[keep] - display[keep]) / np.maximum(truth.standard_error[keep], 1e-9)
+    assert np.median(np.abs(z)) < 1.0
+
+
+def test_ground_truth_is_the_two_halves_together_with_their_noise_floor(diffuse_box):
+    camera = diffuse_box.camera.sized(12, 10)
+    truth = ground_truth(diffuse_box, camera, 8, seed=4)
+    with PathTracer(scene_of_solution(diffuse_box)) as tracer:
+        whole = tracer.render(camera, 8, seed=4)
+    assert np.allclose(truth.radiance, whole.radiance, rtol=1e-5, atol=1e-6)
+    assert 0 < truth.noise_flip < 1
+    assert truth.stats["paths"] == 8 * 120
+    assert ground_truth(diffuse_box, camera, 1).noise_flip is None  # one sample: no halves
+
+
+def test_errors_against_the_truth_are_zero_for_the_truth_itself():
+    truth = np.random.default_rng(0).random((8, 8, 3)).astype(np.float32) + 0.1
+    numbers, errors = against_truth(truth, {"same": truth, "darker": truth * 0.5})
+    assert numbers["same"]["flip_mean"] == 0 and numbers["same"]["relative_mse"] == 0
+    assert numbers["darker"]["flip_mean"] > 0.05 and numbers["darker"]["relative_mse"] > 0.01
+    assert errors["darker"].shape == (8, 8, 3)
+
+
+def test_truth_files_must_fit_the_view(tmp_path):
+    camera = Camera((0, 0, -1), (0, 0, 0), width=4, height=3)
+    good = tmp_path / "good.npy"
+    np.save(good, np.ones((3, 4, 3), np.float32))
+    assert load_truth(good, camera).shape == (3, 4, 3)
+    cases = {
+        "wrong.npy": (np.ones((4, 3, 3), np.float32), r"is \(4, 3, 3\), but the view is 4x3"),
+        "nan.npy": (np.full((3, 4, 3), np.nan, np.float32), "finite, non-negative"),
+        "negative.npy": (-np.ones((3, 4, 3), np.float32), "finite, non-negative"),
+        "ints.npy": (np.ones((3, 4, 3), np.int32), "finite, non-negative"),
+    }
+    for name, (array, message) in cases.items():
+        np.save(tmp_path / name, array)
+        with pytest.raises(InputError, match=message):
+            load_truth(tmp_path / name, camera)
+    (tmp_path / "text.npy").write_text("not an array")
+    with pytest.raises(InputError, match="not a .npy image"):
+        load_truth(tmp_path / "text.npy", camera)
+    with pytest.raises(InputError, match="not found"):
+        load_truth(tmp_path / "missing.npy", camera)
+
+
+def test_the_truth_reads_solutions_and_scenes_but_not_fits(tmp_path, diffuse_box):
+    from fitting import FitOptions, fit
+
+    path = tmp_path / "solution.npz"
+    diffuse_box.save(path)
+    assert scene_for_truth(path).names == diffuse_box.names
+    assert [o.name for o in scene_for_truth("cornell").objects] == list(diffuse_box.names)
+    fit(diffuse_box, FitOptions(lights=1)).save(tmp_path / "fit.npz")
+    with pytest.raises(InputError, match="holds no materials"):
+        scene_for_truth(tmp_path / "fit.npz")
+    with pytest.raises(InputError, match="not found"):
+        scene_for_truth(tmp_path / "missing.npz")
