@@ -4,7 +4,8 @@ Usage:
     python benchmarks/bench_display.py [--frames 20] [--quick]
 
 Headless (EGL; on machines without a GPU, Mesa llvmpipe on the CPU), at 1280 x 720:
-  1. frame time (median over frames, drawing only: glFinish, no read-back) per mode
+  1. frame time (median over frames, drawing only: glFinish, no read-back; one sample
+     per pixel) per mode
      (fitted, diffuse, reference) and shading (gouraud, pixel), for the demo scene
      (cornell-teapot, draft solve, K = 8 fit) and for a scene of about 1 M triangles
      (the teapot tessellated at 128 segments per patch side, 8 synthetic lights, a
@@ -14,15 +15,22 @@ Headless (EGL; on machines without a GPU, Mesa llvmpipe on the CPU), at 1280 x 7
      coefficients the shaders read from a texture by vertex id;
   2. bytes each mode needs on the GPU;
   3. the targets: fitted Gouraud within 1.5x the frame time of diffuse-only; the fitted
-     model at least 10x smaller than the solution (files and arrays).
+     model at least 10x smaller than the solution (files and arrays);
+  4. what antialiasing costs: the demo scene's frame time (drawing and averaging the
+     samples) at 1 sample per pixel, the default 4 (4x MSAA) and 16 (2 x 2 supersampling
+     of 4x MSAA), fitted per-pixel and Gouraud.
 
 Results: JSON lines in benchmarks/results/display.jsonl, a plot in results/display.png.
-Equivalence check: rendering twice gives the same image.
+Equivalence checks: rendering twice gives the same image; against 64 samples per pixel
+(nearest to the box filter) the error falls with the samples, and the antialiased
+images' means agree with it within 1 % (one sample's edges are off by up to a pixel).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
+import os
 import sys
 import tempfile
 import time
@@ -35,24 +43,41 @@ CONFIGURATIONS = [(m, s) for m in ("fitted", "diffuse", "reference") for s in ("
 STANDARD = "directional, shared"  # the paper's model: distant lights, one coefficient per vertex
 VARIANT = "point, per light"      # version 2's other end: point lights, a coefficient per light
 VARIANT_CONFIGURATIONS = [("fitted", "gouraud"), ("fitted", "pixel")]
+AA_SAMPLES = (1, 4, 16)  # one sample (the pixel centre), the default (4x MSAA), supersampled
+AA_CONFIGURATIONS = [("fitted", "pixel"), ("fitted", "gouraud")]
+
+
+def median_times(draws, ctx, frames):
+    """Median ms per frame of each of ``draws`` ({key: a function drawing one frame}),
+    up to glFinish, after one call each (compile, allocate), interleaved frame by frame
+    so that drift in the machine's speed hits them all alike."""
+    for draw in draws.values():
+        draw()
+        ctx.finish()
+    times = {key: [] for key in draws}
+    for _ in range(frames):
+        for key, draw in draws.items():
+            t = time.perf_counter()
+            draw()
+            ctx.finish()
+            times[key].append(time.perf_counter() - t)
+    return {key: float(np.median(t)) * 1000 for key, t in times.items()}
 
 
 def frame_times(renderers, view, frames):
     """Median ms per frame of every (lights, mode, shading) of ``renderers`` (a dict of
-    lights kind -> (renderer, configurations)), interleaved frame by frame so that drift
-    in the machine's speed hits them all alike."""
-    runs = [(kind, r, c) for kind, (r, configurations) in renderers.items() for c in configurations]
-    for _, renderer, (mode, shading) in runs:  # compile, allocate
-        renderer.draw(view, mode, shading)
-        renderer.ctx.finish()
-    times = {(kind, *c): [] for kind, _, c in runs}
-    for _ in range(frames):
-        for kind, renderer, (mode, shading) in runs:
-            t = time.perf_counter()
-            renderer.draw(view, mode, shading)
-            renderer.ctx.finish()
-            times[(kind, mode, shading)].append(time.perf_counter() - t)
-    return {c: float(np.median(t)) * 1000 for c, t in times.items()}
+    lights kind -> (renderer, configurations)), one sample per pixel."""
+    draws = {(kind, mode, shading): functools.partial(r.draw, view, mode, shading, samples=1)
+             for kind, (r, configurations) in renderers.items() for mode, shading in configurations}
+    return median_times(draws, next(iter(renderers.values()))[0].ctx, frames)
+
+
+def antialiasing_times(renderer, view, frames):
+    """Median ms per frame of every (samples, mode, shading) of AA_SAMPLES and
+    AA_CONFIGURATIONS: drawing, and averaging the samples into the image."""
+    draws = {(n, mode, shading): functools.partial(renderer.draw, view, mode, shading, samples=n)
+             for n in AA_SAMPLES for mode, shading in AA_CONFIGURATIONS}
+    return median_times(draws, renderer.ctx, frames)
 
 
 def mode_bytes(fit, solution, mode):
@@ -144,7 +169,8 @@ def main(argv=None):
     from radiosity.transport.solve import SolveOptions, solve
 
     ctx = headless_context()
-    record = Recorder(gl_renderer=ctx.info["GL_RENDERER"])
+    record = Recorder(gl_renderer=ctx.info["GL_RENDERER"], gl_max_samples=ctx.max_samples)
+    print(f"{os.cpu_count()} cores; {ctx.info['GL_RENDERER']}, MSAA up to {ctx.max_samples}", flush=True)
     rows = record.rows
     width, height = (640, 360) if args.quick else (1280, 720)
     frames = 3 if args.quick else args.frames
@@ -188,12 +214,38 @@ def main(argv=None):
                 "fitted_gouraud_over_diffuse": results[(STANDARD, "fitted", "gouraud")] / diffuse,
                 "variant_gouraud_over_diffuse": results[(VARIANT, "fitted", "gouraud")] / diffuse,
                 "target": 1.5, "same_image_twice": bool(np.array_equal(a, b) and np.array_equal(c, d))})
+        if name == "cornell-teapot":
+            antialiasing(record, renderer, view, frames)
         renderer.release()
         variant_renderer.release()
 
     record.save("display.jsonl")
     plot(rows, RESULTS / "display.png")
     return 0
+
+
+def antialiasing(record, renderer, view, frames):
+    """Question 4: the frame time at each of AA_SAMPLES; the equivalence check."""
+    from display.gl import sample_plan
+
+    results = antialiasing_times(renderer, view, frames)
+    for (n, mode, shading), ms in results.items():
+        plan = sample_plan(n, renderer.ctx.max_samples)
+        record({"question": "antialiasing", "scene": "cornell-teapot", "samples": n, "msaa": plan.msaa,
+                "supersampling": plan.factor, "samples_per_pixel": plan.per_pixel, "mode": mode, "shading": shading,
+                "width": view.width, "height": view.height, "frame_ms": ms,
+                "over_one_sample": ms / results[(1, mode, shading)]})
+    # the check: against 64 samples (nearest to the box filter), the error falls with the samples,
+    # and the antialiased images' means agree with it (one sample's edges are off by up to a pixel)
+    best = renderer.render(view, "fitted", "pixel", samples=64).astype(np.float64)
+    for n in AA_SAMPLES:
+        image = renderer.render(view, "fitted", "pixel", samples=n)
+        record({"question": "antialiasing check", "samples": n, "against_samples": 64,
+                "mean_abs_difference": float(np.abs(image - best).mean()), "mean_ratio": float(image.mean() / best.mean()),
+                "mean_within_1_percent": bool(abs(image.mean() / best.mean() - 1) < 0.01)})
+    line = ", ".join(f"{shading} {n}: {results[(n, mode, shading)]:.1f} ms" for mode, shading in AA_CONFIGURATIONS
+                     for n in AA_SAMPLES)
+    print(f"antialiasing, cornell-teapot {view.width}x{view.height}, fitted, {os.cpu_count()} cores: {line}", flush=True)
 
 
 def plot(rows, path):
@@ -203,7 +255,8 @@ def plot(rows, path):
     import matplotlib.pyplot as plt
 
     scenes = list(dict.fromkeys(r["scene"] for r in rows if r["question"] == "frame time"))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(7.5 * len(scenes), 4), squeeze=False)
+    aa = [r for r in rows if r["question"] == "antialiasing"]
+    fig, axes = plt.subplots(1, len(scenes) + bool(aa), figsize=(7.5 * len(scenes) + 4 * bool(aa), 4), squeeze=False)
     colours = {"fitted": "tab:orange", "diffuse": "tab:green", "reference": "tab:blue"}
     for ax, scene in zip(axes[0], scenes):
         sel = [r for r in rows if r["question"] == "frame time" and r["scene"] == scene]
@@ -215,6 +268,13 @@ def plot(rows, path):
         ax.tick_params(axis="x", labelsize=7)
         ax.set_ylabel("frame time (ms)")
         ax.set_title(f"{scene} ({sel[0]['triangles']:,} triangles), {sel[0]['width']}x{sel[0]['height']}")
+    if aa:
+        ax = axes[0, -1]
+        ax.bar([f"{r['shading']}\n{r['samples']} spp" for r in aa], [r["frame_ms"] for r in aa],
+               color=["tab:orange" if r["shading"] == "pixel" else "tab:red" for r in aa])
+        ax.tick_params(axis="x", labelsize=7)
+        ax.set_ylabel("frame time (ms)")
+        ax.set_title(f"antialiasing, fitted, {aa[0]['width']}x{aa[0]['height']}")
     fig.suptitle(rows[0].get("gl_renderer", ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

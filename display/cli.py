@@ -18,6 +18,7 @@ import numpy as np
 
 import fitting.cli
 import radiosity.cli
+from display.gl import DEFAULT_SAMPLES, MAX_SAMPLES, check_sample_count
 from radiosity.formats import InputError, presets
 
 PROG = "vlights"
@@ -62,6 +63,14 @@ def add_camera_flags(parser, size):
     parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
 
 
+def add_samples_flag(parser):
+    """--samples N: antialiasing, samples per pixel averaged with equal weights."""
+    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, metavar="N",
+                        help="samples per pixel, averaged with equal weights (a box filter over the pixel: "
+                        "antialiasing); MSAA up to what the OpenGL offers, then also supersampled; 1 samples the "
+                        f"pixel centre alone; 1 to {MAX_SAMPLES} (default: %(default)s)")
+
+
 def register(subparsers, not_built):
     p = subparsers.add_parser(
         "render",
@@ -79,6 +88,7 @@ def register(subparsers, not_built):
     p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: render.png if no --hdr)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
     p.add_argument("--lights", type=int, metavar="K", help="use only the first K lights of each object")
+    add_samples_flag(p)
     p.set_defaults(func=_render)
 
     p.add_argument("--video", metavar="FILE.mp4", help="instead of one picture, a walkthrough video along a smooth path from the camera")
@@ -98,6 +108,7 @@ def register(subparsers, not_built):
     add_camera_flags(p, (512, 512))
     p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    add_samples_flag(p)
     p.set_defaults(func=_compare)
 
     p = subparsers.add_parser(
@@ -114,6 +125,7 @@ def register(subparsers, not_built):
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
     p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p) after the first frame")
+    add_samples_flag(p)
     p.set_defaults(func=_view)
 
     p = subparsers.add_parser(
@@ -126,6 +138,7 @@ def register(subparsers, not_built):
     p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
     p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
     p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")
+    add_samples_flag(p)
     p.set_defaults(func=_demo)
 
 
@@ -208,6 +221,7 @@ def _render(args):
         raise InputError(f"--lights must be >= 0, got {args.lights}")
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_sample_count(args.samples)
     inputs = (args.file, args.solution)
     png = args.output or (None if args.hdr else "render.png")
     # every output refused before any work: no file half written, no context made for nothing
@@ -224,9 +238,10 @@ def _render(args):
         if png:
             Image.fromarray(tonemap(hdr, args.exposure)).save(stack.enter_context(atomic_output(png)), format="PNG")
     if args.hdr:
-        print(f"wrote {args.hdr} (linear radiance {hdr.shape[1]}x{hdr.shape[0]}, max {hdr.max():.4g})")
+        print(f"wrote {args.hdr} (linear radiance {hdr.shape[1]}x{hdr.shape[0]}, max {hdr.max():.4g}, "
+              f"{args.samples} samples per pixel)")
     if png:
-        print(f"wrote {png} ({mode}, {args.shading} shading, exposure {args.exposure:g})")
+        print(f"wrote {png} ({mode}, {args.shading} shading, exposure {args.exposure:g}, {args.samples} samples per pixel)")
     return 0
 
 
@@ -234,17 +249,18 @@ def _render(args):
 def _rendering(args):
     """(renderer, camera, mode) for the input files of ``args``, after their size and
     memory checks; the GL context is released on the way out."""
-    from display.gl import check_image_memory, check_image_size, headless_context
+    from display.gl import check_image_memory, check_image_size, check_samples, headless_context
     from display.renderer import Renderer
 
     _check_model_files(args.file, args.solution)
     ctx = headless_context()
     try:
         check_image_size(ctx, *args.size)
-        check_image_memory(*args.size)
+        check_samples(ctx, args.samples, *args.size)
+        check_image_memory(*args.size, samples=args.samples)
         fit, solution = _read_model_files(args.file, args.solution)
         mode = args.mode or ("fitted" if fit is not None else "reference")
-        renderer = Renderer(ctx, fit=fit, solution=solution)
+        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         try:
             yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
         finally:
@@ -270,13 +286,15 @@ def _video(args):
         raise InputError("--frames must be 2 to 100000 and --fps 1 to 240")
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_sample_count(args.samples)
     check_output(args.video, ".mp4", (args.file, args.solution), flag="--video")
     with _rendering(args) as (renderer, view, mode):
         if mode not in renderer.modes:
             raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
         frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure,
                              progress=True)
-    print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode})")
+    print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode}, "
+          f"{args.samples} samples per pixel)")
     return 0
 
 
@@ -294,12 +312,13 @@ def _view(args):
         raise InputError(f"--frames must be >= 1, got {args.frames}")
     if set(args.press) - set("mgl+-p"):
         raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
+    check_sample_count(args.samples)
     if args.screenshot is not None:
         if args.frames is None:
             raise InputError("--screenshot saves the last of --frames N: give --frames too")
         check_output(args.screenshot, ".png", (args.file, args.solution), flag="--screenshot")
     _check_model_files(args.file, args.solution)
-    check_image_memory(*args.size)
+    check_image_memory(*args.size, samples=args.samples)
     fit, solution = _read_model_files(args.file, args.solution)
 
     import moderngl_window as mglw
@@ -308,7 +327,8 @@ def _view(args):
 
     positions = np.concatenate([o.positions for o in (fit or solution).objects])
     view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), fit, solution)
-    Walkthrough.configure(fit, solution, view, args.exposure, args.frames, args.screenshot, args.mode, args.press)
+    Walkthrough.configure(fit, solution, view, args.exposure, args.frames, args.screenshot, args.mode, args.press,
+                          args.samples)
     try:
         mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
     except Exception as exc:  # the window library's own failure to open a window (pyglet's NoSuchDisplayException)
@@ -325,8 +345,9 @@ def _demo(args):
     from display.demo import FILES, key_numbers, run_demo
     from display.outputs import check_output_dir
 
+    check_sample_count(args.samples)
     out = check_output_dir(args.out, "--out", files=FILES)
-    summary = run_demo(out, args.quality, args.size)
+    summary = run_demo(out, args.quality, args.size, samples=args.samples)
     print(key_numbers(summary, out))
     if args.view:
         from display.window import display_problem
@@ -342,7 +363,8 @@ def _demo(args):
             from radiosity.formats import load_solution
 
             solution = load_solution(out / "solution.npz")
-            Walkthrough.configure(load_fit(out / "fit.npz"), solution, solution.camera.sized(1280, 720))
+            Walkthrough.configure(load_fit(out / "fit.npz"), solution, solution.camera.sized(1280, 720),
+                                  samples=args.samples)
             mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
     return 0
 
@@ -364,7 +386,13 @@ def _check_compare_inputs(fit_path, solution_path):
 
 def _compare(args):
     from display.compare import FILES, compare
-    from display.gl import COMPARE_BYTES_PER_PIXEL, check_image_memory, check_image_size, headless_context
+    from display.gl import (
+        COMPARE_BYTES_PER_PIXEL,
+        check_image_memory,
+        check_image_size,
+        check_samples,
+        headless_context,
+    )
     from display.outputs import check_output_dir
     from display.renderer import Renderer
     from fitting import load_fit
@@ -372,20 +400,22 @@ def _compare(args):
 
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_sample_count(args.samples)
     _check_compare_inputs(args.fit, args.solution)
     out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
     ctx = headless_context()
     try:
         check_image_size(ctx, *args.size)
-        check_image_memory(*args.size, COMPARE_BYTES_PER_PIXEL)
+        check_samples(ctx, args.samples, *args.size)
+        check_image_memory(*args.size, COMPARE_BYTES_PER_PIXEL, samples=args.samples)
         fit, solution = load_fit(args.fit), load_solution(args.solution)
-        renderer = Renderer(ctx, fit=fit, solution=solution)
+        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         view = resolve_view(args, renderer.bounds, fit, solution)
         results = compare(renderer, out, view, args.exposure, args.shading)
         renderer.release()
     finally:
         ctx.release()
-    print(f"wrote figures 5, 6, 7 and compare.json to {out}/")
+    print(f"wrote figures 5, 6, 7 and compare.json to {out}/ ({args.samples} samples per pixel)")
     print(f"  {'':<32} {'whole image':^28} {'glossy objects only':^28}")
     print(f"  {'':<32} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10}")
     rows = [(f"figure 5, view {i}", results["figure5"][f"view{i}"]) for i in range(1, 4)]

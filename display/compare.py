@@ -17,6 +17,11 @@ from 0 (identical) to 1 (as different as can be), lower is better; every error i
 shows it through the magma colour map (black 0, pale yellow 1) with a colour bar of
 that scale beside it. PSNR: higher is better. Relative MSE: lower is better, 0 exact.
 
+Every picture is antialiased as the renderer draws it (its ``samples`` per pixel,
+averaged with equal weights: a box filter over the pixel); ``compare.json`` records the
+samples and how they were drawn ("antialiasing"). The glossy objects' pixels are those
+whose centre sees one (``Renderer.object_mask``, one sample).
+
 Figure 7 is what the lights buy: ``compare.json``'s "glossy_flip" holds FLIP on the
 glossy objects with the lights and with the emitted colour alone (lights off), their
 ratio, and whether it meets the target (with lights at most ``FIGURE7_TARGET`` times
@@ -205,7 +210,11 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
     """
     views = views or [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
     k_max = max((o.n_lights for o in renderer.objects), default=0)
-    results = {"figure5": {}, "figure6": {}, "figure7": {}, "exposure": exposure, "shading": shading}
+    plan = renderer.plan
+    results = {"figure5": {}, "figure6": {}, "figure7": {}, "exposure": exposure, "shading": shading,
+               "samples": plan.samples,
+               "antialiasing": {"msaa": plan.msaa, "supersampling": plan.factor, "samples_per_pixel": plan.per_pixel,
+                                "filter": "box (the mean of the samples inside each pixel)"}}
 
     glossy = [o.name for o in renderer.objects if o.n_lights > 0]
     results["glossy_objects"] = glossy

@@ -18,6 +18,7 @@ from pathlib import Path
 from radiosity.formats.atomic import atomic_output
 
 from . import compare as _compare
+from .gl import DEFAULT_SAMPLES
 from .outputs import staged_directory
 
 FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png") + tuple(
@@ -25,30 +26,33 @@ FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_light
 )
 
 
-def run_demo(out, quality="draft", size=(512, 512), log=print):
+def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES):
     """Run the pipeline into ``out`` (created if missing, not its parents); returns the summary.
+    The figures have ``samples`` per pixel (antialiasing, ``display.renderer``).
 
     Everything is written into a hidden directory inside ``out`` and moved into place
     when all of it is done (``display.outputs.staged_directory``). The OpenGL context
     is made first, so a machine without one is told so before the solve.
     """
     out = Path(out)
-    ctx = _context(size)
+    ctx = _context(size, samples)
     try:
         with staged_directory(out) as stage:
-            return _run(stage, ctx, quality, size, log)
+            return _run(stage, ctx, quality, size, log, samples)
     finally:
         ctx.release()
 
 
-def _context(size):
-    """The headless context, after checking the figures' size against its limits and memory."""
-    from .gl import COMPARE_BYTES_PER_PIXEL, check_image_memory, check_image_size, headless_context
+def _context(size, samples):
+    """The headless context, after checking the figures' size and samples against its
+    limits and memory."""
+    from .gl import COMPARE_BYTES_PER_PIXEL, check_image_memory, check_image_size, check_samples, headless_context
 
     ctx = headless_context()
     try:
         check_image_size(ctx, *size)
-        check_image_memory(*size, COMPARE_BYTES_PER_PIXEL)
+        check_samples(ctx, samples, *size)
+        check_image_memory(*size, COMPARE_BYTES_PER_PIXEL, samples=samples)
     except BaseException:
         ctx.release()
         raise
@@ -93,7 +97,7 @@ def model_words(o):
     return f"{o.n_lights} lights ({kind}), {coeffs}: {o.floats_per_vertex} floats per vertex"
 
 
-def _run(out, ctx, quality, size, log):
+def _run(out, ctx, quality, size, log, samples):
     from fitting import FitOptions, fit
     from radiosity.formats.presets import preset
     from radiosity.scene.loaders import load_scene
@@ -119,9 +123,9 @@ def _run(out, ctx, quality, size, log):
     model.save(out / "fit.npz")
     times["fit_s"] = time.perf_counter() - t
 
-    log("[3/4] rendering the paper's figures")
+    log(f"[3/4] rendering the paper's figures ({samples} samples per pixel)")
     t = time.perf_counter()
-    renderer = Renderer(ctx, fit=model, solution=solution)
+    renderer = Renderer(ctx, fit=model, solution=solution, samples=samples)
     numbers = _compare.compare(renderer, out / "compare", scene.camera.sized(*size))
     renderer.release()
     times["compare_s"] = time.perf_counter() - t
@@ -145,7 +149,8 @@ def _run(out, ctx, quality, size, log):
         for o in model.objects if o.n_lights
     }
     summary = {
-        "verdict": "", "scene": "cornell-teapot", "quality": quality, "times_s": {k: round(v, 3) for k, v in times.items()},
+        "verdict": "", "scene": "cornell-teapot", "quality": quality, "samples": samples,
+        "times_s": {k: round(v, 3) for k, v in times.items()},
         "solver_time_s": solution.stats["time_s"], "fit_settings": model.settings, "objects": objects,
         "sizes_bytes": sizes,
         "error_vs_lights": {
@@ -290,7 +295,8 @@ def _report(s):
         "The model: per glossy object, " + "; ".join(f"{name}: {o['model']}" for name, o in s["objects"].items())
         + ". Floats per vertex are what the display stores per vertex besides the mesh (emitted colour and "
         "specular coefficients); the lights themselves are a few numbers per object.", "",
-        f"Quality `{s['quality']}`. Total {t['total_s']:.1f} s: solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, "
+        f"Quality `{s['quality']}`; figures with {s['samples']} samples per pixel (antialiasing: their mean, a box "
+        f"filter over each pixel). Total {t['total_s']:.1f} s: solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, "
         f"figures {t['compare_s']:.1f} s, lights sweep {t['sweep_s']:.1f} s. "
         f"solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz {s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB.", "",
         "## Fit per glossy object", "",

@@ -7,11 +7,20 @@ without a GPU); the walkthrough window gets its context from moderngl-window.
 texture, renderbuffer and viewport); ``check_image_memory`` refuses one whose float
 framebuffers and images would not fit in the memory this machine has free. Both
 raise ``InputError`` with one line naming the limit or the estimate.
+
+Antialiasing: every picture averages ``samples`` samples per pixel, all inside the
+pixel, with equal weights: a box filter over the pixel, as a path tracer integrating
+over the pixel has. ``sample_plan`` says how: up to the context's multisampling
+(``ctx.max_samples``; 4 for float colour on llvmpipe) by MSAA alone; beyond it, the
+image is also drawn ``factor`` times larger on each side and each factor x factor
+block averaged (supersampling). ``check_samples`` refuses a count outside 1 to
+``MAX_SAMPLES``, or one whose larger image the context cannot draw.
 """
 
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 import moderngl
 
@@ -19,13 +28,73 @@ from radiosity.formats.errors import InputError
 
 REQUIRED_VERSION = 330
 
-# Bytes per pixel, measured (peak resident memory against image size) and rounded up:
-# one picture is an RGBA float32 colour texture and a depth buffer on the GL side,
-# then the read-back, the (H, W, 3) float32 image and tone mapping's float64
-# intermediates (~135 measured); a comparison adds FLIP's working images and the
-# error maps (~275 measured).
-RENDER_BYTES_PER_PIXEL = 160
-COMPARE_BYTES_PER_PIXEL = 320
+# Bytes per pixel at DEFAULT_SAMPLES, measured (peak resident memory against image size)
+# and rounded up: one picture is a 4x multisample RGBA float32 colour renderbuffer and
+# depth buffer, the float texture its samples are averaged into, on the GL side, then
+# the read-back, the (H, W, 3) float32 image and tone mapping's float64 intermediates
+# (~210 measured; ~135 with one sample); a comparison adds the one-sample framebuffer
+# of the object masks, FLIP's working images and the error maps (~420 measured).
+# Other sample counts add or save what their framebuffers differ by (framebuffer_bytes):
+# a picture of 16 samples is estimated at 544, of 64 at 1696 (430 and 1590 measured).
+RENDER_BYTES_PER_PIXEL = 240
+COMPARE_BYTES_PER_PIXEL = 480
+
+DEFAULT_SAMPLES = 4  # samples per pixel unless told otherwise: 4x MSAA
+MAX_SAMPLES = 64     # a ceiling: 64 samples' colour and depth are ~1.5 kB a pixel, 1.4 GB at 1280 x 720
+
+
+class SamplePlan(NamedTuple):
+    """How ``samples`` per pixel are drawn: the image ``factor`` times larger on each side
+    (supersampling), ``msaa`` samples in each of its pixels; ``per_pixel`` samples in all
+    (at least ``samples``), averaged with equal weights."""
+
+    samples: int
+    msaa: int
+    factor: int
+
+    @property
+    def per_pixel(self):
+        return self.factor * self.factor * self.msaa
+
+
+def check_sample_count(samples, flag="--samples"):
+    """Refuse a number of samples per pixel outside 1 to MAX_SAMPLES."""
+    if not 1 <= samples <= MAX_SAMPLES:
+        raise InputError(f"{flag} must be 1 to {MAX_SAMPLES} (samples per pixel), got {samples}")
+
+
+def sample_plan(samples, max_msaa=DEFAULT_SAMPLES):
+    """The plan for ``samples`` per pixel on a context multisampling at most ``max_msaa``
+    (``ctx.max_samples``): MSAA alone (a power of two, as moderngl takes) up to
+    ``max_msaa``; beyond it, the largest MSAA in each pixel of an image the smallest
+    ``factor`` larger that reaches ``samples``. 1 -> one sample; 4 -> MSAA 4;
+    16 -> 2 x 2 of MSAA 4; 8 -> 2 x 2 of MSAA 4 (16). A driver may round an MSAA count
+    up to one it has (llvmpipe: 2 -> 4)."""
+    check_sample_count(samples)
+    top = 1 << (max(int(max_msaa), 1).bit_length() - 1)
+    if samples <= top:
+        msaa = 1
+        while msaa < samples:
+            msaa *= 2
+        return SamplePlan(samples, msaa, 1)
+    factor = 2
+    while factor * factor * top < samples:
+        factor += 1
+    return SamplePlan(samples, top, factor)
+
+
+def framebuffer_bytes(samples):
+    """GL bytes per image pixel of the framebuffers ``samples`` are drawn through (a context
+    with 4x MSAA): per sample an RGBA float32 colour and a depth value, then the MSAA
+    samples averaged (RGBA float32 per supersampled pixel), then the image itself."""
+    plan = sample_plan(samples)
+    sub_pixels = plan.factor * plan.factor
+    total = sub_pixels * plan.msaa * (16 + 4)
+    if plan.msaa > 1:
+        total += sub_pixels * 16
+    if plan.factor > 1:
+        total += 16
+    return total
 
 
 def headless_context():
@@ -53,14 +122,35 @@ def image_limits(ctx):
     return tuple(limits)
 
 
-def check_image_size(ctx, width, height, flag="--size"):
-    """Refuse a ``width`` x ``height`` image beyond what ``ctx`` can draw, naming the limit."""
+def _beyond_limits(ctx, width, height):
+    """What a ``width`` x ``height`` image exceeds in ``ctx`` ("at most N pixels wide (NAME = N)"), or None."""
     (max_w, name_w), (max_h, name_h) = image_limits(ctx)
     for side, limit, name, what in ((width, max_w, name_w, "wide"), (height, max_h, name_h, "high")):
         if limit is not None and side > limit:
-            raise InputError(
-                f"{flag} {width}x{height}: this OpenGL draws images at most {limit} pixels {what} ({name} = {limit})"
-            )
+            return f"at most {limit} pixels {what} ({name} = {limit})"
+    return None
+
+
+def check_image_size(ctx, width, height, flag="--size"):
+    """Refuse a ``width`` x ``height`` image beyond what ``ctx`` can draw, naming the limit."""
+    beyond = _beyond_limits(ctx, width, height)
+    if beyond is not None:
+        raise InputError(f"{flag} {width}x{height}: this OpenGL draws images {beyond}")
+
+
+def check_samples(ctx, samples, width, height, flag="--samples"):
+    """Refuse ``samples`` per pixel outside 1 to MAX_SAMPLES, or whose supersampled image
+    (``width`` x ``height`` times the plan's factor) ``ctx`` cannot draw; returns the plan."""
+    check_sample_count(samples, flag)
+    plan = sample_plan(samples, ctx.max_samples)
+    w, h = width * plan.factor, height * plan.factor
+    beyond = _beyond_limits(ctx, w, h)
+    if beyond is not None:
+        raise InputError(
+            f"{flag} {samples} draws the {width}x{height} image {plan.factor} times larger on each side "
+            f"({w}x{h}, {plan.msaa}x MSAA), and this OpenGL draws images {beyond}; use fewer samples or a smaller size"
+        )
+    return plan
 
 
 def available_memory():
@@ -99,9 +189,13 @@ def _size(n):
     return f"{n / 1e3:.0f} kB"
 
 
-def check_image_memory(width, height, bytes_per_pixel=RENDER_BYTES_PER_PIXEL, flag="--size"):
+def check_image_memory(width, height, bytes_per_pixel=RENDER_BYTES_PER_PIXEL, flag="--size", samples=DEFAULT_SAMPLES):
     """Refuse a ``width`` x ``height`` image whose float framebuffers and images would
-    not fit in the free memory, with the estimate; returns the estimate in bytes."""
+    not fit in the free memory, with the estimate; returns the estimate in bytes.
+
+    ``bytes_per_pixel`` is measured at DEFAULT_SAMPLES; other ``samples`` add (or save)
+    the difference of their framebuffers (``framebuffer_bytes``)."""
+    bytes_per_pixel += framebuffer_bytes(samples) - framebuffer_bytes(DEFAULT_SAMPLES)
     need = int(width) * int(height) * bytes_per_pixel
     free = available_memory()
     if free is not None and need > free:

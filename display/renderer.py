@@ -20,6 +20,17 @@ Shading
                the interpolated normal and coefficients, for "reference" the three
                vertices' grids read with the fragment's own view direction and blended
                barycentrically
+Antialiasing (``samples`` per pixel, ``display.gl.sample_plan``)
+    Each pixel is the plain mean of its samples, all inside it: a box filter over the
+    pixel, as a path tracer integrating radiance over the pixel has. Up to the context's
+    MSAA the scene is drawn into a multisample float framebuffer (colour and depth per
+    sample; each triangle shaded once per pixel, at the centroid of the samples it
+    covers) whose samples ``ctx.copy_framebuffer`` averages into a float texture; beyond
+    it, into one ``factor`` times larger on each side, whose factor x factor blocks a
+    shader then averages (supersampling: shaded per sub-pixel). All in linear radiance,
+    before any tone mapping. 1 sample is the pixel centre alone. Object masks, triangle
+    ids and attributes (``object_mask``, ``render_triangles``, ``render_attributes``)
+    are always one sample per pixel.
 """
 
 from __future__ import annotations
@@ -31,7 +42,7 @@ import numpy as np
 
 from radiosity.formats.errors import InputError
 
-from .gl import check_image_size
+from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, sample_plan
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
@@ -93,11 +104,11 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
-out vec3 v_position;
-out vec3 v_normal;
-out vec3 v_emitted;
-out vec3 v_specular;
-out vec3 v_colour;
+centroid out vec3 v_position;
+centroid out vec3 v_normal;
+centroid out vec3 v_emitted;
+centroid out vec3 v_specular;
+centroid out vec3 v_colour;
 """ + SHADE_GLSL + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
@@ -119,7 +130,7 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
-out vec3 v_colour;
+centroid out vec3 v_colour;
 """ + SHADE_GLSL + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
@@ -133,11 +144,11 @@ FITTED_FS = """
 uniform vec3 eye;
 uniform int gouraud;
 uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
-in vec3 v_position;
-in vec3 v_normal;
-in vec3 v_emitted;
-in vec3 v_specular;
-in vec3 v_colour;
+centroid in vec3 v_position;
+centroid in vec3 v_normal;
+centroid in vec3 v_emitted;
+centroid in vec3 v_specular;
+centroid in vec3 v_colour;
 out vec4 f_colour;
 """ + SHADE_GLSL + """
 void main() {
@@ -181,11 +192,11 @@ in vec3 g_normal[];
 in vec3 g_emitted[];
 in vec3 g_specular[];
 flat in int g_vertex[];
-out vec3 v_position;
-out vec3 v_normal;
-out vec3 v_emitted;
-out vec3 v_specular;
-out vec3 v_bary;
+centroid out vec3 v_position;
+centroid out vec3 v_normal;
+centroid out vec3 v_emitted;
+centroid out vec3 v_specular;
+centroid out vec3 v_bary;
 flat out ivec3 v_vertices;
 void main() {
     for (int i = 0; i < 3; ++i) {
@@ -206,11 +217,11 @@ FITTED_PIXEL_FS = """
 #version 330
 uniform vec3 eye;
 uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
-in vec3 v_position;
-in vec3 v_normal;
-in vec3 v_emitted;
-in vec3 v_specular;
-in vec3 v_bary;
+centroid in vec3 v_position;
+centroid in vec3 v_normal;
+centroid in vec3 v_emitted;
+centroid in vec3 v_specular;
+centroid in vec3 v_bary;
 flat in ivec3 v_vertices;
 out vec4 f_colour;
 """ + SHADE_GLSL + """
@@ -226,10 +237,10 @@ void main() {
 ATTRIBUTES_FS = """
 #version 330
 uniform int object_index;
-in vec3 v_position;
-in vec3 v_normal;
-in vec3 v_emitted;
-in vec3 v_specular;
+centroid in vec3 v_position;
+centroid in vec3 v_normal;
+centroid in vec3 v_emitted;
+centroid in vec3 v_specular;
 TRIANGLE_INPUTS
 layout(location = 0) out vec4 f_position;
 layout(location = 1) out vec4 f_normal;
@@ -246,7 +257,7 @@ void main() {
     f_vertices = vec4(vec3(v_vertices), float(object_index));
 }
 """
-ATTRIBUTES_PIXEL_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "in vec3 v_bary;\nflat in ivec3 v_vertices;")
+ATTRIBUTES_PIXEL_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "centroid in vec3 v_bary;\nflat in ivec3 v_vertices;")
 ATTRIBUTES_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "const vec3 v_bary = vec3(0.0);\nconst ivec3 v_vertices = ivec3(-1);")
 
 LOOKUP_GLSL = """
@@ -297,7 +308,7 @@ uniform vec3 eye;
 in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_tangent;
-out vec3 v_colour;
+centroid out vec3 v_colour;
 """ + LOOKUP_GLSL + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
@@ -307,7 +318,7 @@ void main() {
 
 COLOUR_FS = """
 #version 330
-in vec3 v_colour;
+centroid in vec3 v_colour;
 out vec4 f_colour;
 void main() { f_colour = vec4(v_colour, 1.0); }
 """
@@ -339,8 +350,8 @@ in vec3 g_position[];
 in vec3 g_normal[];
 in vec3 g_tangent[];
 flat in int g_vertex[];
-out vec3 f_position;
-out vec3 f_bary;
+centroid out vec3 f_position;
+centroid out vec3 f_bary;
 flat out ivec3 f_vertices;
 flat out vec3 f_n0;
 flat out vec3 f_n1;
@@ -365,8 +376,8 @@ void main() {
 REFERENCE_PIXEL_FS = """
 #version 330
 uniform vec3 eye;
-in vec3 f_position;
-in vec3 f_bary;
+centroid in vec3 f_position;
+centroid in vec3 f_bary;
 flat in ivec3 f_vertices;
 flat in vec3 f_n0;
 flat in vec3 f_n1;
@@ -382,6 +393,30 @@ void main() {
            + f_bary.y * lookup(f_vertices.y, f_n1, f_t1, w)
            + f_bary.z * lookup(f_vertices.z, f_n2, f_t2, w);
     f_colour = vec4(c, 1.0);
+}
+"""
+
+
+# Supersampling's last step: pixel (x, y) of the image is the mean of the factor x factor
+# block of the larger (already MSAA-resolved) image it covers.
+FULL_SCREEN_VS = """
+#version 330
+void main() {   // one triangle covering the viewport
+    gl_Position = vec4(vec2((gl_VertexID << 1) & 2, gl_VertexID & 2) * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+BOX_FS = """
+#version 330
+uniform sampler2D image;
+uniform int factor;
+out vec4 f_colour;
+void main() {
+    ivec2 corner = ivec2(gl_FragCoord.xy) * factor;
+    vec4 sum = vec4(0.0);
+    for (int j = 0; j < factor; ++j)
+        for (int i = 0; i < factor; ++i)
+            sum += texelFetch(image, corner + ivec2(i, j), 0);
+    f_colour = sum / float(factor * factor);
 }
 """
 
@@ -433,6 +468,39 @@ class _Object:
             self.lights.release()
 
 
+class _Framebuffers:
+    """The framebuffers of one image size and sample plan (``display.gl.SamplePlan``).
+
+    ``scene`` ((W factor, H factor), ``msaa`` samples a pixel, with depth) is drawn into;
+    with MSAA its samples are averaged into ``resolved`` (a float texture of its size);
+    with supersampling ``output`` (W, H) gets the mean of each factor x factor block.
+    ``output`` is the last of them: its colour attachment 0 is the image, a float texture.
+    One sample: ``scene`` alone, ``targets`` float textures."""
+
+    def __init__(self, ctx, size, targets, plan):
+        self.plan = plan
+        big = (size[0] * plan.factor, size[1] * plan.factor)
+        if plan.msaa > 1:
+            colour = [ctx.renderbuffer(big, 4, samples=plan.msaa, dtype="f4") for _ in range(targets)]
+        else:
+            colour = [ctx.texture(big, 4, dtype="f4") for _ in range(targets)]
+        depth = ctx.depth_renderbuffer(big, samples=plan.msaa if plan.msaa > 1 else 0)  # 0: not multisampled
+        self.scene = ctx.framebuffer(color_attachments=colour, depth_attachment=depth)
+        self.resolved = ctx.framebuffer(color_attachments=[ctx.texture(big, 4, dtype="f4")]) if plan.msaa > 1 else None
+        self.single = self.scene if self.resolved is None else self.resolved  # the samples averaged, (W factor, H factor)
+        self.output = self.single
+        if plan.factor > 1:
+            self.output = ctx.framebuffer(color_attachments=[ctx.texture(size, 4, dtype="f4")])
+
+    def release(self):
+        for fbo in {id(f): f for f in (self.scene, self.single, self.output)}.values():
+            for attachment in fbo.color_attachments:
+                attachment.release()
+            if fbo.depth_attachment is not None:
+                fbo.depth_attachment.release()
+            fbo.release()
+
+
 def _float_texture(ctx, values, what):
     """(N, 3) float values as an RGB32F texture FLOAT_TEXTURE_WIDTH texels wide, value i
     at texel (i % width, i // width); InputError if it exceeds the context's textures."""
@@ -467,10 +535,12 @@ class Renderer:
     base + v K + k, read by vertex id: ``gl_VertexID`` for Gouraud, and per pixel the
     triangle's three ids (flat, from a geometry shader) blended by barycentrics."""
 
-    def __init__(self, ctx, fit=None, solution=None):
+    def __init__(self, ctx, fit=None, solution=None, samples=DEFAULT_SAMPLES):
         if fit is None and solution is None:
             raise ValueError("give a fitted model, a solution, or both")
         self.ctx = ctx
+        self.samples = samples  # per pixel, in draw and render unless they are told otherwise
+        self.plan = sample_plan(samples, ctx.max_samples)
         self.fit, self.solution = fit, solution
         self.modes = tuple(m for m in MODES if (m != "reference" or solution is not None) and (m != "fitted" or fit is not None))
         source = fit if fit is not None else solution
@@ -486,6 +556,7 @@ class Renderer:
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
+        self._box = None  # the vertex array of the supersampling average (no attributes)
 
     def _upload_fit(self, fit):
         ctx = self.ctx
@@ -556,6 +627,7 @@ class Renderer:
                 "gouraud": dict(vertex_shader=GOURAUD_VS, fragment_shader=COLOUR_FS),
                 "fitted-feedback": dict(vertex_shader=GOURAUD_VS, varyings=["v_colour"]),
                 "reference-feedback": dict(vertex_shader=REFERENCE_GOURAUD_VS, varyings=["v_colour"]),
+                "box": dict(vertex_shader=FULL_SCREEN_VS, fragment_shader=BOX_FS),
             }[key]
             self._programs[key] = self.ctx.program(**sources)
         return self._programs[key]
@@ -598,24 +670,51 @@ class Renderer:
         self._set(program, "base", obj.base)
         self._set(program, "grid_n", obj.grid_n)
 
-    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None):
-        """Draw into the renderer's float framebuffer for this size (reused between calls,
-        released with the renderer) and return it. With ``mask`` (a
+    def _framebuffers_for(self, size, targets, samples):
+        """The framebuffers of this size, targets and samples: made on first use, kept for
+        the next frame (a walkthrough draws many), released with the renderer."""
+        key = (size, targets, samples)
+        if key not in self._framebuffers:
+            check_image_size(self.ctx, *size, flag="image")
+            plan = check_samples(self.ctx, samples, *size, flag="samples")
+            if targets > 1 and plan.per_pixel > 1:
+                raise ValueError("several render targets are drawn with one sample per pixel only")
+            self._framebuffers[key] = _Framebuffers(self.ctx, size, targets, plan)
+        return self._framebuffers[key]
+
+    def _average(self, fbs):
+        """The image of ``fbs`` once drawn: its samples averaged (MSAA), then its blocks
+        (supersampling). Returns the framebuffer holding it."""
+        if fbs.resolved is not None:
+            self.ctx.copy_framebuffer(fbs.resolved, fbs.scene)
+        if fbs.plan.factor == 1:
+            return fbs.output
+        program = self._program("box")
+        fbs.output.use()
+        self.ctx.viewport = (0, 0, *fbs.output.size)
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        fbs.single.color_attachments[0].use(location=0)
+        program["image"].value = 0
+        program["factor"].value = fbs.plan.factor
+        if self._box is None:
+            self._box = self.ctx.vertex_array(program, [])
+        self._box.render(moderngl.TRIANGLES, vertices=3)
+        return fbs.output
+
+    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None,
+             samples=None):
+        """Draw, average the samples, and return the float framebuffer holding the image
+        (colour attachment 0, a texture of the view's size; reused between calls, released
+        with the renderer). ``samples`` per pixel (None: the renderer's). With ``mask`` (a
         set of object names) every object is drawn flat: 1 for those named, 0 for the others."""
         if mode not in self.modes:
             raise InputError(f"mode {mode!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; this input has {', '.join(self.modes)}")
         if shading not in SHADINGS:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx
-        size = (view.width, view.height)
-        fbo = self._framebuffers.get((size, targets))
-        if fbo is None:  # kept for the next frame of this size: a walkthrough draws many
-            check_image_size(ctx, *size, flag="image")
-            colour = [ctx.texture(size, 4, dtype="f4") for _ in range(targets)]
-            fbo = ctx.framebuffer(color_attachments=colour, depth_attachment=ctx.depth_renderbuffer(size))
-            self._framebuffers[(size, targets)] = fbo
-        fbo.use()
-        ctx.viewport = (0, 0, *size)
+        fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
+        fbs.scene.use()
+        ctx.viewport = (0, 0, *fbs.scene.size)
         ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)  # one-sided surfaces are still seen from behind
@@ -653,21 +752,23 @@ class Renderer:
             vao = obj.vao(ctx, program, attributes)
             vao.render(moderngl.TRIANGLES)
             vao.release()
-        return fbo
+        return self._average(fbs)
 
-    def render(self, view, mode="fitted", shading="pixel", lights=None):
-        """Linear radiance (H, W, 3) float32, row 0 at the top, background 0.
+    def render(self, view, mode="fitted", shading="pixel", lights=None, samples=None):
+        """Linear radiance (H, W, 3) float32, row 0 at the top, background 0: each pixel
+        the mean of its ``samples`` (None: the renderer's).
 
         ``lights``: use only the first K lights of each object (None: all)."""
-        return self._read(self.draw(view, mode, shading, lights), 0)
+        return self._read(self.draw(view, mode, shading, lights, samples=samples), 0)
 
     def object_mask(self, view, names):
-        """(H, W) bool: pixels where one of the objects ``names`` is the visible surface."""
-        return self._read(self.draw(view, "diffuse", "pixel", mask=set(names)), 0)[..., 0] > 0.5
+        """(H, W) bool: pixels whose centre sees one of the objects ``names`` (one sample)."""
+        return self._read(self.draw(view, "diffuse", "pixel", mask=set(names), samples=1), 0)[..., 0] > 0.5
 
     def _attribute_targets(self, view):
-        """One draw of the attributes program: its six targets read back (H, W, 4)."""
-        fbo = self.draw(view, "fitted", "pixel", targets=6, program_key="attributes")
+        """One draw of the attributes program (one sample, at the pixel centres): its six
+        targets read back (H, W, 4)."""
+        fbo = self.draw(view, "fitted", "pixel", targets=6, program_key="attributes", samples=1)
         return [self._read(fbo, i, components=4) for i in range(6)]
 
     @staticmethod
@@ -744,13 +845,6 @@ class Renderer:
         data = np.frombuffer(texture.read(), np.float32).reshape(texture.height, texture.width, 4)[::-1]
         return np.ascontiguousarray(data[..., :components])
 
-    def _release(self, fbo):
-        for t in fbo.color_attachments:
-            t.release()
-        if fbo.depth_attachment is not None:
-            fbo.depth_attachment.release()
-        fbo.release()
-
     def release(self):
         for o in self.objects:
             o.release()
@@ -759,7 +853,8 @@ class Renderer:
         for texture in (self.radiance, self.coefficients):
             if texture is not None:
                 texture.release()
-        if self._scratch is not None:
-            self._scratch.release()
-        for fbo in self._framebuffers.values():
-            self._release(fbo)
+        for resource in (self._scratch, self._box):
+            if resource is not None:
+                resource.release()
+        for fbs in self._framebuffers.values():
+            fbs.release()

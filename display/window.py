@@ -1,16 +1,19 @@
 """``vlights view``: the walkthrough window (moderngl-window).
 
-The renderer draws the HDR image into a float framebuffer; a full-screen pass applies
-exposure and sRGB into the window. moderngl-window's KeyboardCamera does the walking
-(WASD, Q/E down/up, mouse-look while the left button is held). Keys:
+The renderer draws the HDR image into its float framebuffers, antialiased as every
+picture is (``--samples``: MSAA, then supersampling, averaged in linear radiance); a
+full-screen pass applies exposure and sRGB into the window. moderngl-window's
+KeyboardCamera does the walking (WASD, Q/E down/up, mouse-look while the left button
+is held). Keys:
 
     M  cycle mode (fitted, diffuse, reference)     G  Gouraud / per-pixel shading
     L  2 lights / all lights (the paper's figure 6)   + / -  exposure x 2 / x 0.5
     P  screenshot (PNG, tone-mapped)                ESC  quit
 
-A status line shows mode, shading, lights, exposure and frame time. ``--frames N``
-draws N frames and closes (for tests and scripted captures); ``--screenshot FILE``
-writes the last frame; ``--press KEYS`` presses keys (m g l + - p) after the first frame.
+A status line shows mode, shading, lights, exposure, samples per pixel ("spp") and frame
+time. ``--frames N`` draws N frames and closes (for tests and scripted captures);
+``--screenshot FILE`` writes the last frame; ``--press KEYS`` presses keys (m g l + - p)
+after the first frame.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import numpy as np
 
 from radiosity.formats import Camera, InputError, atomic_output
 
+from .gl import DEFAULT_SAMPLES
 from .renderer import Renderer
 
 with warnings.catch_warnings():  # moderngl-window imports PyGLM by its old name, which warns
@@ -79,9 +83,10 @@ class Walkthrough(mglw.WindowConfig):
     failure = None  # an InputError met while the window ran (--screenshot could not be written)
 
     @classmethod
-    def configure(cls, fit, solution, view, exposure=1.0, frames=None, screenshot=None, mode=None, press=""):
+    def configure(cls, fit, solution, view, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
+                  samples=DEFAULT_SAMPLES):
         cls.setup = dict(fit=fit, solution=solution, view=view, exposure=exposure, frames=frames,
-                         screenshot=screenshot, mode=mode, press=press)
+                         screenshot=screenshot, mode=mode, press=press, samples=samples)
         cls.window_size = (view.width, view.height)
         cls.failure = None
         quiet_window_library()
@@ -89,7 +94,7 @@ class Walkthrough(mglw.WindowConfig):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         s = self.setup
-        self.renderer = Renderer(self.ctx, fit=s["fit"], solution=s["solution"])
+        self.renderer = Renderer(self.ctx, fit=s["fit"], solution=s["solution"], samples=s["samples"])
         self.modes = self.renderer.modes
         self.mode = s["mode"] or self.modes[0]
         self.shading = "pixel"
@@ -138,7 +143,7 @@ class Walkthrough(mglw.WindowConfig):
         self.tonemap["exposure"].value = self.exposure
         self.quad_vao.render(moderngl.TRIANGLE_STRIP)
         self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
-                          f"exposure {self.exposure:g} | {self.last_frame_ms:.1f} ms")
+                          f"exposure {self.exposure:g} | {self.renderer.samples} spp | {self.last_frame_ms:.1f} ms")
         self.text.draw((10, self.wnd.buffer_size[1] - 24), size=14)
         self.ctx.finish()
         self.last_frame_ms = 1000 * (time.perf_counter() - start)

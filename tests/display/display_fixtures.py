@@ -55,6 +55,23 @@ def tiny_fit(solution, lights=1):
     return FittedModel(objects=tuple(objects), source="test")
 
 
+def tilted_tile_solution(wall, tile, angle_deg):
+    """A wall of uniform radiance ``wall`` (a square of half side 4 at z = 0) and in front
+    of it a tile of uniform radiance ``tile`` (half side 1 at z = -0.2), both diffuse and
+    facing -z, the tile turned by ``angle_deg`` about the z axis: seen from -z along
+    the axis, its edges are straight lines ``angle_deg`` off the pixel rows and columns."""
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], np.float32)
+    objects = []
+    for name, half, z, radiance, rotation in (("wall", 4.0, 0.0, wall, np.eye(3, dtype=np.float32)),
+                                              ("tile", 1.0, -0.2, tile, turn)):
+        p, f, n, t = square(half, z)
+        objects.append(ObjectSolution(name, p @ rotation.T, n, t @ rotation.T, f,
+                                      directions.grid_directions(1).astype(np.float32),
+                                      np.full((4, 1, 3), radiance, np.float32), DIFFUSE))
+    return Solution(objects=tuple(objects), settings={}, stats={}, scene="test")
+
+
 def write_pair(directory, solution, lights=1):
     directory.mkdir(parents=True, exist_ok=True)
     solution_path, fit_path = directory / "solution.npz", directory / "fit.npz"

@@ -26,6 +26,7 @@ def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_co
     assert {"solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png", "compare"} <= names
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["times_s"]) == {"solve_s", "fit_s", "compare_s", "sweep_s", "total_s"}
+    assert summary["samples"] == 4 and summary["figures"]["samples"] == 4  # antialiasing, the default
     assert set(summary["objects"]) == {"tall_block", "teapot"}
     assert summary["fit_settings"]["coefficients"] == "per-light" and summary["fit_settings"]["light_kind"] == "auto"
     for o in summary["objects"].values():

@@ -1,5 +1,6 @@
 """The display stage imports of the radiosity stage only its file formats (the demo,
-which runs the whole pipeline, also the scene and the light transport)."""
+which runs the whole pipeline, and the ground truth, which path-traces scenes with the
+light transport's path tracer, also the scene and the light transport)."""
 
 import ast
 from pathlib import Path
@@ -21,7 +22,7 @@ def allowed(path, module):
         return True
     if module == "radiosity.formats" or module.startswith("radiosity.formats."):
         return True
-    if path.name == "demo.py" and module.split(".")[1] in ("scene", "transport"):
+    if path.name in ("demo.py", "truth.py") and module.split(".")[1] in ("scene", "transport"):
         return True
     return path.name == "cli.py" and module == "radiosity.cli"  # the dispatcher registers every stage's commands
 

@@ -23,7 +23,7 @@ def summary(flip_with=0.05, flip_without=0.2):
     with_lights = figure | {"flip_mean_glossy": flip_with}
     without = figure | {"flip_mean_glossy": flip_without}
     s = {
-        "quality": "draft", "objects": objects, "sizes_bytes": {"solution.npz": 1e7, "fit.npz": 1e6},
+        "quality": "draft", "samples": 4, "objects": objects, "sizes_bytes": {"solution.npz": 1e7, "fit.npz": 1e6},
         "times_s": {"solve_s": 2.0, "fit_s": 20.0, "compare_s": 10.0, "sweep_s": 30.0, "total_s": 62.0},
         "error_vs_lights": {"counts": [1, 2], "preset_counts": [1, 2, 4, 8], "iterations": 25, "models": {"auto/per-light": "the default"},
                             "relative_rms": {"teapot": {"auto/per-light": {"1": 0.3, "2": 0.25, "8": 0.19},
@@ -47,6 +47,7 @@ def test_the_report_leads_with_what_the_lights_bought():
     text = "\n".join(report)
     assert "lower is better" in text and "0 is exact" in text and "0 (identical) to 1" in text
     assert "27 floats per vertex" in text
+    assert "figures with 4 samples per pixel (antialiasing" in text
     assert "K = 1, 2 for every model (the `draft` preset's light counts are 1, 2, 4, 8; draft refits only" in text
     assert "ratio 0.25; target <= 0.6: met" in text
 

@@ -92,6 +92,25 @@ def test_window_draws_point_lights_with_per_light_coefficients(x_display, tmp_pa
     assert not np.array_equal(every, gouraud)
 
 
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_the_window_draws_antialiased_edges(x_display, tmp_path):
+    # a white tile (radiance 1) on a black wall, its edges 2 degrees off the pixel columns:
+    # with 4 samples a pixel the edge pixels lie between the two sides, with 1 they are one or the other
+    from display_fixtures import tilted_tile_solution, tiny_fit
+
+    model_path = tmp_path / "fit.npz"
+    tiny_fit(tilted_tile_solution(0.0, 1.0, 2.0), lights=0).save(model_path)
+    camera = ["--eye", "0", "0", "-5", "--look-at", "0", "0", "0", "--fov", "40"]
+    between = {}
+    for samples in ("4", "1"):
+        shot = view(x_display, model_path, tmp_path, f"samples{samples}", *camera, "--samples", samples)
+        below_status_line = shot[40:]
+        assert below_status_line.max() == 255 and below_status_line.min() == 0
+        between[samples] = int(((below_status_line > 0) & (below_status_line < 255)).any(axis=2).sum())
+    assert between["1"] == 0
+    assert between["4"] > 40  # some 140: the tile's edges below the status line
+
+
 def test_view_without_a_display_says_so(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     run = subprocess.run(["vlights", "view", "nothing.npz"], capture_output=True, text=True, env=env, timeout=60)
