@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -19,6 +20,7 @@ import numpy as np
 import fitting.cli
 import radiosity.cli
 from display.gl import DEFAULT_SAMPLES, MAX_SAMPLES, check_sample_count
+from display.truth import add_truth_command, check_spp
 from radiosity.formats import InputError, presets
 
 PROG = "vlights"
@@ -109,6 +111,12 @@ def register(subparsers, not_built):
     p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
     add_samples_flag(p)
+    p.add_argument("--truth", nargs="+", metavar="FILE.npy",
+                   help="path-traced images of figure 5's views, in order (from 'vlights truth --hdr' with the same "
+                   "camera and size): every display is also measured against them")
+    p.add_argument("--truth-spp", type=int, default=0, metavar="N",
+                   help="path-trace the truth of every view without a --truth file, N samples per pixel (default: none)")
+    p.add_argument("--seed", type=int, default=1, help="the path tracer's seed, with --truth-spp (default: %(default)s)")
     p.set_defaults(func=_compare)
 
     p = subparsers.add_parser(
@@ -139,6 +147,10 @@ def register(subparsers, not_built):
     p.add_argument("--size", type=_size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
     p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")
     add_samples_flag(p)
+    p.add_argument("--truth-spp", type=int, metavar="N",
+                   help="path-trace the first view with N samples per pixel and measure every display against it "
+                   "(default: the preset's, " + ", ".join(f"{q} {presets.preset(q).truth_spp}" for q in presets.QUALITIES)
+                   + "; 0: no truth)")
     p.set_defaults(func=_demo)
 
 
@@ -346,8 +358,10 @@ def _demo(args):
     from display.outputs import check_output_dir
 
     check_sample_count(args.samples)
+    if args.truth_spp is not None:
+        check_spp(args.truth_spp, "--truth-spp", low=0)
     out = check_output_dir(args.out, "--out", files=FILES)
-    summary = run_demo(out, args.quality, args.size, samples=args.samples)
+    summary = run_demo(out, args.quality, args.size, samples=args.samples, truth_spp=args.truth_spp)
     print(key_numbers(summary, out))
     if args.view:
         from display.window import display_problem
@@ -385,7 +399,7 @@ def _check_compare_inputs(fit_path, solution_path):
 
 
 def _compare(args):
-    from display.compare import FILES, compare
+    from display.compare import FILES, compare, figure5_views
     from display.gl import (
         COMPARE_BYTES_PER_PIXEL,
         check_image_memory,
@@ -401,6 +415,7 @@ def _compare(args):
     if not args.exposure > 0:
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
     check_sample_count(args.samples)
+    _check_truth_flags(args)
     _check_compare_inputs(args.fit, args.solution)
     out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
     ctx = headless_context()
@@ -411,7 +426,9 @@ def _compare(args):
         fit, solution = load_fit(args.fit), load_solution(args.solution)
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         view = resolve_view(args, renderer.bounds, fit, solution)
-        results = compare(renderer, out, view, args.exposure, args.shading)
+        views = figure5_views(view)
+        truths = _compare_truths(args, solution, views)
+        results = compare(renderer, out, view, args.exposure, args.shading, views=views, truths=truths)
         renderer.release()
     finally:
         ctx.release()
@@ -427,7 +444,48 @@ def _compare(args):
         print(f"  {label:<32} {m['flip_mean']:>8.4f} {m['psnr_db']:>8.2f} {m['relative_mse']:>10.4g} {glossy}")
     if any(m[k] == float("inf") for _, m in rows for k in ("psnr_db", "psnr_db_glossy") if k in m):
         print("  (PSNR inf: the pictures are identical; compare.json has null there, explained in its notes)")
+    for name, t in results.get("truth", {}).items():
+        noise = "" if t["noise_flip"] is None else f", noise floor FLIP {t['noise_flip']:.4f}"
+        source = f"{t['spp']} spp" if t["spp"] else "from a file"
+        print(f"  against the path-traced truth, {name.replace('view', 'view ')} ({source}{noise}):")
+        for mode in ("reference", "fitted", "diffuse"):
+            m = t[mode]
+            glossy = (f"{m['flip_mean_glossy']:>8.4f} {m['psnr_db_glossy']:>8.2f} {m['relative_mse_glossy']:>10.4g}"
+                      if "flip_mean_glossy" in m else "")
+            print(f"    {mode + ' display':<30} {m['flip_mean']:>8.4f} {m['psnr_db']:>8.2f} {m['relative_mse']:>10.4g} {glossy}")
     return 0
+
+
+def _check_truth_flags(args):
+    """--truth files (at most one per view, .npy, existing) and --truth-spp, before any work."""
+    files = args.truth or []
+    if len(files) > 3:
+        raise InputError(f"--truth takes at most 3 files (one per view of figure 5), got {len(files)}")
+    for path in files:
+        if not str(path).endswith(".npy"):
+            raise InputError(f"--truth {path!r} must be an .npy file (from 'vlights truth --hdr')")
+        if not os.path.isfile(path):
+            raise InputError(f"--truth {path!r} not found")
+    check_spp(args.truth_spp, "--truth-spp", low=0)
+    if not 0 <= args.seed < 2**63:
+        raise InputError(f"--seed must be between 0 and 2^63, got {args.seed}")
+
+
+def _compare_truths(args, solution, views):
+    """Per view: the --truth file's image, else (with --truth-spp) a path-traced one, else None."""
+    from display.truth import GroundTruth, ground_truth, load_truth
+
+    files = args.truth or []
+    truths = []
+    for i, view in enumerate(views):
+        if i < len(files):
+            truths.append(GroundTruth(load_truth(files[i], view), 0, None, {"file": files[i]}))
+        elif args.truth_spp:
+            print(f"path-tracing the truth of view {i + 1} ({args.truth_spp} samples per pixel)")
+            truths.append(ground_truth(solution, view, args.truth_spp, args.seed, progress=True))
+        else:
+            truths.append(None)
+    return truths
 
 
 def build_parser():
@@ -440,6 +498,7 @@ def build_parser():
     radiosity.cli.register(subparsers, not_built)
     fitting.cli.register(subparsers, not_built)
     register(subparsers, not_built)
+    add_truth_command(subparsers, add_camera_flags)
     return parser
 
 

@@ -22,6 +22,12 @@ averaged with equal weights: a box filter over the pixel); ``compare.json`` reco
 samples and how they were drawn ("antialiasing"). The glossy objects' pixels are those
 whose centre sees one (``Renderer.object_mask``, one sample).
 
+With a path-traced truth for a view (``display.truth``), figure 5's row for that view
+starts with the truth and ends with the fitted display's FLIP against it, and
+``compare.json``'s "truth" holds FLIP, PSNR and relative MSE of the reference, fitted
+and diffuse-only displays against the truth (whole image and glossy objects), with the
+truth's samples and noise floor (FLIP between its two halves).
+
 Figure 7 is what the lights buy: ``compare.json``'s "glossy_flip" holds FLIP on the
 glossy objects with the lights and with the emitted colour alone (lights off), their
 ratio, and whether it meets the target (with lights at most ``FIGURE7_TARGET`` times
@@ -198,7 +204,25 @@ def glossy_flip(with_lights, diffuse_only, target=FIGURE7_TARGET):
     }
 
 
-def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None):
+def figure5_views(base_view):
+    """Figure 5's three viewpoints: ``base_view`` and it turned 35 degrees each way."""
+    return [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
+
+
+def truth_numbers(truth, images, exposure, mask):
+    """Each display image ({mode: (H, W, 3)}) against a ``GroundTruth``: its metrics per
+    mode, the truth's samples and noise floor, and (key "_fitted_error", for the figure)
+    the fitted image's FLIP error image against it."""
+    out = {"spp": truth.spp, "noise_flip": truth.noise_flip,
+           "noise_means": "FLIP between the two independent halves of the truth's samples: errors near it are noise"}
+    for mode, image in images.items():
+        out[mode], error = metrics(truth.radiance, image, exposure, mask)
+        if mode == "fitted":
+            out["_fitted_error"] = error
+    return out
+
+
+def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None, truths=None):
     """Write figures 5 to 7 and compare.json into ``out_dir``; returns the numbers.
 
     ``renderer`` must hold both a fitted model and a solution. ``views``: the three
@@ -206,9 +230,11 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
     ``out_dir`` is created if missing (not its parents). The files appear together at
     the end (``display.outputs.staged_directory``): a failure or Ctrl-C leaves none.
     The returned numbers keep infinities (the PSNR of identical pictures); compare.json
-    has null there, explained in its "notes".
+    has null there, explained in its "notes". ``truths``: per view, a
+    ``display.truth.GroundTruth`` (or None where there is none).
     """
-    views = views or [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
+    views = views or figure5_views(base_view)
+    truths = list(truths or []) + [None] * (len(views) - len(truths or []))
     k_max = max((o.n_lights for o in renderer.objects), default=0)
     plan = renderer.plan
     results = {"figure5": {}, "figure6": {}, "figure7": {}, "exposure": exposure, "shading": shading,
@@ -229,15 +255,30 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             raise InputError(f"the reference image (the solution seen from view {i + 1}) {BLACK}; is the scene lit, "
                              "and does the camera see it?")
 
+    for i, truth in enumerate(truths):
+        if truth is not None and is_black(truth.radiance):
+            raise InputError(f"the path-traced truth of view {i + 1} {BLACK}")
+
     with staged_directory(out_dir) as stage:
-        for i, (view, reference) in enumerate(zip(views, references)):
+        for i, (view, reference, truth) in enumerate(zip(views, references, truths)):
             fitted = shot(view, "fitted")
-            numbers, error = metrics(reference, fitted, exposure, renderer.object_mask(view, glossy))
+            mask = renderer.object_mask(view, glossy)
+            numbers, error = metrics(reference, fitted, exposure, mask)
             results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
-            _panel_row([tonemap(reference, exposure), tonemap(fitted, exposure), error],
-                       ["reference (solution)", f"fitted, {k_max} virtual lights",
-                        f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"],
-                       stage / f"figure5_view{i + 1}.png", errors=(2,))
+            panels = [tonemap(reference, exposure), tonemap(fitted, exposure), error]
+            labels = ["reference (solution)", f"fitted, {k_max} virtual lights",
+                      f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"]
+            errors = (2,)
+            if truth is not None:
+                against = truth_numbers(truth, {"reference": reference, "fitted": fitted,
+                                                "diffuse": shot(view, "diffuse")}, exposure, mask)
+                results.setdefault("truth", {})[f"view{i + 1}"] = against
+                spp = f"{truth.spp} spp" if truth.spp else "from a file"
+                panels = [tonemap(truth.radiance, exposure)] + panels + [against.pop("_fitted_error")]
+                labels = [f"path-traced truth ({spp})"] + labels + [
+                    f"fitted against the truth: FLIP {against['fitted']['flip_mean']:.3f}"]
+                errors = (3, 4)
+            _panel_row(panels, labels, stage / f"figure5_view{i + 1}.png", errors=errors)
 
         view, reference = views[0], references[0]
         mask = renderer.object_mask(view, glossy)

@@ -26,9 +26,11 @@ FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_light
 )
 
 
-def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES):
+def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES, truth_spp=None):
     """Run the pipeline into ``out`` (created if missing, not its parents); returns the summary.
-    The figures have ``samples`` per pixel (antialiasing, ``display.renderer``).
+    The figures have ``samples`` per pixel (antialiasing, ``display.renderer``); the first
+    view is also path-traced with ``truth_spp`` samples per pixel (None: the quality
+    preset's; 0: no truth) and every display measured against it.
 
     Everything is written into a hidden directory inside ``out`` and moved into place
     when all of it is done (``display.outputs.staged_directory``). The OpenGL context
@@ -38,7 +40,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_S
     ctx = _context(size, samples)
     try:
         with staged_directory(out) as stage:
-            return _run(stage, ctx, quality, size, log, samples)
+            return _run(stage, ctx, quality, size, log, samples, truth_spp)
     finally:
         ctx.release()
 
@@ -97,7 +99,7 @@ def model_words(o):
     return f"{o.n_lights} lights ({kind}), {coeffs}: {o.floats_per_vertex} floats per vertex"
 
 
-def _run(out, ctx, quality, size, log, samples):
+def _run(out, ctx, quality, size, log, samples, truth_spp):
     from fitting import FitOptions, fit
     from radiosity.formats.presets import preset
     from radiosity.scene.loaders import load_scene
@@ -109,29 +111,41 @@ def _run(out, ctx, quality, size, log, samples):
     scene = load_scene("cornell-teapot")
     p = preset(quality)
 
-    log(f"[1/4] solving cornell-teapot ({quality})")
+    truth_spp = p.truth_spp if truth_spp is None else truth_spp
+    steps = 5 if truth_spp else 4
+    log(f"[1/{steps}] solving cornell-teapot ({quality})")
     t = time.perf_counter()
     solution = solve(scene, SolveOptions(quality=quality, seed=1), progress=True)
     solution.save(out / "solution.npz")
     times["solve_s"] = time.perf_counter() - t
 
     options = FitOptions(lights=p.fit_lights, iterations=p.fit_iterations)
-    log(f"[2/4] fitting virtual lights ({p.fit_lights} per glossy object; each directional or positional as the "
+    log(f"[2/{steps}] fitting virtual lights ({p.fit_lights} per glossy object; each directional or positional as the "
         f"data require, a coefficient per light)")
     t = time.perf_counter()
     model = fit(solution, options, progress=True)
     model.save(out / "fit.npz")
     times["fit_s"] = time.perf_counter() - t
 
-    log(f"[3/4] rendering the paper's figures ({samples} samples per pixel)")
+    view = scene.camera.sized(*size)
+    truths = []
+    if truth_spp:
+        from .truth import ground_truth
+
+        log(f"[3/{steps}] path-tracing the truth of view 1 ({truth_spp} samples per pixel)")
+        t = time.perf_counter()
+        truths = [ground_truth(solution, view, truth_spp, seed=1, progress=True)]
+        times["truth_s"] = time.perf_counter() - t
+
+    log(f"[{steps - 1}/{steps}] rendering the paper's figures ({samples} samples per pixel)")
     t = time.perf_counter()
     renderer = Renderer(ctx, fit=model, solution=solution, samples=samples)
-    numbers = _compare.compare(renderer, out / "compare", scene.camera.sized(*size))
+    numbers = _compare.compare(renderer, out / "compare", view, truths=truths)
     renderer.release()
     times["compare_s"] = time.perf_counter() - t
 
     counts = sweep_counts(quality)
-    log(f"[4/4] error against the number of lights (K = {', '.join(map(str, counts))}; "
+    log(f"[{steps}/{steps}] error against the number of lights (K = {', '.join(map(str, counts))}; "
         f"{len(SWEEP_MODELS)} models per glossy object)")
     t = time.perf_counter()
     sweep, baseline = _sweep(solution, model, options, counts)
@@ -159,7 +173,8 @@ def _run(out, ctx, quality, size, log, samples):
             "relative_rms": sweep,
         },
         "figures": numbers,
-        "meaning": {"relative_rms": RMS_MEANS, "flip": FLIP_MEANS,
+        "truth": numbers.get("truth", {}).get("view1"),
+        "meaning": {"truth": TRUTH_MEANS,"relative_rms": RMS_MEANS, "flip": FLIP_MEANS,
                     "diffuse_baseline_relative_rms": "the error of the best colour per vertex with no lights (3 floats)",
                     "diffuse_only_relative_rms": "the error of the fit's emitted colour alone (its lights off)"},
     }
@@ -251,6 +266,23 @@ def _plot_sweep(sweep, baseline, model, path):
     plt.close(fig)
 
 
+TRUTH_MEANS = ("the first view path-traced (NEE + BRDF sampling by MIS, a box filter over each pixel) from the "
+               "solution's meshes and materials; each display's FLIP and relative MSE against it. noise_flip: FLIP "
+               "between the truth's two independent halves, the level below which an error is its noise")
+
+
+def truth_line(truth):
+    """One sentence: each display's FLIP against the path-traced truth, glossy objects in brackets."""
+    def flip(mode):
+        m = truth[mode]
+        glossy = f" ({m['flip_mean_glossy']:.3f})" if "flip_mean_glossy" in m else ""
+        return f"{m['flip_mean']:.3f}{glossy}"
+
+    noise = "" if truth["noise_flip"] is None else f"; the truth's own noise floor {truth['noise_flip']:.3f}"
+    return (f"Against a path tracer ({truth['spp']} spp), FLIP over the image (glossy objects): reference display "
+            f"{flip('reference')}, fitted {flip('fitted')}, diffuse only {flip('diffuse')}{noise}.")
+
+
 def _fmt(value, digits=2):
     return "n/a" if value is None else f"{value:.{digits}f}"
 
@@ -268,6 +300,11 @@ def verdict(s):
                and o["relative_rms"] < o["diffuse_baseline_relative_rms"] for o in objects.values())
     cut = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
     line = f"Virtual lights {'cut' if fell else 'took'} the relative RMS error {cut}"
+    line = _verdict_lights(s, line)
+    return line + (" " + truth_line(s["truth"]) if s.get("truth") else "")
+
+
+def _verdict_lights(s, line):
     g = s["figures"].get("glossy_flip")
     if not g:
         return line + "."
@@ -297,7 +334,8 @@ def _report(s):
         "specular coefficients); the lights themselves are a few numbers per object.", "",
         f"Quality `{s['quality']}`; figures with {s['samples']} samples per pixel (antialiasing: their mean, a box "
         f"filter over each pixel). Total {t['total_s']:.1f} s: solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, "
-        f"figures {t['compare_s']:.1f} s, lights sweep {t['sweep_s']:.1f} s. "
+        + (f"truth {t['truth_s']:.1f} s, " if "truth_s" in t else "")
+        + f"figures {t['compare_s']:.1f} s, lights sweep {t['sweep_s']:.1f} s. "
         f"solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz {s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB.", "",
         "## Fit per glossy object", "",
         "| object | lights | kinds | floats / vertex | exponent(s) | relative RMS | worst vertex | diffuse only | lights off |",
@@ -343,6 +381,18 @@ def _report(s):
               + (f" (ratio {ratio:.2f}; target <= {g['target_ratio']}: {'met' if g['meets_target'] else 'not met'})"
                  if isinstance(ratio, float) and math.isfinite(ratio) else "")
               + f"; PSNR {w.get('psnr_db_glossy', float('nan')):.2f} against {wo.get('psnr_db_glossy', float('nan')):.2f} dB.", ""]
+    truth = s.get("truth")
+    if truth:
+        noise = "n/a" if truth["noise_flip"] is None else f"{truth['noise_flip']:.4f}"
+        lines += ["## Against the truth (view 1, path-traced)", "",
+                  f"{TRUTH_MEANS[0].upper() + TRUTH_MEANS[1:]}. {truth['spp']} samples per pixel in "
+                  f"{t.get('truth_s', float('nan')):.1f} s; noise floor {noise}. Figure 5, view 1 starts with it.", "",
+                  "| display | FLIP | relative MSE | FLIP, glossy | relative MSE, glossy |", "|---|---|---|---|---|"]
+        for mode in ("reference", "fitted", "diffuse"):
+            m = truth[mode]
+            lines.append(f"| {mode} | {m['flip_mean']:.4f} | {m['relative_mse']:.4g} | "
+                         f"{_fmt(m.get('flip_mean_glossy'), 4)} | {_fmt(m.get('relative_mse_glossy'), 4)} |")
+        lines.append("")
     return "\n".join(lines)
 
 
@@ -361,5 +411,7 @@ def key_numbers(summary, out):
                      f"(diffuse only {_fmt(o['diffuse_baseline_relative_rms'], 3)}, lights off {_fmt(o['diffuse_only_relative_rms'], 3)})")
     m = summary["figures"]["figure5"]["view1"]
     lines.append(f"  figure 5, view 1: FLIP {m['flip_mean']:.4f} (glossy objects {m.get('flip_mean_glossy', float('nan')):.4f}), PSNR {m['psnr_db']:.2f} dB")
+    if summary.get("truth"):
+        lines.append("  " + truth_line(summary["truth"]))
     lines.append("  (relative RMS and FLIP: lower is better, 0 = exact; see report.md)")
     return "\n".join(lines)

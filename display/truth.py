@@ -85,6 +85,14 @@ def ground_truth(source, camera, spp, seed=1, threads=None, progress=False):
     return GroundTruth(radiance, spp, noise, stats)
 
 
+def check_spp(value, flag="--spp", low=1):
+    """Refuse (InputError) a sample count outside low .. the path tracer's maximum."""
+    from radiosity.transport.pathtrace import MAX_SPP
+
+    if not low <= value <= MAX_SPP:
+        raise InputError(f"{flag} must be a whole number from {low} to {MAX_SPP:,}, got {value}")
+
+
 def load_truth(path, camera):
     """A path-traced image from ``--truth FILE.npy`` for ``camera``: (H, W, 3) float32,
     finite, not negative, of the camera's size; InputError naming the problem."""
@@ -161,12 +169,10 @@ def run_truth_command(args):
     from display.cli import _Writer
     from display.renderer import tonemap
     from radiosity.formats import atomic_output, check_output, presets
-    from radiosity.transport.pathtrace import MAX_SPP
     from radiosity.transport.solve import available_memory
 
     spp = args.spp if args.spp is not None else presets.preset(args.quality).truth_spp
-    if not 1 <= spp <= MAX_SPP:
-        raise InputError(f"--spp must be a whole number from 1 to {MAX_SPP:,}, got {spp}")
+    check_spp(spp)
     if args.threads is not None and args.threads < 1:
         raise InputError(f"--threads must be a whole number >= 1, got {args.threads}")
     if not 0 <= args.seed < 2**63:

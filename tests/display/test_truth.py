@@ -111,3 +111,88 @@ def test_the_truth_reads_solutions_and_scenes_but_not_fits(tmp_path, diffuse_box
         scene_for_truth(tmp_path / "fit.npz")
     with pytest.raises(InputError, match="not found"):
         scene_for_truth(tmp_path / "missing.npz")
+
+
+# -- the commands ------------------------------------------------------------------------------
+
+
+def test_truth_command_writes_both_files(tmp_path, cli):
+    hdr, png = tmp_path / "truth.npy", tmp_path / "truth.png"
+    code, out, err = cli("truth", "cornell", "--size", "8x6", "--spp", "2", "--hdr", hdr, "-o", png)
+    assert code == 0, err
+    image = np.load(hdr)
+    assert image.shape == (6, 8, 3) and image.dtype == np.float32 and image.max() > 0
+    assert png.stat().st_size > 0
+    assert "2 samples per pixel" in out and "M paths/s" in out and "noise floor" in out
+    # the same seed and samples give the same image, whatever the threads
+    code, _, _ = cli("truth", "cornell", "--size", "8x6", "--spp", "2", "--hdr", tmp_path / "t1.npy", "--threads", "1")
+    assert code == 0 and np.array_equal(np.load(tmp_path / "t1.npy"), image)
+
+
+def test_truth_command_refuses_bad_input_in_one_line(tmp_path, cli, tiny_pair):
+    from display_fixtures import assert_refused
+
+    fit_path, _ = tiny_pair
+    assert_refused(cli("truth", fit_path, "--spp", "1"), "holds no materials")
+    assert_refused(cli("truth", "cornell", "--spp", "0"), "--spp must be")
+    assert_refused(cli("truth", "cornell", "--threads", "0"), "--threads")
+    assert_refused(cli("truth", tmp_path / "missing.toml"), "missing.toml")
+    assert_refused(cli("truth", "cornell", "-o", tmp_path), "-o")
+    assert_refused(cli("truth", "cornell", "--exposure", "0"), "--exposure")
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_compare_measures_every_display_against_the_truth(tmp_path, cli, diffuse_box, gl_context):
+    import json
+
+    from fitting import FitOptions, fit
+
+    solution_path, fit_path = tmp_path / "solution.npz", tmp_path / "fit.npz"
+    diffuse_box.save(solution_path)
+    fit(diffuse_box, FitOptions(lights=1)).save(fit_path)
+    truth = tmp_path / "view1.npy"
+    assert cli("truth", solution_path, "--size", "24x24", "--spp", "4", "--hdr", truth)[0] == 0
+    code, out, err = cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
+                         "--truth", truth, "--truth-spp", "2")
+    assert code == 0, err
+    results = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert set(results["truth"]) == {"view1", "view2", "view3"} and results["truth"]["view2"]["noise_flip"] > 0
+    assert results["truth"]["view1"]["spp"] == 0 and results["truth"]["view2"]["spp"] == 2  # a file; traced
+    for view in results["truth"].values():
+        for mode in ("reference", "fitted", "diffuse"):
+            assert 0 <= view[mode]["flip_mean"] <= 1 and view[mode]["relative_mse"] >= 0
+    assert "against the path-traced truth, view 1 (from a file)" in out
+    # the truth panel widens figure 5 by one picture and one error image
+    from PIL import Image
+
+    with_truth = Image.open(tmp_path / "c" / "figure5_view1.png").size[0]
+    assert cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "d")[0] == 0
+    assert with_truth > Image.open(tmp_path / "d" / "figure5_view1.png").size[0] + 2 * 24
+
+
+def test_compare_refuses_truths_that_do_not_fit(tmp_path, cli, tiny_pair, no_gl):
+    from display_fixtures import assert_refused
+
+    fit_path, solution_path = tiny_pair
+    args = ("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c")
+    assert_refused(cli(*args, "--truth", tmp_path / "missing.npy"), "not found")
+    assert_refused(cli(*args, "--truth", tmp_path / "a.png"), "must be an .npy")
+    assert_refused(cli(*args, "--truth-spp", "-1"), "--truth-spp must be")
+    for name in "abcd":
+        np.save(tmp_path / f"{name}.npy", np.ones((24, 24, 3), np.float32))
+    assert_refused(cli(*args, "--truth", *(tmp_path / f"{n}.npy" for n in "abcd")), "at most 3")
+
+
+def test_compare_refuses_a_black_truth_or_one_of_another_size(tmp_path, cli, tiny_pair, gl_context):
+    from display_fixtures import assert_refused
+
+    fit_path, solution_path = tiny_pair
+    # the tiny scene's radiance is made up: nothing in it emits, so its path-traced truth is black
+    # (found once traced: the progress lines come first, then the one line of the refusal)
+    code, _, err = cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
+                       "--truth-spp", "1")
+    assert code == 2 and err.count("\n") == 1 and "truth of view 1 is black" in err and "Traceback" not in err
+    np.save(tmp_path / "small.npy", np.ones((8, 8, 3), np.float32))
+    assert_refused(cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
+                       "--truth", tmp_path / "small.npy"), "but the view is 24x24")
+    assert not (tmp_path / "c" / "compare.json").exists()
