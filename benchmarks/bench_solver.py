@@ -31,29 +31,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _common import RESULTS, Recorder
+from _common import RESULTS, Recorder, incoherent_rays
 
 
 def bare_embree_rays_per_second(scene, threads, n_rays, repeats):
     from radiosity.transport.embree import RayTracer
 
-    refined = scene
-    merged = refined.merged()
-    rng = np.random.default_rng(0)
-    tri = rng.integers(0, len(merged.faces), n_rays)
-    bary = rng.random((n_rays, 2))
-    flip = bary.sum(axis=1) > 1
-    bary[flip] = 1 - bary[flip]
-    p = merged.positions.astype(np.float64)[merged.faces[tri]]
-    points = p[:, 0] + bary[:, :1] * (p[:, 1] - p[:, 0]) + bary[:, 1:] * (p[:, 2] - p[:, 0])
-    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    d = rng.normal(size=(n_rays, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
+    merged = scene.merged()
     with RayTracer(merged.positions, merged.faces, threads=threads) as tracer:
-        origins = (points + tracer.epsilon * normal).astype(np.float32)
-        d = d.astype(np.float32)
+        origins, d = incoherent_rays(merged, n_rays, tracer.epsilon)
         rates = []
         for _ in range(repeats):
             t = time.perf_counter()

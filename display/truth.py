@@ -78,7 +78,8 @@ def ground_truth(source, camera, spp, seed=1, threads=None, progress=False):
     seconds = sum(h.stats["seconds"] for h in halves)
     rays = sum(h.stats["rays"] for h in halves)
     stats = halves[0].stats | {
-        "spp": spp, "paths": spp * camera.width * camera.height, "rays": rays, "seconds": round(seconds, 4),
+        "spp": spp, "paths": spp * camera.width * camera.height, "rays": rays,
+        "shadow_rays": sum(h.stats["shadow_rays"] for h in halves), "seconds": round(seconds, 4),
         "rays_per_s": rays / seconds if seconds > 0 else 0.0,
         "paths_per_s": spp * camera.width * camera.height / seconds if seconds > 0 else 0.0,
     }

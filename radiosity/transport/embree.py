@@ -76,7 +76,8 @@ class RayTracer:
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         probe = np.zeros((1, 3), dtype=np.float32)
         self._scene.run(probe, probe + np.float32([0, 0, 1]), output=1)  # builds the BVH here
-        self.rays_cast = 0
+        self.rays_cast = 0  # every query's rays
+        self.shadow_rays_cast = 0  # of which occlusion queries
 
     def close(self):
         if self._pool is not None:
@@ -146,4 +147,5 @@ class RayTracer:
 
         self._map(run, n)
         self.rays_cast += n
+        self.shadow_rays_cast += n
         return blocked

@@ -390,7 +390,8 @@ class PathTraced:
     radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background 0
     standard_error : (H, W, 3) float32 the Monte Carlo standard error of each pixel's mean
     spp            : samples per pixel
-    stats          : JSON-ready: seed, threads, paths, rays, seconds, rays_per_s, paths_per_s
+    stats          : JSON-ready: seed, threads, spp, paths, rays (closest-hit and shadow),
+                     shadow_rays (of those, occlusion queries), seconds, rays_per_s, paths_per_s
     """
 
     radiance: np.ndarray
@@ -452,7 +453,7 @@ class PathTracer:
         total = np.zeros((n_pixels, 3))
         squares = np.zeros((n_pixels, 3))
         bar = _progress_factory(progress)(total=spp * n_pixels, desc="path tracing", unit="path")
-        rays_before = self.tracer.rays_cast
+        rays_before = (self.tracer.rays_cast, self.tracer.shadow_rays_cast)
         clock = [time.perf_counter(), 0.0]  # start, time spent in the callback
         done = 0
         try:
@@ -486,7 +487,8 @@ class PathTracer:
 
     def _result(self, total, squares, spp, camera, seed, clock, rays_before):
         seconds = time.perf_counter() - clock[0] - clock[1]
-        rays = self.tracer.rays_cast - rays_before
+        rays = self.tracer.rays_cast - rays_before[0]
+        shadow_rays = self.tracer.shadow_rays_cast - rays_before[1]
         paths = spp * camera.width * camera.height
         radiance, error = _image(total, squares, spp, camera.width, camera.height)
         stats = {
@@ -495,6 +497,7 @@ class PathTracer:
             "spp": int(spp),
             "paths": int(paths),
             "rays": int(rays),
+            "shadow_rays": int(shadow_rays),
             "seconds": round(seconds, 4),
             "rays_per_s": rays / seconds if seconds > 0 else 0.0,
             "paths_per_s": paths / seconds if seconds > 0 else 0.0,
