@@ -3,6 +3,25 @@ and the path tracer's tests."""
 
 import numpy as np
 
+# an emitting square (radiance 1, facing down) 0.4 above a diffuse unit square (kd 0.5)
+SQUARE_LIGHT = """
+    [materials.floor]
+    diffuse = 0.5
+    [materials.lamp]
+    emission = 1.0
+    [[objects]]
+    name = "floor"
+    builtin = "quad"
+    material = "floor"
+    [[objects]]
+    name = "lamp"
+    builtin = "quad"
+    material = "lamp"
+    scale = 0.5
+    rotate_deg = [180, 0, 0]
+    translate = [0.1, 0.4, 0.05]
+"""
+
 
 def glossy_furnace_reference(kd, ks, n, le, nodes=160, phi_points=2048):
     """Radiance L(cos theta) leaving the inside of a sphere of this material.

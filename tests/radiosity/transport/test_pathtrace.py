@@ -12,7 +12,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from analytic import polygon_irradiance
+from analytic import SQUARE_LIGHT, polygon_irradiance
 from scipy.ndimage import binary_dilation
 
 from radiosity.formats.camera import Camera
@@ -129,23 +129,6 @@ def test_glossy_quad_in_an_emitting_enclosure_shows_its_true_albedo(tmp_path, ex
 
 # -- an emitting square above a diffuse plane -----------------------------------------------
 
-SQUARE_LIGHT = """
-    [materials.floor]
-    diffuse = 0.5
-    [materials.lamp]
-    emission = 1.0
-    [[objects]]
-    name = "floor"
-    builtin = "quad"
-    material = "floor"
-    [[objects]]
-    name = "lamp"
-    builtin = "quad"
-    material = "lamp"
-    scale = 0.5
-    rotate_deg = [180, 0, 0]
-    translate = [0.1, 0.4, 0.05]
-"""
 
 
 def test_square_light_over_a_plane_gives_the_closed_form_irradiance(tmp_path):

@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
-from analytic import glossy_furnace_reference, polygon_irradiance
+from analytic import SQUARE_LIGHT, glossy_furnace_reference, polygon_irradiance
 
 from radiosity.formats import directions
 from radiosity.formats.errors import InputError, SceneWarning
@@ -89,23 +89,6 @@ def test_glossy_furnace_matches_the_integral_equation(
 # -- an emitting square above a diffuse plane ------------------------------------------
 
 
-SQUARE_LIGHT = """
-    [materials.floor]
-    diffuse = 0.5
-    [materials.lamp]
-    emission = 1.0
-    [[objects]]
-    name = "floor"
-    builtin = "quad"
-    material = "floor"
-    [[objects]]
-    name = "lamp"
-    builtin = "quad"
-    material = "lamp"
-    scale = 0.5
-    rotate_deg = [180, 0, 0]
-    translate = [0.1, 0.4, 0.05]
-"""
 
 
 def test_square_light_over_a_plane_edges_and_corners_too(tmp_path):
