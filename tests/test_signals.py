@@ -98,3 +98,20 @@ def test_ctrl_c_during_fit(tmp_path, small_solution, delay):
     assert proc.returncode == 130, err
     assert err.strip().splitlines()[-1] == "vlights fit: interrupted" and "Traceback" not in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+@pytest.mark.parametrize("signum, status, said", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "stopped by SIGTERM")])
+def test_stopping_the_path_tracer_leaves_no_file(tmp_path, signum, status, said):
+    hdr, png = tmp_path / "truth.npy", tmp_path / "truth.png"
+    proc = subprocess.Popen(
+        ["vlights", "truth", "cornell", "--size", "256x256", "--spp", "100000", "--hdr", str(hdr), "-o", str(png)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint,
+    )
+    time.sleep(6.0)  # start-up, the scene and the first passes
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == status, err
+    assert err.strip().splitlines()[-1] == f"vlights truth: {said}" and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
