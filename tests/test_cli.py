@@ -97,6 +97,8 @@ def test_ctrl_c_during_solve_leaves_no_file(tmp_path):
     proc = subprocess.Popen(
         ["vlights", "solve", "cornell-teapot", "--photons", "400000000", "-o", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # a child of a background job inherits SIGINT ignored; a user's terminal does not
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     time.sleep(6)  # imports, numba cache load, and well into the photon pass
     assert proc.poll() is None, proc.communicate()
