@@ -58,11 +58,31 @@ def test_a_signal_during_the_save_leaves_no_file(tmp_path, signum):
     assert list(out_dir.iterdir()) == []
 
 
+@pytest.fixture(scope="module")
+def start_up():
+    """(seconds the interpreter takes to start, seconds until ``vlights`` has loaded its
+    modules), measured here and now: a fresh environment (no .pyc yet) or a loaded
+    machine starts far slower than a warm, idle one, and a signal must land inside the
+    window it is meant for. A signal before the interpreter's own start-up is done is
+    Python's to handle, not ours."""
+    if shutil.which("vlights") is None:
+        pytest.skip("the vlights entry point is not installed")
+    subprocess.run(["vlights", "--help"], capture_output=True, check=True)  # compiles the .pyc files once
+    t = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "pass"], check=True)
+    bare = time.perf_counter() - t
+    t = time.perf_counter()
+    subprocess.run(["vlights", "--help"], capture_output=True, check=True)
+    return bare, time.perf_counter() - t
+
+
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
-@pytest.mark.parametrize("delay", [0.15, 0.4, 0.8])
-def test_ctrl_c_while_starting_up(tmp_path, delay):
+@pytest.mark.parametrize("fraction", [0.2, 0.5, 0.9])
+def test_ctrl_c_while_starting_up(tmp_path, fraction, start_up):
+    bare, loaded = start_up
     proc = subprocess.Popen(["vlights", "scene-info", "cornell-teapot"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, preexec_fn=_default_sigint)
+    delay = 2 * bare + fraction * max(loaded - 2 * bare, 0.0)
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
@@ -83,14 +103,14 @@ def small_solution(tmp_path_factory):
 
 
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
-@pytest.mark.parametrize("delay", [3.0, 4.5, 6.0])
-def test_ctrl_c_during_fit(tmp_path, small_solution, delay):
+@pytest.mark.parametrize("delay", [1.0, 2.5, 4.0])
+def test_ctrl_c_during_fit(tmp_path, small_solution, delay, start_up):
     out = tmp_path / "fit.npz"
     proc = subprocess.Popen(
         ["vlights", "fit", str(small_solution), "--lights", "8", "--iterations", "5000", "-o", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint,
     )
-    time.sleep(delay)
+    time.sleep(1.5 * start_up[1] + delay)  # past the start-up, into the fit
     if proc.poll() is not None:
         pytest.skip(f"the fit finished in under {delay} s")
     proc.send_signal(signal.SIGINT)
@@ -102,13 +122,13 @@ def test_ctrl_c_during_fit(tmp_path, small_solution, delay):
 
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
 @pytest.mark.parametrize("signum, status, said", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "stopped by SIGTERM")])
-def test_stopping_the_path_tracer_leaves_no_file(tmp_path, signum, status, said):
+def test_stopping_the_path_tracer_leaves_no_file(tmp_path, signum, status, said, start_up):
     hdr, png = tmp_path / "truth.npy", tmp_path / "truth.png"
     proc = subprocess.Popen(
         ["vlights", "truth", "cornell", "--size", "256x256", "--spp", "100000", "--hdr", str(hdr), "-o", str(png)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint,
     )
-    time.sleep(6.0)  # start-up, the scene and the first passes
+    time.sleep(1.5 * start_up[1] + 3.0)  # past the start-up, into the path tracing
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=120)
