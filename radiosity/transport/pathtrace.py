@@ -2,7 +2,7 @@
 
 Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
 emitters combined with BRDF sampling by multiple importance sampling (power
-heuristic), Russian roulette after ``ROULETTE_DEPTH`` bounces, a box pixel filter
+heuristic), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
 (``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
 as the solver, so both see the same scene the same way: one-sided surfaces (backs
@@ -48,7 +48,7 @@ from radiosity.transport.kernels import (
 STREAM_CAMERA, STREAM_PATH = 11, 12
 DIMS_PER_BOUNCE = 8  # light pick (1), point on the light (2), BRDF sample (3), roulette (1), spare (1)
 MAX_DEPTH = 64  # segments of a path at most; Russian roulette ends nearly all far sooner
-ROULETTE_DEPTH = 3  # bounces before Russian roulette may end a path
+ROULETTE_DEPTH = 3  # the first bounce Russian roulette may refuse (the ones before always go on)
 TILE_PATHS = 1 << 16  # paths of a tile, about
 MIN_TILES = 8  # tiles of a pass at least, so that every thread has work (not a function of threads)
 MAX_PASS_SAMPLES = 16  # samples per pixel of one progressive pass, at most
@@ -239,8 +239,9 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
 
     At a front-facing hit: emission, weighted by the power heuristic against the light
     sample the previous vertex made (in full for camera rays); then, unless the path
-    has reached MAX_DEPTH segments, one light sample and one BRDF sample, which after
-    ROULETTE_DEPTH bounces survives Russian roulette on its throughput. Misses and
+    has reached MAX_DEPTH segments, one light sample and one BRDF sample (the path's
+    bounce depth + 1), which from bounce ROULETTE_DEPTH on must survive Russian roulette
+    on its throughput. Misses and
     back faces end the path (the background is black, backs absorb).
     """
     seed = tile.seed
