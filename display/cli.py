@@ -19,6 +19,7 @@ import numpy as np
 
 import fitting.cli
 import radiosity.cli
+from display.export import add_export_command
 from display.gl import DEFAULT_SAMPLES, MAX_SAMPLES, check_sample_count
 from display.truth import add_truth_command, check_spp
 from radiosity.formats import InputError, presets
@@ -499,6 +500,7 @@ def build_parser():
     fitting.cli.register(subparsers, not_built)
     register(subparsers, not_built)
     add_truth_command(subparsers, add_camera_flags)
+    add_export_command(subparsers)
     return parser
 
 
