@@ -51,6 +51,14 @@ def register(subparsers, not_built):
     p.add_argument("--kernel-rings", type=int, metavar="K", help="widen each vertex's density kernel by K rings of neighbours (less noise, more blur)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
     p.add_argument("--threads", type=int, metavar="T", help="worker threads (default: one per core)")
+    p.add_argument(
+        "--scheduler",
+        default="threads",
+        metavar="WHERE",
+        help="where the photon batches and gather blocks run: threads (this process, default), dask (a Dask "
+        "LocalCluster sized to this machine) or tcp://HOST:PORT (a running Dask scheduler); same seed, same "
+        "solution on any (needs pip install \".[dask]\")",
+    )
     p.set_defaults(func=_solve)
 
 
@@ -74,6 +82,7 @@ def _solve(args):
         kernel_rings=args.kernel_rings,
         seed=args.seed,
         threads=args.threads,
+        scheduler=args.scheduler,
     )
     opts.resolved(scene)  # refuse bad knobs before any work
     solution = solve(scene, opts, progress=True)
@@ -89,9 +98,11 @@ def format_summary(solution, path):
     total = sum(t.values())
     glossy = {o.name: f"{o.grid_n}x{o.grid_n}" for o in solution.objects if not o.is_diffuse}
     size = Path(path).stat().st_size
+    where = st.get("scheduler", "threads")
     lines = [
         f"solved {solution.scene}: {st['triangles']} triangles, {st['vertices']} vertices, "
-        f"quality {st['quality']}, seed {st['seed']}, {st['threads']} threads",
+        f"quality {st['quality']}, seed {st['seed']}, {st['threads']} threads"
+        + ("" if where == "threads" else f" on {where}"),
         f"  photons  {st['photons']:,} traced, {st['photon_rays']:,} rays, "
         f"{st['photon_rays_per_s'] / 1e6:.2f} M rays/s, {t['photons']:.2f} s",
         f"  density  {t['density']:.2f} s",

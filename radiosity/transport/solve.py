@@ -11,7 +11,10 @@ Phases
      emission + diffuse part + the specular lobe's integral of the incoming light.
 
 Threads: batches (photons) and vertex blocks (gather) run concurrently, a thread
-each; the numba kernels and Embree both release the GIL.
+each; the numba kernels and Embree both release the GIL. Or Dask
+(``SolveOptions(scheduler="dask" | "tcp://HOST:PORT")``, ``solve(..., client=)``): the
+same batches and blocks as tasks on a cluster, combined in the same order, so the
+same bits (``radiosity.transport.distributed``).
 
 Knobs are checked before the work: a photon count beyond 2^40, or photons, gather and
 light samples, grid and threads whose arrays would not fit in the machine's memory
@@ -37,7 +40,7 @@ from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.transport import density, kernels
-from radiosity.transport.embree import RayTracer, default_threads
+from radiosity.transport.embree import RayTracer, default_threads, origin_offset
 
 MAX_PHOTON_DEPTH = 64
 MAX_GATHER_DEPTH = 8
@@ -68,6 +71,9 @@ class SolveOptions:
                      many rings of neighbours (0: the hat alone; more: less noise,
                      more blur), see ``density.widen``
     seed, threads  : the random seed; worker threads (default: one per core)
+    scheduler      : "threads" (this process), "dask" (a new LocalCluster sized to the
+                     machine) or a Dask scheduler's address "tcp://HOST:PORT"; the same
+                     seed gives the same bits on any of them
     """
 
     quality: str = presets.DEFAULT_QUALITY
@@ -79,6 +85,7 @@ class SolveOptions:
     kernel_rings: int | None = None
     seed: int = 1
     threads: int | None = None
+    scheduler: str = "threads"
 
     def resolved(self, scene):
         """Every knob with its value for this scene (a plain dict, JSON-ready)."""
@@ -101,6 +108,10 @@ class SolveOptions:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
+        if self.scheduler != "threads":
+            from radiosity.transport.distributed import check_scheduler
+
+            check_scheduler(self.scheduler)
         if not 0 <= self.seed < 2**63:
             raise InputError(f"--seed must be between 0 and 2^63, got {self.seed}")
         if out["photons"] > MAX_PHOTONS:
@@ -319,11 +330,69 @@ class _Workers(NamedTuple):
     seed: int
 
 
-def solve(scene, opts=SolveOptions(), progress=False):
+class _ThreadRunner:
+    """Runs a solve's photon batches and gather blocks on a pool of threads of this
+    process, sharing one Embree scene (the counterpart of ``distributed.DaskRunner``)."""
+
+    def __init__(self, threads):
+        self.threads = threads
+        self.description = "threads"
+        self.workers = None
+
+    def start(self, merged, sa, seed):
+        tracer = RayTracer(merged.positions, merged.faces, threads=1)
+        self.workers = _Workers(ThreadPoolExecutor(self.threads), self.threads, tracer, sa, seed)
+
+    @property
+    def rays_cast(self):
+        return self.workers.tracer.rays_cast
+
+    def photon_batches(self, total, combine, bar):
+        tracer, sa, seed = self.workers.tracer, self.workers.sa, self.workers.seed
+        starts = range(0, total, PHOTON_BATCH)  # lazily: 2^40 photons are 2^24 batches
+        counts = (min(PHOTON_BATCH, total - s) for s in starts)
+        _run_ordered(
+            self.workers,
+            lambda job: trace_photon_batch(tracer, sa, seed, job, min(PHOTON_BATCH, total - job), total),
+            starts,
+            combine,
+            bar,
+            counts,
+        )
+
+    def gather_blocks(self, irradiance, blocks, material, dirs, combine, bar):
+        tracer, sa = self.workers.tracer, self.workers.sa
+
+        def run(job):
+            return job.vertices, gather_block(tracer, sa, irradiance, job, material, dirs)
+
+        _run_ordered(self.workers, run, blocks, combine, bar, [len(b.vertices) for b in blocks])
+
+    def close(self):
+        if self.workers is not None:
+            self.workers.pool.shutdown()
+            self.workers.tracer.close()
+
+
+def _runner(opts, settings, client):
+    """Where the batches run: the given Dask client, a Dask cluster (``opts.scheduler``,
+    connected now: a bad address fails before any work) or this process's threads."""
+    if client is None and opts.scheduler == "threads":
+        return _ThreadRunner(settings["threads"])
+    from radiosity.transport.distributed import DaskRunner, connect
+
+    if client is not None:
+        return DaskRunner(client)
+    return DaskRunner(*connect(opts.scheduler), own_client=True)
+
+
+def solve(scene, opts=SolveOptions(), progress=False, client=None):
     """The view-independent solution of ``scene`` (Contract 1), as a ``Solution``.
 
-    Raises InputError for knobs the machine cannot run (``check_memory``) or a
-    radiance beyond single precision; warns (SceneWarning) if nothing emits light.
+    ``client`` : a ``distributed.Client`` to run the batches on (else ``opts.scheduler``
+    says where). Raises InputError for knobs the machine cannot run (``check_memory``),
+    a Dask scheduler that cannot be reached, or a radiance beyond single precision;
+    warns (SceneWarning) if nothing emits light.
     """
     settings = opts.resolved(scene)
     if not scene.emitters:
@@ -332,88 +401,84 @@ def solve(scene, opts=SolveOptions(), progress=False):
             SceneWarning,
             stacklevel=2,
         )
+    runner = _runner(opts, settings, client)
+    try:
+        return _solve(scene, settings, runner, progress)
+    finally:
+        runner.close()
+
+
+def _solve(scene, settings, runner, progress):
     make_bar = _progress_factory(progress)
     times = {}
     t0 = time.perf_counter()
     refined = scene.refined(settings["max_edge"])
     check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings))
     merged = refined.merged()
-    tracer = RayTracer(merged.positions, merged.faces, threads=1)
-    sa = scene_arrays(refined, merged, tracer.epsilon)
-    times["setup"] = time.perf_counter() - t0
-    threads = settings["threads"]
+    sa = scene_arrays(refined, merged, origin_offset(merged.positions))
     seed = settings["seed"]
+    runner.start(merged, sa, seed)
+    times["setup"] = time.perf_counter() - t0
+    threads = runner.threads
 
-    with ThreadPoolExecutor(threads) as pool:
-        workers = _Workers(pool, threads, tracer, sa, seed)
-        # -- photons ------------------------------------------------------------------
-        t0 = time.perf_counter()
-        total = settings["photons"]
-        photon_sums = kernels.empty_tally(len(sa.positions))
-        emitted = np.zeros(3)
-        for o in refined.emitters:
-            emitted += o.emitted_power
-        rays_before = tracer.rays_cast
+    # -- photons ------------------------------------------------------------------
+    t0 = time.perf_counter()
+    total = settings["photons"]
+    photon_sums = kernels.empty_tally(len(sa.positions))
+    emitted = np.zeros(3)
+    for o in refined.emitters:
+        emitted += o.emitted_power
+    rays_before = runner.rays_cast
 
-        def combine_photons(result):
-            for acc, part in zip(photon_sums, result):
-                acc += part
+    def combine_photons(result):
+        for acc, part in zip(photon_sums, result):
+            acc += part
 
-        if refined.emitters:
-            bar = make_bar(total=total, desc="photons", unit="photon")
-            starts = range(0, total, PHOTON_BATCH)  # lazily: 2^40 photons are 2^24 batches
-            counts = (min(PHOTON_BATCH, total - s) for s in starts)
-            _run_ordered(
-                workers,
-                lambda job: trace_photon_batch(tracer, sa, seed, job, min(PHOTON_BATCH, total - job), total),
-                starts,
-                combine_photons,
-                bar,
-                counts,
-            )
-            bar.close()
-        moment0, moment1, tally = photon_sums
-        photon_rays = tracer.rays_cast - rays_before
-        times["photons"] = time.perf_counter() - t0
+    if refined.emitters:
+        bar = make_bar(total=total, desc="photons", unit="photon")
+        runner.photon_batches(total, combine_photons, bar)
+        bar.close()
+    moment0, moment1, tally = photon_sums
+    photon_rays = runner.rays_cast - rays_before
+    times["photons"] = time.perf_counter() - t0
 
-        # -- density ------------------------------------------------------------------
-        t0 = time.perf_counter()
-        irradiance = np.zeros_like(moment0)
-        offsets = merged.vertex_offset
-        for i, o in enumerate(refined.objects):
-            sl = slice(offsets[i], offsets[i + 1])
-            irradiance[sl] = density.irradiance(
-                o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"]
-            )
-        times["density"] = time.perf_counter() - t0
+    # -- density ------------------------------------------------------------------
+    t0 = time.perf_counter()
+    irradiance = np.zeros_like(moment0)
+    offsets = merged.vertex_offset
+    for i, o in enumerate(refined.objects):
+        sl = slice(offsets[i], offsets[i + 1])
+        irradiance[sl] = density.irradiance(
+            o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"]
+        )
+    times["density"] = time.perf_counter() - t0
 
-        # -- gather -------------------------------------------------------------------
-        t0 = time.perf_counter()
-        rays_before = tracer.rays_cast
-        results = []
-        grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
-        work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
-        bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
-        for i, o in enumerate(refined.objects):
-            sl = slice(offsets[i], offsets[i + 1])
-            mat = o.material
-            diffuse = np.asarray(mat.diffuse) / np.pi * irradiance[sl] + np.asarray(mat.emission)
-            if not mat.is_glossy:
-                dirs = directions.DIFFUSE_DIRECTIONS
-                radiance = diffuse[:, None, :]
-            else:
-                dirs = directions.grid_directions(grid_sizes[o.name])
-                radiance = _gather_object(workers, irradiance, o, offsets[i], dirs, settings, bar)
-            results.append((o, dirs, radiance))
-        if bar is not None:
-            bar.close()
-        gather_rays = tracer.rays_cast - rays_before
-        times["gather"] = time.perf_counter() - t0
-    tracer.close()
+    # -- gather -------------------------------------------------------------------
+    t0 = time.perf_counter()
+    rays_before = runner.rays_cast
+    results = []
+    grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
+    work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
+    bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
+    for i, o in enumerate(refined.objects):
+        sl = slice(offsets[i], offsets[i + 1])
+        mat = o.material
+        diffuse = np.asarray(mat.diffuse) / np.pi * irradiance[sl] + np.asarray(mat.emission)
+        if not mat.is_glossy:
+            dirs = directions.DIFFUSE_DIRECTIONS
+            radiance = diffuse[:, None, :]
+        else:
+            dirs = directions.grid_directions(grid_sizes[o.name])
+            radiance = _gather_object(runner, sa, seed, irradiance, o, offsets[i], dirs, settings, bar)
+        results.append((o, dirs, radiance))
+    if bar is not None:
+        bar.close()
+    gather_rays = runner.rays_cast - rays_before
+    times["gather"] = time.perf_counter() - t0
 
     stats = {
         "photons": int(total) if refined.emitters else 0,
-        "rays": int(tracer.rays_cast),
+        "rays": int(runner.rays_cast),
         "photon_rays": int(photon_rays),
         "gather_rays": int(gather_rays),
         "time_s": {k: round(v, 4) for k, v in times.items()},
@@ -421,6 +486,7 @@ def solve(scene, opts=SolveOptions(), progress=False):
         "gather_rays_per_s": gather_rays / times["gather"] if times["gather"] > 0 else 0.0,
         "seed": seed,
         "threads": threads,
+        "scheduler": runner.description,
         "quality": settings["quality"],
         "triangles": int(refined.n_triangles),
         "vertices": int(refined.n_vertices),
@@ -460,28 +526,24 @@ def solve(scene, opts=SolveOptions(), progress=False):
     )
 
 
-def _gather_object(workers, irradiance, obj, offset, dirs, settings, bar):
+def _gather_object(runner, sa, seed, irradiance, obj, offset, dirs, settings, bar):
     """Radiance (V, D, 3) float64 of one glossy object's vertices."""
-    sa = workers.sa
     n_light = settings["light_samples"] if len(sa.emit_triangles) and sa.emit_area_pdf.any() else 0
     strata = math.isqrt(settings["gather_samples"])
     block = _gather_block_size(n_light, settings["gather_samples"])
     vertices = np.arange(offset, offset + obj.n_vertices, dtype=np.int64)
     blocks = [
-        kernels.GatherBlock(workers.seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
+        kernels.GatherBlock(seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
         for s in range(0, len(vertices), block)
     ]
     radiance = np.empty((obj.n_vertices, len(dirs), 3))
     dirs64 = np.asarray(dirs, dtype=np.float64)
 
-    def run(job):
-        return job.vertices, gather_block(workers.tracer, sa, irradiance, job, obj.material, dirs64)
-
     def combine(result):
         verts, values = result
         radiance[verts - offset] = values
 
-    _run_ordered(workers, run, blocks, combine, bar, [len(b.vertices) for b in blocks])
+    runner.gather_blocks(irradiance, blocks, obj.material, dirs64, combine, bar)
     return radiance
 
 
