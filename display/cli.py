@@ -21,6 +21,7 @@ import fitting.cli
 import radiosity.cli
 from display.export import add_export_command
 from display.gl import DEFAULT_SAMPLES, MAX_SAMPLES, check_sample_count
+from display.serve import add_serve_command
 from display.truth import add_truth_command, check_spp
 from radiosity.formats import InputError, presets
 
@@ -501,6 +502,7 @@ def build_parser():
     register(subparsers, not_built)
     add_truth_command(subparsers, add_camera_flags)
     add_export_command(subparsers)
+    add_serve_command(subparsers)
     return parser
 
 

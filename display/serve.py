@@ -1,0 +1,90 @@
+"""``vlights serve DIR``: a local static web server for an exported walkthrough.
+
+Browsers load ES modules (three.js) only over HTTP, not from ``file://``, so a page
+next to ``scene.glb`` needs a server. This one is Python's own ``http.server``, bound
+to 127.0.0.1 (nothing outside this machine reaches it), serving ``DIR`` and nothing
+above it, with the MIME types a page of modules and a binary glTF need. It prints the
+URL and runs until Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import functools
+import http.server
+import os
+import threading
+
+from radiosity.formats import InputError
+
+__all__ = ["Server", "add_serve_command", "start"]
+
+HOST = "127.0.0.1"
+TYPES = {".js": "text/javascript", ".mjs": "text/javascript", ".glb": "model/gltf-binary",
+         ".gltf": "model/gltf+json", ".json": "application/json", ".html": "text/html"}
+
+
+class _Handler(http.server.SimpleHTTPRequestHandler):
+    extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map, **TYPES}
+
+    def log_message(self, format, *args):  # noqa: A002 - the base class's name
+        pass  # quiet: a walkthrough page fetches many files
+
+
+class Server:
+    """A running server: ``url``, and ``close()`` (also on leaving a ``with``)."""
+
+    def __init__(self, httpd):
+        self._httpd = httpd
+        self.url = f"http://{HOST}:{httpd.server_address[1]}/"
+        self._thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+        self._thread.start()
+
+    def close(self):
+        self._httpd.shutdown()
+        self._httpd.server_close()
+        self._thread.join()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def start(directory, port=0):
+    """Serve ``directory`` on 127.0.0.1:``port`` (0: any free port) in a background
+    thread; a ``Server``. InputError (one line) for a missing directory or a port that
+    cannot be had."""
+    directory = os.fspath(directory)
+    if not os.path.isdir(directory):
+        what = "not found" if not os.path.exists(directory) else "is not a directory"
+        raise InputError(f"directory {directory!r} {what}")
+    if not (isinstance(port, int) and 0 <= port <= 65535):
+        raise InputError(f"--port must be a whole number from 0 to 65535, got {port}")
+    handler = functools.partial(_Handler, directory=directory)
+    try:
+        httpd = http.server.ThreadingHTTPServer((HOST, port), handler)
+    except OSError as exc:
+        raise InputError(f"cannot serve on {HOST}:{port}: {exc.strerror or exc}") from None
+    return Server(httpd)
+
+
+def add_serve_command(subparsers):
+    p = subparsers.add_parser(
+        "serve",
+        help="serve a directory (an export) to a browser on this machine",
+        description="A static web server on 127.0.0.1 for a directory such as 'vlights export' writes: browsers load "
+        "ES modules only over HTTP. Prints the URL; Ctrl-C stops it.",
+    )
+    p.add_argument("directory", help="the directory to serve (nothing above it is reachable)")
+    p.add_argument("--port", type=int, default=8000, help="TCP port on 127.0.0.1, 0 for any free one (default: %(default)s)")
+    p.set_defaults(func=_serve)
+
+
+def _serve(args):
+    server = start(args.directory, args.port)
+    print(f"serving {os.path.abspath(args.directory)} at {server.url} (Ctrl-C stops)", flush=True)
+    try:
+        threading.Event().wait()
+    finally:
+        server.close()
