@@ -183,6 +183,8 @@ def main(argv=None):
 
 def truth_trade(record, args):
     """Question 6: presets end to end against a path-traced truth (see the module text)."""
+    from bench_pathtrace import convergence, time_to
+
     from display.compare import metrics
     from display.gl import headless_context
     from display.renderer import Renderer
@@ -200,16 +202,11 @@ def truth_trade(record, args):
             "paths_per_s": truth.stats["paths_per_s"], "noise_flip": truth.noise_flip})
 
     # the path tracer against the same truth, pass by pass (another seed)
-    progress = []
-
-    def seen(spp, image):
-        progress.append((spp, image.stats["seconds"], metrics(truth.radiance, image.radiance)[0]))
-
     with PathTracer(scene) as tracer:
-        tracer.render(camera, max(1, truth_spp // 4), seed=2000, callback=seen)
-    for spp, seconds, numbers in progress:
+        progress = convergence(tracer, camera, truth.radiance, max(1, truth_spp // 4), seed=2000)
+    for spp, seconds, flip, relative_mse in progress:
         record({"question": "truth", "what": "path tracer", "spp": spp, "seconds": seconds,
-                "flip": numbers["flip_mean"], "relative_mse": numbers["relative_mse"]})
+                "flip": flip, "relative_mse": relative_mse})
 
     ctx = headless_context()
     try:
@@ -228,7 +225,7 @@ def truth_trade(record, args):
                 frame_s = time.perf_counter() - t
                 numbers = metrics(truth.radiance, image, mask=mask)[0]
                 flip = numbers["flip_mean"]
-                reached = next(((spp, s) for spp, s, n in progress if n["flip_mean"] <= flip), (None, None))
+                reached = time_to(progress, flip)
                 record({"question": "truth", "what": "walkthrough", "quality": quality, "mode": mode,
                         "solve_s": solve_s, "fit_s": fit_s, "frame_s": frame_s, "samples": renderer.plan.samples,
                         "flip": flip, "relative_mse": numbers["relative_mse"],

@@ -47,6 +47,7 @@ from radiosity.formats.atomic import atomic_output
 
 from .outputs import staged_directory
 from .renderer import tonemap
+from .truth import against_truth
 
 FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
 BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
@@ -210,16 +211,12 @@ def figure5_views(base_view):
 
 
 def truth_numbers(truth, images, exposure, mask):
-    """Each display image ({mode: (H, W, 3)}) against a ``GroundTruth``: its metrics per
-    mode, the truth's samples and noise floor, and (key "_fitted_error", for the figure)
-    the fitted image's FLIP error image against it."""
-    out = {"spp": truth.spp, "noise_flip": truth.noise_flip,
-           "noise_means": "FLIP between the two independent halves of the truth's samples: errors near it are noise"}
-    for mode, image in images.items():
-        out[mode], error = metrics(truth.radiance, image, exposure, mask)
-        if mode == "fitted":
-            out["_fitted_error"] = error
-    return out
+    """Each display image ({mode: (H, W, 3)}) against a ``GroundTruth``: (its metrics per
+    mode with the truth's samples and noise floor, {mode: FLIP error image})."""
+    numbers, errors = against_truth(truth.radiance, images, exposure, mask)
+    return {"spp": truth.spp, "noise_flip": truth.noise_flip,
+            "noise_means": "FLIP between the two independent halves of the truth's samples: errors near it are noise",
+            **numbers}, errors
 
 
 def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None, truths=None):
@@ -270,11 +267,11 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
                       f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"]
             errors = (2,)
             if truth is not None:
-                against = truth_numbers(truth, {"reference": reference, "fitted": fitted,
-                                                "diffuse": shot(view, "diffuse")}, exposure, mask)
+                against, against_errors = truth_numbers(
+                    truth, {"reference": reference, "fitted": fitted, "diffuse": shot(view, "diffuse")}, exposure, mask)
                 results.setdefault("truth", {})[f"view{i + 1}"] = against
                 spp = f"{truth.spp} spp" if truth.spp else "from a file"
-                panels = [tonemap(truth.radiance, exposure)] + panels + [against.pop("_fitted_error")]
+                panels = [tonemap(truth.radiance, exposure)] + panels + [against_errors["fitted"]]
                 labels = [f"path-traced truth ({spp})"] + labels + [
                     f"fitted against the truth: FLIP {against['fitted']['flip_mean']:.3f}"]
                 errors = (3, 4)

@@ -88,10 +88,9 @@ def ground_truth(source, camera, spp, seed=1, threads=None, progress=False):
 
 def check_spp(value, flag="--spp", low=1):
     """Refuse (InputError) a sample count outside low .. the path tracer's maximum."""
-    from radiosity.transport.pathtrace import MAX_SPP
+    from radiosity.transport.pathtrace import check_samples
 
-    if not low <= value <= MAX_SPP:
-        raise InputError(f"{flag} must be a whole number from {low} to {MAX_SPP:,}, got {value}")
+    check_samples(value, flag, low)
 
 
 def load_truth(path, camera):

@@ -44,6 +44,7 @@ from radiosity.transport.kernels import (
     _shading_normal,
     rand,
 )
+from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers, scene_arrays
 
 STREAM_CAMERA, STREAM_PATH = 11, 12
 DIMS_PER_BOUNCE = 8  # light pick (1), point on the light (2), BRDF sample (3), roulette (1), spare (1)
@@ -53,6 +54,12 @@ TILE_PATHS = 1 << 16  # paths of a tile, about
 MIN_TILES = 8  # tiles of a pass at least, so that every thread has work (not a function of threads)
 MAX_PASS_SAMPLES = 16  # samples per pixel of one progressive pass, at most
 MAX_SPP = 1 << 20
+
+
+def check_samples(value, flag="--spp", low=1):
+    """Refuse (InputError) a sample count that is not a whole number from ``low`` to MAX_SPP."""
+    if not (isinstance(value, int | np.integer) and low <= value <= MAX_SPP):
+        raise InputError(f"{flag} must be a whole number from {low} to {MAX_SPP:,}, got {value}")
 
 
 class CameraRays(NamedTuple):
@@ -415,8 +422,6 @@ class PathTracer:
     """
 
     def __init__(self, scene, threads=None):
-        from radiosity.transport.solve import scene_arrays  # the solver's own packing of the scene
-
         self.scene = scene
         self.threads = threads or default_threads()
         merged = scene.merged()
@@ -440,14 +445,10 @@ class PathTracer:
         first_sample .. first_sample + spp - 1 of each pixel are traced: two renders of
         disjoint ranges are independent, and together make the render of both.
         """
-        if not (isinstance(spp, int | np.integer) and 1 <= spp <= MAX_SPP):
-            raise InputError(f"--spp must be a whole number from 1 to {MAX_SPP:,}, got {spp}")
-        if not (isinstance(first_sample, int | np.integer) and 0 <= first_sample <= MAX_SPP):
-            raise InputError(f"first sample must be a whole number from 0 to {MAX_SPP:,}, got {first_sample}")
+        check_samples(spp)
+        check_samples(first_sample, "first sample", low=0)
         if not 0 <= seed < 2**63:
             raise InputError(f"--seed must be between 0 and 2^63, got {seed}")
-        from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers
-
         width, height = camera.width, camera.height
         n_pixels = width * height
         cam = camera_rays(camera)

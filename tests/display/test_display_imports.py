@@ -2,19 +2,11 @@
 which runs the whole pipeline, and the ground truth, which path-traces scenes with the
 light transport's path tracer, also the scene and the light transport)."""
 
-import ast
 from pathlib import Path
 
+from source_imports import imported_modules
+
 import display
-
-
-def imported_modules(path):
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            yield from (alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            yield node.module
 
 
 def allowed(path, module):

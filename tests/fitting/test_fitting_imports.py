@@ -1,18 +1,10 @@
 """The fitting stage imports nothing of the radiosity stage but its file formats."""
 
-import ast
 from pathlib import Path
 
+from source_imports import imported_modules
+
 import fitting
-
-
-def imported_modules(path):
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            yield from (alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            yield node.module
 
 
 def test_fitting_imports_only_radiosity_formats():
