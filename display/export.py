@@ -1,5 +1,7 @@
 """``vlights export``: a fitted model (fit.npz, Contract 2 version 2) as a binary glTF,
-``DIR/scene.glb``, for viewers outside this program (a web page).
+``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
+three.js modules it needs, copied from ``display/web``: the directory works offline,
+served by ``vlights serve DIR`` or any static server).
 
 Schema (format ``vlights.fit.gltf``, version 1; the README's "Export" section):
 
@@ -38,11 +40,19 @@ import numpy as np
 
 from radiosity.formats import InputError
 
-__all__ = ["FILE", "FORMAT", "VERSION", "add_export_command", "export_glb", "load_export", "write_export"]
+__all__ = ["FILE", "FORMAT", "PAGE", "VERSION", "add_export_command", "export_glb", "load_export", "page_files",
+           "write_export"]
 
 FORMAT = "vlights.fit.gltf"
 VERSION = 1
 FILE = "scene.glb"
+PAGE = "index.html"
+WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
+
+
+def page_files():
+    """The walkthrough page's files, as paths relative to ``display/web`` (sorted)."""
+    return sorted(p.relative_to(WEB) for p in WEB.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
 
 
 def vertex_attributes(obj):
@@ -105,15 +115,21 @@ def export_glb(model):
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False)
 
 
-def write_export(model, out):
-    """Write ``out/scene.glb`` (``out`` is created if missing, not its parents); the
-    file appears complete or not at all. Returns its path."""
+def write_export(model, out, page=True):
+    """Write ``out/scene.glb`` and, with ``page``, the walkthrough page beside it
+    (``out`` is created if missing, not its parents); the files appear complete or not
+    at all. Returns the path of scene.glb."""
+    import shutil
+
     from display.outputs import staged_directory
 
     data = export_glb(model)
     out = Path(out)
-    with staged_directory(out) as stage, open(stage / FILE, "wb") as f:
-        f.write(data)
+    with staged_directory(out) as stage:
+        (stage / FILE).write_bytes(data)
+        for name in page_files() if page else ():
+            (stage / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(WEB / name, stage / name)
     return out / FILE
 
 
@@ -182,7 +198,12 @@ def add_export_command(subparsers):
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
-                   help=f"output directory, created if missing (not its parents); {FILE} is written into it")
+                   help=f"output directory, created if missing (not its parents); {FILE}, {PAGE} (the WebGL "
+                   "walkthrough) and the three.js modules it loads are written into it")
+    p.add_argument("--no-page", dest="page", action="store_false", help=f"write {FILE} alone")
+    p.add_argument("--serve", action="store_true",
+                   help="then serve DIR on 127.0.0.1 (as 'vlights serve DIR') and print the walkthrough's URL")
+    p.add_argument("--port", type=int, default=8000, help="with --serve: TCP port, 0 for any free one (default: %(default)s)")
     p.set_defaults(func=run_export_command)
 
 
@@ -210,9 +231,27 @@ def run_export_command(args):
     from fitting import load_fit
 
     _check_fit_file(args.fit)
-    out = check_output_dir(args.out, "-o", files=(FILE,), inputs=(args.fit,))
+    if args.serve and not args.page:
+        raise InputError("--serve needs the page: drop --no-page")
+    files = (FILE, *(str(p) for p in page_files())) if args.page else (FILE,)
+    out = check_output_dir(args.out, "-o", files=files, inputs=(args.fit,))
     model = load_fit(args.fit)
-    path = write_export(model, out)
-    lights = sum(o.n_lights for o in model.objects)
-    print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights, {path.stat().st_size} bytes)")
+    server = None
+    if args.serve:
+        from display.serve import start
+
+        server = start(out, args.port, must_exist=False)  # the port is had before anything is written
+    try:
+        path = write_export(model, out, page=args.page)
+        lights = sum(o.n_lights for o in model.objects)
+        print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights, {path.stat().st_size} bytes)")
+        if args.page:
+            print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")
+        if server is not None:
+            from display.serve import serve_until_interrupted
+
+            serve_until_interrupted(server, out)
+    finally:
+        if server is not None:
+            server.close()
     return 0

@@ -16,7 +16,7 @@ import threading
 
 from radiosity.formats import InputError
 
-__all__ = ["Server", "add_serve_command", "start"]
+__all__ = ["Server", "add_serve_command", "serve_until_interrupted", "start"]
 
 HOST = "127.0.0.1"
 TYPES = {".js": "text/javascript", ".mjs": "text/javascript", ".glb": "model/gltf-binary",
@@ -51,12 +51,13 @@ class Server:
         self.close()
 
 
-def start(directory, port=0):
+def start(directory, port=0, must_exist=True):
     """Serve ``directory`` on 127.0.0.1:``port`` (0: any free port) in a background
     thread; a ``Server``. InputError (one line) for a missing directory or a port that
-    cannot be had."""
+    cannot be had. ``must_exist=False``: the directory may appear later (the port is
+    had before a command writes what it serves)."""
     directory = os.fspath(directory)
-    if not os.path.isdir(directory):
+    if must_exist and not os.path.isdir(directory):
         what = "not found" if not os.path.exists(directory) else "is not a directory"
         raise InputError(f"directory {directory!r} {what}")
     if not (isinstance(port, int) and 0 <= port <= 65535):
@@ -81,10 +82,15 @@ def add_serve_command(subparsers):
     p.set_defaults(func=_serve)
 
 
+def serve_until_interrupted(server, directory):
+    """Print the URL and serve until Ctrl-C (KeyboardInterrupt reaches the caller)."""
+    print(f"serving {os.path.abspath(directory)} at {server.url} (Ctrl-C stops)", flush=True)
+    threading.Event().wait()
+
+
 def _serve(args):
     server = start(args.directory, args.port)
-    print(f"serving {os.path.abspath(args.directory)} at {server.url} (Ctrl-C stops)", flush=True)
     try:
-        threading.Event().wait()
+        serve_until_interrupted(server, args.directory)
     finally:
         server.close()

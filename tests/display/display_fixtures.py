@@ -7,6 +7,7 @@ import numpy as np
 from fitting import FittedModel, FittedObject
 from fitting.model import directional
 from radiosity.formats import directions
+from radiosity.formats.camera import Camera
 from radiosity.formats.solution import ObjectSolution, Solution
 
 DIFFUSE = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
@@ -95,3 +96,28 @@ def assert_refused(result, *fragments, command=None):
 def listing(path):
     """Every file and directory under ``path`` (hidden ones included), relative."""
     return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
+
+
+CAMERA = Camera(eye=(0.5, 0.25, -6.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0)
+
+
+def lit_model(per_light, rng, camera=CAMERA):
+    """The tiny scene's wall (diffuse) and tile with three lights: two point, one distant;
+    coefficients per light or shared, values that float32 rounding would show."""
+    objects = []
+    for o in tiny_solution().objects:
+        v = o.num_vertices
+        k = 0 if o.is_diffuse else 3
+        light_pos = np.array([[0.3, 0.7, -2.0, 1.0], [-1.1, 0.2, -1.3, 1.0], [0.0, 0.0, 0.0, 0.0]], np.float32)[:k]
+        if k:
+            d = np.array([0.2, 0.3, -0.9])
+            light_pos[2, :3] = d / np.linalg.norm(d)
+        shape = (v, k, 3) if per_light and k else (v, 3)
+        objects.append(FittedObject(
+            name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
+            emitted=rng.uniform(0, 3, (v, 3)).astype(np.float32),
+            specular=(rng.uniform(0, 2, shape) if k else np.zeros(shape)).astype(np.float32),
+            light_pos=light_pos, light_rgb=np.float32(rng.uniform(0.5, 1.5, (k, 3))),
+            shininess=np.float32(rng.uniform(5, 80, k)),
+        ))
+    return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=camera)

@@ -15,36 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from display_fixtures import assert_refused, listing, tiny_solution
+from display_fixtures import assert_refused, listing, lit_model
 
 from display.export import FILE, FORMAT, VERSION, load_export
-from fitting import FittedModel, FittedObject, load_fit
+from fitting import FittedModel, load_fit
 from fitting.model import shade_arrays
-from radiosity.formats.camera import Camera
-
-CAMERA = Camera(eye=(0.5, 0.25, -6.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0)
-
-
-def lit_model(per_light, rng, camera=CAMERA):
-    """The tiny scene's wall (diffuse) and tile with three lights: two point, one distant;
-    coefficients per light or shared, values that float32 rounding would show."""
-    objects = []
-    for o in tiny_solution().objects:
-        v = o.num_vertices
-        k = 0 if o.is_diffuse else 3
-        light_pos = np.array([[0.3, 0.7, -2.0, 1.0], [-1.1, 0.2, -1.3, 1.0], [0.0, 0.0, 0.0, 0.0]], np.float32)[:k]
-        if k:
-            d = np.array([0.2, 0.3, -0.9])
-            light_pos[2, :3] = d / np.linalg.norm(d)
-        shape = (v, k, 3) if per_light and k else (v, 3)
-        objects.append(FittedObject(
-            name=o.name, positions=o.positions, normals=o.normals, faces=o.faces,
-            emitted=rng.uniform(0, 3, (v, 3)).astype(np.float32),
-            specular=(rng.uniform(0, 2, shape) if k else np.zeros(shape)).astype(np.float32),
-            light_pos=light_pos, light_rgb=np.float32(rng.uniform(0.5, 1.5, (k, 3))),
-            shininess=np.float32(rng.uniform(5, 80, k)),
-        ))
-    return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=camera)
 
 
 @pytest.fixture(params=["per-light", "shared"])

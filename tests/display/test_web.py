@@ -1,0 +1,260 @@
+"""The WebGL walkthrough (display/web, written by ``vlights export``) in a real browser.
+
+Headless Debian chromium renders WebGL2 through SwiftShader; Playwright for Python drives
+it. The page's screenshot at a camera given in the URL must equal ``vlights render
+--shading pixel -o`` at the same camera within 2/255 on average, for directional and
+point lights, coefficients shared and per light, fitted and diffuse-only, and keys must
+switch what it shows. Skipped where chromium or Playwright is missing (the test set-up,
+``tests/install_browser``, installs chromium where apt can).
+"""
+
+import importlib.util
+import io
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from display_fixtures import lit_model
+from PIL import Image
+
+from display.export import PAGE, WEB, page_files
+from display.serve import start
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+BROWSER_FLAGS = [
+    "--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-gpu-sandbox",
+    "--force-color-profile=srgb", "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run",
+]
+SIZE = (160, 120)
+VIEW = {"eye": (0.3, 0.2, -1.9), "look": (0.0, 0.05, 0.0), "up": (0.0, 1.0, 0.0), "fov": 50.0}
+IMPORT = re.compile(r"""^(?:import|export|\})[^'"\n;]*?\bfrom\s*['"]([^'"]+)['"]""", re.M)  # module specifiers
+EXPOSURE = 0.2  # the test scene's colours reach 3, and its highlights more: almost no pixel is white
+
+needs_browser = pytest.mark.skipif(
+    CHROMIUM is None or importlib.util.find_spec("playwright") is None,
+    reason="needs chromium (apt-get install chromium) and playwright (pip install playwright)",
+)
+
+
+def test_page_files_resolve_every_import():
+    """Every module the page loads, through the import map or a relative path, is among
+    the files export copies: the exported directory works with no network."""
+    files = {str(p) for p in page_files()}
+    assert {PAGE, "walkthrough.js", "three/LICENSE", "three/build/three.module.js", "three/build/three.core.js"} <= files
+    html = (WEB / PAGE).read_text()
+    imports = dict(re.findall(r'"(three[^"]*)":\s*"\./([^"]+)"', html))
+    assert imports == {"three": "three/build/three.module.js", "three/addons/": "three/examples/jsm/"}
+    pending, seen = ["walkthrough.js"], set()
+    while pending:
+        name = pending.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        assert name in files, f"{name} is imported but not exported"
+        for spec in IMPORT.findall((WEB / name).read_text()):
+            if spec == "three":
+                target = imports["three"]
+            elif spec.startswith("three/addons/"):
+                target = imports["three/addons/"] + spec[len("three/addons/"):]
+            else:
+                target = os.path.normpath(Path(name).parent / spec)
+            pending.append(target)
+    assert "three/examples/jsm/loaders/GLTFLoader.js" in seen and "three/build/three.core.js" in seen
+
+
+def test_exported_directory_has_the_page(tmp_path, cli, rng):
+    lit_model(True, rng).save(tmp_path / "fit.npz")
+    code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")
+    assert code == 0, err
+    for name in page_files():
+        assert (tmp_path / "web" / name).read_bytes() == (WEB / name).read_bytes()
+    assert f"wrote {tmp_path / 'web' / PAGE}" in out
+    code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "glb", "--no-page")
+    assert code == 0 and sorted(p.name for p in (tmp_path / "glb").iterdir()) == ["scene.glb"]
+
+
+def test_export_serve_refuses_no_page(tmp_path, cli, rng):
+    lit_model(True, rng).save(tmp_path / "fit.npz")
+    code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web", "--no-page", "--serve")
+    assert code == 2 and "--serve needs the page" in err and not (tmp_path / "web").exists()
+
+
+def test_export_serve_port_in_use_writes_nothing(tmp_path, cli, rng):
+    """The port is taken before the export is written: a busy port leaves no directory."""
+    import socket
+
+    lit_model(True, rng).save(tmp_path / "fit.npz")
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web", "--serve", "--port", port)
+    assert code == 2 and f"cannot serve on 127.0.0.1:{port}" in err and err.count("\n") == 1
+    assert not (tmp_path / "web").exists()
+
+
+def test_export_serve_prints_the_url_and_serves(tmp_path, rng):
+    """``export --serve``: writes, prints the URL, serves the page, stops on Ctrl-C (130)."""
+    lit_model(False, rng).save(tmp_path / "fit.npz")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "display", "export", str(tmp_path / "fit.npz"), "-o", str(tmp_path / "web"),
+         "--serve", "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        url = None
+        deadline = time.monotonic() + 60
+        while url is None and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
+            url = match.group(1) if match else None
+        assert url, proc.stderr.read() if proc.poll() is not None else "no URL printed"
+        with urllib.request.urlopen(url + PAGE, timeout=10) as r:
+            assert r.read() == (WEB / PAGE).read_bytes()
+        with urllib.request.urlopen(url + "scene.glb", timeout=10) as r:
+            assert r.headers["Content-Type"] == "model/gltf-binary" and r.read()[:4] == b"glTF"
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 130
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+# ---------------------------------------------------------------------------- in chromium
+
+@pytest.fixture(scope="module")
+def browser():
+    if CHROMIUM is None or importlib.util.find_spec("playwright") is None:
+        pytest.skip("needs chromium and playwright")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=BROWSER_FLAGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module", params=["per-light", "shared"])
+def site(request, tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny lit scene."""
+    base = tmp_path_factory.mktemp(f"web-{request.param}")
+    lit_model(request.param == "per-light", np.random.default_rng(11)).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+def open_page(browser, url, query, size=SIZE):
+    page = browser.new_page(viewport={"width": size[0], "height": size[1]}, device_scale_factor=1)
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(f"{url}{PAGE}?overlay=0&{query}")
+    page.wait_for_function("document.title === 'rendered' || document.title === 'error'", timeout=120_000)
+    assert page.title() == "rendered", (page.evaluate("window.vlights && window.vlights.error"), errors)
+    return page
+
+
+def view_query(mode="fitted", exposure=EXPOSURE, view=VIEW):
+    vec = lambda v: ",".join(repr(float(x)) for x in v)  # noqa: E731
+    return (f"eye={vec(view['eye'])}&look={vec(view['look'])}&up={vec(view['up'])}&fov={view['fov']}"
+            f"&mode={mode}&exposure={exposure}")
+
+
+def screenshot(page):
+    """The canvas as the browser composites it, (H, W, 3) float64 in 0..255."""
+    return np.asarray(Image.open(io.BytesIO(page.locator("#view").screenshot())).convert("RGB"), np.float64)
+
+
+def rendered(tmp_path, fit, mode="fitted", exposure=EXPOSURE, view=VIEW, size=SIZE):
+    """``vlights render --shading pixel -o`` of the same camera, (H, W, 3) float64 in 0..255."""
+    from display.cli import main
+
+    out = tmp_path / f"render-{mode}-{exposure}.png"
+    code = main(["render", str(fit), "--shading", "pixel", "--mode", mode, "--exposure", str(exposure),
+                 "--size", f"{size[0]}x{size[1]}", "-o", str(out), "--eye", *map(str, view["eye"]),
+                 "--look-at", *map(str, view["look"]), "--up", *map(str, view["up"]), "--fov", str(view["fov"])])
+    assert code == 0
+    return np.asarray(Image.open(out).convert("RGB"), np.float64)
+
+
+def wait_frames(page, after):
+    page.wait_for_function(f"window.vlights.state().frames > {after}", timeout=60_000)
+
+
+@needs_browser
+@pytest.mark.gl
+@pytest.mark.parametrize("mode", ["fitted", "diffuse"])
+def test_page_equals_render(browser, site, tmp_path, mode, gl_context):  # gl_context: skip where no EGL
+    fit, url = site
+    page = open_page(browser, url, view_query(mode))
+    try:
+        got = screenshot(page)
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit, mode)
+    assert got.shape == want.shape == (SIZE[1], SIZE[0], 3)
+    diff = np.abs(got - want)
+    assert diff.mean() <= 2.0, diff.mean()
+    assert np.mean(diff.max(axis=2) > 16) < 0.02  # only antialiased edges may differ by more
+    # not vacuous: the scene fills the frame, and the lights show in the fitted mode
+    assert np.mean(want.max(axis=2) > 10) > 0.8 and np.mean(want == 255) < 0.01
+    if mode == "fitted":
+        assert np.abs(want - rendered(tmp_path, fit, "diffuse")).mean() > 4.0
+
+
+@needs_browser
+@pytest.mark.gl
+def test_keys_switch_mode_exposure_and_move(browser, site, tmp_path, gl_context):
+    fit, url = site
+    page = open_page(browser, url, view_query("fitted"))
+    try:
+        state = page.evaluate("window.vlights.state()")
+        assert state["mode"] == "fitted" and state["frames"] >= 1
+        page.keyboard.press("m")
+        wait_frames(page, state["frames"])
+        assert page.evaluate("window.vlights.state().mode") == "diffuse"
+        diffuse = screenshot(page)
+        page.keyboard.press("Equal")  # "+": exposure x 2
+        wait_frames(page, page.evaluate("window.vlights.state().frames") - 1)
+        assert page.evaluate("window.vlights.state().exposure") == pytest.approx(2 * EXPOSURE)
+        brighter = screenshot(page)
+        eye = np.array(page.evaluate("window.vlights.state().eye"))
+        page.keyboard.down("w")
+        page.wait_for_timeout(300)
+        page.keyboard.up("w")
+        moved = np.array(page.evaluate("window.vlights.state().eye"))
+    finally:
+        page.close()
+    assert np.abs(diffuse - rendered(tmp_path, fit, "diffuse")).mean() <= 2.0
+    assert np.abs(brighter - rendered(tmp_path, fit, "diffuse", 2 * EXPOSURE)).mean() <= 2.0
+    forward = np.subtract(VIEW["look"], VIEW["eye"]) * [1, 0, 1]  # W walks level: along the view, across the up axis
+    step = moved - eye
+    assert np.linalg.norm(step) > 0.01
+    assert np.dot(step, forward) > 0.999 * np.linalg.norm(step) * np.linalg.norm(forward)
+
+
+@needs_browser
+def test_page_reports_a_bad_file_and_a_bad_query(browser, site, tmp_path):
+    _, url = site
+    page = browser.new_page(viewport={"width": 64, "height": 64})
+    try:
+        for query, fragment in (("file=missing.glb", "missing.glb"), ("mode=reference", "mode: want fitted or diffuse"),
+                                ("eye=1,2", "eye: want three numbers")):
+            page.goto(f"{url}{PAGE}?{query}")
+            page.wait_for_function("document.title === 'error' || document.title === 'rendered'", timeout=60_000)
+            assert page.title() == "error"
+            assert fragment in page.evaluate("window.vlights.error"), query
+            assert fragment in page.locator("#status").inner_text()
+    finally:
+        page.close()
