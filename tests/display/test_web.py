@@ -258,3 +258,36 @@ def test_page_reports_a_bad_file_and_a_bad_query(browser, site, tmp_path):
             assert fragment in page.locator("#status").inner_text()
     finally:
         page.close()
+
+
+@needs_browser
+def test_mouse_look_and_orbit(browser, site):
+    """A click locks the pointer and moving the mouse turns the view about the up axis
+    (the eye stays); O switches to orbiting, which keeps the distance to the target."""
+    _, url = site
+    page = open_page(browser, url, view_query("fitted"), size=(120, 90))
+    try:
+        camera = "window.vlights.walkthrough.camera"
+        before = np.array(page.evaluate(f"{camera}.getWorldDirection(new {camera}.position.constructor()).toArray()"))
+        eye = np.array(page.evaluate("window.vlights.state().eye"))
+        page.mouse.click(60, 45)
+        page.wait_for_function("window.vlights.walkthrough.walk.isLocked", timeout=10_000)
+        page.mouse.move(100, 45, steps=4)
+        page.wait_for_timeout(200)
+        after = np.array(page.evaluate(f"{camera}.getWorldDirection(new {camera}.position.constructor()).toArray()"))
+        assert np.allclose(page.evaluate("window.vlights.state().eye"), eye)
+        assert np.degrees(np.arccos(np.clip(before @ after, -1, 1))) > 1.0
+        assert after[1] == pytest.approx(before[1], abs=1e-6)  # a turn about the up axis (y)
+        page.keyboard.press("Escape")
+        page.keyboard.press("o")
+        target = np.array(page.evaluate("window.vlights.walkthrough.orbit.target.toArray()"))
+        page.mouse.move(40, 45)
+        page.mouse.down()
+        page.mouse.move(90, 50, steps=5)
+        page.mouse.up()
+        page.wait_for_timeout(200)
+        orbited = np.array(page.evaluate("window.vlights.state().eye"))
+    finally:
+        page.close()
+    assert np.linalg.norm(orbited - eye) > 0.05
+    assert np.linalg.norm(orbited - target) == pytest.approx(np.linalg.norm(eye - target), rel=1e-4)
