@@ -5,7 +5,8 @@ or positional as the data require, a specular coefficient per light), the compar
 figures (compare/), an error-against-lights plot (one curve per model, per glossy
 object), report.md (a one-line verdict of what the lights bought, what each number
 means, the pictures and tables of times and errors) and summary.json (the same
-numbers: times per phase, errors per object and per model and K, sizes). The files appear
+numbers: times per phase, errors per object and per model and K, sizes), and web/ (the
+fit as glTF with the WebGL walkthrough, as ``vlights export`` writes). The files appear
 together at the end: a failure or Ctrl-C on the way leaves none of them.
 """
 
@@ -18,12 +19,13 @@ from pathlib import Path
 from radiosity.formats.atomic import atomic_output
 
 from . import compare as _compare
+from . import export as _export
 from .gl import DEFAULT_SAMPLES
 from .outputs import staged_directory
 
 FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png") + tuple(
     f"compare/{name}" for name in _compare.FILES
-)
+) + (f"web/{_export.FILE}",) + tuple(f"web/{name}" for name in _export.page_files())
 
 
 def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES, truth_spp=None):
@@ -126,6 +128,8 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     model = fit(solution, options, progress=True)
     model.save(out / "fit.npz")
     times["fit_s"] = time.perf_counter() - t
+    (out / "web").mkdir()
+    _export.write_files(model, out / "web")  # the WebGL walkthrough: vlights serve DIR/web
 
     view = scene.camera.sized(*size)
     truths = []
@@ -405,7 +409,8 @@ def key_numbers(summary, out):
              "  compare/figure6.png             2 against all lights (figure 6)",
              "  compare/figure7.png             with and without virtual lights (figure 7)",
              "  error_vs_lights.png             fit error against the number of lights, per model",
-             "  report.md, summary.json         the verdict, pictures, times and errors"]
+             "  report.md, summary.json         the verdict, pictures, times and errors",
+             f"  web/                            the walkthrough in a browser: vlights serve {out}/web"]
     for name, o in summary["objects"].items():
         lines.append(f"  {name}: {o['model']}; relative RMS {_fmt(o['relative_rms'], 3)} "
                      f"(diffuse only {_fmt(o['diffuse_baseline_relative_rms'], 3)}, lights off {_fmt(o['diffuse_only_relative_rms'], 3)})")

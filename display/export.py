@@ -41,7 +41,7 @@ import numpy as np
 from radiosity.formats import InputError
 
 __all__ = ["FILE", "FORMAT", "PAGE", "VERSION", "add_export_command", "export_glb", "load_export", "page_files",
-           "write_export"]
+           "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
 VERSION = 1
@@ -115,21 +115,29 @@ def export_glb(model):
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False)
 
 
+def write_files(model, directory, page=True):
+    """Write scene.glb and, with ``page``, the walkthrough page into ``directory`` (which
+    exists); no staging: for callers that stage a whole run (``write_export``, the demo).
+    Returns the path of scene.glb."""
+    import shutil
+
+    directory = Path(directory)
+    (directory / FILE).write_bytes(export_glb(model))
+    for name in page_files() if page else ():
+        (directory / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(WEB / name, directory / name)
+    return directory / FILE
+
+
 def write_export(model, out, page=True):
     """Write ``out/scene.glb`` and, with ``page``, the walkthrough page beside it
     (``out`` is created if missing, not its parents); the files appear complete or not
     at all. Returns the path of scene.glb."""
-    import shutil
-
     from display.outputs import staged_directory
 
-    data = export_glb(model)
     out = Path(out)
     with staged_directory(out) as stage:
-        (stage / FILE).write_bytes(data)
-        for name in page_files() if page else ():
-            (stage / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(WEB / name, stage / name)
+        write_files(model, stage, page)
     return out / FILE
 
 

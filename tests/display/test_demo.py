@@ -6,6 +6,8 @@ import json
 import pytest
 
 from display.cli import main
+from display.export import load_export
+from fitting import load_fit
 from radiosity.formats import presets
 
 pytestmark = pytest.mark.gl
@@ -23,7 +25,9 @@ def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_co
     assert f"everything is in {out}" in printed and "teapot" in printed and "FLIP" in printed
     assert printed.count("Virtual lights cut the relative RMS error of the") == 1
     names = {p.name for p in out.iterdir()}
-    assert {"solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png", "compare"} <= names
+    assert {"solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png", "compare", "web"} <= names
+    assert load_export(out / "web" / "scene.glb").names == load_fit(out / "fit.npz").names  # the walkthrough's model
+    assert (out / "web" / "index.html").exists() and f"vlights serve {out}/web" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["times_s"]) == {"solve_s", "fit_s", "truth_s", "compare_s", "sweep_s", "total_s"}
     truth = summary["truth"]  # the first view, path-traced at the preset's samples
