@@ -20,7 +20,9 @@ On cornell-teapot, fixed seeds, 2 cores:
      (``--truth-spp``, its noise floor measured as FLIP between its two halves); per
      preset, solve + fit time against FLIP (HDR) and relative MSE of the walkthrough's
      reference, fitted and diffuse-only displays against it (whole image and glossy
-     objects); and the path tracer's own progress (another seed) against the same
+     objects), on the mesh refined where the light changes (``solve_adaptive``) and,
+     for the reference display, on the uniform mesh too (vertices of both recorded);
+     and the path tracer's own progress (another seed) against the same
      truth, giving the samples and seconds it needs to reach each display's FLIP: how
      many path-traced seconds one walkthrough frame is worth.
 Results: JSON lines in benchmarks/results/trade.jsonl, plots in results/trade.png and
@@ -67,11 +69,18 @@ def grid_error(test, reference, names):
     return float(np.sqrt(num / den))
 
 
-def timed_solve(scene, **kw):
+def timed_solve(scene, adaptive=False, **kw):
+    """A solve and its seconds; ``adaptive``: through ``solve_adaptive`` with the preset's
+    refinement driven by the light (else the uniform mesh alone)."""
+    from radiosity.transport.adaptive import AdaptiveOptions, solve_adaptive
     from radiosity.transport.solve import SolveOptions, solve
 
+    opts = SolveOptions(seed=kw.pop("seed", 1), **kw)
     t = time.perf_counter()
-    solution = solve(scene, SolveOptions(seed=kw.pop("seed", 1), **kw))
+    if adaptive:
+        solution = solve_adaptive(scene, opts, AdaptiveOptions(enabled=True))
+    else:
+        solution = solve(scene, opts)
     return solution, time.perf_counter() - t
 
 
@@ -210,16 +219,19 @@ def truth_trade(record, args):
 
     ctx = headless_context()
     try:
-        for quality in ("draft",) if args.quick else presets.QUALITIES:
+        for quality, adaptive in [(q, a) for q in (("draft",) if args.quick else presets.QUALITIES) for a in (False, True)]:
+            # with and without the refinement driven by the light (issue 13): the uniform
+            # mesh's reference display alone, the refined one's every display
             knobs = presets.preset(quality)
-            solution, solve_s = timed_solve(scene, quality=quality)
+            solution, solve_s = timed_solve(scene, adaptive=adaptive, quality=quality)
             t = time.perf_counter()
-            model = fit(solution, FitOptions(lights=knobs.fit_lights, iterations=knobs.fit_iterations))
+            model = fit(solution, FitOptions(lights=knobs.fit_lights, iterations=knobs.fit_iterations)) if adaptive else None
             fit_s = time.perf_counter() - t
             renderer = Renderer(ctx, fit=model, solution=solution)
-            glossy = [o.name for o in renderer.objects if o.n_lights > 0]
+            glossy = [o.name for o in solution.objects if not o.is_diffuse]
             mask = renderer.object_mask(camera, glossy)
-            for mode in ("reference", "fitted", "diffuse"):
+            refinement = solution.stats.get("adaptive", {})
+            for mode in ("reference", "fitted", "diffuse") if adaptive else ("reference",):
                 t = time.perf_counter()
                 image = renderer.render(camera, mode)
                 frame_s = time.perf_counter() - t
@@ -227,6 +239,8 @@ def truth_trade(record, args):
                 flip = numbers["flip_mean"]
                 reached = time_to(progress, flip)
                 record({"question": "truth", "what": "walkthrough", "quality": quality, "mode": mode,
+                        "adaptive": adaptive, "vertices": solution.stats["vertices"],
+                        "vertices_uniform": refinement.get("vertices_before", solution.stats["vertices"]),
                         "solve_s": solve_s, "fit_s": fit_s, "frame_s": frame_s, "samples": renderer.plan.samples,
                         "flip": flip, "relative_mse": numbers["relative_mse"],
                         "flip_glossy": numbers.get("flip_mean_glossy"),
@@ -253,8 +267,10 @@ def plot_truth(rows, path):
     markers = {"reference": "o", "fitted": "s", "diffuse": "^"}
     colours = {"draft": "tab:blue", "medium": "tab:orange", "high": "tab:red"}
     for r in walk:
+        uniform = not r.get("adaptive", True)
         ax.loglog(r["solve_s"] + r["fit_s"], r["flip"], markers[r["mode"]], color=colours[r["quality"]],
-                  label=f"{r['quality']} {r['mode']} (solve + fit)")
+                  mfc="none" if uniform else None,
+                  label=f"{r['quality']} {r['mode']} ({'uniform mesh, ' if uniform else ''}solve + fit)")
     if truth["noise_flip"] is not None:
         ax.axhline(truth["noise_flip"], color="grey", ls=":", label="truth's noise floor (FLIP of its halves)")
     ax.set_xlabel("seconds (path tracer: to this image; walkthrough: solve + fit, then frames are free)")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -31,6 +32,7 @@ def register(subparsers, not_built):
     add_quality_flag(p)
     p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units); overrides --quality")
     p.add_argument("--json", action="store_true", help="print the description as JSON")
+    add_adaptive_flags(p)
     p.set_defaults(func=_scene_info)
 
     p = subparsers.add_parser(
@@ -47,8 +49,9 @@ def register(subparsers, not_built):
     p.add_argument("--gather-samples", type=int, metavar="N", help="gather rays per glossy vertex (rounded up to a square)")
     p.add_argument("--light-samples", type=int, metavar="N", help="light samples per glossy vertex")
     p.add_argument("--grid", type=int, metavar="N", help="n x n direction grid for every glossy object (default: from each exponent)")
-    p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units)")
+    p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units): a uniform mesh, unless --adaptive")
     p.add_argument("--kernel-rings", type=int, metavar="K", help="widen each vertex's density kernel by K rings of neighbours (less noise, more blur)")
+    add_adaptive_flags(p)
     p.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
     p.add_argument("--threads", type=int, metavar="T", help="worker threads (default: one per core)")
     p.add_argument(
@@ -62,13 +65,38 @@ def register(subparsers, not_built):
     p.set_defaults(func=_solve)
 
 
+def add_adaptive_flags(parser):
+    parser.add_argument(
+        "--adaptive",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="refine the mesh where the light changes: a first pass, then the edges whose light linear "
+        "interpolation does not explain are split, and the solve runs again (default: the --quality preset; "
+        "off when --max-edge asks for a uniform mesh)",
+    )
+    parser.add_argument(
+        "--vertex-budget",
+        type=int,
+        metavar="N",
+        help="most vertices of the adaptively refined scene (default: the preset's vertex_budget_factor "
+        "times the uniform mesh's)",
+    )
+
+
+def adaptive_options(args):
+    from radiosity.transport.adaptive import AdaptiveOptions
+
+    return AdaptiveOptions(enabled=args.adaptive, vertex_budget=args.vertex_budget)
+
+
 def _output_path(path, suffix=".npz", inputs=()):
     """Check an output path before hours of work go into it (``check_output``)."""
     return check_output(path, suffix, inputs=inputs, flag="output")
 
 
 def _solve(args):
-    from radiosity.transport.solve import SolveOptions, solve
+    from radiosity.transport.adaptive import solve_adaptive
+    from radiosity.transport.solve import SolveOptions
 
     out = _output_path(args.output, inputs=(args.scene,) if Path(args.scene).exists() else ())
     scene = load_scene(args.scene)
@@ -84,8 +112,10 @@ def _solve(args):
         threads=args.threads,
         scheduler=args.scheduler,
     )
-    opts.resolved(scene)  # refuse bad knobs before any work
-    solution = solve(scene, opts, progress=True)
+    settings = opts.resolved(scene)  # refuse bad knobs before any work
+    adaptive = adaptive_options(args)
+    adaptive.resolved(args.quality, scene.refined(settings["max_edge"]).n_vertices, args.max_edge is not None)
+    solution = solve_adaptive(scene, opts, adaptive, progress=True)
     solution.save(out)
     print(format_summary(solution, out))
     return 0
@@ -113,14 +143,32 @@ def format_summary(solution, path):
             else "  gather   none: no glossy objects"
         ),
         f"  total    {total:.2f} s (setup {t['setup']:.2f} s)",
+        *_adaptive_lines(st.get("adaptive")),
         f"wrote {path} ({size / 1e6:.2f} MB)",
     ]
     return "\n".join(lines)
 
 
+def _adaptive_lines(adaptive):
+    """The summary's lines on the refinement (none for a solve without its stats)."""
+    if not adaptive:
+        return []
+    if not adaptive["enabled"]:
+        return [f"  mesh     uniform, {adaptive['vertices_before']:,} vertices (--no-adaptive)"]
+    passes = adaptive["passes"]
+    seconds = sum(p["time_s"] for p in passes)
+    return [
+        f"  mesh     refined where the light changes: {adaptive['vertices_before']:,} -> "
+        f"{adaptive['vertices_after']:,} vertices (budget {adaptive['vertex_budget']:,}), "
+        f"{len(passes)} estimate pass(es) {seconds:.2f} s before the final solve"
+    ]
+
+
 def _scene_info(args):
     scene = load_scene(args.scene)
     max_edge, how = presets.max_edge(scene, args.quality, args.max_edge)
-    info = describe(scene, scene.refined(max_edge), max_edge, how)
+    refined = scene.refined(max_edge)
+    adaptive = adaptive_options(args).resolved(args.quality, refined.n_vertices, args.max_edge is not None)
+    info = describe(scene, refined, max_edge, how, adaptive)
     print(json.dumps(info, indent=2) if args.json else format_description(info))
     return 0

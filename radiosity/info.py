@@ -11,8 +11,10 @@ def _round(values, digits=6):
     return [float(f"{v:.{digits}g}") for v in np.atleast_1d(values)]
 
 
-def describe(scene, refined, max_edge, how):
-    """A JSON-ready dict: the scene as loaded and after refinement to ``max_edge``."""
+def describe(scene, refined, max_edge, how, adaptive=None):
+    """A JSON-ready dict: the scene as loaded and after refinement to ``max_edge``;
+    ``adaptive`` (``AdaptiveOptions.resolved``) adds how far the refinement driven by
+    the light may go (the solve reports where it went)."""
     total_power = sum((o.emitted_power for o in scene.emitters), np.zeros(3))
     lo, hi = scene.bounds
     materials = {}
@@ -67,6 +69,15 @@ def describe(scene, refined, max_edge, how):
             "emitted_power": _round(total_power),
         },
         "refinement": {"max_edge": float(f"{max_edge:.6g}"), "chosen_by": how},
+        "adaptive": None
+        if adaptive is None
+        else {
+            "enabled": bool(adaptive["enabled"]),
+            "vertices_before": refined.n_vertices,
+            "vertex_budget": adaptive["vertex_budget"],
+            "passes": adaptive["passes"],
+            "tolerance": adaptive["tolerance"],
+        },
     }
 
 
@@ -113,6 +124,15 @@ def format_description(info):
         f"  {'total':<14} {'':<10} {t['triangles']:>10} {t['vertices']:>10} "
         f"{t['refined_triangles']:>13} {t['refined_vertices']:>14}"
     )
+    a = info.get("adaptive")
+    if a:
+        out.append(
+            f"  adaptive  {'on' if a['enabled'] else 'off'}: from {a['vertices_before']:,} vertices, refined where "
+            f"the light changes up to {a['vertex_budget']:,} ({a['passes']} estimate pass(es), "
+            f"tolerance {a['tolerance']:g}); the solve reports the vertices after"
+            if a["enabled"]
+            else f"  adaptive  off: the uniform mesh's {a['vertices_before']:,} vertices"
+        )
     out += ["", f"emitters ({len(info['emitters'])})   total power (pi Le A, RGB) {_v(t['emitted_power'])}"]
     if not info["emitters"]:
         out.append("  none: nothing emits light, so a solution will be black")

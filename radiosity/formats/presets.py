@@ -35,6 +35,10 @@ class Preset:
     demo_light_sweep : light counts of the demo's error-against-lights plot
     truth_spp        : path-traced samples per pixel of the ground truth (``vlights truth``,
                        ``compare --truth-spp``, the demo)
+    adaptive         : refine the mesh where the light changes (``transport.adaptive``)
+    vertex_budget_factor : the refined scene's vertices at most this times the uniform mesh's
+    adaptive_passes  : estimate-and-refine rounds before the final solve
+    adaptive_tolerance : the refinement's error target, relative to the local light
     """
 
     photons: int
@@ -47,6 +51,10 @@ class Preset:
     fit_iterations: int
     demo_light_sweep: tuple[int, ...]
     truth_spp: int
+    adaptive: bool = True
+    vertex_budget_factor: float = 1.5
+    adaptive_passes: int = 1
+    adaptive_tolerance: float = 0.005
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -54,9 +62,9 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64),
-    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256),
-    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024),
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1),
+    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2),
+    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2),
 }
 QUALITIES = tuple(PRESETS)
 DEFAULT_QUALITY = "draft"

@@ -1,5 +1,5 @@
 """Triangle-mesh operations the solver needs: welding, cleaning, crease-split normals,
-conforming refinement to a maximum edge length, and tangent frames.
+conforming refinement (to a maximum edge length, or of chosen edges), and tangent frames.
 
 All functions are free functions on numpy arrays:
 
@@ -11,6 +11,8 @@ trimesh supplies the face adjacency; scipy the KD-tree and connected components.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
@@ -170,51 +172,166 @@ def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
             f"refining to a maximum edge of {max_edge:g} would make about {estimate:.3g} "
             f"triangles (limit {max_triangles:.3g}); choose a larger maximum edge"
         )
+    labels = position_labels(p)
     for _ in range(200):
-        edge_vertices = f[:, _EDGE_CORNERS]  # (F, 3, 2)
-        sorted_ev = np.sort(edge_vertices, axis=2).reshape(-1, 2)
-        unique_edges, inverse = np.unique(sorted_ev, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1, 3)
-        length = np.linalg.norm(p[unique_edges[:, 0]] - p[unique_edges[:, 1]], axis=1)
-        mark = length > max_edge
+        edges = _edge_tables(f, labels)
+        length = np.linalg.norm(p[edges.index_edges[:, 0]] - p[edges.index_edges[:, 1]], axis=1)
+        mark = np.zeros(len(edges.geometric), dtype=bool)
+        mark[edges.geometric_of[length > max_edge]] = True
         if not mark.any():
             break
-        longest = np.argmax(length[inverse], axis=1)
-        longest_edge = inverse[np.arange(len(f)), longest]
-        while True:  # closure: a triangle with a marked edge marks its longest edge
-            touched = mark[inverse].any(axis=1)
-            needs = touched & ~mark[longest_edge]
-            if not needs.any():
-                break
-            mark[longest_edge[needs]] = True
-
-        midpoint = np.full(len(unique_edges), -1, dtype=np.int64)
-        marked = np.nonzero(mark)[0]
-        midpoint[marked] = len(p) + np.arange(len(marked))
-        ends = unique_edges[marked]
-        p = np.vstack([p, 0.5 * (p[ends[:, 0]] + p[ends[:, 1]])])
-        if nrm is not None:
-            summed = nrm[ends[:, 0]] + nrm[ends[:, 1]]
-            nrm = np.vstack([nrm, _normalize_or(summed, nrm[ends[:, 0]])])
-
-        # rotate every triangle so that its longest edge is edge 0: (a, b) longest
-        rot = (np.arange(3)[None, :] + longest[:, None]) % 3
-        rows = np.arange(len(f))[:, None]
-        a, b, c = f[rows, rot].T
-        m0, m1, m2 = midpoint[inverse[rows, rot]].T  # midpoints of (a,b), (b,c), (c,a)
-        s0, s1, s2 = m0 >= 0, m1 >= 0, m2 >= 0
-        pieces = [np.stack([a, b, c], 1)[~s0]]
-        only0 = s0 & ~s1 & ~s2
-        pieces += [np.stack(t, 1)[only0] for t in ((a, m0, c), (m0, b, c))]
-        with01 = s0 & s1 & ~s2
-        pieces += [np.stack(t, 1)[with01] for t in ((a, m0, c), (m0, b, m1), (m0, m1, c))]
-        with02 = s0 & ~s1 & s2
-        pieces += [np.stack(t, 1)[with02] for t in ((a, m0, m2), (m0, c, m2), (m0, b, c))]
-        red = s0 & s1 & s2
-        pieces += [np.stack(t, 1)[red] for t in ((a, m0, m2), (m0, b, m1), (m2, m1, c), (m0, m1, m2))]
-        f = np.concatenate(pieces)
+        p, f, nrm, labels, _ = _split_marked(p, f, nrm, labels, edges, mark)
     else:  # pragma: no cover - 200 rounds halve any edge far below float precision
         raise RuntimeError("mesh refinement did not converge")
+    return p, f, nrm
+
+
+def position_labels(positions):
+    """(V,) int64: one label per distinct position, so the copies of a vertex split at
+    a crease (same point, other normal) share it."""
+    _, labels = np.unique(np.asarray(positions), axis=0, return_inverse=True)
+    return labels.reshape(-1).astype(np.int64)
+
+
+class _Edges(NamedTuple):
+    """The edges of a mesh, by vertex indices and by position.
+
+    index_edges : (E, 2) int64, sorted vertex pairs, each once
+    index_of    : (F, 3) int64, edge k of each face (corners k, k + 1) in index_edges
+    geometric   : (G, 2) int64, sorted position-label pairs: an edge and its copies
+                  across a crease are one geometric edge
+    geometric_of: (E,) int64, the geometric edge of each index edge
+    """
+
+    index_edges: np.ndarray
+    index_of: np.ndarray
+    geometric: np.ndarray
+    geometric_of: np.ndarray
+
+
+def _edge_tables(faces, labels):
+    sorted_ev = np.sort(faces[:, _EDGE_CORNERS], axis=2).reshape(-1, 2)
+    index_edges, index_of = np.unique(sorted_ev, axis=0, return_inverse=True)
+    geometric, geometric_of = np.unique(np.sort(labels[index_edges], axis=1), axis=0, return_inverse=True)
+    return _Edges(index_edges, index_of.reshape(-1, 3), geometric, geometric_of.reshape(-1))
+
+
+def _split_marked(p, f, nrm, labels, edges, mark, attributes=()):
+    """One round of conforming longest-edge refinement of the marked geometric edges.
+
+    Closure (Rivara): a triangle with a marked edge also marks its longest edge, until
+    nothing changes; marks belong to geometric edges, so the faces on both sides of an
+    edge, and the copies of an edge split at a crease, split the same edges and no
+    T-junction appears. Each marked index edge gets a midpoint (a crease's copies one
+    each, with their own interpolated normals). Returns (positions, faces, normals,
+    labels, attributes) of the refined mesh; ``attributes`` are per-vertex arrays whose
+    midpoint values are the means of the edge's ends.
+    """
+    length = np.linalg.norm(p[edges.index_edges[:, 0]] - p[edges.index_edges[:, 1]], axis=1)
+    face_geometric = edges.geometric_of[edges.index_of]  # (F, 3)
+    longest = np.argmax(length[edges.index_of], axis=1)
+    rows1 = np.arange(len(f))
+    longest_edge = face_geometric[rows1, longest]
+    mark = mark.copy()
+    while True:  # closure: a triangle with a marked edge marks its longest edge
+        touched = mark[face_geometric].any(axis=1)
+        needs = touched & ~mark[longest_edge]
+        if not needs.any():
+            break
+        mark[longest_edge[needs]] = True
+
+    midpoint = np.full(len(edges.index_edges), -1, dtype=np.int64)
+    marked = np.nonzero(mark[edges.geometric_of])[0]
+    midpoint[marked] = len(p) + np.arange(len(marked))
+    ends = edges.index_edges[marked]
+    p = np.vstack([p, 0.5 * (p[ends[:, 0]] + p[ends[:, 1]])])
+    # a midpoint's label: one per marked geometric edge, after the existing labels
+    geo_marked, geo_label = np.unique(edges.geometric_of[marked], return_inverse=True)
+    labels = np.concatenate([labels, labels.max(initial=-1) + 1 + geo_label.reshape(-1)])
+    if nrm is not None:
+        summed = nrm[ends[:, 0]] + nrm[ends[:, 1]]
+        nrm = np.vstack([nrm, _normalize_or(summed, nrm[ends[:, 0]])])
+    attributes = tuple(np.concatenate([a, 0.5 * (a[ends[:, 0]] + a[ends[:, 1]])]) for a in attributes)
+
+    # rotate every triangle so that its longest edge is edge 0: (a, b) longest
+    rot = (np.arange(3)[None, :] + longest[:, None]) % 3
+    rows = rows1[:, None]
+    a, b, c = f[rows, rot].T
+    m0, m1, m2 = midpoint[edges.index_of[rows, rot]].T  # midpoints of (a,b), (b,c), (c,a)
+    s0, s1, s2 = m0 >= 0, m1 >= 0, m2 >= 0
+    pieces = [np.stack([a, b, c], 1)[~s0]]
+    only0 = s0 & ~s1 & ~s2
+    pieces += [np.stack(t, 1)[only0] for t in ((a, m0, c), (m0, b, c))]
+    with01 = s0 & s1 & ~s2
+    pieces += [np.stack(t, 1)[with01] for t in ((a, m0, c), (m0, b, m1), (m0, m1, c))]
+    with02 = s0 & ~s1 & s2
+    pieces += [np.stack(t, 1)[with02] for t in ((a, m0, m2), (m0, c, m2), (m0, b, c))]
+    red = s0 & s1 & s2
+    pieces += [np.stack(t, 1)[red] for t in ((a, m0, m2), (m0, b, m1), (m2, m1, c), (m0, m1, m2))]
+    return p, np.concatenate(pieces), nrm, labels, attributes
+
+
+def split_edges(positions, faces, edges, normals=None):
+    """Conforming refinement that splits the given edges (and whatever the closure needs).
+
+    edges : (K, 2) int vertex pairs of edges of ``faces`` (either order); pairs that are
+    not edges of the mesh are ignored. One round of longest-edge refinement
+    (``_split_marked``): each given edge, its copies across a crease (same positions,
+    other vertices) and, by closure, the longest edge of every triangle that has a
+    split edge, get their midpoint. New vertices interpolate ``normals`` (renormalised).
+    Returns (positions, faces, normals_or_None); nothing marked: the inputs unchanged.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    nrm = None if normals is None else np.asarray(normals, dtype=np.float64)
+    edges = np.sort(np.asarray(edges, dtype=np.int64).reshape(-1, 2), axis=1)
+    if not len(edges) or not len(f):
+        return p, f, nrm
+    labels = position_labels(p)
+    table = _edge_tables(f, labels)
+    key_wanted = edges[:, 0] * len(p) + edges[:, 1]
+    key_have = table.index_edges[:, 0] * len(p) + table.index_edges[:, 1]
+    found = np.isin(key_have, key_wanted)
+    if not found.any():
+        return p, f, nrm
+    mark = np.zeros(len(table.geometric), dtype=bool)
+    mark[table.geometric_of[found]] = True
+    p, f, nrm, _, _ = _split_marked(p, f, nrm, labels, table, mark)
+    return p, f, nrm
+
+
+def refine_density(positions, faces, density, normals=None, max_vertices=None, max_rounds=12):
+    """Conforming refinement to a size field: edges no longer than 1 / density.
+
+    density : (V,) float64 >= 0, the wanted edges per unit length at each vertex (0:
+    leave alone). An edge is split while its length times the mean density of its ends
+    exceeds 1; a midpoint gets that mean, so the field is interpolated linearly along
+    the edges and the refinement grades from fine to coarse without spreading further.
+    Each round is one ``_split_marked`` (closure included, so the mesh stays conforming,
+    also across creases). ``max_vertices``: stop before a round that would go beyond it
+    (the mesh of the last round within it is returned). Returns (positions, faces,
+    normals_or_None).
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    nrm = None if normals is None else np.asarray(normals, dtype=np.float64)
+    rho = np.asarray(density, dtype=np.float64)
+    if rho.shape != (len(p),) or not np.all(rho >= 0):
+        raise ValueError("density must be (V,) and >= 0")
+    labels = position_labels(p)
+    for _ in range(max_rounds):
+        edges = _edge_tables(f, labels)
+        ends = edges.index_edges
+        length = np.linalg.norm(p[ends[:, 0]] - p[ends[:, 1]], axis=1)
+        want = length * 0.5 * (rho[ends[:, 0]] + rho[ends[:, 1]]) > 1.0
+        if not want.any():
+            break
+        mark = np.zeros(len(edges.geometric), dtype=bool)
+        mark[edges.geometric_of[want]] = True
+        new = _split_marked(p, f, nrm, labels, edges, mark, (rho,))
+        if max_vertices is not None and len(new[0]) > max_vertices:
+            break
+        p, f, nrm, labels, (rho,) = new
     return p, f, nrm
 
 

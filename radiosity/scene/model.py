@@ -81,6 +81,16 @@ class SceneObject:
         p, f, n = geometry.refine(self.positions, self.faces, max_edge, normals=self.normals)
         return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n))
 
+    def refined_to_density(self, density, max_vertices=None):
+        """This object refined conformingly to the size field ``density`` (V,): edges
+        per unit length wanted at each vertex (``geometry.refine_density``)."""
+        p, f, n = geometry.refine_density(
+            self.positions, self.faces, density, normals=self.normals, max_vertices=max_vertices
+        )
+        if len(f) == len(self.faces):
+            return self
+        return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n))
+
 
 class MergedMesh(NamedTuple):
     """All triangles of a scene in one array, as the ray tracer takes them.

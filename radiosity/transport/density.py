@@ -138,18 +138,37 @@ def _fit(moments):
     return np.maximum(estimate, 0.0), mass
 
 
+def local_scale(positions, faces):
+    """(V,) mean squared length of the edges at each vertex: the area a vertex's
+    kernel would cover inside the mesh, up to a constant, at that vertex's mesh size."""
+    edges = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    length2 = np.sum((positions[edges[:, 0]] - positions[edges[:, 1]]) ** 2, axis=1)
+    total = np.zeros(len(positions))
+    count = np.zeros(len(positions))
+    for side in range(2):
+        np.add.at(total, edges[:, side], length2)
+        np.add.at(count, edges[:, side], 1.0)
+    return total / np.maximum(count, 1.0)
+
+
 def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, max_extra_rings=3):
     """Vertex irradiance (V, 3) of one object from its photon moments.
 
     Each vertex's kernel is its hat function widened by ``rings`` rings, and by up to
-    ``max_extra_rings`` more where its fit is weaker than a typical vertex's (the
-    Schur complement below the median): a corner extrapolates a linear fit from a
-    one-sided support, and without more photons its estimate would be several times
-    noisier than the interior's. Widening there roughly equalises the variance.
+    ``max_extra_rings`` more where its fit is weaker than a typical vertex's of the
+    same mesh size (the Schur complement over the squared local edge length, below the
+    median): a corner extrapolates a linear fit from a one-sided support, and without
+    more photons its estimate would be several times noisier than the interior's.
+    Widening there roughly equalises the variance. The comparison is at the vertex's
+    own mesh size so that where the mesh was refined (along a shadow edge, say) the
+    small kernels are not widened back across the edge they resolve: rings are
+    topological, so the support shrinks with the triangles.
     """
     moments = (moment0, moment1) + kernel_moments(positions, normals, tangents, faces)
     moments = widen(positions, normals, tangents, faces, moments, rings)
     estimate, mass = _fit(moments)
+    scale = np.maximum(local_scale(positions, faces), 1e-300)
+    mass = mass / scale
     target = np.median(mass)
     for _ in range(max_extra_rings):
         weak = mass < target
@@ -158,5 +177,5 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
         moments = widen(positions, normals, tangents, faces, moments, 1)
         wider, wider_mass = _fit(moments)
         estimate[weak] = wider[weak]
-        mass = np.where(weak, wider_mass, np.inf)
+        mass = np.where(weak, wider_mass / scale, np.inf)
     return estimate

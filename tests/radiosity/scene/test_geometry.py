@@ -120,3 +120,62 @@ def test_rotation_order_is_x_then_y_then_z():
     m = geometry.transform_matrix(rotate_deg=[90, 90, 0])
     # x first: +y -> +z; then y: +z -> +x
     assert np.allclose(m[:3, :3] @ [0, 1, 0], [1, 0, 0], atol=1e-12)
+
+
+def welded_edge_counts(positions, faces):
+    """Edge use counts after merging the copies of a vertex split at a crease."""
+    labels = geometry.position_labels(positions)
+    return edge_use_counts(labels[faces])
+
+
+def test_split_edges_keeps_a_crease_split_cube_closed_and_exact():
+    p, f = unit_cube()
+    cp, cf, cn = geometry.crease_normals(p, f, 40.0)
+    # an edge on the crease between two faces: its copy on the other face splits too
+    labels = geometry.position_labels(cp)
+    ev = np.sort(cf[:, geometry._EDGE_CORNERS].reshape(-1, 2), axis=1)
+    crease = next(e for e in ev if (np.sort(labels[ev], axis=1) == np.sort(labels[e])).all(axis=1).sum() == 2)
+    rp, rf, rn = geometry.split_edges(cp, cf, [crease], normals=cn)
+    assert len(rf) > len(cf)
+    assert (welded_edge_counts(rp, rf) == 2).all(), "a T-junction or crack across the crease"
+    _, area = geometry.face_normals(rp, rf)
+    assert area.sum() == pytest.approx(6.0, rel=1e-12)
+    assert trimesh.Trimesh(rp, rf, process=False).volume == pytest.approx(1.0, rel=1e-12)
+    # new vertices are copies per side, each with its own face's (flat) normal
+    fn, _ = geometry.face_normals(rp, rf)
+    assert np.allclose(rn[rf[:, 0]], fn) and np.allclose(rn[rf[:, 1]], fn) and np.allclose(rn[rf[:, 2]], fn)
+    midpoint = 0.5 * (cp[crease[0]] + cp[crease[1]])
+    assert np.isclose(rp, midpoint).all(axis=1).sum() == 2
+    # nothing to split: the mesh unchanged
+    same = geometry.split_edges(cp, cf, np.zeros((0, 2), int), normals=cn)
+    assert np.array_equal(same[0], cp) and np.array_equal(same[1], cf)
+
+
+def test_refine_density_grades_conforms_and_keeps_the_budget():
+    p = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], float)
+    f = np.array([[0, 2, 1], [0, 3, 2]])
+    p, f, _ = geometry.refine(p, f, 0.25)
+    normals = np.tile([0.0, 1.0, 0.0], (len(p), 1))
+    normals[p[:, 0] > 0.6] = np.array([0.0, 1.0, 0.2]) / np.hypot(1, 0.2)
+    density = np.where(np.abs(p[:, 0] - 0.5) < 0.2, 1 / 0.04, 0.0)  # edges of 0.04 near x = 0.5
+    rp, rf, rn = geometry.refine_density(p, f, density, normals=normals)
+    assert len(rp) > 3 * len(p)
+    counts = welded_edge_counts(rp, rf)
+    assert set(np.unique(counts)) == {1, 2}
+    edges = np.sort(rf[:, geometry._EDGE_CORNERS].reshape(-1, 2), axis=1)
+    unique, use = np.unique(edges, axis=0, return_counts=True)
+    lengths = np.linalg.norm(rp[unique[:, 0]] - rp[unique[:, 1]], axis=1)
+    assert lengths[use == 1].sum() == pytest.approx(4.0, rel=1e-12)  # open edges: the border alone
+    _, area = geometry.face_normals(rp, rf)
+    assert area.sum() == pytest.approx(1.0, rel=1e-12)
+    mid = 0.5 * (rp[unique[:, 0]] + rp[unique[:, 1]])
+    assert lengths[np.abs(mid[:, 0] - 0.5) < 0.05].max() <= 0.04 * 1.5  # fine where asked
+    assert lengths[np.abs(mid[:, 0] - 0.5) > 0.45].min() > 0.1  # untouched far away
+    assert np.allclose(np.linalg.norm(rn, axis=1), 1.0)
+    fn, _ = geometry.face_normals(rp, rf)
+    assert (fn[:, 1] > 0.99).all()  # orientation kept
+    # a budget: the last round within it
+    capped = geometry.refine_density(p, f, density, max_vertices=len(rp) - 1)
+    assert len(p) < len(capped[0]) < len(rp)
+    with pytest.raises(ValueError):
+        geometry.refine_density(p, f, -density)
