@@ -105,7 +105,8 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     from fitting import FitOptions, fit
     from radiosity.formats.presets import preset
     from radiosity.scene.loaders import load_scene
-    from radiosity.transport.solve import SolveOptions, solve
+    from radiosity.transport.adaptive import solve_adaptive
+    from radiosity.transport.solve import SolveOptions
 
     from .renderer import Renderer
 
@@ -117,7 +118,7 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     steps = 5 if truth_spp else 4
     log(f"[1/{steps}] solving cornell-teapot ({quality})")
     t = time.perf_counter()
-    solution = solve(scene, SolveOptions(quality=quality, seed=1), progress=True)
+    solution = solve_adaptive(scene, SolveOptions(quality=quality, seed=1), progress=True)  # mesh refined where the light changes
     solution.save(out / "solution.npz")
     times["solve_s"] = time.perf_counter() - t
 
@@ -169,7 +170,8 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     summary = {
         "verdict": "", "scene": "cornell-teapot", "quality": quality, "samples": samples,
         "times_s": {k: round(v, 3) for k, v in times.items()},
-        "solver_time_s": solution.stats["time_s"], "fit_settings": model.settings, "objects": objects,
+        "solver_time_s": solution.stats["time_s"], "mesh": solution.stats.get("adaptive"),
+        "fit_settings": model.settings, "objects": objects,
         "sizes_bytes": sizes,
         "error_vs_lights": {
             "counts": list(counts), "preset_counts": list(p.demo_light_sweep), "iterations": options.iterations,
@@ -321,6 +323,16 @@ def _verdict_lights(s, line):
                    + (f" ({ratio:.2f}x)." if finite else "."))
 
 
+def _mesh_words(mesh):
+    """The report's sentence on the solver's mesh (``stats["adaptive"]``)."""
+    if not mesh:
+        return ""
+    if not mesh["enabled"]:
+        return f" The solver's mesh: uniform, {mesh['vertices_before']:,} vertices."
+    return (f" The solver's mesh: refined where the light changes, {mesh['vertices_before']:,} -> "
+            f"{mesh['vertices_after']:,} vertices (budget {mesh['vertex_budget']:,}).")
+
+
 def _report(s):
     t = s["times_s"]
     sw = s["error_vs_lights"]
@@ -340,7 +352,8 @@ def _report(s):
         f"filter over each pixel). Total {t['total_s']:.1f} s: solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, "
         + (f"truth {t['truth_s']:.1f} s, " if "truth_s" in t else "")
         + f"figures {t['compare_s']:.1f} s, lights sweep {t['sweep_s']:.1f} s. "
-        f"solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz {s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB.", "",
+        f"solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz {s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB."
+        + _mesh_words(s.get("mesh")), "",
         "## Fit per glossy object", "",
         "| object | lights | kinds | floats / vertex | exponent(s) | relative RMS | worst vertex | diffuse only | lights off |",
         "|---|---|---|---|---|---|---|---|---|",

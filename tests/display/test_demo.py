@@ -37,6 +37,9 @@ def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_co
     assert "Against a path tracer (4 spp)" in summary["verdict"] and "Against a path tracer" in printed
     assert summary["samples"] == 4 and summary["figures"]["samples"] == 4  # antialiasing, the default
     assert set(summary["objects"]) == {"tall_block", "teapot"}
+    mesh = summary["mesh"]  # the draft preset refines where the light changes
+    assert mesh["enabled"] and mesh["vertices_before"] < mesh["vertices_after"] <= mesh["vertex_budget"]
+    assert f"{mesh['vertices_before']:,} -> {mesh['vertices_after']:,} vertices" in (out / "report.md").read_text()
     assert summary["fit_settings"]["coefficients"] == "per-light" and summary["fit_settings"]["light_kind"] == "auto"
     for o in summary["objects"].values():
         assert 1 <= o["lights"] <= 2 and 0 <= o["relative_rms"] <= o["diffuse_only_relative_rms"] * 1.5
