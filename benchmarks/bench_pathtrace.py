@@ -2,20 +2,21 @@
 
 Usage:
     python benchmarks/bench_pathtrace.py [--scene cornell-teapot] [--size 256] [--repeats 3] [--quick]
+                                         [--parts speed,convergence]
 
 Measures, in one run, with the same thread count throughout:
-  1. bare Embree: closest-hit rays per second of incoherent rays (origins on the
-     surfaces, directions over the hemisphere) through the same ``RayTracer`` with a
-     thread per core, and occlusion rays per second of the same rays cut just short of
-     their hit (an unoccluded shadow ray's whole segment);
+  1. the limit: the fastest this machine traces incoherent rays (origins on the
+     surfaces, directions over the hemisphere) through Embree on all cores, jitted
+     loops of single-ray queries (a nogil loop per thread, or numba prange, whichever
+     is faster: ``_common.Limit``, the same limit ``bench_solver`` uses); and the
+     occlusion rays per second of the same rays cut just short of their hit (an
+     unoccluded shadow ray's whole segment);
   2. the path tracer on the scene's camera: rays per second (camera, bounce and shadow
-     rays / wall time, every kernel included) as a ratio to (1)'s closest-hit rate;
-     paths per second; and, measured directly, the share of the worker threads' time
-     spent inside Embree's calls (the rest is the numba kernels, Python between
-     wavefronts and the arrays: what jitted tracing loops would save). Its rays are
-     cheaper than (1)'s (one in five is a coherent camera ray, the shadow rays aim at
-     one lamp), so the ratio to (1) flatters it; the share does not. Repeats are
-     interleaved (bare, tracer, bare, tracer, ...) and medians reported;
+     rays / wall time, every kernel included) as a ratio to (1)'s limit; paths per
+     second. Its rays are cheaper than (1)'s (one in five is a coherent camera ray,
+     the shadow rays aim at one lamp and stop at it), so the ratio flatters it a
+     little. Repeats are interleaved (limit, tracer, limit, tracer, ...) and medians
+     reported;
   3. convergence: FLIP (HDR) and relative MSE against a long render (``--reference-spp``,
      another seed) after each progressive pass, against wall time; the time to reach
      FLIP 0.2, 0.1 and 0.05.
@@ -26,50 +27,50 @@ from __future__ import annotations
 
 import argparse
 import os
-import threading
 import time
 
 import numpy as np
-from _common import RESULTS, Recorder, incoherent_rays
+from _common import RESULTS, Limit, Recorder
 
 
-def bare_embree_rates(scene, threads, n_rays):
-    """(closest-hit, occlusion) rays per second of the same incoherent rays."""
-    from radiosity.transport.embree import RayTracer
-
-    merged = scene.merged()
-    with RayTracer(merged.positions, merged.faces, threads=threads) as tracer:
-        origins, d = incoherent_rays(merged, n_rays, tracer.epsilon)
-        t = time.perf_counter()
-        hits = tracer.intersect(origins, d)
-        closest = n_rays / (time.perf_counter() - t)
-        hit = hits.triangle >= 0
-        t = time.perf_counter()
-        tracer.occluded(origins[hit], d[hit], hits.t[hit] * np.float32(0.999))
-        occlusion = int(hit.sum()) / (time.perf_counter() - t)
-    return closest, occlusion
+def occlusion_rate(limit):
+    """Occlusion rays per second of the limit's rays, cut just short of their hits."""
+    tracer = limit.tracer
+    hits = tracer.intersect(limit.origins, limit.directions)
+    hit = hits.triangle >= 0
+    t = time.perf_counter()
+    tracer.occluded(limit.origins[hit], limit.directions[hit], hits.t[hit] * np.float32(0.999))
+    return int(hit.sum()) / (time.perf_counter() - t)
 
 
 FLIP_TARGETS = (0.2, 0.1, 0.05)
+TARGET_RATIO = 0.7  # the path tracer's rays/s as a fraction of the limit
 
 
-def timed_queries(tracer):
-    """Wrap ``tracer``'s queries so that their wall time, summed over threads,
-    accumulates in the returned one-element list."""
-    spent, lock = [0.0], threading.Lock()
-    for name in ("intersect", "occluded"):
-        query = getattr(tracer, name)
-
-        def timed(*args, query=query):
-            start = time.perf_counter()
-            try:
-                return query(*args)
-            finally:
-                with lock:
-                    spent[0] += time.perf_counter() - start
-
-        setattr(tracer, name, timed)
-    return spent
+def speed(record, scene, tracer, camera, threads, args):
+    limit = Limit(scene, 1 << 20, threads)
+    limits, occlusion, rays, paths, ratios = [], [], [], [], []
+    try:
+        for _ in range(args.repeats):
+            rates = limit.rates()
+            limits.append(rates["limit"])
+            occlusion.append(occlusion_rate(limit))
+            stats = tracer.render(camera, args.spp, seed=7).stats
+            rays.append(stats["rays_per_s"])
+            paths.append(stats["paths_per_s"])
+            ratios.append(rays[-1] / limits[-1])
+            record({"what": "repeat", "limit_rays_per_s": limits[-1], "limit_threads_rays_per_s": rates["threads"],
+                    "limit_prange_rays_per_s": rates["prange"], "occlusion_rays_per_s": occlusion[-1],
+                    "rays_per_s": rays[-1], "paths_per_s": paths[-1], "rays_per_path": stats["rays"] / stats["paths"],
+                    "shadow_rays_per_path": stats["shadow_rays"] / stats["paths"]})
+    finally:
+        limit.close()
+    ratio = float(np.median(rays)) / float(np.median(limits))
+    record({"what": "speed", "size": args.size, "spp": args.spp,
+            "limit_rays_per_s": float(np.median(limits)), "occlusion_rays_per_s": float(np.median(occlusion)),
+            "rays_per_s": float(np.median(rays)), "paths_per_s": float(np.median(paths)),
+            "ratio_to_limit": ratio, "ratio_median_of_repeats": float(np.median(ratios)),
+            "target_ratio": TARGET_RATIO, "meets_target": ratio >= TARGET_RATIO})
 
 
 def convergence(tracer, camera, reference, spp, seed):
@@ -101,7 +102,9 @@ def main():
     parser.add_argument("--reference-spp", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="small sizes, for a smoke run")
+    parser.add_argument("--parts", default="speed,convergence", help="which measurements, comma-separated")
     args = parser.parse_args()
+    parts = set(args.parts.split(","))
     if args.quick:
         args.size, args.spp, args.reference_spp, args.repeats = 64, 8, 256, 1
 
@@ -117,27 +120,11 @@ def main():
         t = time.perf_counter()
         tracer.render(camera.sized(8, 8), 1)
         record({"what": "first render (numba compile or cache load)", "seconds": time.perf_counter() - t})
-        bare, occlusion, rays, paths, shares = [], [], [], [], []
-        in_embree = timed_queries(tracer.tracer)
-        for _ in range(args.repeats):
-            closest, occluded = bare_embree_rates(scene, threads, 1 << 20)
-            bare.append(closest)
-            occlusion.append(occluded)
-            in_embree[0] = 0.0
-            stats = tracer.render(camera, args.spp, seed=7).stats
-            rays.append(stats["rays_per_s"])
-            paths.append(stats["paths_per_s"])
-            shares.append(in_embree[0] / (threads * stats["seconds"]))
-            record({"what": "repeat", "bare_rays_per_s": closest, "bare_occlusion_rays_per_s": occluded,
-                    "rays_per_s": rays[-1], "paths_per_s": paths[-1], "rays_per_path": stats["rays"] / stats["paths"],
-                    "shadow_rays_per_path": stats["shadow_rays"] / stats["paths"], "embree_share": shares[-1]})
-        ratio = float(np.median(np.divide(rays, bare)))
-        record({"what": "speed", "size": args.size, "spp": args.spp,
-                "bare_rays_per_s": float(np.median(bare)), "bare_occlusion_rays_per_s": float(np.median(occlusion)),
-                "rays_per_s": float(np.median(rays)), "paths_per_s": float(np.median(paths)),
-                "ratio_to_bare": ratio, "embree_share_of_thread_time": float(np.median(shares)), "target_ratio": 0.6,
-                "meets_target": ratio >= 0.6})
-
+        if "speed" in parts:
+            speed(record, scene, tracer, camera, threads, args)
+        if "convergence" not in parts:
+            record.save("pathtrace.jsonl")
+            return
         t = time.perf_counter()
         reference = tracer.render(camera, args.reference_spp, seed=1, progress=True).radiance
         record({"what": "reference", "spp": args.reference_spp, "seconds": time.perf_counter() - t})

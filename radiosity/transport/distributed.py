@@ -100,19 +100,16 @@ _KEEP_SCENES = 2  # Embree scenes a worker keeps (a client may run solves one af
 
 
 class _CountingTracer:
-    """A task's view of the worker's shared tracer: its own ray count."""
+    """A task's view of the worker's shared tracer: the same Embree scene, its own ray count."""
 
     def __init__(self, tracer):
-        self._tracer = tracer
+        self._tracer = tracer  # keeps the Embree scene alive while the task traces
+        self.embree = tracer.embree
+        self.epsilon = tracer.epsilon
         self.rays_cast = 0
 
-    def intersect(self, origins, directions):
-        self.rays_cast += len(origins)
-        return self._tracer.intersect(origins, directions)
-
-    def occluded(self, origins, directions, distances):
-        self.rays_cast += len(origins)
-        return self._tracer.occluded(origins, directions, distances)
+    def count(self, rays, shadow_rays=0):
+        self.rays_cast += int(rays)
 
 
 def _worker_scene(key, scene):

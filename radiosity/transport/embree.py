@@ -1,41 +1,103 @@
-"""The only module that touches Embree (through embreex).
+"""The only module that touches Embree: the ``libembree4`` shipped inside the embreex
+wheel, called through ctypes and, from numba kernels, directly.
 
-``RayTracer`` holds one Embree scene built from a ``MergedMesh`` and answers batched
-closest-hit and occlusion queries. embreex's ``EmbreeScene.run`` releases the GIL, so
-a batch is split into one chunk per thread and the chunks run concurrently. Embree's
-tnear is fixed at 0: callers offset their ray origins (see ``RayTracer.epsilon``).
+``RayTracer`` builds one Embree scene from a triangle mesh (its own device, scene and
+triangle geometry, buffers allocated and padded by Embree, kept alive with the
+scene). Kernels get ``RayTracer.embree`` (an ``Embree`` named tuple: the scene handle
+and the ``rtcIntersect1`` / ``rtcOccluded1`` function pointers) as an argument, make
+one ray-hit record per call (``new_rayhit``) and trace single rays with
+``intersect1`` / ``occluded1``: no Python and no batches between rays, and numba's
+``cache=True`` keeps working because the function pointers are arguments, not
+globals. ``RayTracer.intersect`` / ``occluded`` keep the batched interface (arrays
+in, arrays out; a chunk per thread) for tests and benchmarks.
 
-The BVH is built on the first query; the constructor makes that query itself, from
-the calling thread, so that later concurrent queries find it built.
+The scene is built as embreex built it (one triangle geometry with three vertices of
+its own per triangle, ``RTC_SCENE_FLAG_ROBUST``), and rays are set up as embreex set
+them up (tnear 0), so hits are bit-identical to embreex's (tests check it on random
+rays). Ray origins stay offset off the surfaces they leave (``origin_offset``) rather
+than starting at tnear > 0: a tnear would be measured along the ray, so a grazing ray
+would leave the surface by tnear times the sine of its angle, much less than the
+offset along the normal; and the kernels keep their rays, so a seed keeps its bits.
 """
 
 from __future__ import annotations
 
+import ctypes
+import glob
+import importlib.util
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
+import numba
 import numpy as np
-from embreex import rtcore_scene
-from embreex.mesh_construction import TriangleMesh
 
 MISS = -1
 RELATIVE_EPSILON = 1e-5  # ray-origin offset, as a fraction of the scene's bounding-box diagonal
 OFFSET_ULPS = 8  # ... and at least this many float32 spacings of the largest coordinate
+SPLIT_RAYS = 4096  # a batch smaller than this runs on one thread
+
+# -- the Embree 4 ABI (embree4/rtcore_*.h) ------------------------------------------------
+RTC_GEOMETRY_TYPE_TRIANGLE = 0
+RTC_BUFFER_TYPE_INDEX, RTC_BUFFER_TYPE_VERTEX = 0, 1
+RTC_FORMAT_UINT3, RTC_FORMAT_FLOAT3 = 0x5003, 0x9003
+RTC_SCENE_FLAG_ROBUST = 1 << 2
+INVALID_ID = -1  # RTC_INVALID_GEOMETRY_ID (0xFFFFFFFF) as the int32 it is stored as
+
+# RTCRayHit in 4-byte words: RTCRay (org, tnear, dir, time, tfar, mask, id, flags), then
+# RTCHit (Ng, u, v, primID, geomID, instID[1], and instPrimID[1] in builds with instance
+# arrays), 16-byte aligned. RAYHIT_WORDS leaves room for the largest of these layouts.
+ORG, TNEAR, DIR, TIME, TFAR, MASK, RAY_ID, FLAGS = 0, 3, 4, 7, 8, 9, 10, 11
+HIT_U, HIT_V, PRIM_ID, GEOM_ID, INST_ID = 15, 16, 17, 18, 19
+RAYHIT_WORDS = 24  # 96 bytes
+RAYHIT_ALIGN = 16  # bytes
+FAR = np.float32(np.inf)  # tfar of a closest-hit query
+
+# rtcIntersect1(RTCScene, RTCRayHit*, RTCIntersectArguments*) and rtcOccluded1(RTCScene,
+# RTCRay*, RTCOccludedArguments*): pointers passed as size_t (the same on every ABI
+# Embree supports), arguments NULL (the defaults: incoherent rays, every feature)
+QUERY = ctypes.CFUNCTYPE(None, ctypes.c_size_t, ctypes.c_size_t, ctypes.c_size_t)
+
+
+class Embree(NamedTuple):
+    """What a numba kernel needs to trace rays in one scene (``RayTracer.embree``).
+
+    scene     : int    the RTCScene handle
+    intersect : QUERY  rtcIntersect1
+    occluded  : QUERY  rtcOccluded1
+    """
+
+    scene: int
+    intersect: object
+    occluded: object
 
 
 class Hits(NamedTuple):
     """Closest hits of a batch of N rays (``RayTracer.intersect``).
 
     triangle : (N,) int32    row of the tracer's ``faces``; MISS (-1) where nothing is hit
-    t        : (N,) float32  distance along the (unit) direction to the hit
-    u, v     : (N,) float32  barycentrics: the hit is (1 - u - v) p0 + u p1 + v p2
+    t        : (N,) float32  distance along the (unit) direction to the hit (inf: a miss)
+    u, v     : (N,) float32  barycentrics: the hit is (1 - u - v) p0 + u p1 + v p2 (0: a miss)
     """
 
     triangle: np.ndarray
     t: np.ndarray
     u: np.ndarray
     v: np.ndarray
+
+
+def empty_hits(count):
+    """Uninitialised ``Hits`` for ``count`` rays."""
+    return Hits(
+        np.empty(count, np.int32), np.empty(count, np.float32), np.empty(count, np.float32), np.empty(count, np.float32)
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def head_hits(hits, n):
+    """The first n rows of ``hits``, as views."""
+    return Hits(hits.triangle[:n], hits.t[:n], hits.u[:n], hits.v[:n])
 
 
 def default_threads():
@@ -56,6 +118,151 @@ def origin_offset(positions):
     return max(relative, OFFSET_ULPS * spacing)
 
 
+# -- the library ----------------------------------------------------------------------------
+
+_LIB = None
+_DEVICE = None
+_LIB_LOCK = threading.Lock()
+
+
+def library_path():
+    """The ``libembree4`` shipped inside the embreex wheel (found without importing embreex)."""
+    spec = importlib.util.find_spec("embreex")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("embreex is not installed: it ships the Embree library the ray tracer uses")
+    package = list(spec.submodule_search_locations)[0]
+    found = sorted(glob.glob(os.path.join(os.path.dirname(package), "embreex.libs", "libembree4*.so*")))
+    found += sorted(glob.glob(os.path.join(package, "libembree4*")))
+    if not found:
+        raise ImportError(f"no libembree4 next to embreex in {os.path.dirname(package)}")
+    return found[0]
+
+
+def _library():
+    """(the ctypes library, the process's one Embree device), loaded on first use."""
+    global _LIB, _DEVICE
+    with _LIB_LOCK:
+        if _LIB is None:
+            lib = ctypes.CDLL(library_path())
+            p, u, i, s = ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t
+            for name, restype, argtypes in (
+                ("rtcNewDevice", p, [ctypes.c_char_p]),
+                ("rtcGetDeviceError", i, [p]),
+                ("rtcNewScene", p, [p]),
+                ("rtcSetSceneFlags", None, [p, i]),
+                ("rtcCommitScene", None, [p]),
+                ("rtcReleaseScene", None, [p]),
+                ("rtcNewGeometry", p, [p, i]),
+                ("rtcSetNewGeometryBuffer", p, [p, i, u, i, s, s]),
+                ("rtcCommitGeometry", None, [p]),
+                ("rtcAttachGeometry", u, [p, p]),
+                ("rtcReleaseGeometry", None, [p]),
+            ):
+                fn = getattr(lib, name)
+                fn.restype, fn.argtypes = restype, argtypes
+            device = lib.rtcNewDevice(None)
+            if not device:
+                raise RuntimeError(f"Embree could not create a device (error {lib.rtcGetDeviceError(None)})")
+            _LIB, _DEVICE = lib, device
+        return _LIB, _DEVICE
+
+
+def _check(lib, device, what):
+    code = lib.rtcGetDeviceError(device)
+    if code:
+        raise RuntimeError(f"Embree failed to {what} (RTCError {code})")
+
+
+def _queries(lib):
+    def pointer(name):
+        return QUERY(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value)
+
+    return pointer("rtcIntersect1"), pointer("rtcOccluded1")
+
+
+# -- single rays, from numba kernels ----------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def new_rayhit():
+    """A ray-hit record for ``intersect1`` / ``occluded1``: (floats, ints), two views
+    (float32, int32) of the same RAYHIT_WORDS words, RAYHIT_ALIGN-byte aligned. One per
+    thread: it is written and read by every query."""
+    buf = np.empty(RAYHIT_WORDS + RAYHIT_ALIGN // 4, np.float32)
+    skip = ((RAYHIT_ALIGN - buf.ctypes.data % RAYHIT_ALIGN) % RAYHIT_ALIGN) // 4
+    floats = buf[skip:skip + RAYHIT_WORDS]
+    return floats, floats.view(np.int32)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, tfar):
+    floats[ORG], floats[ORG + 1], floats[ORG + 2] = ox, oy, oz
+    floats[TNEAR] = 0.0
+    floats[DIR], floats[DIR + 1], floats[DIR + 2] = dx, dy, dz
+    floats[TIME] = 0.0
+    floats[TFAR] = tfar
+    ints[MASK] = -1
+    ints[RAY_ID] = 0
+    ints[FLAGS] = 0
+    ints[GEOM_ID] = INVALID_ID
+    ints[PRIM_ID] = INVALID_ID
+    ints[INST_ID] = INVALID_ID
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def intersect1(rt, rayhit, ox, oy, oz, dx, dy, dz):
+    """The closest hit of the ray (ox, oy, oz) + s (dx, dy, dz), s > 0 (float32 ray,
+    unit direction): (triangle int, MISS where none; t, u, v float32) as ``Hits``; a
+    miss has t = inf and u = v = 0."""
+    floats, ints = rayhit
+    _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, FAR)
+    rt.intersect(rt.scene, floats.ctypes.data, 0)
+    if ints[GEOM_ID] == INVALID_ID:
+        return MISS, FAR, np.float32(0.0), np.float32(0.0)
+    return ints[PRIM_ID], floats[TFAR], floats[HIT_U], floats[HIT_V]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def occluded1(rt, rayhit, ox, oy, oz, dx, dy, dz, distance):
+    """Whether the segment (ox, oy, oz) + s (dx, dy, dz), 0 < s < distance, hits anything."""
+    floats, ints = rayhit
+    _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, distance)
+    rt.occluded(rt.scene, floats.ctypes.data, 0)
+    return floats[TFAR] < 0.0  # Embree sets tfar to -inf on a hit
+
+
+@numba.njit(cache=True, nogil=True)
+def intersect_rays(rt, origins, directions, hits, start, stop):
+    """Closest hits of rays start .. stop - 1 (origins, directions (N, 3) float32) into
+    ``hits`` (``Hits``, same rows)."""
+    rayhit = new_rayhit()
+    for k in range(start, stop):
+        tri, t, u, v = intersect1(
+            rt, rayhit, origins[k, 0], origins[k, 1], origins[k, 2], directions[k, 0], directions[k, 1], directions[k, 2]
+        )
+        hits.triangle[k] = tri
+        hits.t[k] = t
+        hits.u[k] = u
+        hits.v[k] = v
+
+
+@numba.njit(cache=True, nogil=True)
+def occluded_rays(rt, origins, directions, distances, blocked, start, stop):
+    """``occluded1`` of rays start .. stop - 1 into blocked (N,) bool."""
+    rayhit = new_rayhit()
+    for k in range(start, stop):
+        blocked[k] = occluded1(
+            rt,
+            rayhit,
+            origins[k, 0], origins[k, 1], origins[k, 2],
+            directions[k, 0], directions[k, 1], directions[k, 2],
+            distances[k],
+        )
+
+
+# -- the scene ----------------------------------------------------------------------------------
+
+
 class RayTracer:
     """Closest-hit and shadow queries against one triangle mesh.
 
@@ -63,26 +270,67 @@ class RayTracer:
     The triangle index returned is the row of ``faces``; u and v are Embree's
     barycentrics (the hit is (1 - u - v) p0 + u p1 + v p2 of that row's vertices).
     Triangles are hit from both sides. ``epsilon`` is the ray-origin offset callers
-    must apply (``origin_offset``).
+    must apply (``origin_offset``). ``embree`` is what numba kernels trace with; it is
+    valid while this tracer is referenced (keep the tracer, not only ``embree``, in
+    hand while a kernel runs). ``threads`` splits the batched queries, nothing else.
     """
 
     def __init__(self, positions, faces, threads=None):
-        triangles = np.ascontiguousarray(positions[faces], dtype=np.float32)
+        triangles = np.ascontiguousarray(np.asarray(positions)[np.asarray(faces)], dtype=np.float32).reshape(-1, 3, 3)
         self.n_triangles = len(triangles)
         self.threads = threads or default_threads()
-        self.epsilon = origin_offset(positions)
-        self._scene = rtcore_scene.EmbreeScene()
-        self._mesh = TriangleMesh(self._scene, triangles)
+        self.epsilon = origin_offset(positions) if len(positions) else 0.0
+        lib, device = _library()
+        self._lib = lib
+        scene = lib.rtcNewScene(device)
+        _check(lib, device, "create a scene")
+        lib.rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST)
+        if self.n_triangles:
+            n = self.n_triangles
+            geometry = lib.rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE)
+            # Embree's own buffers (padded as it needs, freed with the scene), laid out
+            # as embreex lays them out: three vertices of its own per triangle
+            vertex = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 16, 3 * n)
+            index = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, n)
+            _check(lib, device, f"allocate the buffers of {n:,} triangles")
+            vertices = np.ctypeslib.as_array((ctypes.c_float * (12 * n)).from_address(vertex)).reshape(3 * n, 4)
+            vertices[:, :3] = triangles.reshape(-1, 3)
+            vertices[:, 3] = 0.0
+            np.ctypeslib.as_array((ctypes.c_uint32 * (3 * n)).from_address(index))[:] = np.arange(3 * n)
+            lib.rtcCommitGeometry(geometry)
+            lib.rtcAttachGeometry(scene, geometry)
+            lib.rtcReleaseGeometry(geometry)  # the scene holds it
+        lib.rtcCommitScene(scene)  # builds the BVH here, from the calling thread
+        _check(lib, device, "build the scene")
+        self._scene = scene
+        self.embree = Embree(int(scene), *_queries(lib))
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
-        probe = np.zeros((1, 3), dtype=np.float32)
-        self._scene.run(probe, probe + np.float32([0, 0, 1]), output=1)  # builds the BVH here
+        self._lock = threading.Lock()
         self.rays_cast = 0  # every query's rays
         self.shadow_rays_cast = 0  # of which occlusion queries
 
+    def count(self, rays, shadow_rays=0):
+        """Add ``rays`` traced by kernels (of which ``shadow_rays`` occlusion queries)."""
+        with self._lock:
+            self.rays_cast += int(rays)
+            self.shadow_rays_cast += int(shadow_rays)
+
     def close(self):
+        """Stop the batched queries' threads. The Embree scene itself is released with
+        the last reference to this tracer (``__del__``): a kernel still tracing with
+        ``embree`` (a task cancelled on a Dask worker, say) holds one through its caller."""
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
+
+    def __del__(self):
+        try:
+            self.close()
+            if self._scene is not None:
+                self._lib.rtcReleaseScene(self._scene)
+                self._scene = None
+        except Exception:  # interpreter shutdown: the library may be gone already
+            pass
 
     def __enter__(self):
         return self
@@ -90,16 +338,14 @@ class RayTracer:
     def __exit__(self, *exc):
         self.close()
 
-    def _chunks(self, n):
-        k = self.threads if (self._pool is not None and n >= 4096) else 1
-        bounds = np.linspace(0, n, k + 1).astype(int)
-        return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
-
     def _map(self, fn, n):
-        chunks = self._chunks(n)
-        if len(chunks) == 1:
-            return [fn(chunks[0])]
-        return list(self._pool.map(fn, chunks))
+        k = self.threads if (self._pool is not None and n >= SPLIT_RAYS) else 1
+        bounds = np.linspace(0, n, k + 1).astype(int)
+        chunks = list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
+        if k == 1:
+            fn(*chunks[0])
+        else:
+            list(self._pool.map(lambda c: fn(*c), chunks))
 
     def intersect(self, origins, directions):
         """Closest hits of rays (origins, directions: (N, 3) float32; directions unit).
@@ -108,25 +354,15 @@ class RayTracer:
         float32).
         """
         n = len(origins)
-        triangle = np.empty(n, dtype=np.int32)
-        t = np.empty(n, dtype=np.float32)
-        u = np.empty(n, dtype=np.float32)
-        v = np.empty(n, dtype=np.float32)
+        hits = empty_hits(n)
         if n == 0:
-            return Hits(triangle, t, u, v)
+            return hits
         origins = np.ascontiguousarray(origins, dtype=np.float32)
         directions = np.ascontiguousarray(directions, dtype=np.float32)
-
-        def run(chunk):
-            out = self._scene.run(origins[chunk], directions[chunk], output=1)
-            triangle[chunk] = out["primID"]
-            t[chunk] = out["tfar"]
-            u[chunk] = out["u"]
-            v[chunk] = out["v"]
-
-        self._map(run, n)
-        self.rays_cast += n
-        return Hits(triangle, t, u, v)
+        rt = self.embree
+        self._map(lambda a, b: intersect_rays(rt, origins, directions, hits, a, b), n)
+        self.count(n)
+        return hits
 
     def occluded(self, origins, directions, distances):
         """Whether each segment origin + s * direction, 0 < s < distance, hits anything.
@@ -140,12 +376,7 @@ class RayTracer:
         origins = np.ascontiguousarray(origins, dtype=np.float32)
         directions = np.ascontiguousarray(directions, dtype=np.float32)
         distances = np.ascontiguousarray(distances, dtype=np.float32)
-
-        def run(chunk):
-            out = self._scene.run(origins[chunk], directions[chunk], dists=distances[chunk].copy(), query="OCCLUDED")
-            blocked[chunk] = out != MISS
-
-        self._map(run, n)
-        self.rays_cast += n
-        self.shadow_rays_cast += n
+        rt = self.embree
+        self._map(lambda a, b: occluded_rays(rt, origins, directions, distances, blocked, a, b), n)
+        self.count(n, n)
         return blocked

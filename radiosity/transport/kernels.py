@@ -1,10 +1,14 @@
 """numba kernels of the solver: photon emission and scattering, density deposits, and
-the vertex gather. Orchestration (batches, threads, Embree calls) is in ``solve``.
+the vertex gather. Orchestration (batches, threads) is in ``solve``.
 
-The kernels work wavefront-style: one kernel makes rays, Embree traces them (in
-``embree``), the next kernel reads the hits. Every random number comes from a
-counter-based hash of (seed, stream, item, dimension), so a result depends on the
-seed and the item's index only, never on how work is split into batches or threads.
+A photon batch (``trace_photons``) and a gather block (``trace_gather``) each run as
+one jitted call that releases the GIL and traces its rays itself, calling Embree
+directly (``embree.intersect1`` / ``occluded1``: no Python between rays); batches and
+blocks run a thread each. Inside, the work goes wavefront-style: one kernel makes
+rays, a loop traces them, the next kernel reads the hits. Every random number comes
+from a counter-based hash of (seed, stream, item, dimension), so a result depends on
+the seed and the item's index only, never on how work is split into batches or
+threads.
 
 Kernels take named tuples of arrays, never long lists of them:
 
@@ -36,6 +40,7 @@ from radiosity.scene.materials import (
     onb,
     phong_lobe,
 )
+from radiosity.transport.embree import head_hits, intersect_rays, new_rayhit, occluded1
 
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
 # tally slots of a photon batch (RGB triples, then counts)
@@ -224,13 +229,13 @@ def rand(seed, stream, item, dim):
 # -- small geometry helpers -----------------------------------------------------------
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _pick_emitter(sa, u):
     k = np.searchsorted(sa.emit_cdf, u, side="right")
     return sa.emit_triangles[min(k, len(sa.emit_triangles) - 1)]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _barycentric_point(sa, tri, u, v):
     i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
     w = 1.0 - u - v
@@ -242,7 +247,7 @@ def _barycentric_point(sa, tri, u, v):
     )
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _shading_normal(sa, tri, u, v, d):
     """Interpolated shading normal at a hit reached along direction d = (dx, dy, dz),
     or the geometric one where the interpolated normal would put the incoming ray's
@@ -260,13 +265,13 @@ def _shading_normal(sa, tri, u, v, d):
     return g[0], g[1], g[2]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _interpolate3(values, sa, tri, u, v, c):
     i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
     return (1.0 - u - v) * values[i0, c] + u * values[i1, c] + v * values[i2, c]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _albedo(sa, m, cos_theta, c):
     table = sa.albedo_table[m]
     x = min(max(cos_theta, 0.0), 1.0) * (table.shape[0] - 1)
@@ -275,7 +280,7 @@ def _albedo(sa, m, cos_theta, c):
     return (1.0 - f) * table[k, c] + f * table[k + 1, c]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _cosine_direction(u1, u2):
     """Cosine-weighted direction about +z from the concentric map of (u1, u2)."""
     a = 2.0 * u1 - 1.0
@@ -290,7 +295,7 @@ def _cosine_direction(u1, u2):
     return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _scatter(sa, t, u, v, d, rnd):
     """Sample the BRDF at a hit on triangle t reached along d = (dx, dy, dz), in the
     shading frame there, with the uniform numbers rnd = (u1, u2, u3) of ``brdf_sample``.
@@ -315,7 +320,7 @@ def _scatter(sa, t, u, v, d, rnd):
     return (wox, woy, woz), (wix, wiy, wiz), pdf, (ox, oy, oz), ok
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _roulette(value, reference, u):
     """Russian roulette on a path's RGB weight ``value`` after a bounce.
 
@@ -331,7 +336,7 @@ def _roulette(value, reference, u):
     return True, (value[0] / survive, value[1] / survive, value[2] / survive)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _push_ray(out, i, item, point, g, epsilon, direction, value):
     """Write ray i of ``out`` (``Rays``): id ``item``, origin ``point`` offset by
     ``epsilon`` along the front normal g, ``direction`` and its RGB ``value``."""
@@ -372,7 +377,7 @@ def emit_photons(sa, seed, first_id, total, out):
         _push_ray(out, i, pid, point, g, sa.epsilon, direction, power)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _deposit(sa, t, point, lam, power, acc):
     """Add a photon's incident power to the density moments of triangle t's vertices."""
     x, y, z = point
@@ -534,7 +539,7 @@ def make_gather_rays(sa, block, light, samples):
             samples.origins[i, 0], samples.origins[i, 1], samples.origins[i, 2] = ox, oy, oz
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _hit_distance(origins, k, sa, t, u, v):
     x, y, z = _barycentric_point(sa, t, u, v)
     dx, dy, dz = x - origins[k, 0], y - origins[k, 1], z - origins[k, 2]
@@ -700,3 +705,73 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
         for d in range(acc.shape[0]):
             for c in range(3):
                 acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]
+
+
+# -- whole batches, tracing their own rays ----------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def _head(rays, n):
+    """The first n rays of ``rays`` (``Rays``), as views."""
+    return Rays(rays.ids[:n], rays.values[:n], rays.origins[:n], rays.directions[:n])
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_photons(rt, sa, seed, first_id, total, max_depth, photons, spare, hits, acc):
+    """Trace photons first_id .. first_id + len(photons.ids) - 1 of ``total`` to the end
+    through the scene ``rt`` (``embree.Embree``), adding to ``acc`` (``PhotonTally``).
+
+    photons, spare : ``Rays`` and hits : ``embree.Hits`` of the batch's size, the
+    wavefront's buffers (overwritten). Emission, then per bounce: every photon in flight
+    traced, then ``bounce_photons``. Returns the rays traced.
+    """
+    emit_photons(sa, seed, first_id, total, photons)
+    n = len(photons.ids)
+    depth = 0
+    rays = 0
+    while n > 0:
+        intersect_rays(rt, photons.origins, photons.directions, hits, 0, n)
+        m = bounce_photons(sa, seed, depth, max_depth, _head(photons, n), head_hits(hits, n), acc, spare)
+        rays += n
+        photons, spare = spare, photons
+        n = m
+        depth += 1
+    return rays
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_gather(rt, sa, irradiance, block, light, samples, paths, spare, hits):
+    """Trace the light samples and gather paths of a ``GatherBlock`` through the scene
+    ``rt`` (``embree.Embree``): fills ``light`` (``LightSamples``) and ``samples``
+    (``GatherSamples``, their ``incoming`` radiance) for ``gather_outputs``.
+
+    paths, spare : ``Rays`` and hits : ``embree.Hits`` of the block's gather-ray count,
+    the wavefront's buffers. Returns (rays traced, of which shadow rays).
+    """
+    make_gather_rays(sa, block, light, samples)
+    rayhit = new_rayhit()
+    shadow = 0
+    for i in range(len(light.pdf)):
+        if light.pdf[i] > 0.0:
+            o, d = light.origins, light.directions
+            light.visible[i] = not occluded1(
+                rt, rayhit, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], light.distances[i]
+            )
+            shadow += 1
+    n = len(samples.wi)
+    for k in range(n):
+        paths.ids[k] = k
+        for c in range(3):
+            paths.values[k, c] = 1.0
+            paths.origins[k, c] = samples.origins[k, c]
+            paths.directions[k, c] = samples.directions[k, c]
+    rays = shadow
+    for depth in range(block.max_depth):
+        if n == 0:
+            break
+        intersect_rays(rt, paths.origins, paths.directions, hits, 0, n)
+        m = shade_paths(sa, irradiance, block, depth, _head(paths, n), head_hits(hits, n), samples, spare)
+        rays += n
+        paths, spare = spare, paths
+        n = m
+    return rays, shadow

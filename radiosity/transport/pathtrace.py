@@ -12,9 +12,10 @@ both the shading and the true surface.
 Work is split into tiles: a run of pixels (row-major) and a run of sample numbers.
 Every random number is keyed by (seed, sample number * pixels + pixel, dimension),
 so an image depends on the seed and the sample count alone: not on tiles, threads
-or passes. Tiles are traced wavefront-style (a numba kernel shades a batch of hits
-and makes the next rays, Embree traces them), a tile per thread, and their pixel
-sums are added in tile order.
+or passes. A tile is one jitted call that releases the GIL and traces its own rays,
+calling Embree directly (``trace_paths``), wavefront-style inside (a loop traces the
+paths in flight, a kernel shades their hits and makes the next rays and shadow
+rays); a tile per thread, their pixel sums added in tile order.
 
 Rendering is progressive: passes of 1, 1, 2, 4, ... samples per pixel (at most
 ``MAX_PASS_SAMPLES``), each adding to the running sums; a callback sees the image
@@ -36,7 +37,7 @@ from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
 from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
-from radiosity.transport.embree import RayTracer, default_threads
+from radiosity.transport.embree import RayTracer, default_threads, empty_hits, head_hits, intersect_rays, occluded_rays
 from radiosity.transport.kernels import (
     _barycentric_point,
     _pick_emitter,
@@ -344,26 +345,60 @@ def pixel_sums(tile, radiance, total, squares):
             squares[p, c] += x * x
 
 
+@numba.njit(cache=True, nogil=True)
+def _head_paths(paths, n):
+    return Paths(paths.ids[:n], paths.throughput[:n], paths.origins[:n], paths.directions[:n], paths.last_pdf[:n])
+
+
+@numba.njit(cache=True, nogil=True)
+def _head_shadow(shadow, n):
+    return ShadowRays(shadow.ids[:n], shadow.origins[:n], shadow.directions[:n], shadow.distances[:n], shadow.values[:n])
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_paths(rt, sa, cam, tile, paths, spare, shadow, hits, blocked, radiance):
+    """Trace every path of ``tile`` to its end through the scene ``rt``
+    (``embree.Embree``), adding each path's radiance to ``radiance`` (tile paths, 3).
+
+    paths, spare : ``Paths``, shadow : ``ShadowRays``, hits : ``embree.Hits``, blocked :
+    (tile paths,) bool, the wavefront's buffers. Per bounce: every path in flight
+    traced, ``shade``, the light samples' shadow rays traced, ``add_visible``.
+    Returns (rays traced, of which shadow rays).
+    """
+    n = tile.pixels * tile.samples
+    start_paths(cam, tile, paths)
+    rays = 0
+    shadow_rays = 0
+    for depth in range(MAX_DEPTH):
+        if n == 0:
+            break
+        intersect_rays(rt, paths.origins, paths.directions, hits, 0, n)
+        live = _head_paths(paths, n)
+        rays += n
+        n_shadow, n = shade(sa, tile, depth, live, head_hits(hits, n), radiance, shadow, spare)
+        if n_shadow:
+            occluded_rays(rt, shadow.origins, shadow.directions, shadow.distances, blocked, 0, n_shadow)
+            add_visible(_head_shadow(shadow, n_shadow), blocked[:n_shadow], radiance)
+            rays += n_shadow
+            shadow_rays += n_shadow
+        paths, spare = spare, paths
+    return rays, shadow_rays
+
+
 # -- orchestration --------------------------------------------------------------------------
 
 
 def trace_tile(tracer, sa, cam, tile):
-    """Pixel sums of one tile: (tile, total (pixels, 3), squares (pixels, 3)) float64."""
+    """Pixel sums of one tile: (tile, total (pixels, 3), squares (pixels, 3)) float64.
+    Its rays are traced in one jitted call (``trace_paths``, which releases the GIL)
+    and counted on ``tracer``."""
     n = tile.pixels * tile.samples
-    paths, spare = empty_paths(n), empty_paths(n)
-    shadow = empty_shadow_rays(n)
-    start_paths(cam, tile, paths)
     radiance = np.zeros((n, 3))
-    for depth in range(MAX_DEPTH):
-        if n == 0:
-            break
-        live = Paths(*(a[:n] for a in paths))
-        hits = tracer.intersect(live.origins, live.directions)
-        n_shadow, n = shade(sa, tile, depth, live, hits, radiance, shadow, spare)
-        if n_shadow:
-            blocked = tracer.occluded(shadow.origins[:n_shadow], shadow.directions[:n_shadow], shadow.distances[:n_shadow])
-            add_visible(ShadowRays(*(a[:n_shadow] for a in shadow)), blocked, radiance)
-        paths, spare = spare, paths
+    rays, shadow_rays = trace_paths(
+        tracer.embree, sa, cam, tile, empty_paths(n), empty_paths(n), empty_shadow_rays(n), empty_hits(n),
+        np.empty(n, dtype=bool), radiance,
+    )
+    tracer.count(rays, shadow_rays)
     total = np.zeros((tile.pixels, 3))
     squares = np.zeros((tile.pixels, 3))
     pixel_sums(tile, radiance, total, squares)

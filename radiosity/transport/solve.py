@@ -11,7 +11,8 @@ Phases
      emission + diffuse part + the specular lobe's integral of the incoming light.
 
 Threads: batches (photons) and vertex blocks (gather) run concurrently, a thread
-each; the numba kernels and Embree both release the GIL. Or Dask
+each; a batch or a block is one jitted call that releases the GIL and traces its own
+rays, calling Embree directly (``kernels.trace_photons``, ``kernels.trace_gather``). Or Dask
 (``SolveOptions(scheduler="dask" | "tcp://HOST:PORT")``, ``solve(..., client=)``): the
 same batches and blocks as tasks on a cluster, combined in the same order, so the
 same bits (``radiosity.transport.distributed``).
@@ -40,7 +41,7 @@ from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.transport import density, kernels
-from radiosity.transport.embree import RayTracer, default_threads, origin_offset
+from radiosity.transport.embree import RayTracer, default_threads, empty_hits, origin_offset
 
 MAX_PHOTON_DEPTH = 64
 MAX_GATHER_DEPTH = 8
@@ -280,21 +281,17 @@ def scene_arrays(scene, merged, epsilon):
 
 
 def trace_photon_batch(tracer, sa, seed, first_id, count, total):
-    """Trace photons first_id .. first_id + count - 1 of ``total``.
+    """Trace photons first_id .. first_id + count - 1 of ``total`` (one jitted call,
+    ``kernels.trace_photons``, which releases the GIL), counting their rays on
+    ``tracer`` (a ``RayTracer``, or anything with its ``embree`` and ``count``).
 
     Returns their ``kernels.PhotonTally``: moment0 (N, 3), moment1 (N, 3, 2), tally
     (T_LENGTH,), float64, all additive.
     """
     acc = kernels.empty_tally(len(sa.positions))
-    photons = kernels.empty_rays(count)
-    kernels.emit_photons(sa, seed, first_id, total, photons)
-    out = kernels.empty_rays(count)
-    depth = 0
-    while len(photons.ids):
-        hits = tracer.intersect(photons.origins, photons.directions)
-        n = kernels.bounce_photons(sa, seed, depth, MAX_PHOTON_DEPTH, photons, hits, acc, out)
-        photons = kernels.Rays(*(a[:n].copy() for a in out))
-        depth += 1
+    photons, spare, hits = kernels.empty_rays(count), kernels.empty_rays(count), empty_hits(count)
+    rays = kernels.trace_photons(tracer.embree, sa, seed, first_id, total, MAX_PHOTON_DEPTH, photons, spare, hits, acc)
+    tracer.count(rays)
     return acc
 
 
@@ -549,29 +546,16 @@ def _gather_object(runner, sa, seed, irradiance, obj, offset, dirs, settings, ba
 
 def gather_block(tracer, sa, irradiance, block, material, dirs):
     """Outgoing radiance (B, D, 3) float64 of a ``kernels.GatherBlock`` of vertices of
-    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64."""
+    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64.
+    Its rays are traced in one jitted call (``kernels.trace_gather``) and counted on
+    ``tracer`` (see ``trace_photon_batch``)."""
     b = len(block.vertices)
     n_gather = block.strata * block.strata
     light = kernels.empty_light_samples(b * block.n_light)
     samples = kernels.empty_gather_samples(b * n_gather)
-    kernels.make_gather_rays(sa, block, light, samples)
-    valid = light.pdf > 0
-    if valid.any():
-        light.visible[valid] = ~tracer.occluded(light.origins[valid], light.directions[valid], light.distances[valid])
-
-    paths = kernels.Rays(
-        ids=np.arange(len(samples.wi), dtype=np.int64),
-        values=np.ones((len(samples.wi), 3)),
-        origins=samples.origins,
-        directions=samples.directions,
-    )
-    out = kernels.empty_rays(len(paths.ids))
-    for depth in range(block.max_depth):
-        if not len(paths.ids):
-            break
-        hits = tracer.intersect(paths.origins, paths.directions)
-        n = kernels.shade_paths(sa, irradiance, block, depth, paths, hits, samples, out)
-        paths = kernels.Rays(*(a[:n].copy() for a in out))
+    paths, spare, hits = kernels.empty_rays(b * n_gather), kernels.empty_rays(b * n_gather), empty_hits(b * n_gather)
+    rays, shadow = kernels.trace_gather(tracer.embree, sa, irradiance, block, light, samples, paths, spare, hits)
+    tracer.count(rays, shadow)
 
     values = np.empty((b, len(dirs), 3))
     mat = pack_materials([material])[0]

@@ -192,3 +192,25 @@ def test_threads_split_a_batch_without_changing_the_answer(rng):
     for a, b in zip(h1, h3):
         assert np.array_equal(a, b)
     assert np.array_equal(b1, b3)
+
+
+# -- the ray-hit record the kernels pass to Embree ------------------------------------------------
+
+
+def test_the_rayhit_record_is_aligned_and_one_record_seen_two_ways():
+    from radiosity.transport import embree
+
+    for _ in range(20):  # allocations land on different addresses
+        floats, ints = embree.new_rayhit()
+        assert floats.ctypes.data % embree.RAYHIT_ALIGN == 0 and floats.ctypes.data == ints.ctypes.data
+        assert floats.dtype == np.float32 and ints.dtype == np.int32 and len(floats) == embree.RAYHIT_WORDS
+    # RTCRayHit: 12 words of ray, then Ng, u, v, primID, geomID, instID
+    assert (embree.TFAR, embree.HIT_U, embree.PRIM_ID, embree.GEOM_ID, embree.INST_ID) == (8, 15, 17, 18, 19)
+    assert embree.RAYHIT_WORDS * 4 >= 96  # room for instPrimID in builds with instance arrays
+
+
+def test_the_library_is_the_one_inside_the_embreex_wheel():
+    from radiosity.transport import embree
+
+    path = embree.library_path()
+    assert "embreex" in path and "libembree4" in path

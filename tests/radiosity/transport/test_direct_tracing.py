@@ -1,0 +1,197 @@
+"""Kernels that call Embree directly (``embree.intersect1`` / ``occluded1`` from numba)
+against the way rays were traced before: embreex's batched ``EmbreeScene.run``, with
+Python between wavefronts. Hits must be bit-identical to embreex's on random rays, and
+a photon batch, a gather block and a path-traced tile must give the same bits as the
+same kernels driven wavefront by wavefront through embreex."""
+
+import numpy as np
+import pytest
+
+from radiosity.formats import directions
+from radiosity.scene.loaders import load_scene
+from radiosity.scene.materials import pack_materials
+from radiosity.transport import kernels, pathtrace, solve
+from radiosity.transport.embree import MISS, Hits, RayTracer, origin_offset
+
+embreex = pytest.importorskip("embreex")
+from embreex import rtcore_scene  # noqa: E402
+from embreex.mesh_construction import TriangleMesh  # noqa: E402
+
+
+class EmbreexTracer:
+    """The batched tracer as it was: embreex, tnear 0, one call per wavefront."""
+
+    def __init__(self, positions, faces):
+        self.epsilon = origin_offset(positions)
+        self._scene = rtcore_scene.EmbreeScene()
+        self._mesh = TriangleMesh(self._scene, np.ascontiguousarray(positions[faces], dtype=np.float32))
+
+    def intersect(self, origins, directions):
+        out = self._scene.run(np.ascontiguousarray(origins), np.ascontiguousarray(directions), output=1)
+        return Hits(out["primID"], out["tfar"], out["u"], out["v"])
+
+    def occluded(self, origins, directions, distances):
+        out = self._scene.run(
+            np.ascontiguousarray(origins), np.ascontiguousarray(directions),
+            dists=np.array(distances, dtype=np.float32), query="OCCLUDED",
+        )
+        return out != MISS
+
+
+@pytest.fixture(scope="module")
+def teapot():
+    scene = load_scene("cornell-teapot").refined(150.0)
+    merged = scene.merged()
+    sa = solve.scene_arrays(scene, merged, origin_offset(merged.positions))
+    with RayTracer(merged.positions, merged.faces, threads=2) as tracer:
+        yield scene, merged, sa, tracer, EmbreexTracer(merged.positions, merged.faces)
+
+
+def random_rays(rng, merged, n, epsilon):
+    """Incoherent rays: origins on the surfaces (offset off their front), directions
+    over the front hemisphere; and a fifth from anywhere in the box in any direction."""
+    tri = rng.integers(0, len(merged.faces), n)
+    bary = rng.dirichlet([1, 1, 1], n)
+    p = merged.positions.astype(np.float64)[merged.faces[tri]]
+    points = np.einsum("nk,nkc->nc", bary, p)
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.where((np.einsum("ij,ij->i", d, normal) < 0)[:, None], -d, d)
+    origins = points + epsilon * normal
+    free = rng.random(n) < 0.2
+    lo, hi = merged.positions.min(axis=0), merged.positions.max(axis=0)
+    origins[free] = rng.uniform(lo, hi, (free.sum(), 3))
+    return origins.astype(np.float32), d.astype(np.float32)
+
+
+def test_hits_and_occlusion_are_bit_identical_to_embreex(rng, teapot):
+    _, merged, _, tracer, reference = teapot
+    origins, dirs = random_rays(rng, merged, 200_000, tracer.epsilon)
+    ours, theirs = tracer.intersect(origins, dirs), reference.intersect(origins, dirs)
+    hit = theirs.triangle != MISS
+    assert 0.5 < hit.mean() < 1.0
+    assert np.array_equal(ours.triangle, theirs.triangle)
+    for a, b in ((ours.t, theirs.t), (ours.u, theirs.u), (ours.v, theirs.v)):
+        assert np.array_equal(a[hit], b[hit])
+    assert (ours.t[~hit] == np.inf).all() and (ours.u[~hit] == 0).all() and (ours.v[~hit] == 0).all()
+    # segments ending before, at about and beyond the hit
+    distances = np.where(hit, theirs.t, 1e3).astype(np.float32) * rng.choice([0.5, 0.999, 1.001, 2.0], len(hit))
+    distances = distances.astype(np.float32)
+    blocked = tracer.occluded(origins, dirs, distances)
+    assert np.array_equal(blocked, reference.occluded(origins, dirs, distances))
+    assert 0.2 < blocked.mean() < 0.8
+
+
+def test_hits_on_a_random_triangle_soup_are_bit_identical_to_embreex(rng):
+    corners = rng.normal(size=(3000, 3, 3)).astype(np.float32)
+    positions = corners.reshape(-1, 3)
+    faces = np.arange(len(positions), dtype=np.int32).reshape(-1, 3)
+    origins = rng.normal(size=(50_000, 3)).astype(np.float32)
+    d = rng.normal(size=(50_000, 3))
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    with RayTracer(positions, faces, threads=1) as tracer:
+        ours = tracer.intersect(origins, d)
+        blocked = tracer.occluded(origins, d, np.full(len(d), 0.5, np.float32))
+    reference = EmbreexTracer(positions, faces)
+    theirs = reference.intersect(origins, d)
+    hit = theirs.triangle != MISS
+    assert np.array_equal(ours.triangle, theirs.triangle) and hit.mean() > 0.5
+    assert all(np.array_equal(a[hit], b[hit]) for a, b in zip(ours[1:], theirs[1:]))
+    assert np.array_equal(blocked, reference.occluded(origins, d, np.full(len(d), 0.5, np.float32)))
+
+
+def test_an_empty_scene_misses_everything():
+    with RayTracer(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)) as tracer:
+        hits = tracer.intersect(np.zeros((3, 3), np.float32), np.tile(np.float32([0, 0, 1]), (3, 1)))
+        assert (hits.triangle == MISS).all()
+
+
+# -- whole batches: the same bits as the embreex wavefronts -----------------------------------
+
+
+def test_a_photon_batch_gives_the_same_bits_as_the_embreex_wavefront(teapot):
+    _, _, sa, tracer, reference = teapot
+    seed, first, count, total = 3, 70_000, 20_000, 1_000_000
+    expected = kernels.empty_tally(len(sa.positions))
+    photons = kernels.empty_rays(count)
+    kernels.emit_photons(sa, seed, first, total, photons)
+    out = kernels.empty_rays(count)
+    depth = rays = 0
+    while len(photons.ids):
+        hits = reference.intersect(photons.origins, photons.directions)
+        rays += len(photons.ids)
+        n = kernels.bounce_photons(sa, seed, depth, solve.MAX_PHOTON_DEPTH, photons, hits, expected, out)
+        photons = kernels.Rays(*(a[:n].copy() for a in out))
+        depth += 1
+    before = tracer.rays_cast
+    got = solve.trace_photon_batch(tracer, sa, seed, first, count, total)
+    assert tracer.rays_cast - before == rays > count
+    for a, b in zip(got, expected):
+        assert np.array_equal(a, b)
+
+
+def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot):
+    scene, merged, sa, tracer, reference = teapot
+    index = [o.name for o in scene.objects].index("teapot")
+    teapot_object = scene.objects[index]
+    first = merged.vertex_offset[index]
+    irradiance = rng.uniform(0, 5, (len(sa.positions), 3))
+    vertices = np.linspace(first, first + teapot_object.n_vertices - 1, 60).astype(np.int64)  # top to bottom
+    block = kernels.GatherBlock(5, vertices, 4, 5, solve.MAX_GATHER_DEPTH)
+    dirs = directions.grid_directions(9)
+
+    b, n_gather = len(block.vertices), block.strata**2
+    light = kernels.empty_light_samples(b * block.n_light)
+    samples = kernels.empty_gather_samples(b * n_gather)
+    kernels.make_gather_rays(sa, block, light, samples)
+    valid = light.pdf > 0
+    light.visible[valid] = ~reference.occluded(light.origins[valid], light.directions[valid], light.distances[valid])
+    paths = kernels.Rays(np.arange(b * n_gather), np.ones((b * n_gather, 3)), samples.origins, samples.directions)
+    out = kernels.empty_rays(b * n_gather)
+    for depth in range(block.max_depth):
+        if not len(paths.ids):
+            break
+        hits = reference.intersect(paths.origins, paths.directions)
+        n = kernels.shade_paths(sa, irradiance, block, depth, paths, hits, samples, out)
+        paths = kernels.Rays(*(a[:n].copy() for a in out))
+    expected = np.empty((b, len(dirs), 3))
+    material = teapot_object.material
+    diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
+    kernels.gather_outputs(
+        pack_materials([material])[0], np.asarray(material.emission, float), diffuse, light, samples, dirs, expected
+    )
+    assert valid.any() and light.visible.any() and not light.visible[valid].all()
+
+    got = solve.gather_block(tracer, sa, irradiance, block, material, dirs)
+    assert np.array_equal(got, expected)
+
+
+def test_a_path_traced_tile_gives_the_same_bits_as_the_embreex_wavefront(teapot):
+    scene, _, sa, tracer, reference = teapot
+    camera = scene.camera.sized(24, 16)
+    cam = pathtrace.camera_rays(camera)
+    tile = pathtrace.Tile(4, 30, 200, 2, 3, camera.width, camera.height)
+    n = tile.pixels * tile.samples
+    paths, spare = pathtrace.empty_paths(n), pathtrace.empty_paths(n)
+    shadow = pathtrace.empty_shadow_rays(n)
+    pathtrace.start_paths(cam, tile, paths)
+    radiance = np.zeros((n, 3))
+    for depth in range(pathtrace.MAX_DEPTH):
+        if n == 0:
+            break
+        live = pathtrace.Paths(*(a[:n] for a in paths))
+        hits = reference.intersect(live.origins, live.directions)
+        n_shadow, n = pathtrace.shade(sa, tile, depth, live, hits, radiance, shadow, spare)
+        if n_shadow:
+            head = pathtrace.ShadowRays(*(a[:n_shadow] for a in shadow))
+            blocked = reference.occluded(head.origins, head.directions, head.distances)
+            pathtrace.add_visible(head, blocked, radiance)
+        paths, spare = spare, paths
+    total, squares = np.zeros((tile.pixels, 3)), np.zeros((tile.pixels, 3))
+    pathtrace.pixel_sums(tile, radiance, total, squares)
+    assert total.any()
+
+    _, got_total, got_squares = pathtrace.trace_tile(tracer, sa, cam, tile)
+    assert np.array_equal(got_total, total) and np.array_equal(got_squares, squares)
