@@ -38,6 +38,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from _common import RESULTS, Recorder
@@ -118,6 +119,11 @@ def main(argv=None):
     parser.add_argument("--only", choices=("truth",), help="run question 6 alone")
     parser.add_argument("--size", type=int, default=256, help="question 6: image side (default: %(default)s)")
     parser.add_argument("--truth-spp", type=int, default=4096, help="question 6: samples of the truth (default: %(default)s)")
+    parser.add_argument("--truth-file", type=Path, metavar="NPY",
+                        help="question 6: a truth already path-traced at the scene's camera and --size (vlights truth "
+                        "cornell-teapot --size NxN --spp S --hdr NPY); --truth-spp then says its samples")
+    parser.add_argument("--truth-noise", type=float, metavar="FLIP",
+                        help="with --truth-file: its noise floor as 'vlights truth' printed it")
     args = parser.parse_args(argv)
     from radiosity.scene.loaders import load_scene
 
@@ -206,9 +212,16 @@ def truth_trade(record, args):
     size, truth_spp = (96, 256) if args.quick else (args.size, args.truth_spp)
     scene = load_scene("cornell-teapot")
     camera = scene.camera.sized(size, size)
-    truth = ground_truth(scene, camera, truth_spp, seed=1000, progress=True)
+    if args.truth_file is not None:
+        radiance = np.load(args.truth_file)
+        if radiance.shape != (size, size, 3):
+            raise SystemExit(f"--truth-file {args.truth_file}: {radiance.shape}, not ({size}, {size}, 3) (--size)")
+        truth = SimpleNamespace(radiance=radiance, noise_flip=args.truth_noise, stats={"seconds": None, "paths_per_s": None})
+    else:
+        truth = ground_truth(scene, camera, truth_spp, seed=1000, progress=True)
     record({"question": "truth", "what": "truth", "size": size, "spp": truth_spp, "seconds": truth.stats["seconds"],
-            "paths_per_s": truth.stats["paths_per_s"], "noise_flip": truth.noise_flip})
+            "paths_per_s": truth.stats["paths_per_s"], "noise_flip": truth.noise_flip,
+            "file": str(args.truth_file) if args.truth_file else None})
 
     # the path tracer against the same truth, pass by pass (another seed)
     with PathTracer(scene) as tracer:
