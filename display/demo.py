@@ -25,7 +25,7 @@ from .outputs import staged_directory
 
 FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png") + tuple(
     f"compare/{name}" for name in _compare.FILES
-) + (f"web/{_export.FILE}",) + tuple(f"web/{name}" for name in _export.page_files())
+) + (f"web/{_export.FILE}", f"web/{_export.SHADING}") + tuple(f"web/{name}" for name in _export.page_files())
 
 
 def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES, truth_spp=None):

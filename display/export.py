@@ -40,7 +40,7 @@ import numpy as np
 
 from radiosity.formats import InputError
 
-__all__ = ["FILE", "FORMAT", "PAGE", "VERSION", "add_export_command", "export_glb", "load_export", "page_files",
+__all__ = ["FILE", "FORMAT", "PAGE", "SHADING", "VERSION", "add_export_command", "export_glb", "load_export", "page_files",
            "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
@@ -115,6 +115,19 @@ def export_glb(model):
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False)
 
 
+SHADING = "shading.js"  # written with the page: the renderer's shading GLSL as an ES module
+
+
+def shading_module():
+    """``shading.js``: display.renderer's SHADE_GLSL (the shading formula the page and
+    ``vlights render`` share) and its coefficient texture width, as JavaScript."""
+    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL
+
+    return ("// Written by `vlights export` from display/renderer.py: the renderer's shading code.\n"
+            f"export const SHADE_GLSL = {json.dumps(SHADE_GLSL)};\n"
+            f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n")
+
+
 def write_files(model, directory, page=True):
     """Write scene.glb and, with ``page``, the walkthrough page into ``directory`` (which
     exists); no staging: for callers that stage a whole run (``write_export``, the demo).
@@ -126,6 +139,8 @@ def write_files(model, directory, page=True):
     for name in page_files() if page else ():
         (directory / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(WEB / name, directory / name)
+    if page:
+        (directory / SHADING).write_text(shading_module())
     return directory / FILE
 
 
@@ -241,7 +256,7 @@ def run_export_command(args):
     _check_fit_file(args.fit)
     if args.serve and not args.page:
         raise InputError("--serve needs the page: drop --no-page")
-    files = (FILE, *(str(p) for p in page_files())) if args.page else (FILE,)
+    files = (FILE, SHADING, *(str(p) for p in page_files())) if args.page else (FILE,)
     out = check_output_dir(args.out, "-o", files=files, inputs=(args.fit,))
     model = load_fit(args.fit)
     server = None

@@ -1,8 +1,9 @@
 // The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v1;
 // display/export.py and the README's "Export" hold the schema).
 //
-// Shading is Contract 2's formula per pixel, as `vlights render --shading pixel` draws it
-// (display/renderer.py SHADE_GLSL): emitted colour plus, for each virtual light k,
+// Shading is Contract 2's formula per pixel, as `vlights render --shading pixel` draws it,
+// with the renderer's own GLSL (display/renderer.py SHADE_GLSL, written into shading.js
+// by `vlights export`): emitted colour plus, for each virtual light k,
 //     pow(dot(n, h), shininess_k) * rgb_k * coefficient_k
 // with h the half vector of the light direction normalize(xyz - w x) and the eye
 // direction, and the lobe cut to 0 where (1 - dot(n, h)) * shininess > 30. Coefficients
@@ -24,54 +25,14 @@ import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { PointerLockControls } from 'three/addons/controls/PointerLockControls.js';
+// written by `vlights export` from display/renderer.py: the renderer's own shading code
+import { SHADE_GLSL, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
 const VERSION = 1;
-const TEXTURE_WIDTH = 4096;
 const MODES = ['fitted', 'diffuse'];
 const DEFAULT_FOV = 39.3; // display.camera.framing_view
 
-const SHADE_GLSL = `
-uniform int n_lights;
-uniform int per_light;
-uniform int light_stride;
-uniform highp sampler2D lights;        // row k: light_pos (xyzw), (rgb, shininess)
-uniform highp sampler2D coefficients;  // per light: texel v * K + k
-const int COEFFICIENT_WIDTH = ${TEXTURE_WIDTH};
-const float NEGLIGIBLE = 30.0;
-vec3 coefficient_at(int vertex, int k) {
-    int i = vertex * light_stride + k;
-    return texelFetch(coefficients, ivec2(i % COEFFICIENT_WIDTH, i / COEFFICIENT_WIDTH), 0).rgb;
-}
-vec3 light_term(int k, vec3 n, vec3 x, vec3 w) {
-    vec4 p = texelFetch(lights, ivec2(0, k), 0);
-    vec4 rgb_p = texelFetch(lights, ivec2(1, k), 0);
-    vec3 l = p.xyz - p.w * x;
-    float l_len = length(l);
-    if (!(l_len > 0.0)) return vec3(0.0);
-    vec3 h = l / l_len + w;
-    float h_len = length(h);
-    if (!(h_len > 0.0)) return vec3(0.0);
-    float c = dot(n, h) / h_len;
-    if (!(c > 0.0) || (1.0 - c) * rgb_p.a > NEGLIGIBLE) return vec3(0.0);
-    return pow(c, rgb_p.a) * rgb_p.rgb;
-}
-vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) {
-    vec3 colour = emitted;
-    for (int k = 0; k < n_lights; ++k) {
-        vec3 term = light_term(k, n, x, w);
-        if (all(equal(term, vec3(0.0)))) continue;
-        vec3 c = specular;
-        if (per_light == 1) {
-            c = weights.x * coefficient_at(vertices.x, k);
-            if (weights.y != 0.0) c += weights.y * coefficient_at(vertices.y, k);
-            if (weights.z != 0.0) c += weights.z * coefficient_at(vertices.z, k);
-        }
-        colour += term * c;
-    }
-    return colour;
-}
-`;
 
 const FITTED_VS = `
 precision highp float;
@@ -104,6 +65,7 @@ void main() {
 const FITTED_FS = `
 precision highp float;
 precision highp int;
+precision highp sampler2D;
 uniform vec3 eye;
 centroid in vec3 v_position;
 centroid in vec3 v_normal;
@@ -277,6 +239,7 @@ function makeObject(source, info) {
             n_lights: { value: info.lights },
             per_light: { value: info.per_light ? 1 : 0 },
             light_stride: { value: info.lights },
+            coefficient_base: { value: 0 }, // one coefficient texture per object
             lights: { value: lightTexture(info) },
             coefficients: { value: coefficients || EMPTY },
         },

@@ -10,6 +10,7 @@ switch what it shows. Skipped where chromium or Playwright is missing (the test 
 
 import importlib.util
 import io
+import json
 import os
 import re
 import shutil
@@ -25,7 +26,7 @@ import pytest
 from display_fixtures import lit_model
 from PIL import Image
 
-from display.export import PAGE, WEB, page_files
+from display.export import PAGE, SHADING, WEB, page_files, shading_module
 from display.serve import start
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -48,7 +49,7 @@ needs_browser = pytest.mark.skipif(
 def test_page_files_resolve_every_import():
     """Every module the page loads, through the import map or a relative path, is among
     the files export copies: the exported directory works with no network."""
-    files = {str(p) for p in page_files()}
+    files = {str(p) for p in page_files()} | {SHADING}  # shading.js is written by export itself
     assert {PAGE, "walkthrough.js", "three/LICENSE", "three/build/three.module.js", "three/build/three.core.js"} <= files
     html = (WEB / PAGE).read_text()
     imports = dict(re.findall(r'"(three[^"]*)":\s*"\./([^"]+)"', html))
@@ -60,6 +61,8 @@ def test_page_files_resolve_every_import():
             continue
         seen.add(name)
         assert name in files, f"{name} is imported but not exported"
+        if name == SHADING:
+            continue
         for spec in IMPORT.findall((WEB / name).read_text()):
             if spec == "three":
                 target = imports["three"]
@@ -69,6 +72,17 @@ def test_page_files_resolve_every_import():
                 target = os.path.normpath(Path(name).parent / spec)
             pending.append(target)
     assert "three/examples/jsm/loaders/GLTFLoader.js" in seen and "three/build/three.core.js" in seen
+    assert SHADING in seen
+
+
+def test_shading_module_is_the_renderers_glsl():
+    """The page shades with the renderer's own GLSL: shading.js holds SHADE_GLSL verbatim."""
+    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL
+
+    text = shading_module()
+    literal = re.search(r"export const SHADE_GLSL = (.*);\n", text).group(1)
+    assert json.loads(literal) == SHADE_GLSL
+    assert f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};" in text
 
 
 def test_exported_directory_has_the_page(tmp_path, cli, rng):
@@ -77,6 +91,7 @@ def test_exported_directory_has_the_page(tmp_path, cli, rng):
     assert code == 0, err
     for name in page_files():
         assert (tmp_path / "web" / name).read_bytes() == (WEB / name).read_bytes()
+    assert (tmp_path / "web" / SHADING).read_text() == shading_module()
     assert f"wrote {tmp_path / 'web' / PAGE}" in out
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "glb", "--no-page")
     assert code == 0 and sorted(p.name for p in (tmp_path / "glb").iterdir()) == ["scene.glb"]
