@@ -124,6 +124,7 @@ def test_export_serve_prints_the_url_and_serves(tmp_path, rng):
         [sys.executable, "-m", "display", "export", str(tmp_path / "fit.npz"), "-o", str(tmp_path / "web"),
          "--serve", "--port", "0"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # a background job starts with it ignored
     )
     try:
         url = None
