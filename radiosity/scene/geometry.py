@@ -88,6 +88,12 @@ def compact(positions, faces, *attributes):
     return out + tuple(a[used] for a in attributes)
 
 
+def unique_edges(faces):
+    """(E, 2) int: every edge of a triangle mesh once, as (smaller, larger) vertex index,
+    sorted."""
+    return np.unique(np.sort(np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+
+
 def corner_angles(positions, faces):
     """Interior angle at each corner, (F, 3) float64."""
     return trimesh.triangles.angles(positions[faces])

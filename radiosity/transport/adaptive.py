@@ -55,6 +55,7 @@ import numpy as np
 
 from radiosity.formats import presets
 from radiosity.formats.errors import InputError
+from radiosity.scene.geometry import unique_edges
 from radiosity.transport import density
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -188,10 +189,9 @@ def vertex_values(obj_solution):
     return np.maximum(radiance.mean(axis=1) @ LUMINANCE, 0.0)
 
 
-def ring_gradients(positions, normals, tangents, faces, values):
+def ring_gradients(positions, normals, tangents, edges, values):
     """(V, 2) least-squares gradients of ``values`` in each vertex's tangent plane, from
-    the differences to its neighbours (the vertices sharing a triangle with it)."""
-    edges = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    the differences to its neighbours (the other ends of its ``edges``, (E, 2))."""
     target = np.concatenate([edges[:, 0], edges[:, 1]])
     source = np.concatenate([edges[:, 1], edges[:, 0]])
     bitangents = np.cross(normals, tangents)
@@ -211,9 +211,9 @@ def ring_gradients(positions, normals, tangents, faces, values):
 def edge_errors(positions, normals, tangents, faces, values):
     """Edges (E, 2) of the mesh and the interpolation error (E,) of ``values`` along
     each: |(g_b - g_a) . (x_b - x_a)| / 8, the gradients in world space."""
-    g = ring_gradients(positions, normals, tangents, faces, values)
+    edges = unique_edges(faces)
+    g = ring_gradients(positions, normals, tangents, edges, values)
     world = g[:, :1] * tangents + g[:, 1:] * np.cross(normals, tangents)
-    edges = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
     a, b = edges[:, 0], edges[:, 1]
     err = np.abs(np.einsum("ij,ij->i", world[b] - world[a], positions[b] - positions[a])) / 8
     return edges, err
@@ -308,13 +308,6 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
         wanted = np.minimum(np.sqrt(ratio[marked]) / length[marked], 1 / (MIN_EDGE_FRACTION * max_edge))
         out[o.name] = Marks(edges[marked], wanted, ratio[marked], v > floor, edges, settings["kernel_rings"] + 1)
     return out
-
-
-def size_field(scene, solution, tolerance, max_edge):
-    """{object name: (V,) edges per unit length wanted} from ``mark_edges``, every mark
-    kept (0 where nothing is marked)."""
-    marks = mark_edges(scene, solution, tolerance, max_edge)
-    return {o.name: marks[o.name].field(o.n_vertices) if o.name in marks else np.zeros(o.n_vertices) for o in scene.objects}
 
 
 def dilate(values, edges, rings, into=None):

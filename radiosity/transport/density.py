@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from radiosity.scene.geometry import unique_edges
+
 _CONDITION_LIMIT = 1e-3  # below this (relative) Schur complement, fall back to S0 / K0
 
 
@@ -141,7 +143,7 @@ def _fit(moments):
 def local_scale(positions, faces):
     """(V,) mean squared length of the edges at each vertex: the area a vertex's
     kernel would cover inside the mesh, up to a constant, at that vertex's mesh size."""
-    edges = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    edges = unique_edges(faces)
     length2 = np.sum((positions[edges[:, 0]] - positions[edges[:, 1]]) ** 2, axis=1)
     total = np.zeros(len(positions))
     count = np.zeros(len(positions))
