@@ -304,8 +304,7 @@ class Walkthrough {
         };
         this.renderer = new THREE.WebGLRenderer({ canvas, antialias: false, alpha: false, preserveDrawingBuffer: true });
         this.renderer.setPixelRatio(1);
-        this.renderer.autoClear = true;
-        this.renderer.setClearColor(0x000000, 1);
+        this.renderer.setClearColor(0x000000, 0); // background 0, as the renderer's; render() clears
         this.gl = this.renderer.getContext();
         this.camera = new THREE.PerspectiveCamera(this.start.fov, 1, 0.1, 10);
 
@@ -422,8 +421,6 @@ class Walkthrough {
         }
         const hdr = this.target(width, height);
         this.renderer.setRenderTarget(hdr);
-        this.renderer.setClearColor(0x000000, 0);
-        this.renderer.clear();
         this.renderer.render(this.fit.scene, this.camera);
         this.renderer.setRenderTarget(null);
         this.tonemap.uniforms.hdr.value = hdr.texture;
