@@ -51,6 +51,18 @@ def register(subparsers, not_built):
     p.add_argument("--grid", type=int, metavar="N", help="n x n direction grid for every glossy object (default: from each exponent)")
     p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units): a uniform mesh, unless --adaptive")
     p.add_argument("--kernel-rings", type=int, metavar="K", help="widen each vertex's density kernel by K rings of neighbours (less noise, more blur)")
+    p.add_argument(
+        "--extra-gather",
+        type=float,
+        metavar="F",
+        help="further gather passes where the gather is noisy, at most F times the glossy vertices (0: none)",
+    )
+    p.add_argument(
+        "--gather-tolerance",
+        type=float,
+        metavar="E",
+        help="the relative standard error the extra gather passes aim at",
+    )
     add_adaptive_flags(p)
     p.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
     p.add_argument("--threads", type=int, metavar="T", help="worker threads (default: one per core)")
@@ -108,6 +120,8 @@ def _solve(args):
         grid=args.grid,
         max_edge=args.max_edge,
         kernel_rings=args.kernel_rings,
+        extra_gather=args.extra_gather,
+        gather_tolerance=args.gather_tolerance,
         seed=args.seed,
         threads=args.threads,
         scheduler=args.scheduler,
@@ -142,11 +156,25 @@ def format_summary(solution, path):
             if glossy
             else "  gather   none: no glossy objects"
         ),
+        *_regather_lines(st.get("regather")),
         f"  total    {total:.2f} s (setup {t['setup']:.2f} s)",
         *_adaptive_lines(st.get("adaptive")),
         f"wrote {path} ({size / 1e6:.2f} MB)",
     ]
     return "\n".join(lines)
+
+
+def _regather_lines(regather):
+    """The summary's line on the extra gather passes (none where none ran)."""
+    ran = {name: r for name, r in (regather or {}).items() if r["extra_passes"]}
+    if not ran:
+        return []
+    parts = [
+        f"{name} {r['regathered']:,} vertices +{r['extra_passes']:,} passes (at most {r['max_passes']}, "
+        f"tolerance {r['tolerance']:.3g})"
+        for name, r in ran.items()
+    ]
+    return ["  regather " + "; ".join(parts)]
 
 
 def _adaptive_lines(adaptive):

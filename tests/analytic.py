@@ -102,3 +102,82 @@ def penumbra_irradiance(points):
         rect = np.array([[lo, 1.0, -h], [h, 1.0, -h], [h, 1.0, h], [lo, 1.0, h]])
         out[i] = polygon_irradiance(np.array([[x, 0.0, z]]), np.array([0.0, 1.0, 0.0]), rect, 1.0)[0]
     return out
+
+
+RELAY_LE = 10.0
+PLATE_KS, PLATE_N = 0.5, 10.0
+FLOOR_KS, FLOOR_N = 0.8, 20.0
+
+# a glossy plate that sees a small lamp only in a glossy floor (the lamp faces the floor,
+# the plate sees its back): tests/radiosity/transport/test_lobe_light.py, test_regather.py
+GLOSSY_RELAY = f"""
+[materials.plate]
+diffuse = 0.0
+specular = {PLATE_KS}
+exponent = {PLATE_N}
+[materials.floor]
+diffuse = 0.0
+specular = {FLOOR_KS}
+exponent = {FLOOR_N}
+[materials.lamp]
+emission = {RELAY_LE}
+[[objects]]
+name = "floor"
+builtin = "quad"
+material = "floor"
+[[objects]]
+name = "lamp"
+builtin = "quad"
+material = "lamp"
+scale = 0.1
+rotate_deg = [180, 0, 0]
+translate = [-0.3, 0.4, 0.0]
+[[objects]]
+name = "plate"
+builtin = "quad"
+material = "plate"
+scale = 0.2
+rotate_deg = [180, 0, 0]
+translate = [0.3, 0.45, 0.0]
+"""
+
+
+def phong(ks, n, normal, wi, wo):
+    """ks (n + 2) / (2 pi) cos^n alpha, alpha between wi and the mirror of wo; (..., 3) arrays."""
+    mirror = 2.0 * np.sum(wo * normal, axis=-1, keepdims=True) * normal - wo
+    cos_alpha = np.clip(np.sum(wi * mirror, axis=-1), 0.0, 1.0)
+    return ks * (n + 2) / (2 * np.pi) * cos_alpha**n
+
+
+def unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def glossy_relay_radiance(x, wo, floor_points=120, lamp_points=10):
+    """Radiance leaving plate point x (3,) along world directions wo (D, 3): lamp ->
+    floor -> plate, by the midpoint rule."""
+    g = (np.arange(floor_points) + 0.5) / floor_points - 0.5
+    fx, fz = np.meshgrid(g, g, indexing="ij")
+    y = np.stack([fx.ravel(), np.zeros(fx.size), fz.ravel()], -1)  # the floor, y = 0
+    gl = (np.arange(lamp_points) + 0.5) / lamp_points - 0.5
+    lz, lx = np.meshgrid(gl * 0.1, gl * 0.1, indexing="ij")
+    z = np.stack([lx.ravel() - 0.3, np.full(lx.size, 0.4), lz.ravel()], -1)  # lamp, facing -y
+    up, down = np.array([0.0, 1.0, 0.0]), np.array([0.0, -1.0, 0.0])
+    # light leaving each floor point towards x
+    to_lamp = z[None, :, :] - y[:, None, :]  # (Y, Z, 3)
+    r2 = np.sum(to_lamp**2, -1)
+    wi = to_lamp / np.sqrt(r2)[..., None]
+    to_x = unit(x[None, :] - y)  # (Y, 3)
+    f_floor = phong(FLOOR_KS, FLOOR_N, up, wi, np.broadcast_to(to_x[:, None, :], wi.shape))
+    cos_floor = np.clip(wi[..., 1], 0, None)
+    cos_lamp = np.clip(-np.sum(wi * down, -1), 0, None)
+    radiance_floor = np.sum(f_floor * RELAY_LE * cos_floor * cos_lamp / r2, axis=1) * (0.1 / lamp_points) ** 2
+    # and the plate's lobe over the floor
+    to_floor = y - x[None, :]
+    d2 = np.sum(to_floor**2, -1)
+    wi_x = to_floor / np.sqrt(d2)[:, None]
+    cos_x = np.clip(np.sum(wi_x * down, -1), 0, None)
+    cos_y = np.clip(-wi_x[:, 1], 0, None)
+    geometry = radiance_floor * cos_x * cos_y / d2 / floor_points**2  # (Y,)
+    f_plate = phong(PLATE_KS, PLATE_N, down, wi_x[None, :, :], wo[:, None, :])  # (D, Y)
+    return f_plate @ geometry

@@ -39,6 +39,9 @@ class Preset:
     vertex_budget_factor : the refined scene's vertices at most this times the uniform mesh's
     adaptive_passes  : estimate-and-refine rounds before the final solve
     adaptive_tolerance : the refinement's error target, relative to the local light
+    extra_gather     : further gather passes, at most this times the glossy vertices, where
+                       the gather is noisy (``transport.regather``; 0: none)
+    gather_tolerance : the relative standard error those passes aim at
     """
 
     photons: int
@@ -55,6 +58,8 @@ class Preset:
     vertex_budget_factor: float = 1.5
     adaptive_passes: int = 1
     adaptive_tolerance: float = 0.005
+    extra_gather: float = 0.0
+    gather_tolerance: float = 0.02
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -62,9 +67,9 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1),
-    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2),
-    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2),
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03),
+    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02),
+    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01),
 }
 QUALITIES = tuple(PRESETS)
 DEFAULT_QUALITY = "draft"

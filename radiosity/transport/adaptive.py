@@ -135,6 +135,7 @@ def solve_adaptive(scene, opts=None, adaptive=None, progress=False, client=None)
         photons=max(1, int(settings["photons"] * FIRST_PASS_PHOTONS)),
         gather_samples=min(settings["gather_samples"], FIRST_PASS_GATHER),
         light_samples=min(settings["light_samples"], FIRST_PASS_GATHER // 4),
+        extra_gather=0.0,  # the estimate needs no extra gather passes
     )
     passes = []
     current = coarse

@@ -51,6 +51,7 @@ LOBE_TABLE = 2048  # entries of the cos^n table
 # the concentric map shrinks no angle by more than 0.73 (square max-norm units per radian
 # at least 1 / 0.73, measured over 2e6 random pairs; tests check it): 0.7 leaves a margin
 SQUARE_PER_RADIAN = 1.0 / 0.7
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709: the gather's noise is measured in luminance
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
@@ -141,6 +142,9 @@ class GatherBlock(NamedTuple):
     n_light   : int           light samples (shadow rays) per vertex
     strata    : int           gather rays per vertex: strata^2, stratified
     max_depth : int           segments of a gather path at most
+    lobe_light: bool          sample the light at the glossy hits of gather paths
+                              (``_lobe_light_sample``); False finds it by the lobe alone,
+                              as before: the same expected value, more noise (for tests)
     """
 
     seed: int
@@ -148,6 +152,7 @@ class GatherBlock(NamedTuple):
     n_light: int
     strata: int
     max_depth: int
+    lobe_light: bool = True
 
 
 class LightSamples(NamedTuple):
@@ -546,23 +551,79 @@ def _hit_distance(origins, k, sa, t, u, v):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@numba.njit(cache=True, nogil=True)
-def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
-    """Radiance arriving along gather paths; returns the number of paths that go on.
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lobe_light_sample(rt, rayhit, sa, mat, point, g, normal, d, seed, item):
+    """Next-event estimate of the light the specular lobe at a glossy hit reflects
+    back along -d: (radiance as an RGB tuple, whether a shadow ray was traced).
 
-    paths : ``Rays`` in flight (values: throughput) at segment ``depth``; hits : their
-    ``embree.Hits``; samples : the block's ``GatherSamples``; out : ``Rays`` receiving
-    the paths that go on.
+    point, g : the hit and the front geometric normal there; normal : the shading
+    normal (``_shading_normal``). A point on an emitter (chosen in proportion to
+    power, area-uniform on its triangle, numbers from ``STREAM_GATHER + 2``) is
+    weighted by the balance heuristic against sampling the lobe, which the path's
+    continuation does: f_s cos / (p_light + p_lobe), with f_s = ks (n + 2) / (2 pi)
+    cos^n alpha and p_lobe = (n + 1) / (2 pi) cos^n alpha, alpha measured from the
+    mirror direction. Directions the continuation cannot produce (below the shading or
+    the true surface) are skipped, as the continuation skips them."""
+    zero = (0.0, 0.0, 0.0)
+    tri = _pick_emitter(sa, rand(seed, STREAM_GATHER + 2, item, 0))
+    area_pdf = sa.emit_area_pdf[tri]
+    if area_pdf <= 0.0:
+        return zero, False
+    r = math.sqrt(rand(seed, STREAM_GATHER + 2, item, 1))
+    u = r * (1.0 - rand(seed, STREAM_GATHER + 2, item, 2))
+    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
+    gl = sa.face_normals[tri]
+    eps = sa.epsilon
+    ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
+    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if dist <= 0.0:
+        return zero, False
+    dx, dy, dz = dx / dist, dy / dist, dz / dist
+    cos_light = -(dx * gl[0] + dy * gl[1] + dz * gl[2])
+    cos_i = dx * normal[0] + dy * normal[1] + dz * normal[2]
+    if cos_light <= 0.0 or cos_i <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
+        return zero, False
+    dn = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2]
+    cos_alpha = dx * (d[0] - 2.0 * dn * normal[0]) + dy * (d[1] - 2.0 * dn * normal[1]) + dz * (d[2] - 2.0 * dn * normal[2])
+    if cos_alpha <= 0.0:
+        return zero, False
+    n = mat[EXPONENT]
+    lobe = phong_lobe(min(cos_alpha, 1.0), n)
+    if lobe <= 0.0:
+        return zero, False
+    if occluded1(rt, rayhit, ox, oy, oz, dx, dy, dz, dist):
+        return zero, True
+    p_light = area_pdf * dist * dist / cos_light
+    p_lobe = (n + 1.0) / (2.0 * math.pi) * lobe
+    scale = (n + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
+    le = sa.materials[sa.face_material[tri]]
+    return (mat[KS] * le[EMISSION] * scale, mat[KS + 1] * le[EMISSION + 1] * scale, mat[KS + 2] * le[EMISSION + 2] * scale), True
+
+
+@numba.njit(cache=True, nogil=True)
+def shade_paths(rt, rayhit, sa, irradiance, block, depth, paths, path_pdf, hits, samples, out, out_pdf):
+    """Radiance arriving along gather paths; returns (the number of paths that go on,
+    the shadow rays traced).
+
+    rt, rayhit : the scene (``embree.Embree``) and a ray-hit record for the shadow rays;
+    paths : ``Rays`` in flight (values: throughput) at segment ``depth``, and path_pdf
+    (their count,) the density with which the previous vertex's lobe sampled their
+    direction (unused at depth 0); hits : their ``embree.Hits``; samples : the block's
+    ``GatherSamples``; out, out_pdf : receive the paths that go on.
 
     ``samples.incoming[paths.ids[k]]`` gains throughput * (emitted + diffusely
-    reflected radiance) at each path's hit. On the first segment (depth 0) the emitted
-    part is weighted by the balance heuristic against the ``block.n_light`` light
-    samples, which also saw the light (the gather ray's density is cos / pi, its cosine
-    at the vertex being ``samples.wi[id, 2]``); later segments count emission in full.
-    The diffuse part is kd / pi times the irradiance interpolated at the hit. At a
-    glossy surface the path goes on through the specular lobe (the diffuse lobe's
-    light is in the irradiance), with Russian roulette, so light that passes from
-    glossy to glossy is not lost.
+    reflected radiance) at each path's hit. The emitted part is weighted by the
+    balance heuristic against the light sample that saw it too: on the first segment
+    (depth 0) the ``block.n_light`` light samples of the vertex (the gather ray's
+    density is cos / pi, its cosine at the vertex being ``samples.wi[id, 2]``), later
+    the previous vertex's ``_lobe_light_sample`` (the ray's density path_pdf). The
+    diffuse part is kd / pi times the irradiance interpolated at the hit. At a glossy
+    surface the path goes on through the specular lobe (the diffuse lobe's light is in
+    the irradiance), with Russian roulette, so light that passes from glossy to glossy
+    is not lost, and there a light sample (``_lobe_light_sample``) catches the emitters
+    the lobe reflects: without it, a lamp seen in a glossy neighbour was found only by
+    chance and made the heavy-tailed outliers that showed as blotches.
 
     ``paths.ids`` index the block's gather samples (vertex ``block.vertices[id //
     n_gather]``, sample ``id % n_gather``), which also key the random numbers.
@@ -570,6 +631,8 @@ def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
     seed, n_light, max_depth = block.seed, block.n_light, block.max_depth
     n_gather = block.strata * block.strata
     n_out = 0
+    shadow = 0
+    has_lights = len(sa.emit_triangles) > 0 and block.lobe_light
     for k in range(len(paths.ids)):
         t = hits.triangle[k]
         if t < 0:
@@ -583,12 +646,15 @@ def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
         mat = sa.materials[m]
         target = paths.ids[k]
         weight = 1.0
-        if depth == 0 and n_light > 0 and sa.emit_area_pdf[t] > 0.0:
+        if sa.emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
             cos_light = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
             dist = _hit_distance(paths.origins, k, sa, t, uk, vk)
             p_light = sa.emit_area_pdf[t] * dist * dist / cos_light
-            p_gather = samples.wi[target, 2] / math.pi
-            weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
+            if depth == 0:
+                p_gather = samples.wi[target, 2] / math.pi
+                weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
+            elif block.lobe_light:
+                weight = path_pdf[k] / (path_pdf[k] + p_light)
         for c in range(3):
             radiance = weight * mat[EMISSION + c] + mat[KD + c] / math.pi * _interpolate3(irradiance, sa, t, uk, vk, c)
             samples.incoming[target, c] += paths.values[k, c] * radiance
@@ -596,9 +662,16 @@ def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
         if ks_max <= 0.0 or depth + 1 >= max_depth:
             continue
         item = (block.vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+        point = _barycentric_point(sa, t, uk, vk)
+        if has_lights:
+            normal = _shading_normal(sa, t, uk, vk, d)
+            reflected, traced = _lobe_light_sample(rt, rayhit, sa, mat, point, g, normal, d, seed, item)
+            shadow += traced
+            for c in range(3):
+                samples.incoming[target, c] += paths.values[k, c] * reflected[c]
         # u1 = 0 picks the specular lobe (the diffuse lobe's light is in the irradiance)
         rnd = (0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1))
-        _, wi, _, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
+        wo, wi, _, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
         if not ok:
             continue
         # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
@@ -611,13 +684,15 @@ def shade_paths(sa, irradiance, block, depth, paths, hits, samples, out):
         survives, carried = _roulette(scattered, 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
         if not survives:
             continue
-        _push_ray(out, n_out, target, _barycentric_point(sa, t, uk, vk), g, sa.epsilon, direction, carried)
+        cos_alpha = min(max(-wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2], 0.0), 1.0)
+        out_pdf[n_out] = (mat[EXPONENT] + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, mat[EXPONENT])
+        _push_ray(out, n_out, target, point, g, sa.epsilon, direction, carried)
         n_out += 1
-    return n_out
+    return n_out, shadow
 
 
 @numba.njit(cache=True, nogil=True)
-def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out):
+def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance):
     """Outgoing radiance of a block of B vertices in every direction of an n x n grid.
 
     out[b, d] = emission + diffuse_radiance[b] + the specular lobe's integral of the
@@ -638,7 +713,11 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     (B, 3) kd E / pi; light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
     ``pdf`` and ``visible`` read); samples : ``GatherSamples`` (B * n_gather, its ``wi``
     and ``incoming`` read); directions : (n^2, 3) local, ``directions.grid_directions``;
-    out : (B, n^2, 3) float64.
+    out : (B, n^2, 3) float64; variance : (B,) float64, receives each vertex's
+    sum over directions of the variance of the luminance (``LUMINANCE``) of out[b, d],
+    estimated from the spread of its samples: a group of m samples (light, gather)
+    whose terms x_s sum to S1 and their squares to S2 adds S2 - S1^2 / m (samples that
+    brought nothing count as zeros). Stratification makes the true variance lower.
     """
     n_blocks = out.shape[0]
     n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
@@ -656,6 +735,9 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     n_samples = n_light + n_gather
     mirror = np.empty((n_samples, 3))
     weight = np.empty((n_samples, 3))
+    n_dirs = directions.shape[0]
+    moments = np.empty((4, n_dirs))  # light S1, S2, gather S1, S2 of luminance
+    lum_ks = (LUMINANCE[0] * mat[KS], LUMINANCE[1] * mat[KS + 1], LUMINANCE[2] * mat[KS + 2])
     for b in range(n_blocks):
         used = 0
         for m in range(n_light):
@@ -670,6 +752,7 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
             for c in range(3):
                 weight[used, c] = scale * light.radiance[i, c]
             used += 1
+        used_light = used
         for k in range(n_gather):
             i = b * n_gather + k
             incoming = samples.incoming
@@ -682,7 +765,11 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
             used += 1
         acc = out[b]
         acc[:, :] = 0.0
+        moments[:, :] = 0.0
         for s in range(used):
+            s1 = moments[0] if s < used_light else moments[2]
+            s2 = moments[1] if s < used_light else moments[3]
+            y = norm * (lum_ks[0] * weight[s, 0] + lum_ks[1] * weight[s, 1] + lum_ks[2] * weight[s, 2])
             rx, ry, rz = mirror[s, 0], mirror[s, 1], mirror[s, 2]
             sa_, sb_ = hemisphere_to_square_nb(rx, ry, rz)
             i_lo = max(0, int(math.floor((sa_ - half + 1.0) * 0.5 * grid_n - 0.5)))
@@ -702,6 +789,16 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
                     acc[d, 0] += lobe * w0
                     acc[d, 1] += lobe * w1
                     acc[d, 2] += lobe * w2
+                    x = lobe * y
+                    s1[d] += x
+                    s2[d] += x * x
+        total = 0.0
+        for d in range(n_dirs):
+            if n_light > 0:
+                total += max(moments[1, d] - moments[0, d] * moments[0, d] / n_light, 0.0)
+            if n_gather > 0:
+                total += max(moments[3, d] - moments[2, d] * moments[2, d] / n_gather, 0.0)
+        variance[b] = total
         for d in range(acc.shape[0]):
             for c in range(3):
                 acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]
@@ -740,13 +837,14 @@ def trace_photons(rt, sa, seed, first_id, total, max_depth, photons, spare, hits
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_gather(rt, sa, irradiance, block, light, samples, paths, spare, hits):
+def trace_gather(rt, sa, irradiance, block, light, samples, paths, spare, pdfs, hits):
     """Trace the light samples and gather paths of a ``GatherBlock`` through the scene
     ``rt`` (``embree.Embree``): fills ``light`` (``LightSamples``) and ``samples``
     (``GatherSamples``, their ``incoming`` radiance) for ``gather_outputs``.
 
-    paths, spare : ``Rays`` and hits : ``embree.Hits`` of the block's gather-ray count,
-    the wavefront's buffers. Returns (rays traced, of which shadow rays).
+    paths, spare : ``Rays``, pdfs : (2, count) float64 and hits : ``embree.Hits`` of the
+    block's gather-ray count, the wavefront's buffers. Returns (rays traced, of which
+    shadow rays).
     """
     make_gather_rays(sa, block, light, samples)
     rayhit = new_rayhit()
@@ -766,12 +864,18 @@ def trace_gather(rt, sa, irradiance, block, light, samples, paths, spare, hits):
             paths.origins[k, c] = samples.origins[k, c]
             paths.directions[k, c] = samples.directions[k, c]
     rays = shadow
+    pdf, spare_pdf = pdfs[0], pdfs[1]
     for depth in range(block.max_depth):
         if n == 0:
             break
         intersect_rays(rt, paths.origins, paths.directions, hits, 0, n)
-        m = shade_paths(sa, irradiance, block, depth, _head(paths, n), head_hits(hits, n), samples, spare)
-        rays += n
+        m, traced = shade_paths(
+            rt, rayhit, sa, irradiance, block, depth, _head(paths, n), pdf[:n], head_hits(hits, n), samples, spare,
+            spare_pdf,
+        )
+        rays += n + traced
+        shadow += traced
         paths, spare = spare, paths
+        pdf, spare_pdf = spare_pdf, pdf
         n = m
     return rays, shadow

@@ -8,7 +8,8 @@ Phases
      independent of the photon count, and ready to be farmed out;
   3. density estimation: local linear irradiance at every vertex (``density``);
   4. gather: for every vertex of a glossy object and every direction of its grid,
-     emission + diffuse part + the specular lobe's integral of the incoming light.
+     emission + diffuse part + the specular lobe's integral of the incoming light;
+     then further passes where the neighbours' gather was noisy (``regather``).
 
 Threads: batches (photons) and vertex blocks (gather) run concurrently, a thread
 each; a batch or a block is one jitted call that releases the GIL and traces its own
@@ -40,7 +41,7 @@ from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
-from radiosity.transport import density, kernels
+from radiosity.transport import density, kernels, regather
 from radiosity.transport.embree import RayTracer, default_threads, empty_hits, origin_offset
 
 MAX_PHOTON_DEPTH = 64
@@ -54,7 +55,7 @@ GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
 _PHOTON_RAY_BYTES = 2 * (8 + 24 + 12 + 12) + 16  # two ``Rays`` buffers and the hits, per photon of a batch
 _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
 _LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
-_GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 56 + 48  # GatherSamples, paths, next paths, hits, copies, weights
+_GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
 _OUTPUT_BYTES = 3 * (8 + 4)  # per vertex and direction: float64 radiance, then its float32 copy
 
 
@@ -71,6 +72,9 @@ class SolveOptions:
     kernel_rings   : density kernel of each vertex: its hat function widened by this
                      many rings of neighbours (0: the hat alone; more: less noise,
                      more blur), see ``density.widen``
+    extra_gather   : further gather passes where the gather is noisy, at most this
+                     times the glossy vertices (0: none), see ``regather``
+    gather_tolerance : the relative standard error those passes aim at
     seed, threads  : the random seed; worker threads (default: one per core)
     scheduler      : "threads" (this process), "dask" (a new LocalCluster sized to the
                      machine) or a Dask scheduler's address "tcp://HOST:PORT"; the same
@@ -84,6 +88,8 @@ class SolveOptions:
     grid: int | None = None
     max_edge: float | None = None
     kernel_rings: int | None = None
+    extra_gather: float | None = None
+    gather_tolerance: float | None = None
     seed: int = 1
     threads: int | None = None
     scheduler: str = "threads"
@@ -97,6 +103,10 @@ class SolveOptions:
             "gather_samples": self.gather_samples if self.gather_samples is not None else preset.gather_samples,
             "light_samples": self.light_samples if self.light_samples is not None else preset.light_samples,
             "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset.kernel_rings,
+            "extra_gather": float(self.extra_gather if self.extra_gather is not None else preset.extra_gather),
+            "gather_tolerance": float(
+                self.gather_tolerance if self.gather_tolerance is not None else preset.gather_tolerance
+            ),
             "grid": self.grid,
             "seed": int(self.seed),
             "threads": default_threads() if self.threads is None else self.threads,
@@ -107,6 +117,9 @@ class SolveOptions:
         for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
             if int(out[key]) != out[key] or out[key] < low:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")
+        for key in ("extra_gather", "gather_tolerance"):
+            if not (math.isfinite(out[key]) and out[key] >= 0):
+                raise InputError(f"--{key.replace('_', '-')} must be a number >= 0, got {out[key]:g}")
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
         if self.scheduler != "threads":
@@ -457,16 +470,22 @@ def _solve(scene, settings, runner, progress):
     grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
     work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
     bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
+    glossy = [
+        (o, offsets[i], directions.grid_directions(grid_sizes[o.name]))
+        for i, o in enumerate(refined.objects)
+        if o.material.is_glossy
+    ]
+    gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
     for i, o in enumerate(refined.objects):
-        sl = slice(offsets[i], offsets[i + 1])
-        mat = o.material
-        diffuse = np.asarray(mat.diffuse) / np.pi * irradiance[sl] + np.asarray(mat.emission)
-        if not mat.is_glossy:
-            dirs = directions.DIFFUSE_DIRECTIONS
-            radiance = diffuse[:, None, :]
-        else:
+        if o.material.is_glossy:
             dirs = directions.grid_directions(grid_sizes[o.name])
-            radiance = _gather_object(runner, sa, seed, irradiance, o, offsets[i], dirs, settings, bar)
+            radiance = gathered[o.name]
+        else:
+            dirs = directions.DIFFUSE_DIRECTIONS
+            sl = slice(offsets[i], offsets[i + 1])
+            radiance = (np.asarray(o.material.diffuse) / np.pi * irradiance[sl] + np.asarray(o.material.emission))[
+                :, None, :
+            ]
         results.append((o, dirs, radiance))
     if bar is not None:
         bar.close()
@@ -488,6 +507,7 @@ def _solve(scene, settings, runner, progress):
         "triangles": int(refined.n_triangles),
         "vertices": int(refined.n_vertices),
         "grid": grid_sizes,
+        "regather": regathered,
         "energy": {
             "emitted": emitted.tolist(),
             "escaped": tally[kernels.T_ESCAPED:kernels.T_ESCAPED + 3].tolist(),
@@ -523,43 +543,94 @@ def _solve(scene, settings, runner, progress):
     )
 
 
-def _gather_object(runner, sa, seed, irradiance, obj, offset, dirs, settings, bar):
-    """Radiance (V, D, 3) float64 of one glossy object's vertices."""
+def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
+    """Radiance {name: (V, D, 3) float64} of the glossy objects ``glossy`` [(object,
+    offset of its vertices in the merged scene, its grid directions)], and what the
+    extra passes did: {name: {"regathered", "extra_passes", "max_passes", "tolerance"}}.
+
+    Pass 0 gathers every vertex. Then ``regather.plan_passes`` gives each vertex its
+    number of passes from its neighbours' noise, within each object's budget
+    (``extra_gather`` x its vertices: shared across objects, the sharp lobes of a metal,
+    noisy everywhere but masked by their own detail, took it from the satin's flat
+    faces, where noise shows), and pass
+    k (seed ``regather.pass_seed(seed, k)``) gathers the vertices with more than k. The
+    result is the mean of each vertex's passes."""
     n_light = settings["light_samples"] if len(sa.emit_triangles) and sa.emit_area_pdf.any() else 0
     strata = math.isqrt(settings["gather_samples"])
     block = _gather_block_size(n_light, settings["gather_samples"])
-    vertices = np.arange(offset, offset + obj.n_vertices, dtype=np.int64)
-    blocks = [
-        kernels.GatherBlock(seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
-        for s in range(0, len(vertices), block)
-    ]
-    radiance = np.empty((obj.n_vertices, len(dirs), 3))
-    dirs64 = np.asarray(dirs, dtype=np.float64)
+    radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3)) for o, _, dirs in glossy}
+    variance = {o.name: np.zeros(o.n_vertices) for o, _, _ in glossy}
 
-    def combine(result):
-        verts, values = result
-        radiance[verts - offset] = values
+    def run_pass(k, obj, offset, dirs, local):
+        vertices = local.astype(np.int64) + offset
+        pass_seed = regather.pass_seed(seed, k)
+        blocks = [
+            kernels.GatherBlock(pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
+            for s in range(0, len(vertices), block)
+        ]
+        out, var_out = radiance[obj.name], variance[obj.name]
 
-    runner.gather_blocks(irradiance, blocks, obj.material, dirs64, combine, bar)
-    return radiance
+        def combine(result):
+            verts, (values, var) = result
+            out[verts - offset] += values
+            if k == 0:
+                var_out[verts - offset] = var
+
+        runner.gather_blocks(irradiance, blocks, obj.material, np.asarray(dirs, dtype=np.float64), combine, bar)
+
+    for obj, offset, dirs in glossy:
+        run_pass(0, obj, offset, dirs, np.arange(obj.n_vertices))
+    own = {o.name: np.ones(o.n_vertices, dtype=np.int64) for o, _, _ in glossy}
+    tolerance = {o.name: settings["gather_tolerance"] for o, _, _ in glossy}
+    if settings["extra_gather"] > 0:
+        for obj, _, _ in glossy:
+            noise = regather.relative_noise(radiance[obj.name], variance[obj.name])
+            predicted = regather.neighbour_noise(obj.faces, obj.n_vertices, noise)
+            own[obj.name], tolerance[obj.name] = regather.plan_passes(
+                predicted, settings["gather_tolerance"], settings["extra_gather"]
+            )
+        passes = np.concatenate(list(own.values())) if own else np.ones(0, dtype=np.int64)
+        if bar is not None and getattr(bar, "total", None) is not None:  # the bar grows by the extra work
+            bar.total += int((passes - 1).sum())
+            getattr(bar, "refresh", lambda: None)()
+        for k in range(1, int(passes.max(initial=1))):
+            for obj, offset, dirs in glossy:
+                local = np.flatnonzero(own[obj.name] > k)
+                if len(local):
+                    run_pass(k, obj, offset, dirs, local)
+        for obj, _, _ in glossy:
+            radiance[obj.name] /= own[obj.name][:, None, None]
+    info = {
+        obj.name: {
+            "regathered": int((own[obj.name] > 1).sum()),
+            "extra_passes": int((own[obj.name] - 1).sum()),
+            "max_passes": int(own[obj.name].max(initial=1)),
+            "tolerance": round(float(tolerance[obj.name]), 5),
+        }
+        for obj, _, _ in glossy
+    }
+    return radiance, info
 
 
 def gather_block(tracer, sa, irradiance, block, material, dirs):
     """Outgoing radiance (B, D, 3) float64 of a ``kernels.GatherBlock`` of vertices of
-    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64.
-    Its rays are traced in one jitted call (``kernels.trace_gather``) and counted on
-    ``tracer`` (see ``trace_photon_batch``)."""
+    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64,
+    and the variance of each vertex's estimate (B,) (its luminance's, summed over the
+    directions; see ``kernels.gather_outputs``). Its rays are traced in one jitted call
+    (``kernels.trace_gather``) and counted on ``tracer`` (see ``trace_photon_batch``)."""
     b = len(block.vertices)
     n_gather = block.strata * block.strata
     light = kernels.empty_light_samples(b * block.n_light)
     samples = kernels.empty_gather_samples(b * n_gather)
     paths, spare, hits = kernels.empty_rays(b * n_gather), kernels.empty_rays(b * n_gather), empty_hits(b * n_gather)
-    rays, shadow = kernels.trace_gather(tracer.embree, sa, irradiance, block, light, samples, paths, spare, hits)
+    pdfs = np.empty((2, b * n_gather))
+    rays, shadow = kernels.trace_gather(tracer.embree, sa, irradiance, block, light, samples, paths, spare, pdfs, hits)
     tracer.count(rays, shadow)
 
     values = np.empty((b, len(dirs), 3))
     mat = pack_materials([material])[0]
     emission = np.asarray(material.emission, dtype=np.float64)
     diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
-    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, values)
-    return values
+    variance = np.empty(b)
+    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, values, variance)
+    return values, variance

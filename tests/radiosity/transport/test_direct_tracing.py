@@ -11,7 +11,7 @@ from radiosity.formats import directions
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import pack_materials
 from radiosity.transport import kernels, pathtrace, solve
-from radiosity.transport.embree import MISS, Hits, RayTracer, origin_offset
+from radiosity.transport.embree import MISS, Hits, RayTracer, new_rayhit, origin_offset
 
 embreex = pytest.importorskip("embreex")
 from embreex import rtcore_scene  # noqa: E402
@@ -150,22 +150,38 @@ def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot
     light.visible[valid] = ~reference.occluded(light.origins[valid], light.directions[valid], light.distances[valid])
     paths = kernels.Rays(np.arange(b * n_gather), np.ones((b * n_gather, 3)), samples.origins, samples.directions)
     out = kernels.empty_rays(b * n_gather)
+    pdf, out_pdf = np.zeros(b * n_gather), np.zeros(b * n_gather)
+    rayhit = new_rayhit()  # the glossy hits' light samples are traced inside shade_paths
+    lobe_samples = 0
     for depth in range(block.max_depth):
         if not len(paths.ids):
             break
         hits = reference.intersect(paths.origins, paths.directions)
-        n = kernels.shade_paths(sa, irradiance, block, depth, paths, hits, samples, out)
+        n, traced = kernels.shade_paths(
+            tracer.embree, rayhit, sa, irradiance, block, depth, paths, pdf, hits, samples, out, out_pdf
+        )
+        lobe_samples += traced
         paths = kernels.Rays(*(a[:n].copy() for a in out))
-    expected = np.empty((b, len(dirs), 3))
+        pdf = out_pdf[:n].copy()
+    assert lobe_samples > 0  # paths met glossy surfaces and sampled the light there
+    expected, expected_variance = np.empty((b, len(dirs), 3)), np.empty(b)
     material = teapot_object.material
     diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
     kernels.gather_outputs(
-        pack_materials([material])[0], np.asarray(material.emission, float), diffuse, light, samples, dirs, expected
+        pack_materials([material])[0],
+        np.asarray(material.emission, float),
+        diffuse,
+        light,
+        samples,
+        dirs,
+        expected,
+        expected_variance,
     )
     assert valid.any() and light.visible.any() and not light.visible[valid].all()
 
-    got = solve.gather_block(tracer, sa, irradiance, block, material, dirs)
+    got, variance = solve.gather_block(tracer, sa, irradiance, block, material, dirs)
     assert np.array_equal(got, expected)
+    assert np.array_equal(variance, expected_variance) and (variance > 0).any()
 
 
 def test_a_path_traced_tile_gives_the_same_bits_as_the_embreex_wavefront(teapot):

@@ -47,11 +47,14 @@ def test_windowed_outputs_equal_brute_force(rng, exponent, grid_n):
         wi=light_wi, radiance=light_le, pdf=light_pdf, visible=visible
     )
     samples = kernels.empty_gather_samples(blocks * n_gather)._replace(wi=gather_wi, incoming=incoming)
-    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, out)
+    variance = np.empty(blocks)
+    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, out, variance)
 
     expected = np.empty_like(out)
     truncated = np.empty_like(out)
     bound = np.empty((blocks, 3))
+    expected_variance = np.empty(blocks)
+    lum = np.array(kernels.LUMINANCE)
     cos_min = np.exp(np.log(kernels.LOBE_CUTOFF) / exponent) if exponent > 0 else 0.0
     norm = (exponent + 2) / (2 * np.pi)
     for b in range(blocks):
@@ -69,9 +72,17 @@ def test_windowed_outputs_equal_brute_force(rng, exponent, grid_n):
         expected[b] = emission + diffuse[b] + norm * ks * (lobe.T @ weights)
         kept = np.where(mirrors @ dirs.T > cos_min, lobe, 0.0)
         truncated[b] = emission + diffuse[b] + norm * ks * (kept.T @ weights)
+        # each sample's term in luminance, per direction; unused samples are zero terms
+        terms = norm * kept * (weights @ (ks * lum))[:, None]  # (S, D)
+        expected_variance[b] = sum(
+            (group**2).sum(axis=0) - group.sum(axis=0) ** 2 / len(group)
+            for group in (terms[:n_light], terms[n_light:])
+        ).clip(0).sum()
         # each sample loses at most LOBE_CUTOFF of its peak, norm * ks * weight
         bound[b] = norm * ks * kernels.LOBE_CUTOFF * weights.sum(axis=0)
     # exactly the truncated sum, up to the table's interpolation
     assert np.allclose(out, truncated, rtol=1e-5, atol=1e-12)
     # and the truncation loses no more than it may
     assert (np.abs(out - expected) <= bound[:, None, :] * (1 + 1e-5) + 1e-12).all()
+    # the variance of each vertex's estimate, from the spread of its samples' terms
+    assert np.allclose(variance, expected_variance, rtol=1e-5, atol=1e-12) and (variance > 0).all()
