@@ -75,6 +75,9 @@ class SolveOptions:
     extra_gather   : further gather passes where the gather is noisy, at most this
                      times the glossy vertices (0: none), see ``regather``
     gather_tolerance : the relative standard error those passes aim at
+    lobe_light     : sample the light where gather paths meet glossy surfaces (True);
+                     False finds it through the lobe alone, as before issue 13: the
+                     same expected value, more noise (for comparisons)
     seed, threads  : the random seed; worker threads (default: one per core)
     scheduler      : "threads" (this process), "dask" (a new LocalCluster sized to the
                      machine) or a Dask scheduler's address "tcp://HOST:PORT"; the same
@@ -90,6 +93,7 @@ class SolveOptions:
     kernel_rings: int | None = None
     extra_gather: float | None = None
     gather_tolerance: float | None = None
+    lobe_light: bool = True
     seed: int = 1
     threads: int | None = None
     scheduler: str = "threads"
@@ -108,6 +112,7 @@ class SolveOptions:
                 self.gather_tolerance if self.gather_tolerance is not None else preset.gather_tolerance
             ),
             "grid": self.grid,
+            "lobe_light": bool(self.lobe_light),
             "seed": int(self.seed),
             "threads": default_threads() if self.threads is None else self.threads,
         }
@@ -565,7 +570,9 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         vertices = local.astype(np.int64) + offset
         pass_seed = regather.pass_seed(seed, k)
         blocks = [
-            kernels.GatherBlock(pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH)
+            kernels.GatherBlock(
+                pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"]
+            )
             for s in range(0, len(vertices), block)
         ]
         out, var_out = radiance[obj.name], variance[obj.name]

@@ -126,3 +126,13 @@ def test_bad_extra_gather_knobs_are_refused(relay):
     for knob in (dict(extra_gather=-1.0), dict(gather_tolerance=float("nan")), dict(extra_gather=float("inf"))):
         with pytest.raises(InputError, match="--extra-gather|--gather-tolerance"):
             SolveOptions(**knob).resolved(relay)
+
+
+def test_lobe_light_reaches_the_gather(relay):
+    opts = dict(photons=5_000, gather_samples=16, light_samples=1, grid=4, max_edge=0.1, extra_gather=0.0)
+    on = solve(relay, SolveOptions(**opts))
+    off = solve(relay, SolveOptions(lobe_light=False, **opts))
+    assert on.settings["lobe_light"] and not off.settings["lobe_light"]
+    # the light samples at the floor's glossy hits are extra shadow rays
+    assert on.stats["gather_rays"] > off.stats["gather_rays"]
+    assert not np.array_equal(on.object("plate").radiance, off.object("plate").radiance)
