@@ -478,6 +478,31 @@ def bounce_photons(sa, seed, depth, max_depth, photons, hits, acc, out):
 # -- gather ---------------------------------------------------------------------------
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _toward_emitter(sa, point, g, u0, u1, u2):
+    """A light sample seen from ``point`` (a hit, front normal g): an emitter triangle
+    chosen in proportion to power by u0 and a point area-uniform on it by (u1, u2),
+    both offset by epsilon off their fronts. Returns (triangle, its area density (0:
+    none to draw), origin, unit direction to the light point (3-tuples), distance (0:
+    unusable), cosine at the light)."""
+    tri = _pick_emitter(sa, u0)
+    area_pdf = sa.emit_area_pdf[tri]
+    eps = sa.epsilon
+    ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
+    if area_pdf <= 0.0:
+        return tri, 0.0, (ox, oy, oz), (0.0, 0.0, 0.0), 0.0, 0.0
+    r = math.sqrt(u1)
+    u = r * (1.0 - u2)
+    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
+    gl = sa.face_normals[tri]
+    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if dist <= 0.0:
+        return tri, area_pdf, (ox, oy, oz), (0.0, 0.0, 0.0), 0.0, 0.0
+    dx, dy, dz = dx / dist, dy / dist, dz / dist
+    return tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, -(dx * gl[0] + dy * gl[1] + dz * gl[2])
+
+
 @numba.njit(cache=True, nogil=True)
 def make_gather_rays(sa, block, light, samples):
     """Rays for the vertices of one ``GatherBlock``: ``block.n_light`` light samples
@@ -501,31 +526,27 @@ def make_gather_rays(sa, block, light, samples):
         for m in range(n_light):
             i = b * n_light + m
             item = vert * n_light + m
-            tri = _pick_emitter(sa, rand(seed, STREAM_LIGHT, item, 0))
-            s = math.sqrt(rand(seed, STREAM_LIGHT, item, 1))
-            u = s * (1.0 - rand(seed, STREAM_LIGHT, item, 2))
-            qx, qy, qz = _barycentric_point(sa, tri, u, s - u)
-            g = sa.face_normals[tri]
-            qx, qy, qz = qx + sa.epsilon * g[0], qy + sa.epsilon * g[1], qz + sa.epsilon * g[2]
-            dx, dy, dz = qx - ox, qy - oy, qz - oz
-            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            tri, area_pdf, _, (dx, dy, dz), dist, cos_light = _toward_emitter(
+                sa,
+                (px, py, pz),
+                (nx, ny, nz),
+                rand(seed, STREAM_LIGHT, item, 0),
+                rand(seed, STREAM_LIGHT, item, 1),
+                rand(seed, STREAM_LIGHT, item, 2),
+            )
             light.origins[i, 0], light.origins[i, 1], light.origins[i, 2] = ox, oy, oz
             light.pdf[i] = 0.0
             light.distances[i] = 0.0
             light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = nx, ny, nz
-            if dist <= 0.0:
-                continue
-            dx, dy, dz = dx / dist, dy / dist, dz / dist
-            cos_light = -(dx * g[0] + dy * g[1] + dz * g[2])
             wz = dx * nx + dy * ny + dz * nz
-            if cos_light <= 0.0 or wz <= 0.0:
+            if area_pdf <= 0.0 or dist <= 0.0 or cos_light <= 0.0 or wz <= 0.0:
                 continue
             light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = dx, dy, dz
             light.distances[i] = dist
             light.wi[i, 0] = dx * tx + dy * ty + dz * tz
             light.wi[i, 1] = dx * bx + dy * by + dz * bz
             light.wi[i, 2] = wz
-            light.pdf[i] = sa.emit_area_pdf[tri] * dist * dist / cos_light
+            light.pdf[i] = area_pdf * dist * dist / cos_light
             mat = sa.face_material[tri]
             for c in range(3):
                 light.radiance[i, c] = sa.materials[mat, EMISSION + c]
@@ -565,22 +586,16 @@ def _lobe_light_sample(rt, rayhit, sa, mat, point, g, normal, d, seed, item):
     mirror direction. Directions the continuation cannot produce (below the shading or
     the true surface) are skipped, as the continuation skips them."""
     zero = (0.0, 0.0, 0.0)
-    tri = _pick_emitter(sa, rand(seed, STREAM_GATHER + 2, item, 0))
-    area_pdf = sa.emit_area_pdf[tri]
-    if area_pdf <= 0.0:
+    tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, cos_light = _toward_emitter(
+        sa,
+        point,
+        g,
+        rand(seed, STREAM_GATHER + 2, item, 0),
+        rand(seed, STREAM_GATHER + 2, item, 1),
+        rand(seed, STREAM_GATHER + 2, item, 2),
+    )
+    if area_pdf <= 0.0 or dist <= 0.0:
         return zero, False
-    r = math.sqrt(rand(seed, STREAM_GATHER + 2, item, 1))
-    u = r * (1.0 - rand(seed, STREAM_GATHER + 2, item, 2))
-    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
-    gl = sa.face_normals[tri]
-    eps = sa.epsilon
-    ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
-    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
-    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if dist <= 0.0:
-        return zero, False
-    dx, dy, dz = dx / dist, dy / dist, dz / dist
-    cos_light = -(dx * gl[0] + dy * gl[1] + dz * gl[2])
     cos_i = dx * normal[0] + dy * normal[1] + dz * normal[2]
     if cos_light <= 0.0 or cos_i <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return zero, False

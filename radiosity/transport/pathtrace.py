@@ -40,9 +40,9 @@ from radiosity.scene.model import Scene, SceneObject
 from radiosity.transport.embree import RayTracer, default_threads, empty_hits, head_hits, intersect_rays, occluded_rays
 from radiosity.transport.kernels import (
     _barycentric_point,
-    _pick_emitter,
     _roulette,
     _shading_normal,
+    _toward_emitter,
     rand,
 )
 from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers, scene_arrays
@@ -196,22 +196,16 @@ def _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, s, pa
     (t, b, n) as a 9-tuple, outgoing ``wo`` local): a point on an emitter chosen in
     proportion to power, its contribution weighted by the power heuristic against
     BRDF sampling, written as shadow ray s. Returns whether it was written."""
-    tri = _pick_emitter(sa, rand(seed, STREAM_PATH, key, base))
-    area_pdf = sa.emit_area_pdf[tri]
-    if area_pdf <= 0.0:
+    tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, cos_light = _toward_emitter(
+        sa,
+        point,
+        g,
+        rand(seed, STREAM_PATH, key, base),
+        rand(seed, STREAM_PATH, key, base + 1),
+        rand(seed, STREAM_PATH, key, base + 2),
+    )
+    if area_pdf <= 0.0 or dist <= 0.0:
         return False
-    r = math.sqrt(rand(seed, STREAM_PATH, key, base + 1))
-    u = r * (1.0 - rand(seed, STREAM_PATH, key, base + 2))
-    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
-    gl = sa.face_normals[tri]
-    eps = sa.epsilon
-    ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
-    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
-    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if dist <= 0.0:
-        return False
-    dx, dy, dz = dx / dist, dy / dist, dz / dist
-    cos_light = -(dx * gl[0] + dy * gl[1] + dz * gl[2])
     if cos_light <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return False
     tx, ty, tz, bx, by, bz, nx, ny, nz = shading

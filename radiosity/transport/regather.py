@@ -38,8 +38,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from radiosity.scene.geometry import unique_edges
+from radiosity.transport.kernels import LUMINANCE as _LUMINANCE
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+LUMINANCE = np.array(_LUMINANCE)
 RINGS = 2  # neighbours pooled for a vertex's noise
 FLOOR = 0.05  # of the object's median level: directions darker than this do not ask for rays
 MAX_PASSES = 16  # at most 4x less noise than pass 0
