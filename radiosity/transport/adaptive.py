@@ -186,8 +186,10 @@ def _with_stats(solution, knobs, before, after, passes, max_edge, chosen_by=None
 def vertex_values(obj_solution):
     """(V,) float64: the luminance of the outgoing radiance without emission (averaged
     over the direction grid of a glossy object)."""
-    radiance = obj_solution.radiance.astype(np.float64) - np.asarray(obj_solution.material["emission"])[None, None, :]
-    return np.maximum(radiance.mean(axis=1) @ LUMINANCE, 0.0)
+    # the mean in float64 straight from the float32 radiance (no float64 copy of the
+    # whole grid), then less the emission: the same bits wherever the emission is 0
+    mean = obj_solution.radiance.mean(axis=1, dtype=np.float64) - np.asarray(obj_solution.material["emission"])
+    return np.maximum(mean @ LUMINANCE, 0.0)
 
 
 def ring_gradients(positions, normals, tangents, edges, values):

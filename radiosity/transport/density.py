@@ -24,6 +24,7 @@ its own light.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from radiosity.scene.geometry import unique_edges
@@ -61,7 +62,24 @@ def kernel_moments(positions, normals, tangents, faces):
     return k0, k1, k2
 
 
-def widen(positions, normals, tangents, faces, moments, rings=1):
+def widening_pairs(positions, normals, tangents, faces):
+    """What ``widen`` adds up: (target, source, rotate, delta), one row per pair of a
+    vertex i (target) and itself or a neighbour j (source): ``rotate`` (P, 2, 2) takes
+    j-frame coordinates to i's frame, ``delta`` (P, 2) is x_j - x_i in i's frame.
+    Depends on the mesh only: compute it once for every ``widen`` of a mesh."""
+    edges = unique_edges(faces)
+    n_vertices = len(positions)
+    target = np.concatenate([np.arange(n_vertices), edges[:, 0], edges[:, 1]])
+    source = np.concatenate([np.arange(n_vertices), edges[:, 1], edges[:, 0]])
+    bitangents = np.cross(normals, tangents)
+    frame_i = np.stack([tangents[target], bitangents[target]], axis=1)  # (P, 2, 3)
+    frame_j = np.stack([tangents[source], bitangents[source]], axis=1)
+    rotate = np.einsum("pik,pjk->pij", frame_i, frame_j)  # j-frame coordinates -> i-frame
+    delta = np.einsum("pik,pk->pi", frame_i, positions[source] - positions[target])
+    return target.astype(np.int64), source.astype(np.int64), rotate, delta
+
+
+def widen(positions, normals, tangents, faces, moments, rings=1, pairs=None):
     """Widen every vertex's kernel by ``rings`` rings of neighbours.
 
     The widened kernel of vertex i is the sum of the hat functions of i and of the
@@ -73,41 +91,55 @@ def widen(positions, normals, tangents, faces, moments, rings=1):
     every vertex (corners above all, whose own hat covers one small triangle) sees
     several times the photons.
 
-    moments = (S0 (V,3), S1 (V,3,2), K0 (V,), K1 (V,2), K2 (V,2,2)); returns the widened tuple.
+    moments = (S0 (V,C), S1 (V,C,2), K0 (V,), K1 (V,2), K2 (V,2,2)); returns the widened
+    tuple. ``pairs``: ``widening_pairs`` of the mesh, if already at hand.
     """
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    edges = np.unique(edges, axis=0)
-    n_vertices = len(positions)
-    target = np.concatenate([np.arange(n_vertices), edges[:, 0], edges[:, 1]])
-    source = np.concatenate([np.arange(n_vertices), edges[:, 1], edges[:, 0]])
-    bitangents = np.cross(normals, tangents)
-    frame_i = np.stack([tangents[target], bitangents[target]], axis=1)  # (P, 2, 3)
-    frame_j = np.stack([tangents[source], bitangents[source]], axis=1)
-    rotate = np.einsum("pik,pjk->pij", frame_i, frame_j)  # j-frame coordinates -> i-frame
-    delta = np.einsum("pik,pk->pi", frame_i, positions[source] - positions[target])
+    if pairs is None:
+        pairs = widening_pairs(positions, normals, tangents, faces)
     for _ in range(rings):
-        s0, s1, k0, k1, k2 = moments
-        r_s1 = np.einsum("pij,pcj->pci", rotate, s1[source])
-        r_k1 = np.einsum("pij,pj->pi", rotate, k1[source])
-        r_k2 = np.einsum("pij,pjk,plk->pil", rotate, k2[source], rotate)
-        k0_j = k0[source]
-        terms = (
-            s0[source],
-            r_s1 + delta[:, None, :] * s0[source][:, :, None],
-            k0_j,
-            r_k1 + delta * k0_j[:, None],
-            r_k2
-            + r_k1[:, :, None] * delta[:, None, :]
-            + delta[:, :, None] * r_k1[:, None, :]
-            + k0_j[:, None, None] * delta[:, :, None] * delta[:, None, :],
-        )
-        widened = []
-        for term in terms:
-            total = np.zeros((n_vertices,) + term.shape[1:])
-            np.add.at(total, target, term)
-            widened.append(total)
-        moments = tuple(widened)
+        moments = _widen_once(*pairs, *(np.ascontiguousarray(m, dtype=np.float64) for m in moments))
     return moments
+
+
+@numba.njit(cache=True, nogil=True)
+def _widen_once(target, source, rotate, delta, s0, s1, k0, k1, k2):
+    """One ring of ``widen``: every moment of i gains those of each of its ``pairs``'
+    sources j, moved into i's frame (in the order of the pairs, as np.add.at adds)."""
+    n_vertices, n_channels = s0.shape
+    out_s0 = np.zeros((n_vertices, n_channels))
+    out_s1 = np.zeros((n_vertices, n_channels, 2))
+    out_k0 = np.zeros(n_vertices)
+    out_k1 = np.zeros((n_vertices, 2))
+    out_k2 = np.zeros((n_vertices, 2, 2))
+    for p in range(len(target)):
+        i, j = target[p], source[p]
+        r00, r01, r10, r11 = rotate[p, 0, 0], rotate[p, 0, 1], rotate[p, 1, 0], rotate[p, 1, 1]
+        d0, d1 = delta[p, 0], delta[p, 1]
+        for c in range(n_channels):
+            s0j = s0[j, c]
+            out_s0[i, c] += s0j
+            out_s1[i, c, 0] += (r00 * s1[j, c, 0] + r01 * s1[j, c, 1]) + d0 * s0j
+            out_s1[i, c, 1] += (r10 * s1[j, c, 0] + r11 * s1[j, c, 1]) + d1 * s0j
+        k0j = k0[j]
+        rk0 = r00 * k1[j, 0] + r01 * k1[j, 1]
+        rk1 = r10 * k1[j, 0] + r11 * k1[j, 1]
+        out_k0[i] += k0j
+        out_k1[i, 0] += rk0 + d0 * k0j
+        out_k1[i, 1] += rk1 + d1 * k0j
+        # R K2_j R^T, then the shift: + rk d^T + d rk^T + k0 d d^T
+        for a in range(2):
+            ra0, ra1 = rotate[p, a, 0], rotate[p, a, 1]
+            rka = rk0 if a == 0 else rk1
+            da = d0 if a == 0 else d1
+            for b in range(2):
+                rb0, rb1 = rotate[p, b, 0], rotate[p, b, 1]
+                rkb = rk0 if b == 0 else rk1
+                db = d0 if b == 0 else d1
+                rkr = (
+                    ra0 * k2[j, 0, 0] * rb0 + ra0 * k2[j, 0, 1] * rb1 + ra1 * k2[j, 1, 0] * rb0 + ra1 * k2[j, 1, 1] * rb1
+                )
+                out_k2[i, a, b] += rkr + rka * db + da * rkb + k0j * da * db
+    return out_s0, out_s1, out_k0, out_k1, out_k2
 
 
 def _fit(moments):
@@ -167,7 +199,8 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     topological, so the support shrinks with the triangles.
     """
     moments = (moment0, moment1) + kernel_moments(positions, normals, tangents, faces)
-    moments = widen(positions, normals, tangents, faces, moments, rings)
+    pairs = widening_pairs(positions, normals, tangents, faces)
+    moments = widen(positions, normals, tangents, faces, moments, rings, pairs)
     estimate, mass = _fit(moments)
     scale = np.maximum(local_scale(positions, faces), 1e-300)
     mass = mass / scale
@@ -176,7 +209,7 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
         weak = mass < target
         if not weak.any():
             break
-        moments = widen(positions, normals, tangents, faces, moments, 1)
+        moments = widen(positions, normals, tangents, faces, moments, 1, pairs)
         wider, wider_mass = _fit(moments)
         estimate[weak] = wider[weak]
         mass = np.where(weak, wider_mass / scale, np.inf)

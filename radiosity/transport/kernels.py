@@ -4,8 +4,10 @@ the vertex gather. Orchestration (batches, threads) is in ``solve``.
 A photon batch (``trace_photons``) and a gather block (``trace_gather``) each run as
 one jitted call that releases the GIL and traces its rays itself, calling Embree
 directly (``embree.intersect1`` / ``occluded1``: no Python between rays); batches and
-blocks run a thread each. Inside, the work goes wavefront-style: one kernel makes
-rays, a loop traces them, the next kernel reads the hits. Every random number comes
+blocks run a thread each. A photon batch follows one photon at a time from emission
+to its end (``_trace_photon_loop``); ``emit_photons`` and ``bounce_photons`` are the
+same steps wavefront-style, for tests. A gather block goes wavefront-style: one
+kernel makes rays, a loop traces them, the next kernel reads the hits. Every random number comes
 from a counter-based hash of (seed, stream, item, dimension), so a result depends on
 the seed and the item's index only, never on how work is split into batches or
 threads.
@@ -40,7 +42,7 @@ from radiosity.scene.materials import (
     onb,
     phong_lobe,
 )
-from radiosity.transport.embree import head_hits, intersect_rays, new_rayhit, occluded1
+from radiosity.transport.embree import head_hits, intersect1, intersect_rays, new_rayhit, occluded1
 
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
 # tally slots of a photon batch (RGB triples, then counts)
@@ -832,22 +834,173 @@ def _head(rays, n):
 def trace_photons(rt, sa, seed, first_id, total, max_depth, photons, spare, hits, acc):
     """Trace photons first_id .. first_id + len(photons.ids) - 1 of ``total`` to the end
     through the scene ``rt`` (``embree.Embree``), adding to ``acc`` (``PhotonTally``).
+    Returns the rays traced.
 
-    photons, spare : ``Rays`` and hits : ``embree.Hits`` of the batch's size, the
-    wavefront's buffers (overwritten). Emission, then per bounce: every photon in flight
-    traced, then ``bounce_photons``. Returns the rays traced.
+    One photon at a time, from its emission through every bounce to its end
+    (``_trace_photon_loop``): no wavefront buffers between the rays. ``photons`` gives
+    the batch's size only; photons, spare (``Rays``) and hits (``embree.Hits``) are not
+    written.
+
+    Each photon's rays and deposits are those of the wavefront form (``emit_photons``,
+    then per depth every photon in flight traced and ``bounce_photons``, which tests
+    check bit for bit, photon by photon); only the order in which the photons' deposits
+    are summed differs (photon by photon here, depth by depth there), which moves the
+    batch's sums by float rounding.
     """
-    emit_photons(sa, seed, first_id, total, photons)
-    n = len(photons.ids)
-    depth = 0
+    return _trace_photon_loop(
+        # the batch's own copy of the small material table: the loop takes a row of it
+        # per bounce (a reference-count update), which threads must not share
+        rt, sa.positions, sa.normals, sa.tangents, sa.faces, sa.face_normals, sa.face_material, sa.materials.copy(),
+        sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.epsilon,
+        seed, first_id, len(photons.ids), total, max_depth, acc.moment0, acc.moment1, acc.tally,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _trace_photon_loop(
+    rt, positions, normals, tangents, faces, face_normals, face_material, materials, albedo_table, emit_cdf,
+    emit_triangles, emit_area_pdf, epsilon, seed, first_id, count, total, max_depth, moment0, moment1, tally,
+):  # fmt: skip
+    """``trace_photons`` on the scene's arrays one by one: the loop indexes them with
+    scalars and makes one view per bounce (a ``SceneArrays`` handed to an inlined helper
+    costs a reference-count update, an atomic operation, of each of its arrays: the
+    wavefront kernels made dozens per bounce), and finds the emitter by its own binary
+    search (``np.searchsorted`` of one number allocates). The arithmetic is that of
+    ``emit_photons`` and ``bounce_photons``, operation for operation."""
+    rayhit = new_rayhit()
+    n_emitters = len(emit_triangles)
+    n_albedo = albedo_table.shape[1]
     rays = 0
-    while n > 0:
-        intersect_rays(rt, photons.origins, photons.directions, hits, 0, n)
-        m = bounce_photons(sa, seed, depth, max_depth, _head(photons, n), head_hits(hits, n), acc, spare)
-        rays += n
-        photons, spare = spare, photons
-        n = m
-        depth += 1
+    for i in range(count):
+        pid = first_id + i
+        # -- emission (emit_photons) --
+        u0 = rand(seed, STREAM_EMIT, pid, 0)
+        lo, hi = 0, len(emit_cdf)  # np.searchsorted(emit_cdf, u0, side="right")
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if emit_cdf[mid] <= u0:
+                lo = mid + 1
+            else:
+                hi = mid
+        tri = emit_triangles[min(lo, n_emitters - 1)]
+        s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
+        u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
+        v = s - u
+        w = 1.0 - u - v
+        i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
+        px = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
+        py = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
+        pz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+        gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
+        lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
+        tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
+        dx = lx * tx + ly * bx + lz * gx
+        dy = lx * ty + ly * by + lz * gy
+        dz = lx * tz + ly * bz + lz * gz
+        m = face_material[tri]
+        scale = math.pi / (total * emit_area_pdf[tri])
+        p0 = materials[m, EMISSION] * scale
+        p1 = materials[m, EMISSION + 1] * scale
+        p2 = materials[m, EMISSION + 2] * scale
+        # the ray as a ``Rays`` stores it: float32
+        ox, oy, oz = np.float32(px + epsilon * gx), np.float32(py + epsilon * gy), np.float32(pz + epsilon * gz)
+        dx, dy, dz = np.float64(np.float32(dx)), np.float64(np.float32(dy)), np.float64(np.float32(dz))
+        for depth in range(max_depth):
+            t, _, hu, hv = intersect1(rt, rayhit, ox, oy, oz, dx, dy, dz)
+            rays += 1
+            # -- the hit (bounce_photons) --
+            if t < 0:
+                tally[T_ESCAPED] += p0
+                tally[T_ESCAPED + 1] += p1
+                tally[T_ESCAPED + 2] += p2
+                break
+            tally[T_HITS] += 1.0
+            gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+            if dx * gx + dy * gy + dz * gz >= 0.0:
+                tally[T_BACKFACE] += p0
+                tally[T_BACKFACE + 1] += p1
+                tally[T_BACKFACE + 2] += p2
+                break
+            u, v = np.float64(hu), np.float64(hv)
+            w = 1.0 - u - v
+            i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+            px = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
+            py = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
+            pz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+            # deposit (_deposit)
+            for j in range(3):
+                vert = faces[t, j]
+                lam = w if j == 0 else (u if j == 1 else v)
+                ex = px - positions[vert, 0]
+                ey = py - positions[vert, 1]
+                ez = pz - positions[vert, 2]
+                t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
+                n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
+                cx = n1 * t2 - n2 * t1
+                cy = n2 * t0 - n0 * t2
+                cz = n0 * t1 - n1 * t0
+                along_t = ex * t0 + ey * t1 + ez * t2
+                along_b = ex * cx + ey * cy + ez * cz
+                for c in range(3):
+                    wc = (p0 if c == 0 else (p1 if c == 1 else p2)) * lam
+                    moment0[vert, c] += wc
+                    moment1[vert, c, 0] += wc * along_t
+                    moment1[vert, c, 1] += wc * along_b
+            tally[T_INCIDENT] += p0
+            tally[T_INCIDENT + 1] += p1
+            tally[T_INCIDENT + 2] += p2
+            m = face_material[t]
+            base = depth * 8
+            r0 = rand(seed, STREAM_BOUNCE, pid, base)
+            r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
+            r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
+            # scatter (_scatter): the shading frame, then brdf_sample
+            nx = w * normals[i0, 0] + u * normals[i1, 0] + v * normals[i2, 0]
+            ny = w * normals[i0, 1] + u * normals[i1, 1] + v * normals[i2, 1]
+            nz = w * normals[i0, 2] + u * normals[i1, 2] + v * normals[i2, 2]
+            length = math.sqrt(nx * nx + ny * ny + nz * nz)
+            if length > 0.0 and (nx * dx + ny * dy + nz * dz) < 0.0:
+                nx, ny, nz = nx / length, ny / length, nz / length
+            else:
+                nx, ny, nz = gx, gy, gz
+            tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+            wox = -(dx * tx + dy * ty + dz * tz)
+            woy = -(dx * bx + dy * by + dz * bz)
+            woz = -(dx * nx + dy * ny + dz * nz)
+            mat = materials[m]
+            wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, r0, r1, r2)
+            sx = wix * tx + wiy * bx + wiz * nx
+            sy = wix * ty + wiy * by + wiz * ny
+            sz = wix * tz + wiy * bz + wiz * nz
+            ok = wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0
+            # albedo (_albedo)
+            xa = min(max(woz, 0.0), 1.0) * (n_albedo - 1)
+            ka = min(int(xa), n_albedo - 2)
+            fa = xa - ka
+            a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
+            a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
+            a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
+            tally[T_ABSORBED] += p0 * (1.0 - a0)
+            tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
+            tally[T_ABSORBED + 2] += p2 * (1.0 - a2)
+            if depth + 1 >= max_depth:
+                tally[T_TERMINATED] += p0 * a0
+                tally[T_TERMINATED + 1] += p1 * a1
+                tally[T_TERMINATED + 2] += p2 * a2
+                break
+            if not ok:
+                break  # below the shading or the true surface: absorbed
+            fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
+            scale = wiz / pdf
+            q0, q1, q2 = p0 * fr * scale, p1 * fg * scale, p2 * fb * scale
+            # Russian roulette (_roulette)
+            reference = max(p0, p1, p2)
+            survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
+            if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+                break
+            p0, p1, p2 = q0 / survive, q1 / survive, q2 / survive
+            ox, oy, oz = np.float32(px + epsilon * gx), np.float32(py + epsilon * gy), np.float32(pz + epsilon * gz)
+            dx, dy, dz = np.float64(np.float32(sx)), np.float64(np.float32(sy)), np.float64(np.float32(sz))
     return rays
 
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from radiosity.scene import geometry
+from radiosity.scene.loaders import load_scene
 from radiosity.transport import density
 
 # the 4-point rule exact for cubics on a triangle (barycentric points, weights of the area)
@@ -109,3 +110,48 @@ def test_refined_vertices_keep_their_small_kernels():
     # as on a uniform mesh, where about half the vertices are below the median; judged
     # against the whole mesh's median (the rule before), every fine vertex here was widened
     assert seen[hops == 2].mean() < 0.6
+
+
+def _widen_with_numpy(positions, normals, tangents, faces, moments, rings):
+    """``widen`` as numpy array operations (np.add.at over the pairs): the reference
+    for the jitted loop."""
+    target, source, rotate, delta = density.widening_pairs(positions, normals, tangents, faces)
+    n_vertices = len(positions)
+    for _ in range(rings):
+        s0, s1, k0, k1, k2 = moments
+        r_s1 = np.einsum("pij,pcj->pci", rotate, s1[source])
+        r_k1 = np.einsum("pij,pj->pi", rotate, k1[source])
+        r_k2 = np.einsum("pij,pjk,plk->pil", rotate, k2[source], rotate)
+        k0_j = k0[source]
+        terms = (
+            s0[source],
+            r_s1 + delta[:, None, :] * s0[source][:, :, None],
+            k0_j,
+            r_k1 + delta * k0_j[:, None],
+            r_k2
+            + r_k1[:, :, None] * delta[:, None, :]
+            + delta[:, :, None] * r_k1[:, None, :]
+            + k0_j[:, None, None] * delta[:, :, None] * delta[:, None, :],
+        )
+        widened = []
+        for term in terms:
+            total = np.zeros((n_vertices,) + term.shape[1:])
+            np.add.at(total, target, term)
+            widened.append(total)
+        moments = tuple(widened)
+    return moments
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_widening_loop_matches_the_array_formulas(rng, channels):
+    # the same sums in the same order; the frame rotation R K2 R^T may round differently
+    obj = next(o for o in load_scene("cornell-teapot").refined(60.0).objects if o.name == "teapot")
+    p, n, t, f = obj.positions, obj.normals, obj.tangents, obj.faces
+    moments = (rng.uniform(0, 1, (len(p), channels)), rng.normal(size=(len(p), channels, 2)))
+    moments = moments + density.kernel_moments(p, n, t, f)
+    expected = _widen_with_numpy(p, n, t, f, moments, 2)
+    got = density.widen(p, n, t, f, moments, 2)
+    for a, b in zip(got, expected):
+        assert a.shape == b.shape
+        assert np.allclose(a, b, rtol=1e-13, atol=1e-13 * np.abs(b).max())
+    assert all(np.array_equal(a, b) for a, b in zip(got[:4], expected[:4]))
