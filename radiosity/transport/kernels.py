@@ -237,9 +237,22 @@ def rand(seed, stream, item, dim):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def _search_cdf(cdf, u):
+    """np.searchsorted(cdf, u, side="right") by hand: numba's, for one number, allocates."""
+    lo, hi = 0, len(cdf)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if cdf[mid] <= u:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _pick_emitter(sa, u):
-    k = np.searchsorted(sa.emit_cdf, u, side="right")
-    return sa.emit_triangles[min(k, len(sa.emit_triangles) - 1)]
+    """The emitter triangle whose slot of the power CDF holds u."""
+    return sa.emit_triangles[min(_search_cdf(sa.emit_cdf, u), len(sa.emit_triangles) - 1)]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -831,15 +844,13 @@ def _head(rays, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_photons(rt, sa, seed, first_id, total, max_depth, photons, spare, hits, acc):
-    """Trace photons first_id .. first_id + len(photons.ids) - 1 of ``total`` to the end
-    through the scene ``rt`` (``embree.Embree``), adding to ``acc`` (``PhotonTally``).
-    Returns the rays traced.
+def trace_photons(rt, sa, seed, first_id, count, total, max_depth, acc):
+    """Trace photons first_id .. first_id + count - 1 of ``total`` to the end through
+    the scene ``rt`` (``embree.Embree``), adding to ``acc`` (``PhotonTally``). Returns
+    the rays traced.
 
     One photon at a time, from its emission through every bounce to its end
-    (``_trace_photon_loop``): no wavefront buffers between the rays. ``photons`` gives
-    the batch's size only; photons, spare (``Rays``) and hits (``embree.Hits``) are not
-    written.
+    (``_trace_photon_loop``): no wavefront buffers between the rays.
 
     Each photon's rays and deposits are those of the wavefront form (``emit_photons``,
     then per depth every photon in flight traced and ``bounce_photons``, which tests
@@ -852,7 +863,7 @@ def trace_photons(rt, sa, seed, first_id, total, max_depth, photons, spare, hits
         # per bounce (a reference-count update), which threads must not share
         rt, sa.positions, sa.normals, sa.tangents, sa.faces, sa.face_normals, sa.face_material, sa.materials.copy(),
         sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.epsilon,
-        seed, first_id, len(photons.ids), total, max_depth, acc.moment0, acc.moment1, acc.tally,
+        seed, first_id, count, total, max_depth, acc.moment0, acc.moment1, acc.tally,
     )  # fmt: skip
 
 
@@ -875,14 +886,7 @@ def _trace_photon_loop(
         pid = first_id + i
         # -- emission (emit_photons) --
         u0 = rand(seed, STREAM_EMIT, pid, 0)
-        lo, hi = 0, len(emit_cdf)  # np.searchsorted(emit_cdf, u0, side="right")
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if emit_cdf[mid] <= u0:
-                lo = mid + 1
-            else:
-                hi = mid
-        tri = emit_triangles[min(lo, n_emitters - 1)]
+        tri = emit_triangles[min(_search_cdf(emit_cdf, u0), n_emitters - 1)]
         s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
         u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
         v = s - u

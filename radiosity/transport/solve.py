@@ -52,7 +52,6 @@ MAX_PHOTONS = 1 << 40  # ~1e12: days of tracing on any machine this runs on
 GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
 
 # bytes per element of the arrays that grow with the knobs (see ``memory_estimate``)
-_PHOTON_RAY_BYTES = 2 * (8 + 24 + 12 + 12) + 16  # two ``Rays`` buffers and the hits, per photon of a batch
 _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
 _LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
 _GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
@@ -180,14 +179,14 @@ def memory_estimate(settings, n_vertices, glossy):
 
     settings : ``SolveOptions.resolved``; n_vertices : vertices of the scene;
     glossy : [(name, vertices, grid n)] of its glossy objects. Returns {part: bytes}:
-    ``photons`` (the batches in flight: rays and density moments), ``gather
+    ``photons`` (the batches in flight: their density moments), ``gather
     buffers`` (the blocks in flight: light samples, gather rays and paths, outputs)
     and ``gather output`` (every glossy object's radiance, V x D x 3).
     """
     in_flight = 2 * settings["threads"] + 1  # ``_run_ordered`` keeps at most this many jobs
     photons = settings["photons"]
     batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
-    per_batch = n_vertices * _PHOTON_VERTEX_BYTES + min(PHOTON_BATCH, photons) * _PHOTON_RAY_BYTES
+    per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # photons are traced one at a time: no ray buffers
     n_light, n_gather = settings["light_samples"], settings["gather_samples"]
     block = _gather_block_size(n_light, n_gather)
     buffers = output = 0
@@ -307,8 +306,7 @@ def trace_photon_batch(tracer, sa, seed, first_id, count, total):
     (T_LENGTH,), float64, all additive.
     """
     acc = kernels.empty_tally(len(sa.positions))
-    photons, spare, hits = kernels.empty_rays(count), kernels.empty_rays(count), empty_hits(count)
-    rays = kernels.trace_photons(tracer.embree, sa, seed, first_id, total, MAX_PHOTON_DEPTH, photons, spare, hits, acc)
+    rays = kernels.trace_photons(tracer.embree, sa, seed, first_id, count, total, MAX_PHOTON_DEPTH, acc)
     tracer.count(rays)
     return acc
 
