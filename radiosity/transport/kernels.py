@@ -145,7 +145,7 @@ class GatherBlock(NamedTuple):
     strata    : int           gather rays per vertex: strata^2, stratified
     max_depth : int           segments of a gather path at most
     lobe_light: bool          sample the light at the glossy hits of gather paths
-                              (``_lobe_light_sample``); False finds it by the lobe alone,
+                              (``shade_paths``); False finds it by the lobe alone,
                               as before: the same expected value, more noise (for tests)
     """
 
@@ -494,28 +494,42 @@ def bounce_photons(sa, seed, depth, max_depth, photons, hits, acc, out):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _toward_emitter(sa, point, g, u0, u1, u2):
+def _emitter_sample(emit_cdf, emit_triangles, emit_area_pdf, positions, faces, face_normals, epsilon, point, g, u0, u1, u2):
     """A light sample seen from ``point`` (a hit, front normal g): an emitter triangle
     chosen in proportion to power by u0 and a point area-uniform on it by (u1, u2),
     both offset by epsilon off their fronts. Returns (triangle, its area density (0:
     none to draw), origin, unit direction to the light point (3-tuples), distance (0:
     unusable), cosine at the light)."""
-    tri = _pick_emitter(sa, u0)
-    area_pdf = sa.emit_area_pdf[tri]
-    eps = sa.epsilon
+    tri = emit_triangles[min(_search_cdf(emit_cdf, u0), len(emit_triangles) - 1)]
+    area_pdf = emit_area_pdf[tri]
+    eps = epsilon
     ox, oy, oz = point[0] + eps * g[0], point[1] + eps * g[1], point[2] + eps * g[2]
     if area_pdf <= 0.0:
         return tri, 0.0, (ox, oy, oz), (0.0, 0.0, 0.0), 0.0, 0.0
     r = math.sqrt(u1)
     u = r * (1.0 - u2)
-    qx, qy, qz = _barycentric_point(sa, tri, u, r - u)
-    gl = sa.face_normals[tri]
-    dx, dy, dz = qx + eps * gl[0] - ox, qy + eps * gl[1] - oy, qz + eps * gl[2] - oz
+    v = r - u
+    w = 1.0 - u - v
+    i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
+    qx = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
+    qy = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
+    qz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+    gl0, gl1, gl2 = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
+    dx, dy, dz = qx + eps * gl0 - ox, qy + eps * gl1 - oy, qz + eps * gl2 - oz
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     if dist <= 0.0:
         return tri, area_pdf, (ox, oy, oz), (0.0, 0.0, 0.0), 0.0, 0.0
     dx, dy, dz = dx / dist, dy / dist, dz / dist
-    return tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, -(dx * gl[0] + dy * gl[1] + dz * gl[2])
+    return tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, -(dx * gl0 + dy * gl1 + dz * gl2)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _toward_emitter(sa, point, g, u0, u1, u2):
+    """``_emitter_sample`` on the scene's arrays."""
+    return _emitter_sample(
+        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.positions, sa.faces, sa.face_normals, sa.epsilon,
+        point, g, u0, u1, u2,
+    )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
@@ -580,57 +594,6 @@ def make_gather_rays(sa, block, light, samples):
             samples.origins[i, 0], samples.origins[i, 1], samples.origins[i, 2] = ox, oy, oz
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _hit_distance(origins, k, sa, t, u, v):
-    x, y, z = _barycentric_point(sa, t, u, v)
-    dx, dy, dz = x - origins[k, 0], y - origins[k, 1], z - origins[k, 2]
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _lobe_light_sample(rt, rayhit, sa, mat, point, g, normal, d, seed, item):
-    """Next-event estimate of the light the specular lobe at a glossy hit reflects
-    back along -d: (radiance as an RGB tuple, whether a shadow ray was traced).
-
-    point, g : the hit and the front geometric normal there; normal : the shading
-    normal (``_shading_normal``). A point on an emitter (chosen in proportion to
-    power, area-uniform on its triangle, numbers from ``STREAM_GATHER + 2``) is
-    weighted by the balance heuristic against sampling the lobe, which the path's
-    continuation does: f_s cos / (p_light + p_lobe), with f_s = ks (n + 2) / (2 pi)
-    cos^n alpha and p_lobe = (n + 1) / (2 pi) cos^n alpha, alpha measured from the
-    mirror direction. Directions the continuation cannot produce (below the shading or
-    the true surface) are skipped, as the continuation skips them."""
-    zero = (0.0, 0.0, 0.0)
-    tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, cos_light = _toward_emitter(
-        sa,
-        point,
-        g,
-        rand(seed, STREAM_GATHER + 2, item, 0),
-        rand(seed, STREAM_GATHER + 2, item, 1),
-        rand(seed, STREAM_GATHER + 2, item, 2),
-    )
-    if area_pdf <= 0.0 or dist <= 0.0:
-        return zero, False
-    cos_i = dx * normal[0] + dy * normal[1] + dz * normal[2]
-    if cos_light <= 0.0 or cos_i <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
-        return zero, False
-    dn = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2]
-    cos_alpha = dx * (d[0] - 2.0 * dn * normal[0]) + dy * (d[1] - 2.0 * dn * normal[1]) + dz * (d[2] - 2.0 * dn * normal[2])
-    if cos_alpha <= 0.0:
-        return zero, False
-    n = mat[EXPONENT]
-    lobe = phong_lobe(min(cos_alpha, 1.0), n)
-    if lobe <= 0.0:
-        return zero, False
-    if occluded1(rt, rayhit, ox, oy, oz, dx, dy, dz, dist):
-        return zero, True
-    p_light = area_pdf * dist * dist / cos_light
-    p_lobe = (n + 1.0) / (2.0 * math.pi) * lobe
-    scale = (n + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
-    le = sa.materials[sa.face_material[tri]]
-    return (mat[KS] * le[EMISSION] * scale, mat[KS + 1] * le[EMISSION + 1] * scale, mat[KS + 2] * le[EMISSION + 2] * scale), True
-
-
 @numba.njit(cache=True, nogil=True)
 def shade_paths(rt, rayhit, sa, irradiance, block, depth, paths, path_pdf, hits, samples, out, out_pdf):
     """Radiance arriving along gather paths; returns (the number of paths that go on,
@@ -647,76 +610,148 @@ def shade_paths(rt, rayhit, sa, irradiance, block, depth, paths, path_pdf, hits,
     balance heuristic against the light sample that saw it too: on the first segment
     (depth 0) the ``block.n_light`` light samples of the vertex (the gather ray's
     density is cos / pi, its cosine at the vertex being ``samples.wi[id, 2]``), later
-    the previous vertex's ``_lobe_light_sample`` (the ray's density path_pdf). The
-    diffuse part is kd / pi times the irradiance interpolated at the hit. At a glossy
-    surface the path goes on through the specular lobe (the diffuse lobe's light is in
-    the irradiance), with Russian roulette, so light that passes from glossy to glossy
-    is not lost, and there a light sample (``_lobe_light_sample``) catches the emitters
-    the lobe reflects: without it, a lamp seen in a glossy neighbour was found only by
-    chance and made the heavy-tailed outliers that showed as blotches.
+    the previous vertex's light sample (the ray's density path_pdf). The diffuse part
+    is kd / pi times the irradiance interpolated at the hit. At a glossy surface the
+    path goes on through the specular lobe (the diffuse lobe's light is in the
+    irradiance), with Russian roulette, so light that passes from glossy to glossy is
+    not lost.
+
+    There a light sample also catches the emitters the lobe reflects (without it, a
+    lamp seen in a glossy neighbour was found only by chance and made the heavy-tailed
+    outliers that showed as blotches): a point on an emitter (``_emitter_sample``,
+    numbers from ``STREAM_GATHER + 2``) and its shadow ray, weighted by the balance
+    heuristic against the lobe's continuation: f_s cos / (p_light + p_lobe), with f_s =
+    ks (n + 2) / (2 pi) cos^n alpha and p_lobe = (n + 1) / (2 pi) cos^n alpha, alpha
+    measured from the mirror direction. Directions the continuation cannot produce
+    (below the shading or the true surface) are skipped by both.
 
     ``paths.ids`` index the block's gather samples (vertex ``block.vertices[id //
     n_gather]``, sample ``id % n_gather``), which also key the random numbers.
     """
-    seed, n_light, max_depth = block.seed, block.n_light, block.max_depth
-    n_gather = block.strata * block.strata
+    return _shade_loop(
+        # the call's own copy of the small material table: a row of it per hit (a
+        # reference-count update) that threads must not share
+        rt, rayhit, sa.positions, sa.normals, sa.faces, sa.face_normals, sa.face_material, sa.materials.copy(),
+        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.epsilon, irradiance,
+        block.seed, block.n_light, block.strata * block.strata, block.max_depth, block.vertices, block.lobe_light,
+        depth, paths.ids, paths.values, paths.origins, paths.directions, path_pdf,
+        hits.triangle, hits.u, hits.v, samples.wi, samples.incoming,
+        out.ids, out.values, out.origins, out.directions, out_pdf,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _shade_loop(
+    rt, rayhit, positions, normals, faces, face_normals, face_material, materials, emit_cdf, emit_triangles,
+    emit_area_pdf, epsilon, irradiance, seed, n_light, n_gather, max_depth, vertices, lobe_light, depth,
+    ids, values, origins, directions, path_pdf, triangle, hit_u, hit_v, sample_wi, incoming,
+    out_ids, out_values, out_origins, out_directions, out_pdf,
+):  # fmt: skip
+    """``shade_paths`` on the arrays one by one (as ``_trace_photon_loop``: a named tuple
+    handed to an inlined helper costs a reference-count update of each of its arrays),
+    with the same arithmetic in the same order."""
     n_out = 0
     shadow = 0
-    has_lights = len(sa.emit_triangles) > 0 and block.lobe_light
-    for k in range(len(paths.ids)):
-        t = hits.triangle[k]
+    has_lights = len(emit_triangles) > 0 and lobe_light
+    for k in range(len(ids)):
+        t = triangle[k]
         if t < 0:
             continue
-        d = (paths.directions[k, 0], paths.directions[k, 1], paths.directions[k, 2])
-        g = sa.face_normals[t]
-        if d[0] * g[0] + d[1] * g[1] + d[2] * g[2] >= 0.0:
+        d = (directions[k, 0], directions[k, 1], directions[k, 2])
+        gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+        if d[0] * gx + d[1] * gy + d[2] * gz >= 0.0:
             continue
-        uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
-        m = sa.face_material[t]
-        mat = sa.materials[m]
-        target = paths.ids[k]
+        uk, vk = np.float64(hit_u[k]), np.float64(hit_v[k])
+        w = 1.0 - uk - vk
+        i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+        px = w * positions[i0, 0] + uk * positions[i1, 0] + vk * positions[i2, 0]
+        py = w * positions[i0, 1] + uk * positions[i1, 1] + vk * positions[i2, 1]
+        pz = w * positions[i0, 2] + uk * positions[i1, 2] + vk * positions[i2, 2]
+        m = face_material[t]
+        target = ids[k]
         weight = 1.0
-        if sa.emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
-            cos_light = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
-            dist = _hit_distance(paths.origins, k, sa, t, uk, vk)
-            p_light = sa.emit_area_pdf[t] * dist * dist / cos_light
+        if emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
+            cos_light = -(d[0] * gx + d[1] * gy + d[2] * gz)
+            ex, ey, ez = px - origins[k, 0], py - origins[k, 1], pz - origins[k, 2]
+            dist = math.sqrt(ex * ex + ey * ey + ez * ez)
+            p_light = emit_area_pdf[t] * dist * dist / cos_light
             if depth == 0:
-                p_gather = samples.wi[target, 2] / math.pi
+                p_gather = sample_wi[target, 2] / math.pi
                 weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
-            elif block.lobe_light:
+            elif lobe_light:
                 weight = path_pdf[k] / (path_pdf[k] + p_light)
         for c in range(3):
-            radiance = weight * mat[EMISSION + c] + mat[KD + c] / math.pi * _interpolate3(irradiance, sa, t, uk, vk, c)
-            samples.incoming[target, c] += paths.values[k, c] * radiance
-        ks_max = max(mat[KS], mat[KS + 1], mat[KS + 2])
-        if ks_max <= 0.0 or depth + 1 >= max_depth:
+            e = w * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]
+            radiance = weight * materials[m, EMISSION + c] + materials[m, KD + c] / math.pi * e
+            incoming[target, c] += values[k, c] * radiance
+        ks0, ks1, ks2 = materials[m, KS], materials[m, KS + 1], materials[m, KS + 2]
+        if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:
             continue
-        item = (block.vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
-        point = _barycentric_point(sa, t, uk, vk)
+        item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+        # the shading normal (``_shading_normal``)
+        nx = w * normals[i0, 0] + uk * normals[i1, 0] + vk * normals[i2, 0]
+        ny = w * normals[i0, 1] + uk * normals[i1, 1] + vk * normals[i2, 1]
+        nz = w * normals[i0, 2] + uk * normals[i1, 2] + vk * normals[i2, 2]
+        length = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if length > 0.0 and (nx * d[0] + ny * d[1] + nz * d[2]) < 0.0:
+            nx, ny, nz = nx / length, ny / length, nz / length
+        else:
+            nx, ny, nz = gx, gy, gz
+        exponent = materials[m, EXPONENT]
         if has_lights:
-            normal = _shading_normal(sa, t, uk, vk, d)
-            reflected, traced = _lobe_light_sample(rt, rayhit, sa, mat, point, g, normal, d, seed, item)
-            shadow += traced
-            for c in range(3):
-                samples.incoming[target, c] += paths.values[k, c] * reflected[c]
-        # u1 = 0 picks the specular lobe (the diffuse lobe's light is in the irradiance)
-        rnd = (0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1))
-        wo, wi, _, direction, ok = _scatter(sa, t, uk, vk, d, rnd)
-        if not ok:
+            # the light sample at the glossy hit
+            tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, cos_light = _emitter_sample(
+                emit_cdf, emit_triangles, emit_area_pdf, positions, faces, face_normals, epsilon,
+                (px, py, pz), (gx, gy, gz),
+                rand(seed, STREAM_GATHER + 2, item, 0),
+                rand(seed, STREAM_GATHER + 2, item, 1),
+                rand(seed, STREAM_GATHER + 2, item, 2),
+            )  # fmt: skip
+            if area_pdf > 0.0 and dist > 0.0:
+                cos_i = dx * nx + dy * ny + dz * nz
+                if cos_light > 0.0 and cos_i > 0.0 and dx * gx + dy * gy + dz * gz > 0.0:
+                    dn = d[0] * nx + d[1] * ny + d[2] * nz
+                    cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+                    if cos_alpha > 0.0:
+                        lobe = phong_lobe(min(cos_alpha, 1.0), exponent)
+                        if lobe > 0.0:
+                            shadow += 1
+                            if not occluded1(rt, rayhit, ox, oy, oz, dx, dy, dz, dist):
+                                p_light = area_pdf * dist * dist / cos_light
+                                p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
+                                scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
+                                lm = face_material[tri]
+                                incoming[target, 0] += values[k, 0] * (ks0 * materials[lm, EMISSION] * scale)
+                                incoming[target, 1] += values[k, 1] * (ks1 * materials[lm, EMISSION + 1] * scale)
+                                incoming[target, 2] += values[k, 2] * (ks2 * materials[lm, EMISSION + 2] * scale)
+        # the lobe's continuation (``_scatter`` with u1 = 0: the specular lobe; the diffuse
+        # lobe's light is in the irradiance)
+        tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+        wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
+        woy = -(d[0] * bx + d[1] * by + d[2] * bz)
+        woz = -(d[0] * nx + d[1] * ny + d[2] * nz)
+        wix, wiy, wiz, pdf = brdf_sample(
+            materials[m], wox, woy, woz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
+        )
+        sx = wix * tx + wiy * bx + wiz * nx
+        sy = wix * ty + wiy * by + wiz * ny
+        sz = wix * tz + wiy * bz + wiz * nz
+        if not (wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0):
             continue
         # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
-        lobe_weight = (mat[EXPONENT] + 2.0) / (mat[EXPONENT] + 1.0) * wi[2]
-        scattered = (
-            paths.values[k, 0] * mat[KS] * lobe_weight,
-            paths.values[k, 1] * mat[KS + 1] * lobe_weight,
-            paths.values[k, 2] * mat[KS + 2] * lobe_weight,
-        )
-        survives, carried = _roulette(scattered, 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+        lobe_weight = (exponent + 2.0) / (exponent + 1.0) * wiz
+        q0, q1, q2 = values[k, 0] * ks0 * lobe_weight, values[k, 1] * ks1 * lobe_weight, values[k, 2] * ks2 * lobe_weight
+        survives, carried = _roulette((q0, q1, q2), 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
         if not survives:
             continue
-        cos_alpha = min(max(-wi[0] * wo[0] - wi[1] * wo[1] + wi[2] * wo[2], 0.0), 1.0)
-        out_pdf[n_out] = (mat[EXPONENT] + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, mat[EXPONENT])
-        _push_ray(out, n_out, target, point, g, sa.epsilon, direction, carried)
+        cos_alpha = min(max(-wix * wox - wiy * woy + wiz * woz, 0.0), 1.0)
+        out_pdf[n_out] = (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent)
+        out_ids[n_out] = target
+        out_origins[n_out, 0] = px + epsilon * gx
+        out_origins[n_out, 1] = py + epsilon * gy
+        out_origins[n_out, 2] = pz + epsilon * gz
+        out_directions[n_out, 0], out_directions[n_out, 1], out_directions[n_out, 2] = sx, sy, sz
+        out_values[n_out, 0], out_values[n_out, 1], out_values[n_out, 2] = carried
         n_out += 1
     return n_out, shadow
 

@@ -1,4 +1,4 @@
-"""The light sample at the glossy hits of gather paths (``kernels._lobe_light_sample``)
+"""The light sample at the glossy hits of gather paths (``kernels.shade_paths``)
 against deterministic quadrature: it changes the noise, not the answer.
 
 A glossy plate looks down at a glossy floor that reflects a small lamp; the lamp faces
