@@ -147,6 +147,8 @@ class GatherBlock(NamedTuple):
     lobe_light: bool          sample the light at the glossy hits of gather paths
                               (``shade_paths``); False finds it by the lobe alone,
                               as before: the same expected value, more noise (for tests)
+    measure_noise: bool       also measure each vertex's variance (``gather_outputs``);
+                              the extra passes of ``regather`` need none
     """
 
     seed: int
@@ -155,6 +157,7 @@ class GatherBlock(NamedTuple):
     strata: int
     max_depth: int
     lobe_light: bool = True
+    measure_noise: bool = True
 
 
 class LightSamples(NamedTuple):
@@ -256,33 +259,39 @@ def _pick_emitter(sa, u):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _barycentric_point(sa, tri, u, v):
-    i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
-    w = 1.0 - u - v
-    p = sa.positions
+def _lerp3(a, i0, i1, i2, w, u, v):
+    """w a[i0] + u a[i1] + v a[i2] of the rows of a (N, 3), as a 3-tuple: a point or a
+    normal inside a triangle from its corners' values and barycentrics."""
     return (
-        w * p[i0, 0] + u * p[i1, 0] + v * p[i2, 0],
-        w * p[i0, 1] + u * p[i1, 1] + v * p[i2, 1],
-        w * p[i0, 2] + u * p[i1, 2] + v * p[i2, 2],
+        w * a[i0, 0] + u * a[i1, 0] + v * a[i2, 0],
+        w * a[i0, 1] + u * a[i1, 1] + v * a[i2, 1],
+        w * a[i0, 2] + u * a[i1, 2] + v * a[i2, 2],
     )
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _facing(n, d, g):
+    """The interpolated normal n normalised, where it faces the ray arriving along d;
+    else the geometric normal g (which then faces it): the shading normal at a hit."""
+    length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    if length > 0.0 and (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) < 0.0:
+        return n[0] / length, n[1] / length, n[2] / length
+    return g[0], g[1], g[2]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _barycentric_point(sa, tri, u, v):
+    return _lerp3(sa.positions, sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2], 1.0 - u - v, u, v)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _shading_normal(sa, tri, u, v, d):
     """Interpolated shading normal at a hit reached along direction d = (dx, dy, dz),
     or the geometric one where the interpolated normal would put the incoming ray's
-    side behind the surface."""
-    i0, i1, i2 = sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2]
-    w = 1.0 - u - v
-    n = sa.normals
-    nx = w * n[i0, 0] + u * n[i1, 0] + v * n[i2, 0]
-    ny = w * n[i0, 1] + u * n[i1, 1] + v * n[i2, 1]
-    nz = w * n[i0, 2] + u * n[i1, 2] + v * n[i2, 2]
-    length = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if length > 0.0 and (nx * d[0] + ny * d[1] + nz * d[2]) < 0.0:
-        return nx / length, ny / length, nz / length
+    side behind the surface (``_facing``)."""
+    n = _lerp3(sa.normals, sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2], 1.0 - u - v, u, v)
     g = sa.face_normals[tri]
-    return g[0], g[1], g[2]
+    return _facing(n, d, (g[0], g[1], g[2]))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -509,11 +518,7 @@ def _emitter_sample(emit_cdf, emit_triangles, emit_area_pdf, positions, faces, f
     r = math.sqrt(u1)
     u = r * (1.0 - u2)
     v = r - u
-    w = 1.0 - u - v
-    i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
-    qx = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
-    qy = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
-    qz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+    qx, qy, qz = _lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
     gl0, gl1, gl2 = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
     dx, dy, dz = qx + eps * gl0 - ox, qy + eps * gl1 - oy, qz + eps * gl2 - oz
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
@@ -664,9 +669,7 @@ def _shade_loop(
         uk, vk = np.float64(hit_u[k]), np.float64(hit_v[k])
         w = 1.0 - uk - vk
         i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
-        px = w * positions[i0, 0] + uk * positions[i1, 0] + vk * positions[i2, 0]
-        py = w * positions[i0, 1] + uk * positions[i1, 1] + vk * positions[i2, 1]
-        pz = w * positions[i0, 2] + uk * positions[i1, 2] + vk * positions[i2, 2]
+        px, py, pz = _lerp3(positions, i0, i1, i2, w, uk, vk)
         m = face_material[t]
         target = ids[k]
         weight = 1.0
@@ -688,15 +691,7 @@ def _shade_loop(
         if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:
             continue
         item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
-        # the shading normal (``_shading_normal``)
-        nx = w * normals[i0, 0] + uk * normals[i1, 0] + vk * normals[i2, 0]
-        ny = w * normals[i0, 1] + uk * normals[i1, 1] + vk * normals[i2, 1]
-        nz = w * normals[i0, 2] + uk * normals[i1, 2] + vk * normals[i2, 2]
-        length = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if length > 0.0 and (nx * d[0] + ny * d[1] + nz * d[2]) < 0.0:
-            nx, ny, nz = nx / length, ny / length, nz / length
-        else:
-            nx, ny, nz = gx, gy, gz
+        nx, ny, nz = _facing(_lerp3(normals, i0, i1, i2, w, uk, vk), d, (gx, gy, gz))
         exponent = materials[m, EXPONENT]
         if has_lights:
             # the light sample at the glossy hit
@@ -756,6 +751,19 @@ def _shade_loop(
     return n_out, shadow
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _variance_sum(moments, n_light, n_gather):
+    """sum over directions of S2 - S1^2 / m of each group (light samples, gather rays)
+    from ``moments`` (4, D): light S1, S2, gather S1, S2."""
+    total = 0.0
+    for d in range(moments.shape[1]):
+        if n_light > 0:
+            total += max(moments[1, d] - moments[0, d] * moments[0, d] / n_light, 0.0)
+        if n_gather > 0:
+            total += max(moments[3, d] - moments[2, d] * moments[2, d] / n_gather, 0.0)
+    return total
+
+
 @numba.njit(cache=True, nogil=True)
 def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance):
     """Outgoing radiance of a block of B vertices in every direction of an n x n grid.
@@ -778,7 +786,7 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     (B, 3) kd E / pi; light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
     ``pdf`` and ``visible`` read); samples : ``GatherSamples`` (B * n_gather, its ``wi``
     and ``incoming`` read); directions : (n^2, 3) local, ``directions.grid_directions``;
-    out : (B, n^2, 3) float64; variance : (B,) float64, receives each vertex's
+    out : (B, n^2, 3) float64; variance : (B,) float64 (or empty: not measured), receives each vertex's
     sum over directions of the variance of the luminance (``LUMINANCE``) of out[b, d],
     estimated from the spread of its samples: a group of m samples (light, gather)
     whose terms x_s sum to S1 and their squares to S2 adds S2 - S1^2 / m (samples that
@@ -803,6 +811,7 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     n_dirs = directions.shape[0]
     moments = np.empty((4, n_dirs))  # light S1, S2, gather S1, S2 of luminance
     lum_ks = (LUMINANCE[0] * mat[KS], LUMINANCE[1] * mat[KS + 1], LUMINANCE[2] * mat[KS + 2])
+    measure = variance.shape[0] > 0
     for b in range(n_blocks):
         used = 0
         for m in range(n_light):
@@ -854,16 +863,12 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
                     acc[d, 0] += lobe * w0
                     acc[d, 1] += lobe * w1
                     acc[d, 2] += lobe * w2
-                    x = lobe * y
-                    s1[d] += x
-                    s2[d] += x * x
-        total = 0.0
-        for d in range(n_dirs):
-            if n_light > 0:
-                total += max(moments[1, d] - moments[0, d] * moments[0, d] / n_light, 0.0)
-            if n_gather > 0:
-                total += max(moments[3, d] - moments[2, d] * moments[2, d] / n_gather, 0.0)
-        variance[b] = total
+                    if measure:
+                        x = lobe * y
+                        s1[d] += x
+                        s2[d] += x * x
+        if measure:
+            variance[b] = _variance_sum(moments, n_light, n_gather)
         for d in range(acc.shape[0]):
             for c in range(3):
                 acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]
@@ -925,11 +930,7 @@ def _trace_photon_loop(
         s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
         u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
         v = s - u
-        w = 1.0 - u - v
-        i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
-        px = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
-        py = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
-        pz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+        px, py, pz = _lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
         gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
         lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
         tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
@@ -963,9 +964,7 @@ def _trace_photon_loop(
             u, v = np.float64(hu), np.float64(hv)
             w = 1.0 - u - v
             i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
-            px = w * positions[i0, 0] + u * positions[i1, 0] + v * positions[i2, 0]
-            py = w * positions[i0, 1] + u * positions[i1, 1] + v * positions[i2, 1]
-            pz = w * positions[i0, 2] + u * positions[i1, 2] + v * positions[i2, 2]
+            px, py, pz = _lerp3(positions, i0, i1, i2, w, u, v)
             # deposit (_deposit)
             for j in range(3):
                 vert = faces[t, j]
@@ -994,14 +993,7 @@ def _trace_photon_loop(
             r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
             r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
             # scatter (_scatter): the shading frame, then brdf_sample
-            nx = w * normals[i0, 0] + u * normals[i1, 0] + v * normals[i2, 0]
-            ny = w * normals[i0, 1] + u * normals[i1, 1] + v * normals[i2, 1]
-            nz = w * normals[i0, 2] + u * normals[i1, 2] + v * normals[i2, 2]
-            length = math.sqrt(nx * nx + ny * ny + nz * nz)
-            if length > 0.0 and (nx * dx + ny * dy + nz * dz) < 0.0:
-                nx, ny, nz = nx / length, ny / length, nz / length
-            else:
-                nx, ny, nz = gx, gy, gz
+            nx, ny, nz = _facing(_lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
             tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
             wox = -(dx * tx + dy * ty + dz * tz)
             woy = -(dx * bx + dy * by + dz * bz)

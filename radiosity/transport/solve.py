@@ -569,7 +569,7 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         pass_seed = regather.pass_seed(seed, k)
         blocks = [
             kernels.GatherBlock(
-                pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"]
+                pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0
             )
             for s in range(0, len(vertices), block)
         ]
@@ -621,7 +621,7 @@ def gather_block(tracer, sa, irradiance, block, material, dirs):
     """Outgoing radiance (B, D, 3) float64 of a ``kernels.GatherBlock`` of vertices of
     one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64,
     and the variance of each vertex's estimate (B,) (its luminance's, summed over the
-    directions; see ``kernels.gather_outputs``). Its rays are traced in one jitted call
+    directions; see ``kernels.gather_outputs``; empty unless ``block.measure_noise``). Its rays are traced in one jitted call
     (``kernels.trace_gather``) and counted on ``tracer`` (see ``trace_photon_batch``)."""
     b = len(block.vertices)
     n_gather = block.strata * block.strata
@@ -636,6 +636,6 @@ def gather_block(tracer, sa, irradiance, block, material, dirs):
     mat = pack_materials([material])[0]
     emission = np.asarray(material.emission, dtype=np.float64)
     diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
-    variance = np.empty(b)
+    variance = np.empty(b if block.measure_noise else 0)
     kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, values, variance)
     return values, variance
