@@ -11,7 +11,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from radiosity.transport.embree import intersect1, new_rayhit
+from radiosity.transport.embree import intersect1, new_rayhit, occluded1
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -108,3 +108,126 @@ def _trace_prange(rt, origins, directions, chunks, triangle):
         for k in range(c * n // chunks, (c + 1) * n // chunks):
             o, d = origins[k], directions[k]
             triangle[k] = intersect1(rt, rayhit, o[0], o[1], o[2], d[0], d[1], d[2])[0]
+
+
+@numba.njit(cache=True, parallel=True)
+def _occlude_prange(rt, origins, directions, distances, chunks, blocked):
+    n = origins.shape[0]
+    for c in numba.prange(chunks):
+        rayhit = new_rayhit()
+        for k in range(c * n // chunks, (c + 1) * n // chunks):
+            o, d = origins[k], directions[k]
+            blocked[k] = occluded1(rt, rayhit, o[0], o[1], o[2], d[0], d[1], d[2], distances[k])
+
+
+def photon_rays(scene, photons, seed=1):
+    """(origins, directions) float32 (R, 3): every ray a photon pass of ``photons``
+    photons traces in ``scene`` (a ``Scene``, already refined), in the order the
+    solver's photon loop traces them (photon by photon, each from its emission to its
+    end). Recorded with the wavefront reference kernels (``kernels.emit_photons``,
+    ``kernels.bounce_photons``), which tests hold to the loop's rays bit for bit."""
+    from radiosity.transport import kernels
+    from radiosity.transport.embree import RayTracer
+    from radiosity.transport.solve import MAX_PHOTON_DEPTH, scene_arrays
+
+    merged = scene.merged()
+    tracer = RayTracer(merged.positions, merged.faces, threads=1)
+    sa = scene_arrays(scene, merged, tracer.epsilon)
+    flying = kernels.empty_rays(photons)
+    kernels.emit_photons(sa, seed, 0, photons, flying)
+    out, acc = kernels.empty_rays(photons), kernels.empty_tally(len(sa.positions))
+    ids, origins, directions = [], [], []
+    for depth in range(MAX_PHOTON_DEPTH):
+        if not len(flying.ids):
+            break
+        ids.append(flying.ids.copy())
+        origins.append(flying.origins.copy())
+        directions.append(flying.directions.copy())
+        hits = tracer.intersect(flying.origins, flying.directions)
+        n = kernels.bounce_photons(sa, seed, depth, MAX_PHOTON_DEPTH, flying, hits, acc, out)
+        flying = kernels.Rays(*(a[:n].copy() for a in out))
+    tracer.close()
+    order = np.argsort(np.concatenate(ids), kind="stable")  # depth-major -> photon by photon
+    return np.concatenate(origins)[order], np.concatenate(directions)[order]
+
+
+def gather_rays(scene, quality, vertices_per_object=256, seed=1):
+    """The first rays of the gather at ``quality`` from up to ``vertices_per_object``
+    random vertices of each glossy object of ``scene`` (already refined): the light
+    samples' shadow rays (origins, directions, distances: those that can contribute)
+    and the gather paths' first segments (origins, directions), as
+    ``kernels.make_gather_rays`` makes them. Later segments and the light samples at
+    glossy hits are not recorded: they leave the same surfaces for the same lights."""
+    from radiosity.transport import kernels
+    from radiosity.transport.embree import origin_offset
+    from radiosity.transport.solve import MAX_GATHER_DEPTH, SolveOptions, scene_arrays
+
+    settings = SolveOptions(quality=quality).resolved(scene)
+    merged = scene.merged()
+    sa = scene_arrays(scene, merged, origin_offset(merged.positions))
+    rng = np.random.default_rng(seed)
+    offsets = merged.vertex_offset
+    vertices = np.concatenate(
+        [
+            offsets[i] + np.sort(rng.choice(o.n_vertices, min(vertices_per_object, o.n_vertices), replace=False))
+            for i, o in enumerate(scene.objects)
+            if o.material.is_glossy
+        ]
+    ).astype(np.int64)
+    strata = int(np.sqrt(settings["gather_samples"]))
+    n_light = settings["light_samples"]
+    block = kernels.GatherBlock(seed, vertices, n_light, strata, MAX_GATHER_DEPTH)
+    light = kernels.empty_light_samples(len(vertices) * n_light)
+    samples = kernels.empty_gather_samples(len(vertices) * strata * strata)
+    kernels.make_gather_rays(sa, block, light, samples)
+    used = light.pdf > 0
+    shadow = (light.origins[used].copy(), light.directions[used].copy(), light.distances[used].copy())
+    return shadow, (samples.origins.copy(), samples.directions.copy())
+
+
+class SameRays:
+    """The limit on the solver's own rays: bare Embree (jitted ``prange`` loops of
+    single-ray queries on all cores) tracing exactly the rays a photon pass traces
+    (``photon_rays``) and the gather's first rays (``gather_rays``), in ``scene`` at
+    ``quality`` (its uniformly refined mesh, the one ``solve`` traces)."""
+
+    def __init__(self, scene, quality, photons, threads):
+        from radiosity.transport.embree import RayTracer
+        from radiosity.transport.solve import SolveOptions
+
+        refined = scene.refined(SolveOptions(quality=quality).resolved(scene)["max_edge"])
+        merged = refined.merged()
+        self.threads = threads
+        self.triangles = len(merged.faces)
+        self.tracer = RayTracer(merged.positions, merged.faces, threads=threads)
+        self.photon = photon_rays(refined, photons)
+        self.shadow, self.first = gather_rays(refined, quality)
+        self.photon_hits = np.empty(len(self.photon[0]), np.int32)
+        self.first_hits = np.empty(len(self.first[0]), np.int32)
+        self.blocked = np.empty(len(self.shadow[0]), bool)
+        self.rates()  # compile, warm caches
+
+    @property
+    def counts(self):
+        return {"photon": len(self.photon[0]), "gather_shadow": len(self.shadow[0]), "gather_first": len(self.first[0])}
+
+    def rates(self):
+        """{"photon", "gather": rays/s} of one pass each over the recorded rays (the
+        gather's: shadow and first rays together, their count over their time)."""
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+        chunks, rt = self.threads * 16, self.tracer.embree
+        try:
+            t = time.perf_counter()
+            _trace_prange(rt, *self.photon, chunks, self.photon_hits)
+            photon = len(self.photon_hits) / (time.perf_counter() - t)
+            t = time.perf_counter()
+            _occlude_prange(rt, *self.shadow, chunks, self.blocked)
+            _trace_prange(rt, *self.first, chunks, self.first_hits)
+            gather = (len(self.blocked) + len(self.first_hits)) / (time.perf_counter() - t)
+        finally:
+            numba.set_num_threads(previous)
+        return {"photon": photon, "gather": gather}
+
+    def close(self):
+        self.tracer.close()

@@ -3,14 +3,21 @@
 Usage:
     python benchmarks/bench_solver.py [--scene cornell-teapot] [--repeats 3] [--quick]
                                       [--parts rays,equivalence,memory,presets]
+                                      [--ray-presets draft,high]
 
 Measures, on one scene in one run, with the same thread count throughout:
-  1. the limit: the fastest this machine traces incoherent rays (origins on the
-     surfaces, directions over the hemisphere, like photons and gather rays) through
-     Embree on all cores: jitted loops of single-ray queries, a nogil loop per thread
-     or a numba prange loop, whichever is faster (``_common.Limit``);
-  2. the solver's photon pass and gather: their rays per second (rays / phase time,
-     all kernel work included), as ratios to (1), repeats interleaved with (1);
+  1. the limit: how fast this machine traces the solver's own rays through Embree
+     on all cores, with nothing else done (jitted prange loops of single-ray
+     queries, ``_common.SameRays``): every ray of a photon pass, recorded photon by
+     photon in the order the photon loop traces them, and the gather's first rays
+     (the light samples' shadow rays and the paths' first segments), on the mesh of
+     each preset of ``--ray-presets``; and, for comparison with earlier runs, the
+     synthetic limit (random rays off random triangles of the draft mesh:
+     ``_common.Limit``), which traces faster or slower than the solver's rays;
+  2. each preset's photon pass and gather: their rays per second (rays / phase time,
+     all kernel work included), as ratios to (1), repeats interleaved with (1); and
+     the tracing floor: the solve's rays at the limit's speed, the time no loop
+     calling this Embree on these cores can beat;
   3. peak memory (max RSS of a fresh process) at N and 10 N photons;
   4. solve time of the scene at each quality preset, numba compile time apart
      (a first solve in a fresh process with an empty cache, against a warm one).
@@ -32,7 +39,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from _common import RESULTS, Limit, Recorder
+from _common import RESULTS, Limit, Recorder, SameRays
 
 PHOTON_TARGET, GATHER_TARGET = 0.8, 0.8  # rays/s as a fraction of the limit
 
@@ -84,6 +91,7 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=os.cpu_count())
     parser.add_argument("--quick", action="store_true", help="fewer photons and presets, for a smoke run")
     parser.add_argument("--parts", default="rays,equivalence,memory,presets", help="which measurements, comma-separated")
+    parser.add_argument("--ray-presets", default="draft,high", help="presets whose solve is measured against the limit")
     args = parser.parse_args(argv)
     parts = set(args.parts.split(","))
 
@@ -115,41 +123,65 @@ def main(argv=None):
 
 
 def rays_per_second(record, scene, refined, opts, photons, args):
-    from radiosity.transport.solve import solve
+    """Each preset's solve against the limit on its own rays (``_common.SameRays``,
+    the preset's mesh), and the synthetic limit of earlier runs (``_common.Limit``:
+    random rays off random triangles of the draft mesh), repeats interleaved."""
+    from radiosity.transport.solve import SolveOptions, solve
 
-    limit = Limit(refined, 2_000_000, args.threads)
-    by_threads, by_prange, limits, photon_rate, gather_rate = [], [], [], [], []
+    synthetic = Limit(refined, 2_000_000, args.threads)
     try:
-        for _ in range(args.repeats):
-            rates = limit.rates()
-            by_threads.append(rates["threads"])
-            by_prange.append(rates["prange"])
-            limits.append(rates["limit"])
-            stats = solve(scene, opts).stats
-            photon_rate.append(stats["photon_rays_per_s"])
-            gather_rate.append(stats["gather_rays_per_s"])
-            record({"question": "repeat", "limit_rays_per_s": rates["limit"], "photon_rays_per_s": photon_rate[-1],
-                    "gather_rays_per_s": gather_rate[-1], "phases_s": stats["time_s"]})
+        for quality in args.ray_presets.split(","):
+            same = SameRays(scene, quality, 300_000 if args.quick else 1_000_000, args.threads)
+            options = SolveOptions(quality=quality, threads=args.threads, **({"photons": photons} if args.quick else {}))
+            rows = []
+            try:
+                for _ in range(args.repeats):
+                    old = synthetic.rates()["limit"]
+                    limit = same.rates()
+                    stats = solve(scene, options).stats
+                    rows.append((old, limit, stats))
+                    record({"question": "repeat", "quality": quality, "limit_rays_per_s": limit, "synthetic_limit_rays_per_s": old,
+                            "photon_rays_per_s": stats["photon_rays_per_s"], "gather_rays_per_s": stats["gather_rays_per_s"],
+                            "phases_s": stats["time_s"]})
+            finally:
+                same.close()
+            record(_ray_summary(quality, rows, same, args))
     finally:
-        limit.close()
-    limit_rate = float(np.median(limits))
-    record(
-        {
-            "question": "rays per second",
-            "limit_rays_per_s": limit_rate,
-            "limit_threads_rays_per_s": float(np.median(by_threads)),
-            "limit_prange_rays_per_s": float(np.median(by_prange)),
-            "photon_rays_per_s": float(np.median(photon_rate)),
-            "gather_rays_per_s": float(np.median(gather_rate)),
-            "photon_ratio": float(np.median(photon_rate)) / limit_rate,
-            "gather_ratio": float(np.median(gather_rate)) / limit_rate,
-            "photon_ratio_median_of_repeats": float(np.median(np.divide(photon_rate, limits))),
-            "gather_ratio_median_of_repeats": float(np.median(np.divide(gather_rate, limits))),
-            "target_ratio": {"photons": PHOTON_TARGET, "gather": GATHER_TARGET},
-            "photons": photons,
-            "repeats": args.repeats,
-        }
-    )
+        synthetic.close()
+
+
+def _ray_summary(quality, rows, same, args):
+    def median(f):
+        return float(np.median([f(old, limit, stats) for old, limit, stats in rows]))
+
+    photon_limit = median(lambda o, limit, s: limit["photon"])
+    gather_limit = median(lambda o, limit, s: limit["gather"])
+    photon_rays = median(lambda o, limit, s: s["photon_rays"])
+    gather_rays = median(lambda o, limit, s: s["gather_rays"])
+    # tracing alone: the solve's rays at the limit's speed, nothing else done
+    floor_s = photon_rays / photon_limit + gather_rays / gather_limit
+    return {
+        "question": "rays per second",
+        "quality": quality,
+        "triangles": same.triangles,
+        "recorded_rays": same.counts,
+        "limit_rays_per_s": {"photon": photon_limit, "gather": gather_limit},
+        "synthetic_limit_rays_per_s": median(lambda o, limit, s: o),
+        "photon_rays_per_s": median(lambda o, limit, s: s["photon_rays_per_s"]),
+        "gather_rays_per_s": median(lambda o, limit, s: s["gather_rays_per_s"]),
+        "photon_ratio": median(lambda o, limit, s: s["photon_rays_per_s"] / limit["photon"]),
+        "gather_ratio": median(lambda o, limit, s: s["gather_rays_per_s"] / limit["gather"]),
+        "photon_ratio_synthetic": median(lambda o, limit, s: s["photon_rays_per_s"] / o),
+        "gather_ratio_synthetic": median(lambda o, limit, s: s["gather_rays_per_s"] / o),
+        "photon_rays": photon_rays,
+        "gather_rays": gather_rays,
+        "solve_s": median(lambda o, limit, s: sum(s["time_s"].values())),
+        "tracing_floor_s": floor_s,
+        "floor_at_target_ratio_s": floor_s / PHOTON_TARGET,
+        "target_ratio": {"photons": PHOTON_TARGET, "gather": GATHER_TARGET},
+        "target_s": {"draft": 1.5, "high": 15.0}.get(quality),
+        "repeats": args.repeats,
+    }
 
 
 def equivalence(record, scene, threads):
@@ -230,24 +262,34 @@ def plot(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    r = next(r for r in rows if r["question"] == "rays per second")
-    names = ["limit", "photon pass", "gather"]
-    values = [r["limit_rays_per_s"], r["photon_rays_per_s"], r["gather_rays_per_s"]]
-    axes[0].bar(names, np.array(values) / 1e6, color=["grey", "tab:orange", "tab:blue"])
-    axes[0].axhline(PHOTON_TARGET * values[0] / 1e6, ls="--", c="k", lw=1, label=f"target: {PHOTON_TARGET} x limit")
-    axes[0].set_ylabel("M rays / s")
-    axes[0].set_title(f"rays per second, {r['threads']} threads")
-    axes[0].legend()
+    fig, axes = plt.subplots(1, 4, figsize=(17, 4))
+    rays = [r for r in rows if r["question"] == "rays per second"]
+    x = np.arange(len(rays))
+    axes[0].bar(x - 0.2, [r["photon_ratio"] for r in rays], 0.4, color="tab:orange", label="photon pass")
+    axes[0].bar(x + 0.2, [r["gather_ratio"] for r in rays], 0.4, color="tab:blue", label="gather")
+    axes[0].axhline(PHOTON_TARGET, ls="--", c="k", lw=1, label=f"target: {PHOTON_TARGET} x limit")
+    axes[0].set_xticks(x, [r["quality"] for r in rays])
+    axes[0].set_ylim(0, 1)
+    axes[0].set_ylabel("rays/s / limit on the same rays")
+    axes[0].set_title(f"rays against Embree alone, {rays[0]['threads']} threads")
+    axes[0].legend(fontsize=8)
+    axes[1].bar(x - 0.27, [r["solve_s"] for r in rays], 0.27, color="tab:purple", label="solve (uniform mesh)")
+    axes[1].bar(x, [r["tracing_floor_s"] for r in rays], 0.27, color="grey", label="its rays at the limit")
+    axes[1].bar(x + 0.27, [r["target_s"] or 0 for r in rays], 0.27, color="white", edgecolor="k", label="target")
+    axes[1].set_xticks(x, [r["quality"] for r in rays])
+    axes[1].set_yscale("log")
+    axes[1].set_ylabel("seconds")
+    axes[1].set_title("solve time against the tracing floor")
+    axes[1].legend(fontsize=8)
     m = next(r for r in rows if r["question"] == "peak memory")
-    axes[1].bar([f"{n:,}" for n in m["photons"]], m["peak_rss_mb"], color="tab:green")
-    axes[1].set_xlabel("photons")
-    axes[1].set_ylabel("peak RSS (MB)")
-    axes[1].set_title(f"memory: {100 * m['growth']:+.1f} % for 10x photons")
+    axes[2].bar([f"{n:,}" for n in m["photons"]], m["peak_rss_mb"], color="tab:green")
+    axes[2].set_xlabel("photons")
+    axes[2].set_ylabel("peak RSS (MB)")
+    axes[2].set_title(f"memory: {100 * m['growth']:+.1f} % for 10x photons")
     presets = [r for r in rows if r["question"] == "solve time per preset"]
-    axes[2].bar([p["quality"] for p in presets], [p["solve_s_warm_median"] for p in presets], color="tab:purple")
-    axes[2].set_ylabel("solve time (s), warm cache")
-    axes[2].set_title(f"{r['scene']} per preset")
+    axes[3].bar([p["quality"] for p in presets], [p["solve_s_warm_median"] for p in presets], color="tab:purple")
+    axes[3].set_ylabel("solve time (s), warm cache")
+    axes[3].set_title(f"{rays[0]['scene']} per preset")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
