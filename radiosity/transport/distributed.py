@@ -188,16 +188,24 @@ class DaskRunner:
             lambda job: (_photon_task, scene.key, scene, self._seed, *job), jobs, combine, bar, counts
         )
 
-    def gather_blocks(self, irradiance, blocks, material, dirs, combine, bar):
+    def gather_blocks(self, irradiance, jobs, combine, bar):
+        """Gather ``jobs``, (block, material, directions) each, and ``combine`` their
+        results in job order."""
         if self._irradiance is None or self._irradiance[0] is not irradiance:
             self._irradiance = (irradiance, self._scatter(irradiance))
-        irradiance_future, dirs_future, scene = self._irradiance[1], self._scatter(dirs), self._scene
+        irradiance_future, scene = self._irradiance[1], self._scene
+        dirs_futures = {}  # one copy on the workers of each object's directions
+        for _, _, dirs in jobs:
+            if id(dirs) not in dirs_futures:
+                dirs_futures[id(dirs)] = self._scatter(dirs)
         self._run_ordered(
-            lambda block: (_gather_task, scene.key, scene, irradiance_future, block, material, dirs_future),
-            blocks,
+            lambda job: (
+                _gather_task, scene.key, scene, irradiance_future, job[0], job[1], dirs_futures[id(job[2])]
+            ),
+            jobs,
             combine,
             bar,
-            (len(b.vertices) for b in blocks),
+            (len(block.vertices) for block, _, _ in jobs),
         )
 
     def _run_ordered(self, task, jobs, combine, progress, weights):

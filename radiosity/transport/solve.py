@@ -30,6 +30,7 @@ import math
 import os
 import time
 import warnings
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -373,13 +374,14 @@ class _ThreadRunner:
             counts,
         )
 
-    def gather_blocks(self, irradiance, blocks, material, dirs, combine, bar):
+    def gather_blocks(self, irradiance, jobs, combine, bar):
         tracer, sa = self.workers.tracer, self.workers.sa
 
         def run(job):
-            return job.vertices, gather_block(tracer, sa, irradiance, job, material, dirs)
+            block, material, dirs = job
+            return block.vertices, gather_block(tracer, sa, irradiance, block, material, dirs)
 
-        _run_ordered(self.workers, run, blocks, combine, bar, [len(b.vertices) for b in blocks])
+        _run_ordered(self.workers, run, jobs, combine, bar, [len(block.vertices) for block, _, _ in jobs])
 
     def close(self):
         if self.workers is not None:
@@ -564,27 +566,44 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
     radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3)) for o, _, dirs in glossy}
     variance = {o.name: np.zeros(o.n_vertices) for o, _, _ in glossy}
 
-    def run_pass(k, obj, offset, dirs, local):
+    dirs64 = {o.name: np.asarray(dirs, dtype=np.float64) for o, _, dirs in glossy}
+
+    def jobs_of_pass(k, obj, offset, local):
+        """Pass k's gather blocks of ``obj``'s vertices ``local``, each with where its
+        result goes (its object, its pass)."""
         vertices = local.astype(np.int64) + offset
         pass_seed = regather.pass_seed(seed, k)
-        blocks = [
-            kernels.GatherBlock(
-                pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0
+        return [
+            (
+                kernels.GatherBlock(
+                    pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0
+                ),
+                obj,
+                offset,
+                k,
             )
             for s in range(0, len(vertices), block)
         ]
-        out, var_out = radiance[obj.name], variance[obj.name]
+
+    def run(jobs):
+        """Gather ``jobs`` (from ``jobs_of_pass``) in one stream, all objects and
+        passes, so the threads run out of work once at its end, not once per object
+        and pass; results come back in job order, so each vertex's passes are summed
+        in pass order."""
+        where = deque(jobs)
 
         def combine(result):
+            _, obj, offset, k = where.popleft()
             verts, (values, var) = result
-            out[verts - offset] += values
+            radiance[obj.name][verts - offset] += values
             if k == 0:
-                var_out[verts - offset] = var
+                variance[obj.name][verts - offset] = var
 
-        runner.gather_blocks(irradiance, blocks, obj.material, np.asarray(dirs, dtype=np.float64), combine, bar)
+        runner.gather_blocks(
+            irradiance, [(b, obj.material, dirs64[obj.name]) for b, obj, _, _ in jobs], combine, bar
+        )
 
-    for obj, offset, dirs in glossy:
-        run_pass(0, obj, offset, dirs, np.arange(obj.n_vertices))
+    run([job for obj, offset, _ in glossy for job in jobs_of_pass(0, obj, offset, np.arange(obj.n_vertices))])
     own = {o.name: np.ones(o.n_vertices, dtype=np.int64) for o, _, _ in glossy}
     tolerance = {o.name: settings["gather_tolerance"] for o, _, _ in glossy}
     if settings["extra_gather"] > 0:
@@ -598,11 +617,14 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         if bar is not None and getattr(bar, "total", None) is not None:  # the bar grows by the extra work
             bar.total += int((passes - 1).sum())
             getattr(bar, "refresh", lambda: None)()
-        for k in range(1, int(passes.max(initial=1))):
-            for obj, offset, dirs in glossy:
-                local = np.flatnonzero(own[obj.name] > k)
-                if len(local):
-                    run_pass(k, obj, offset, dirs, local)
+        run(
+            [
+                job
+                for k in range(1, int(passes.max(initial=1)))
+                for obj, offset, _ in glossy
+                for job in jobs_of_pass(k, obj, offset, np.flatnonzero(own[obj.name] > k))
+            ]
+        )
         for obj, _, _ in glossy:
             radiance[obj.name] /= own[obj.name][:, None, None]
     info = {
