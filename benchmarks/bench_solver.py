@@ -17,7 +17,9 @@ Measures, on one scene in one run, with the same thread count throughout:
   2. each preset's photon pass and gather: their rays per second (rays / phase time,
      all kernel work included), as ratios to (1), repeats interleaved with (1); and
      the tracing floor: the solve's rays at the limit's speed, the time no loop
-     calling this Embree on these cores can beat;
+     calling this Embree on these cores can beat; and the gather's split between
+     tracing (its rays and their shading) and the splat into the direction grid
+     (no rays), in thread-seconds, with the ratio of its tracing alone;
   3. peak memory (max RSS of a fresh process) at N and 10 N photons;
   4. solve time of the scene at each quality preset, numba compile time apart
      (a first solve in a fresh process with an empty cache, against a warm one).
@@ -138,7 +140,9 @@ def rays_per_second(record, scene, refined, opts, photons, args):
                 for _ in range(args.repeats):
                     old = synthetic.rates()["limit"]
                     limit = same.rates()
-                    stats = solve(scene, options).stats
+                    with GatherSplit() as split:
+                        stats = solve(scene, options).stats
+                    stats["gather_split_thread_s"] = split.seconds
                     rows.append((old, limit, stats))
                     record({"question": "repeat", "quality": quality, "limit_rays_per_s": limit, "synthetic_limit_rays_per_s": old,
                             "photon_rays_per_s": stats["photon_rays_per_s"], "gather_rays_per_s": stats["gather_rays_per_s"],
@@ -148,6 +152,42 @@ def rays_per_second(record, scene, refined, opts, photons, args):
             record(_ray_summary(quality, rows, same, args))
     finally:
         synthetic.close()
+
+
+class GatherSplit:
+    """Thread-seconds of the gather's two kernels while in use: tracing
+    (``kernels.trace_gather``: the rays and the shading at their hits) and the splat
+    (``kernels.gather_outputs``: every sample into the direction grid, no rays)."""
+
+    def __enter__(self):
+        import threading
+        import time
+
+        from radiosity.transport import kernels
+
+        self.seconds = {"trace": 0.0, "splat": 0.0}
+        self._saved = {"trace": kernels.trace_gather, "splat": kernels.gather_outputs}
+        lock = threading.Lock()
+
+        def timed(name, fn):
+            def call(*a):
+                t = time.perf_counter()
+                try:
+                    return fn(*a)
+                finally:
+                    with lock:
+                        self.seconds[name] += time.perf_counter() - t
+
+            return call
+
+        kernels.trace_gather = timed("trace", kernels.trace_gather)
+        kernels.gather_outputs = timed("splat", kernels.gather_outputs)
+        return self
+
+    def __exit__(self, *exc):
+        from radiosity.transport import kernels
+
+        kernels.trace_gather, kernels.gather_outputs = self._saved["trace"], self._saved["splat"]
 
 
 def _ray_summary(quality, rows, same, args):
@@ -171,6 +211,13 @@ def _ray_summary(quality, rows, same, args):
         "gather_rays_per_s": median(lambda o, limit, s: s["gather_rays_per_s"]),
         "photon_ratio": median(lambda o, limit, s: s["photon_rays_per_s"] / limit["photon"]),
         "gather_ratio": median(lambda o, limit, s: s["gather_rays_per_s"] / limit["gather"]),
+        # the gather's tracing alone: its rays over its trace kernel's thread-seconds per thread
+        "gather_trace_ratio": median(
+            lambda o, limit, s: s["gather_rays"] / (s["gather_split_thread_s"]["trace"] / args.threads) / limit["gather"]
+        ),
+        "gather_split_thread_s": {
+            k: median(lambda o, limit, s, k=k: s["gather_split_thread_s"][k]) for k in ("trace", "splat")
+        },
         "photon_ratio_synthetic": median(lambda o, limit, s: s["photon_rays_per_s"] / o),
         "gather_ratio_synthetic": median(lambda o, limit, s: s["gather_rays_per_s"] / o),
         "photon_rays": photon_rays,
@@ -265,8 +312,10 @@ def plot(rows, path):
     fig, axes = plt.subplots(1, 4, figsize=(17, 4))
     rays = [r for r in rows if r["question"] == "rays per second"]
     x = np.arange(len(rays))
-    axes[0].bar(x - 0.2, [r["photon_ratio"] for r in rays], 0.4, color="tab:orange", label="photon pass")
-    axes[0].bar(x + 0.2, [r["gather_ratio"] for r in rays], 0.4, color="tab:blue", label="gather")
+    axes[0].bar(x - 0.27, [r["photon_ratio"] for r in rays], 0.27, color="tab:orange", label="photon pass")
+    axes[0].bar(x, [r["gather_ratio"] for r in rays], 0.27, color="tab:blue", label="gather")
+    axes[0].bar(x + 0.27, [r["gather_trace_ratio"] for r in rays], 0.27, color="tab:blue", alpha=0.45, hatch="//",
+                label="gather: its tracing alone (no splat)")
     axes[0].axhline(PHOTON_TARGET, ls="--", c="k", lw=1, label=f"target: {PHOTON_TARGET} x limit")
     axes[0].set_xticks(x, [r["quality"] for r in rays])
     axes[0].set_ylim(0, 1)
