@@ -4,9 +4,10 @@ the vertex gather. Orchestration (batches, threads) is in ``solve``.
 A photon batch (``trace_photons``) and a gather block (``trace_gather``) each run as
 one jitted call that releases the GIL and traces its rays itself, calling Embree
 directly (``embree.intersect1`` / ``occluded1``: no Python between rays); batches and
-blocks run a thread each. A photon batch follows one photon at a time from emission
-to its end (``_trace_photon_loop``); ``emit_photons`` and ``bounce_photons`` are the
-same steps wavefront-style, for tests. A gather block goes wavefront-style: one
+blocks run a thread each. A photon batch goes in waves of PHOTON_WAVE photons
+(``_trace_photon_waves``): a wave's rays of one depth, then their hits, the hits'
+data asked of the cache a few hits ahead; ``emit_photons`` and ``bounce_photons`` are
+the same steps on whole batches, for tests. A gather block goes wavefront-style: one
 kernel makes rays, a loop traces them, the next kernel reads the hits. Every random number comes
 from a counter-based hash of (seed, stream, item, dimension), so a result depends on
 the seed and the item's index only, never on how work is split into batches or
@@ -30,6 +31,10 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from radiosity.formats.directions import hemisphere_to_square_nb
 from radiosity.scene.materials import (
@@ -53,6 +58,8 @@ LOBE_TABLE = 2048  # entries of the cos^n table
 # the concentric map shrinks no angle by more than 0.73 (square max-norm units per radian
 # at least 1 / 0.73, measured over 2e6 random pairs; tests check it): 0.7 leaves a margin
 SQUARE_PER_RADIAN = 1.0 / 0.7
+PHOTON_WAVE = 1024  # photons traced together by trace_photons: a wave's rays, then its hits
+PREFETCH_AHEAD = 4  # hits ahead whose data the wave's shading loop asks the cache for
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709: the gather's noise is measured in luminance
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -234,6 +241,29 @@ def rand(seed, stream, item, dim):
     z = _mix(z ^ (np.uint64(item) * _GOLDEN))
     z = _mix(z + np.uint64(dim) * _M1)
     return float(z >> np.uint64(11)) * _INV_2_53
+
+
+@intrinsic
+def _prefetch_row(typingctx, array, row):
+    """Ask the cache for row ``row`` of ``array`` (its first line), for reading, and
+    return at once (LLVM's ``llvm.prefetch``): a hint that changes no value."""
+    if not isinstance(array, types.Array) or not isinstance(row, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0])
+        stride = cgutils.unpack_tuple(builder, data.strides)[0]
+        index = context.cast(builder, args[1], signature.args[1], types.intp)
+        address = builder.gep(builder.bitcast(data.data, ir.IntType(8).as_pointer()), [builder.mul(index, stride)])
+        i32 = ir.IntType(32)
+        prefetch = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [address.type, i32, i32, i32]), "llvm.prefetch.p0"
+        )
+        # read (0), keep in every level (3), data cache (1)
+        builder.call(prefetch, [address, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(array, row), codegen
 
 
 # -- small geometry helpers -----------------------------------------------------------
@@ -652,7 +682,7 @@ def _shade_loop(
     ids, values, origins, directions, path_pdf, triangle, hit_u, hit_v, sample_wi, incoming,
     out_ids, out_values, out_origins, out_directions, out_pdf,
 ):  # fmt: skip
-    """``shade_paths`` on the arrays one by one (as ``_trace_photon_loop``: a named tuple
+    """``shade_paths`` on the arrays one by one (as ``_trace_photon_waves``: a named tuple
     handed to an inlined helper costs a reference-count update of each of its arrays),
     with the same arithmetic in the same order."""
     n_out = 0
@@ -884,154 +914,213 @@ def _head(rays, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_photons(rt, sa, seed, first_id, count, total, max_depth, acc):
+def trace_photons(rt, sa, seed, first_id, count, total, max_depth, acc, wave=PHOTON_WAVE):
     """Trace photons first_id .. first_id + count - 1 of ``total`` to the end through
     the scene ``rt`` (``embree.Embree``), adding to ``acc`` (``PhotonTally``). Returns
     the rays traced.
 
-    One photon at a time, from its emission through every bounce to its end
-    (``_trace_photon_loop``): no wavefront buffers between the rays.
+    ``wave`` photons at a time (``_trace_photon_waves``): the rays of a wave's photons
+    at one depth are traced one after another, then their hits are shaded one after
+    another, each hit's triangle and vertices asked of the cache a few hits ahead. So
+    Embree runs with its own data in cache, and the shading does not wait for memory
+    at every hit (on a large mesh the hits' data is not in cache).
 
     Each photon's rays and deposits are those of the wavefront form (``emit_photons``,
     then per depth every photon in flight traced and ``bounce_photons``, which tests
-    check bit for bit, photon by photon); only the order in which the photons' deposits
-    are summed differs (photon by photon here, depth by depth there), which moves the
-    batch's sums by float rounding.
+    check bit for bit, photon by photon and wave by wave); only the order in which the
+    photons' deposits are summed depends on ``wave`` (wave by wave, depth by depth
+    within a wave), which moves the batch's sums by float rounding.
     """
-    return _trace_photon_loop(
+    return _trace_photon_waves(
         # the batch's own copy of the small material table: the loop takes a row of it
         # per bounce (a reference-count update), which threads must not share
         rt, sa.positions, sa.normals, sa.tangents, sa.faces, sa.face_normals, sa.face_material, sa.materials.copy(),
         sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.epsilon,
-        seed, first_id, count, total, max_depth, acc.moment0, acc.moment1, acc.tally,
+        seed, first_id, count, total, max_depth, acc.moment0, acc.moment1, acc.tally, max(1, min(wave, count)),
     )  # fmt: skip
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _prefetch_hit(t, faces, face_normals, face_material, positions, normals, tangents, moment0, moment1):
+    """Ask the cache for what shading a hit on triangle t reads: the triangle's rows,
+    and its vertices' (their indices are read, so ``faces`` should be asked first)."""
+    if t < 0:
+        return
+    _prefetch_row(face_normals, t)
+    _prefetch_row(face_material, t)
+    for j in range(3):
+        vert = faces[t, j]
+        _prefetch_row(positions, vert)
+        _prefetch_row(moment0, vert)
+        _prefetch_row(moment1, vert)
+
+
 @numba.njit(cache=True, nogil=True)
-def _trace_photon_loop(
+def _trace_photon_waves(
     rt, positions, normals, tangents, faces, face_normals, face_material, materials, albedo_table, emit_cdf,
-    emit_triangles, emit_area_pdf, epsilon, seed, first_id, count, total, max_depth, moment0, moment1, tally,
+    emit_triangles, emit_area_pdf, epsilon, seed, first_id, count, total, max_depth, moment0, moment1, tally, wave,
 ):  # fmt: skip
-    """``trace_photons`` on the scene's arrays one by one: the loop indexes them with
-    scalars and makes one view per bounce (a ``SceneArrays`` handed to an inlined helper
-    costs a reference-count update, an atomic operation, of each of its arrays: the
-    wavefront kernels made dozens per bounce), and finds the emitter by its own binary
-    search (``np.searchsorted`` of one number allocates). The arithmetic is that of
-    ``emit_photons`` and ``bounce_photons``, operation for operation."""
+    """``trace_photons`` on the scene's arrays one by one: the loops index them with
+    scalars (a ``SceneArrays`` handed to an inlined helper costs a reference-count
+    update, an atomic operation, of each of its arrays: the wavefront kernels made
+    dozens per bounce), and find the emitter by their own binary search
+    (``np.searchsorted`` of one number allocates). The arithmetic is that of
+    ``emit_photons`` and ``bounce_photons``, operation for operation; the survivors of
+    a depth are packed to the front of the wave's buffers in order, as
+    ``bounce_photons`` packs them. ``wave`` = 1 follows one photon at a time. The
+    prefetches (``_prefetch_hit``, PREFETCH_AHEAD hits ahead, the triangle's vertex
+    indices twice as far) change no value."""
     rayhit = new_rayhit()
     n_emitters = len(emit_triangles)
     n_albedo = albedo_table.shape[1]
+    ids = np.empty(wave, np.int64)
+    power = np.empty((wave, 3))
+    ray = np.empty((wave, 6), np.float32)  # origin, direction: float32, as a ``Rays`` stores them
+    hit_triangle = np.empty(wave, np.int64)
+    hit_uv = np.empty((wave, 2), np.float32)
     rays = 0
-    for i in range(count):
-        pid = first_id + i
+    for first in range(first_id, first_id + count, wave):
+        n = min(wave, first_id + count - first)
         # -- emission (emit_photons) --
-        u0 = rand(seed, STREAM_EMIT, pid, 0)
-        tri = emit_triangles[min(_search_cdf(emit_cdf, u0), n_emitters - 1)]
-        s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
-        u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
-        v = s - u
-        px, py, pz = _lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
-        gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
-        lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
-        tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
-        dx = lx * tx + ly * bx + lz * gx
-        dy = lx * ty + ly * by + lz * gy
-        dz = lx * tz + ly * bz + lz * gz
-        m = face_material[tri]
-        scale = math.pi / (total * emit_area_pdf[tri])
-        p0 = materials[m, EMISSION] * scale
-        p1 = materials[m, EMISSION + 1] * scale
-        p2 = materials[m, EMISSION + 2] * scale
-        # the ray as a ``Rays`` stores it: float32
-        ox, oy, oz = np.float32(px + epsilon * gx), np.float32(py + epsilon * gy), np.float32(pz + epsilon * gz)
-        dx, dy, dz = np.float64(np.float32(dx)), np.float64(np.float32(dy)), np.float64(np.float32(dz))
+        for i in range(n):
+            pid = first + i
+            u0 = rand(seed, STREAM_EMIT, pid, 0)
+            tri = emit_triangles[min(_search_cdf(emit_cdf, u0), n_emitters - 1)]
+            s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
+            u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
+            v = s - u
+            px, py, pz = _lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
+            gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
+            lx, ly, lz = _cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
+            tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
+            m = face_material[tri]
+            scale = math.pi / (total * emit_area_pdf[tri])
+            ids[i] = pid
+            power[i, 0] = materials[m, EMISSION] * scale
+            power[i, 1] = materials[m, EMISSION + 1] * scale
+            power[i, 2] = materials[m, EMISSION + 2] * scale
+            ray[i, 0] = px + epsilon * gx
+            ray[i, 1] = py + epsilon * gy
+            ray[i, 2] = pz + epsilon * gz
+            ray[i, 3] = lx * tx + ly * bx + lz * gx
+            ray[i, 4] = lx * ty + ly * by + lz * gy
+            ray[i, 5] = lx * tz + ly * bz + lz * gz
         for depth in range(max_depth):
-            t, _, hu, hv = intersect1(rt, rayhit, ox, oy, oz, dx, dy, dz)
-            rays += 1
-            # -- the hit (bounce_photons) --
-            if t < 0:
-                tally[T_ESCAPED] += p0
-                tally[T_ESCAPED + 1] += p1
-                tally[T_ESCAPED + 2] += p2
+            if n == 0:
                 break
-            tally[T_HITS] += 1.0
-            gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
-            if dx * gx + dy * gy + dz * gz >= 0.0:
-                tally[T_BACKFACE] += p0
-                tally[T_BACKFACE + 1] += p1
-                tally[T_BACKFACE + 2] += p2
-                break
-            u, v = np.float64(hu), np.float64(hv)
-            w = 1.0 - u - v
-            i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
-            px, py, pz = _lerp3(positions, i0, i1, i2, w, u, v)
-            # deposit (_deposit)
-            for j in range(3):
-                vert = faces[t, j]
-                lam = w if j == 0 else (u if j == 1 else v)
-                ex = px - positions[vert, 0]
-                ey = py - positions[vert, 1]
-                ez = pz - positions[vert, 2]
-                t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
-                n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
-                cx = n1 * t2 - n2 * t1
-                cy = n2 * t0 - n0 * t2
-                cz = n0 * t1 - n1 * t0
-                along_t = ex * t0 + ey * t1 + ez * t2
-                along_b = ex * cx + ey * cy + ez * cz
-                for c in range(3):
-                    wc = (p0 if c == 0 else (p1 if c == 1 else p2)) * lam
-                    moment0[vert, c] += wc
-                    moment1[vert, c, 0] += wc * along_t
-                    moment1[vert, c, 1] += wc * along_b
-            tally[T_INCIDENT] += p0
-            tally[T_INCIDENT + 1] += p1
-            tally[T_INCIDENT + 2] += p2
-            m = face_material[t]
-            base = depth * 8
-            r0 = rand(seed, STREAM_BOUNCE, pid, base)
-            r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
-            r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
-            # scatter (_scatter): the shading frame, then brdf_sample
-            nx, ny, nz = _facing(_lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
-            tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
-            wox = -(dx * tx + dy * ty + dz * tz)
-            woy = -(dx * bx + dy * by + dz * bz)
-            woz = -(dx * nx + dy * ny + dz * nz)
-            mat = materials[m]
-            wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, r0, r1, r2)
-            sx = wix * tx + wiy * bx + wiz * nx
-            sy = wix * ty + wiy * by + wiz * ny
-            sz = wix * tz + wiy * bz + wiz * nz
-            ok = wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0
-            # albedo (_albedo)
-            xa = min(max(woz, 0.0), 1.0) * (n_albedo - 1)
-            ka = min(int(xa), n_albedo - 2)
-            fa = xa - ka
-            a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
-            a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
-            a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
-            tally[T_ABSORBED] += p0 * (1.0 - a0)
-            tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
-            tally[T_ABSORBED + 2] += p2 * (1.0 - a2)
-            if depth + 1 >= max_depth:
-                tally[T_TERMINATED] += p0 * a0
-                tally[T_TERMINATED + 1] += p1 * a1
-                tally[T_TERMINATED + 2] += p2 * a2
-                break
-            if not ok:
-                break  # below the shading or the true surface: absorbed
-            fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
-            scale = wiz / pdf
-            q0, q1, q2 = p0 * fr * scale, p1 * fg * scale, p2 * fb * scale
-            # Russian roulette (_roulette)
-            reference = max(p0, p1, p2)
-            survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
-            if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
-                break
-            p0, p1, p2 = q0 / survive, q1 / survive, q2 / survive
-            ox, oy, oz = np.float32(px + epsilon * gx), np.float32(py + epsilon * gy), np.float32(pz + epsilon * gz)
-            dx, dy, dz = np.float64(np.float32(sx)), np.float64(np.float32(sy)), np.float64(np.float32(sz))
+            # -- the wave's rays, one after another --
+            for k in range(n):
+                r = ray[k]
+                t, _, hu, hv = intersect1(rt, rayhit, r[0], r[1], r[2], r[3], r[4], r[5])
+                hit_triangle[k] = t
+                hit_uv[k, 0], hit_uv[k, 1] = hu, hv
+            rays += n
+            # -- their hits (bounce_photons), survivors packed to the front --
+            for k in range(min(n, 2 * PREFETCH_AHEAD)):
+                if hit_triangle[k] >= 0:
+                    _prefetch_row(faces, hit_triangle[k])
+            survivors = 0
+            for k in range(n):
+                if k + 2 * PREFETCH_AHEAD < n and hit_triangle[k + 2 * PREFETCH_AHEAD] >= 0:
+                    _prefetch_row(faces, hit_triangle[k + 2 * PREFETCH_AHEAD])
+                if k + PREFETCH_AHEAD < n:
+                    _prefetch_hit(
+                        hit_triangle[k + PREFETCH_AHEAD], faces, face_normals, face_material, positions, normals,
+                        tangents, moment0, moment1,
+                    )  # fmt: skip
+                pid = ids[k]
+                p0, p1, p2 = power[k, 0], power[k, 1], power[k, 2]
+                t = hit_triangle[k]
+                if t < 0:
+                    tally[T_ESCAPED] += p0
+                    tally[T_ESCAPED + 1] += p1
+                    tally[T_ESCAPED + 2] += p2
+                    continue
+                tally[T_HITS] += 1.0
+                dx, dy, dz = np.float64(ray[k, 3]), np.float64(ray[k, 4]), np.float64(ray[k, 5])
+                gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+                if dx * gx + dy * gy + dz * gz >= 0.0:
+                    tally[T_BACKFACE] += p0
+                    tally[T_BACKFACE + 1] += p1
+                    tally[T_BACKFACE + 2] += p2
+                    continue
+                u, v = np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1])
+                w = 1.0 - u - v
+                i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+                px, py, pz = _lerp3(positions, i0, i1, i2, w, u, v)
+                # deposit (_deposit)
+                for j in range(3):
+                    vert = faces[t, j]
+                    lam = w if j == 0 else (u if j == 1 else v)
+                    ex = px - positions[vert, 0]
+                    ey = py - positions[vert, 1]
+                    ez = pz - positions[vert, 2]
+                    t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
+                    n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
+                    cx = n1 * t2 - n2 * t1
+                    cy = n2 * t0 - n0 * t2
+                    cz = n0 * t1 - n1 * t0
+                    along_t = ex * t0 + ey * t1 + ez * t2
+                    along_b = ex * cx + ey * cy + ez * cz
+                    for c in range(3):
+                        wc = (p0 if c == 0 else (p1 if c == 1 else p2)) * lam
+                        moment0[vert, c] += wc
+                        moment1[vert, c, 0] += wc * along_t
+                        moment1[vert, c, 1] += wc * along_b
+                tally[T_INCIDENT] += p0
+                tally[T_INCIDENT + 1] += p1
+                tally[T_INCIDENT + 2] += p2
+                m = face_material[t]
+                base = depth * 8
+                r0 = rand(seed, STREAM_BOUNCE, pid, base)
+                r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
+                r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
+                # scatter (_scatter): the shading frame, then brdf_sample
+                nx, ny, nz = _facing(_lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
+                tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+                wox = -(dx * tx + dy * ty + dz * tz)
+                woy = -(dx * bx + dy * by + dz * bz)
+                woz = -(dx * nx + dy * ny + dz * nz)
+                mat = materials[m]
+                wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, r0, r1, r2)
+                sx = wix * tx + wiy * bx + wiz * nx
+                sy = wix * ty + wiy * by + wiz * ny
+                sz = wix * tz + wiy * bz + wiz * nz
+                ok = wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0
+                # albedo (_albedo)
+                xa = min(max(woz, 0.0), 1.0) * (n_albedo - 1)
+                ka = min(int(xa), n_albedo - 2)
+                fa = xa - ka
+                a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
+                a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
+                a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
+                tally[T_ABSORBED] += p0 * (1.0 - a0)
+                tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
+                tally[T_ABSORBED + 2] += p2 * (1.0 - a2)
+                if depth + 1 >= max_depth:
+                    tally[T_TERMINATED] += p0 * a0
+                    tally[T_TERMINATED + 1] += p1 * a1
+                    tally[T_TERMINATED + 2] += p2 * a2
+                    continue
+                if not ok:
+                    continue  # below the shading or the true surface: absorbed
+                fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
+                scale = wiz / pdf
+                q0, q1, q2 = p0 * fr * scale, p1 * fg * scale, p2 * fb * scale
+                # Russian roulette (_roulette)
+                reference = max(p0, p1, p2)
+                survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
+                if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+                    continue
+                # the survivor goes on from slot ``survivors`` <= k: photon k is read already
+                ids[survivors] = pid
+                power[survivors, 0], power[survivors, 1], power[survivors, 2] = q0 / survive, q1 / survive, q2 / survive
+                ray[survivors, 0] = px + epsilon * gx
+                ray[survivors, 1] = py + epsilon * gy
+                ray[survivors, 2] = pz + epsilon * gz
+                ray[survivors, 3], ray[survivors, 4], ray[survivors, 5] = sx, sy, sz
+                survivors += 1
+            n = survivors
     return rays
 
 

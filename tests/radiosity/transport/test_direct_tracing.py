@@ -2,8 +2,9 @@
 against the way rays were traced before: embreex's batched ``EmbreeScene.run``, with
 Python between wavefronts. Hits must be bit-identical to embreex's on random rays, and
 a gather block and a path-traced tile must give the same bits as the same kernels
-driven wavefront by wavefront through embreex; a photon batch (traced photon by photon)
-the same bits photon by photon, and the same sums up to the order of their terms."""
+driven wavefront by wavefront through embreex; a photon batch (traced in waves) the
+same bits photon by photon and as one wave, and the same sums up to the order of their
+terms in waves of any size."""
 
 import numpy as np
 import pytest
@@ -131,9 +132,9 @@ def embreex_photon_wavefront(sa, reference, seed, first, count, total):
 
 
 def test_each_photon_gives_the_same_bits_as_the_embreex_wavefront(teapot):
-    # ``trace_photons`` follows one photon at a time to its end, the wavefront every
-    # photon one bounce at a time: a photon alone has the same rays and deposits in the
-    # same order either way, so its tally must match bit for bit
+    # ``trace_photons`` goes in waves, the wavefront every photon one bounce at a time:
+    # a photon alone has the same rays and deposits in the same order either way, so
+    # its tally must match bit for bit
     _, _, sa, tracer, reference = teapot
     seed, total = 3, 1_000_000
     bounced = 0
@@ -150,9 +151,10 @@ def test_each_photon_gives_the_same_bits_as_the_embreex_wavefront(teapot):
 
 def test_a_photon_batch_sums_the_same_deposits_as_the_embreex_wavefront(teapot):
     # a whole batch: the same rays, hits and deposits; the sums differ only by the
-    # order of their terms (photon by photon against depth by depth), so by rounding
+    # order of their terms (wave by wave against depth by depth), so by rounding
     _, _, sa, tracer, reference = teapot
     seed, first, count, total = 3, 70_000, 20_000, 1_000_000
+    assert count > 10 * kernels.PHOTON_WAVE  # many waves
     expected, rays = embreex_photon_wavefront(sa, reference, seed, first, count, total)
     before = tracer.rays_cast
     got = solve.trace_photon_batch(tracer, sa, seed, first, count, total)
@@ -161,6 +163,37 @@ def test_a_photon_batch_sums_the_same_deposits_as_the_embreex_wavefront(teapot):
     for a, b in zip(got, expected):
         assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
         assert not np.array_equal(a, np.zeros_like(a))
+
+
+def test_a_batch_traced_as_one_wave_gives_the_same_bits_as_the_embreex_wavefront(teapot):
+    # one wave is the wavefront itself: every photon at depth d, then depth d + 1, the
+    # survivors packed in order; so the sums have the same terms in the same order
+    _, _, sa, tracer, reference = teapot
+    seed, first, count, total = 5, 3_000, 3_000, 1_000_000
+    expected, rays = embreex_photon_wavefront(sa, reference, seed, first, count, total)
+    got = kernels.empty_tally(len(sa.positions))
+    traced = kernels.trace_photons(tracer.embree, sa, seed, first, count, total, solve.MAX_PHOTON_DEPTH, got, count)
+    assert traced == rays
+    for a, b in zip(got, expected):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("wave", [1, 7, 64, 5_000])
+def test_the_wave_size_changes_only_the_rounding(teapot, wave):
+    # waves of 1 (photon by photon), odd sizes with a short last wave, and more than
+    # the batch: the same rays and hits, sums equal to rounding
+    _, _, sa, tracer, _ = teapot
+    seed, first, count, total = 2, 500, 2_500, 1_000_000
+    sums = []
+    for w in (kernels.PHOTON_WAVE, wave):
+        acc = kernels.empty_tally(len(sa.positions))
+        rays = kernels.trace_photons(tracer.embree, sa, seed, first, count, total, solve.MAX_PHOTON_DEPTH, acc, w)
+        sums.append((rays, acc))
+    (rays_a, a), (rays_b, b) = sums
+    assert rays_a == rays_b > count
+    assert a.tally[kernels.T_HITS] == b.tally[kernels.T_HITS]
+    for x, y in zip(a, b):
+        assert np.allclose(x, y, rtol=1e-12, atol=1e-12 * np.abs(y).max())
 
 
 def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot):
