@@ -96,6 +96,11 @@ def main(argv=None):
     parser.add_argument("--ray-presets", default="draft,high", help="presets whose solve is measured against the limit")
     args = parser.parse_args(argv)
     parts = set(args.parts.split(","))
+    from radiosity.formats.presets import QUALITIES
+
+    unknown = [q for q in args.ray_presets.split(",") if q not in QUALITIES]
+    if unknown:
+        parser.error(f"--ray-presets: unknown preset {unknown[0]!r}; choose from {', '.join(QUALITIES)}")
 
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.solve import SolveOptions, solve
