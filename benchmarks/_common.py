@@ -120,19 +120,15 @@ def _occlude_prange(rt, origins, directions, distances, chunks, blocked):
             blocked[k] = occluded1(rt, rayhit, o[0], o[1], o[2], d[0], d[1], d[2], distances[k])
 
 
-def photon_rays(scene, photons, seed=1):
+def photon_rays(tracer, sa, photons, seed=1):
     """(origins, directions) float32 (R, 3): every ray a photon pass of ``photons``
-    photons traces in ``scene`` (a ``Scene``, already refined), in the order the
-    solver's photon loop traces them (photon by photon, each from its emission to its
-    end). Recorded with the wavefront reference kernels (``kernels.emit_photons``,
-    ``kernels.bounce_photons``), which tests hold to the loop's rays bit for bit."""
+    photons traces in the scene of ``tracer`` (a ``RayTracer``) and ``sa`` (its
+    ``kernels.SceneArrays``), photon by photon, each from its emission to its end.
+    Recorded with the wavefront reference kernels (``kernels.emit_photons``,
+    ``kernels.bounce_photons``), which tests hold to the solver's rays bit for bit."""
     from radiosity.transport import kernels
-    from radiosity.transport.embree import RayTracer
-    from radiosity.transport.solve import MAX_PHOTON_DEPTH, scene_arrays
+    from radiosity.transport.solve import MAX_PHOTON_DEPTH
 
-    merged = scene.merged()
-    tracer = RayTracer(merged.positions, merged.faces, threads=1)
-    sa = scene_arrays(scene, merged, tracer.epsilon)
     flying = kernels.empty_rays(photons)
     kernels.emit_photons(sa, seed, 0, photons, flying)
     out, acc = kernels.empty_rays(photons), kernels.empty_tally(len(sa.positions))
@@ -146,25 +142,22 @@ def photon_rays(scene, photons, seed=1):
         hits = tracer.intersect(flying.origins, flying.directions)
         n = kernels.bounce_photons(sa, seed, depth, MAX_PHOTON_DEPTH, flying, hits, acc, out)
         flying = kernels.Rays(*(a[:n].copy() for a in out))
-    tracer.close()
     order = np.argsort(np.concatenate(ids), kind="stable")  # depth-major -> photon by photon
     return np.concatenate(origins)[order], np.concatenate(directions)[order]
 
 
-def gather_rays(scene, quality, vertices_per_object=256, seed=1):
+def gather_rays(scene, merged, sa, quality, vertices_per_object=256, seed=1):
     """The first rays of the gather at ``quality`` from up to ``vertices_per_object``
-    random vertices of each glossy object of ``scene`` (already refined): the light
+    random vertices of each glossy object of ``scene`` (already refined; ``merged`` its
+    merged mesh, ``sa`` its ``kernels.SceneArrays``): the light
     samples' shadow rays (origins, directions, distances: those that can contribute)
     and the gather paths' first segments (origins, directions), as
     ``kernels.make_gather_rays`` makes them. Later segments and the light samples at
     glossy hits are not recorded: they leave the same surfaces for the same lights."""
     from radiosity.transport import kernels
-    from radiosity.transport.embree import origin_offset
-    from radiosity.transport.solve import MAX_GATHER_DEPTH, SolveOptions, scene_arrays
+    from radiosity.transport.solve import MAX_GATHER_DEPTH, SolveOptions
 
     settings = SolveOptions(quality=quality).resolved(scene)
-    merged = scene.merged()
-    sa = scene_arrays(scene, merged, origin_offset(merged.positions))
     rng = np.random.default_rng(seed)
     offsets = merged.vertex_offset
     vertices = np.concatenate(
@@ -193,15 +186,16 @@ class SameRays:
 
     def __init__(self, scene, quality, photons, threads):
         from radiosity.transport.embree import RayTracer
-        from radiosity.transport.solve import SolveOptions
+        from radiosity.transport.solve import SolveOptions, scene_arrays
 
         refined = scene.refined(SolveOptions(quality=quality).resolved(scene)["max_edge"])
         merged = refined.merged()
         self.threads = threads
         self.triangles = len(merged.faces)
         self.tracer = RayTracer(merged.positions, merged.faces, threads=threads)
-        self.photon = photon_rays(refined, photons)
-        self.shadow, self.first = gather_rays(refined, quality)
+        sa = scene_arrays(refined, merged, self.tracer.epsilon)
+        self.photon = photon_rays(self.tracer, sa, photons)
+        self.shadow, self.first = gather_rays(refined, merged, sa, quality)
         self.photon_hits = np.empty(len(self.photon[0]), np.int32)
         self.first_hits = np.empty(len(self.first[0]), np.int32)
         self.blocked = np.empty(len(self.shadow[0]), bool)

@@ -116,7 +116,7 @@ def main(argv=None):
 
     # 1 + 2: rays per second, solver against the limit, interleaved runs, medians
     if "rays" in parts:
-        rays_per_second(record, scene, refined, opts, photons, args)
+        rays_per_second(record, scene, refined, photons, args)
     if "equivalence" in parts:
         equivalence(record, scene, args.threads)
     if "memory" in parts:
@@ -129,7 +129,7 @@ def main(argv=None):
     return 0
 
 
-def rays_per_second(record, scene, refined, opts, photons, args):
+def rays_per_second(record, scene, refined, photons, args):
     """Each preset's solve against the limit on its own rays (``_common.SameRays``,
     the preset's mesh), and the synthetic limit of earlier runs (``_common.Limit``:
     random rays off random triangles of the draft mesh), repeats interleaved."""

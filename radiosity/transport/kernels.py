@@ -941,9 +941,10 @@ def trace_photons(rt, sa, seed, first_id, count, total, max_depth, acc, wave=PHO
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _prefetch_hit(t, faces, face_normals, face_material, positions, normals, tangents, moment0, moment1):
-    """Ask the cache for what shading a hit on triangle t reads: the triangle's rows,
-    and its vertices' (their indices are read, so ``faces`` should be asked first)."""
+def _prefetch_hit(t, faces, face_normals, face_material, positions, moment0, moment1):
+    """Ask the cache for what shading a hit on triangle t waits for most: the
+    triangle's rows, and its vertices' positions and density moments (their indices
+    are read, so ``faces`` should be asked first)."""
     if t < 0:
         return
     _prefetch_row(face_normals, t)
@@ -1025,9 +1026,8 @@ def _trace_photon_waves(
                     _prefetch_row(faces, hit_triangle[k + 2 * PREFETCH_AHEAD])
                 if k + PREFETCH_AHEAD < n:
                     _prefetch_hit(
-                        hit_triangle[k + PREFETCH_AHEAD], faces, face_normals, face_material, positions, normals,
-                        tangents, moment0, moment1,
-                    )  # fmt: skip
+                        hit_triangle[k + PREFETCH_AHEAD], faces, face_normals, face_material, positions, moment0, moment1
+                    )
                 pid = ids[k]
                 p0, p1, p2 = power[k, 0], power[k, 1], power[k, 2]
                 t = hit_triangle[k]

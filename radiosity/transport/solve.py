@@ -187,7 +187,7 @@ def memory_estimate(settings, n_vertices, glossy):
     in_flight = 2 * settings["threads"] + 1  # ``_run_ordered`` keeps at most this many jobs
     photons = settings["photons"]
     batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
-    per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # photons are traced one at a time: no ray buffers
+    per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # the waves' ray buffers are small (kernels.PHOTON_WAVE rows)
     n_light, n_gather = settings["light_samples"], settings["gather_samples"]
     block = _gather_block_size(n_light, n_gather)
     buffers = output = 0
@@ -481,9 +481,10 @@ def _solve(scene, settings, runner, progress):
         if o.material.is_glossy
     ]
     gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
+    glossy_dirs = {o.name: dirs for o, _, dirs in glossy}
     for i, o in enumerate(refined.objects):
         if o.material.is_glossy:
-            dirs = directions.grid_directions(grid_sizes[o.name])
+            dirs = glossy_dirs[o.name]
             radiance = gathered[o.name]
         else:
             dirs = directions.DIFFUSE_DIRECTIONS
