@@ -63,6 +63,25 @@ def register(subparsers, not_built):
         metavar="E",
         help="the relative standard error the extra gather passes aim at",
     )
+    p.add_argument(
+        "--emitter-highlights",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="the emitters' own glossy highlights in closed form, which every display then draws per pixel "
+        "(default); --no-emitter-highlights gathers them into the direction grid like any other light",
+    )
+    p.add_argument(
+        "--visibility-samples",
+        type=int,
+        metavar="N",
+        help="shadow rays per glossy vertex and emitter part: how much of each emitter a vertex sees",
+    )
+    p.add_argument(
+        "--emitter-nodes",
+        type=int,
+        metavar="N",
+        help="quadrature nodes of the emitters' highlights (1-32; more: more exact, slower to draw)",
+    )
     add_adaptive_flags(p)
     p.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
     p.add_argument("--threads", type=int, metavar="T", help="worker threads (default: one per core)")
@@ -122,6 +141,9 @@ def _solve(args):
         kernel_rings=args.kernel_rings,
         extra_gather=args.extra_gather,
         gather_tolerance=args.gather_tolerance,
+        emitter_highlights=args.emitter_highlights,
+        visibility_samples=args.visibility_samples,
+        emitter_nodes=args.emitter_nodes,
         seed=args.seed,
         threads=args.threads,
         scheduler=args.scheduler,
@@ -157,6 +179,7 @@ def format_summary(solution, path):
             else "  gather   none: no glossy objects"
         ),
         *_regather_lines(st.get("regather")),
+        *_highlight_lines(solution),
         f"  total    {total:.2f} s (setup {t['setup']:.2f} s)",
         *_adaptive_lines(st.get("adaptive")),
         f"wrote {path} ({size / 1e6:.2f} MB)",
@@ -175,6 +198,23 @@ def _regather_lines(regather):
         for name, r in ran.items()
     ]
     return ["  regather " + "; ".join(parts)]
+
+
+def _highlight_lines(solution):
+    """The summary's line on the emitters' closed-form highlights."""
+    parts = solution.emitters
+    if not parts:
+        return []
+    kinds = {}
+    for p in parts:
+        what = "sphere" if p.kind == "sphere" else f"{len(p.points)}-gon"
+        kinds.setdefault(p.source, []).append(what)
+    described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
+    st = solution.stats
+    return [
+        f"  highlights {len(parts)} emitter part(s) in closed form: {described}; "
+        f"{st.get('visibility_rays', 0):,} shadow rays, {st['time_s'].get('highlights', 0.0):.2f} s"
+    ]
 
 
 def _adaptive_lines(adaptive):

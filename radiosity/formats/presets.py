@@ -42,6 +42,10 @@ class Preset:
     extra_gather     : further gather passes, at most this times the glossy vertices, where
                        the gather is noisy (``transport.regather``; 0: none)
     gather_tolerance : the relative standard error those passes aim at
+    visibility_samples : shadow rays per glossy vertex and emitter part: how much of each
+                       emitter a vertex sees (its highlight's shadow, ``transport.highlights``)
+    emitter_nodes    : N of the quadrature of the emitters' highlights (solver and every
+                       display: ``formats.emitters``; more is more exact and slower to draw)
     """
 
     photons: int
@@ -60,6 +64,8 @@ class Preset:
     adaptive_tolerance: float = 0.005
     extra_gather: float = 0.0
     gather_tolerance: float = 0.02
+    visibility_samples: int = 64
+    emitter_nodes: int = 8
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -67,9 +73,13 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03),
-    "medium": Preset(8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02),
-    "high": Preset(32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01),
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03, 32, 8),
+    "medium": Preset(
+        8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02, 64, 8
+    ),
+    "high": Preset(
+        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12
+    ),
 }
 QUALITIES = tuple(PRESETS)
 DEFAULT_QUALITY = "draft"

@@ -33,6 +33,7 @@ import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.directions import grid_directions
+from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_grid, parts_from_meta
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
 from radiosity.formats.npz import open_archive, write_archive
@@ -40,7 +41,8 @@ from radiosity.formats.npz import open_archive, write_archive
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 1
+VERSION = 2
+READS = (1, 2)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -124,6 +126,7 @@ class ObjectSolution:
     directions: np.ndarray
     radiance: np.ndarray
     material: dict = field(default_factory=dict)
+    visibility: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         name = _check_name(self.name)
@@ -195,6 +198,15 @@ class ObjectSolution:
             )
 
         put(self, "material", _material_dict(name, self.material))
+        if self.visibility is not None:
+            vis = _as_array(name, "visibility", self.visibility, np.float32, floats)
+            if vis.ndim != 2 or vis.shape[0] != v:
+                raise _Invalid(f"'{name}/visibility' has shape {_shape(vis)}, expected (V, P) = ({v}, P)")
+            if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
+                raise _Invalid(f"'{name}/visibility' has values outside [0, 1]")
+            if self.is_diffuse:
+                raise _Invalid(f"'{name}/visibility': a diffuse object has none (its emitters' highlights are diffuse)")
+            put(self, "visibility", vis)
 
     def __repr__(self) -> str:
         return (
@@ -223,8 +235,12 @@ class ObjectSolution:
         return np.cross(self.normals, self.tangents).astype(np.float32, copy=False)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The six arrays keyed as in the file (``<name>/positions``, ...)."""
-        return {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
+        """The arrays keyed as in the file (``<name>/positions``, ...; ``visibility``
+        where the object has it)."""
+        out = {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
+        if self.visibility is not None:
+            out[f"{self.name}/visibility"] = self.visibility
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,6 +255,12 @@ class Solution:
         scene: what the scene was (path or built-in name).
         camera: the scene's default camera, if it has one (``meta.camera``, optional:
             the displays' default view).
+        emitters: the emitter parts whose direct glossy highlights are in closed form
+            (``radiosity.formats.emitters``, version 2): every glossy object's radiance
+            holds them evaluated with ``emitter_nodes`` and its ``visibility``, so that a
+            display can subtract them on the grid and draw them per pixel. Empty: none
+            (every version 1 file).
+        emitter_nodes: N of the rules they were evaluated with.
     """
 
     objects: tuple[ObjectSolution, ...]
@@ -246,6 +268,8 @@ class Solution:
     stats: dict = field(default_factory=dict)
     scene: str = ""
     camera: Camera | None = None
+    emitters: tuple[EmitterPart, ...] = ()
+    emitter_nodes: int = DEFAULT_NODES
 
     def __post_init__(self) -> None:
         objects = tuple(self.objects)
@@ -262,7 +286,18 @@ class Solution:
         if not isinstance(self.scene, str):
             raise TypeError(f"scene must be a string, got {type(self.scene).__name__}")
         object.__setattr__(self, "objects", objects)
-
+        object.__setattr__(self, "emitters", tuple(self.emitters))
+        if not (isinstance(self.emitter_nodes, int) and 1 <= self.emitter_nodes <= MAX_NODES):
+            raise ValueError(f"emitter_nodes must be a whole number from 1 to {MAX_NODES}, got {self.emitter_nodes!r}")
+        for o in objects:
+            parts = 0 if o.visibility is None else o.visibility.shape[1]
+            if not o.is_diffuse and self.emitters and parts != len(self.emitters):
+                raise _Invalid(
+                    f"object {o.name!r}: a glossy object needs a visibility of each of the {len(self.emitters)} emitter "
+                    f"parts, has {parts}"
+                )
+            if not self.emitters and o.visibility is not None and o.visibility.shape[1]:
+                raise _Invalid(f"object {o.name!r} has a visibility of {o.visibility.shape[1]} parts; there are none")
     @property
     def names(self) -> tuple[str, ...]:
         """Object names, in file order."""
@@ -285,8 +320,22 @@ class Solution:
             "settings": self.settings,
             "stats": self.stats,
             "scene": self.scene,
+            "emitters": [p.to_dict() for p in self.emitters],
+            "emitter_nodes": self.emitter_nodes,
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
         }
+
+    def highlights(self, name: str) -> np.ndarray:
+        """The closed-form emitter highlights (V, D, 3) float64 held in object ``name``'s
+        radiance on its grid (zeros where there are none: diffuse objects, version 1)."""
+        o = self.object(name)
+        if o.is_diffuse or not self.emitters:
+            return np.zeros(o.radiance.shape)
+        m = o.material
+        return emitter_grid(
+            self.emitters, o.positions, o.normals, o.tangents, o.directions, m["specular"], m["exponent"],
+            visibility=o.visibility, nodes=self.emitter_nodes, source=name,
+        )
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the contract's npz to ``path`` atomically (all or nothing).
@@ -307,7 +356,7 @@ class Solution:
     @classmethod
     def load(cls, path: str | os.PathLike) -> Solution:
         """Read and validate a solution file; InputError (one line) if it is not valid."""
-        with open_archive(path, FORMAT, (VERSION,)) as archive:
+        with open_archive(path, FORMAT, READS) as archive:
             return _read(archive)
 
 
@@ -337,6 +386,12 @@ def _read(archive) -> Solution:
             kind_name = "object" if kind is dict else "string"
             raise fail(f"meta '{key}' must be a JSON {kind_name}")
     camera = camera_from_meta(meta, fail)
+    emitters, nodes = (), DEFAULT_NODES
+    if meta["version"] >= 2:
+        emitters = parts_from_meta(meta.get("emitters", []), fail)
+        nodes = meta.get("emitter_nodes", DEFAULT_NODES)
+        if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
+            raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
 
     objects = []
     for name in names:
@@ -346,8 +401,16 @@ def _read(archive) -> Solution:
         if missing:
             raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
         arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
+        if f"{name}/visibility" in archive.keys:
+            arrays["visibility"] = archive.array(f"{name}/visibility")
         try:
             objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
         except _Invalid as exc:
             raise fail(str(exc)) from None
-    return Solution(objects=tuple(objects), settings=settings, stats=stats, scene=scene, camera=camera)
+    try:
+        return Solution(
+            objects=tuple(objects), settings=settings, stats=stats, scene=scene, camera=camera, emitters=emitters,
+            emitter_nodes=nodes,
+        )
+    except _Invalid as exc:
+        raise fail(str(exc)) from None

@@ -83,6 +83,11 @@ class SceneArrays(NamedTuple):
     emit_triangles : (E,) int64
     emit_area_pdf  : (T,) float64     density per unit area of choosing a point on a triangle
     epsilon        : float            ray-origin offset, scene units
+    direct_cdf, direct_triangles, direct_area_pdf : the same over the emitters whose direct
+                     glossy highlight the gather estimates (its vertices' light samples and
+                     the emission its rays find on their first segment); the others'
+                     (analytic emitter parts, ``radiosity.scene.emitters``) the solver adds
+                     in closed form. The same arrays as emit_* when every emitter is gathered.
     """
 
     positions: np.ndarray
@@ -97,6 +102,9 @@ class SceneArrays(NamedTuple):
     emit_triangles: np.ndarray
     emit_area_pdf: np.ndarray
     epsilon: float
+    direct_cdf: np.ndarray
+    direct_triangles: np.ndarray
+    direct_area_pdf: np.ndarray
 
 
 class Rays(NamedTuple):
@@ -590,8 +598,9 @@ def make_gather_rays(sa, block, light, samples):
         for m in range(n_light):
             i = b * n_light + m
             item = vert * n_light + m
-            tri, area_pdf, _, (dx, dy, dz), dist, cos_light = _toward_emitter(
-                sa,
+            tri, area_pdf, _, (dx, dy, dz), dist, cos_light = _emitter_sample(
+                sa.direct_cdf, sa.direct_triangles, sa.direct_area_pdf, sa.positions, sa.faces, sa.face_normals,
+                sa.epsilon,
                 (px, py, pz),
                 (nx, ny, nz),
                 rand(seed, STREAM_LIGHT, item, 0),
@@ -667,7 +676,7 @@ def shade_paths(rt, rayhit, sa, irradiance, block, depth, paths, path_pdf, hits,
         # the call's own copy of the small material table: a row of it per hit (a
         # reference-count update) that threads must not share
         rt, rayhit, sa.positions, sa.normals, sa.faces, sa.face_normals, sa.face_material, sa.materials.copy(),
-        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.epsilon, irradiance,
+        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf, sa.epsilon, irradiance,
         block.seed, block.n_light, block.strata * block.strata, block.max_depth, block.vertices, block.lobe_light,
         depth, paths.ids, paths.values, paths.origins, paths.directions, path_pdf,
         hits.triangle, hits.u, hits.v, samples.wi, samples.incoming,
@@ -678,7 +687,7 @@ def shade_paths(rt, rayhit, sa, irradiance, block, depth, paths, path_pdf, hits,
 @numba.njit(cache=True, nogil=True)
 def _shade_loop(
     rt, rayhit, positions, normals, faces, face_normals, face_material, materials, emit_cdf, emit_triangles,
-    emit_area_pdf, epsilon, irradiance, seed, n_light, n_gather, max_depth, vertices, lobe_light, depth,
+    emit_area_pdf, direct_area_pdf, epsilon, irradiance, seed, n_light, n_gather, max_depth, vertices, lobe_light, depth,
     ids, values, origins, directions, path_pdf, triangle, hit_u, hit_v, sample_wi, incoming,
     out_ids, out_values, out_origins, out_directions, out_pdf,
 ):  # fmt: skip
@@ -703,15 +712,18 @@ def _shade_loop(
         m = face_material[t]
         target = ids[k]
         weight = 1.0
-        if emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
+        if depth == 0 and emit_area_pdf[t] > 0.0 and direct_area_pdf[t] <= 0.0:
+            weight = 0.0  # an analytic emitter part: its direct highlight is added in closed form
+        elif emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
             cos_light = -(d[0] * gx + d[1] * gy + d[2] * gz)
             ex, ey, ez = px - origins[k, 0], py - origins[k, 1], pz - origins[k, 2]
             dist = math.sqrt(ex * ex + ey * ey + ez * ez)
-            p_light = emit_area_pdf[t] * dist * dist / cos_light
             if depth == 0:
+                p_light = direct_area_pdf[t] * dist * dist / cos_light
                 p_gather = sample_wi[target, 2] / math.pi
                 weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
             elif lobe_light:
+                p_light = emit_area_pdf[t] * dist * dist / cos_light
                 weight = path_pdf[k] / (path_pdf[k] + p_light)
         for c in range(3):
             e = w * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]

@@ -38,11 +38,13 @@ from typing import NamedTuple
 import numpy as np
 
 from radiosity.formats import directions, presets
+from radiosity.formats.emitters import MAX_NODES
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.materials import albedo, pack_materials
-from radiosity.transport import density, kernels, regather
+from radiosity.scene.emitters import emitter_parts
+from radiosity.transport import density, highlights, kernels, regather
 from radiosity.transport.embree import RayTracer, default_threads, empty_hits, origin_offset
 
 MAX_PHOTON_DEPTH = 64
@@ -51,6 +53,7 @@ PHOTON_BATCH = 1 << 16
 ALBEDO_TABLE_SIZE = 129
 MAX_PHOTONS = 1 << 40  # ~1e12: days of tracing on any machine this runs on
 GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
+MAX_VISIBILITY_SAMPLES = 4096
 
 # bytes per element of the arrays that grow with the knobs (see ``memory_estimate``)
 _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
@@ -75,6 +78,12 @@ class SolveOptions:
     extra_gather   : further gather passes where the gather is noisy, at most this
                      times the glossy vertices (0: none), see ``regather``
     gather_tolerance : the relative standard error those passes aim at
+    emitter_highlights : the emitters' direct glossy highlights in closed form (True:
+                     ``transport.highlights``, the solution's ``emitters`` and each glossy
+                     object's ``visibility``, which the displays draw per pixel); False
+                     gathers them like any light, as before issue 22 (for comparisons)
+    visibility_samples : shadow rays per glossy vertex and emitter part
+    emitter_nodes  : N of the highlights' quadrature (``formats.emitters``)
     lobe_light     : sample the light where gather paths meet glossy surfaces (True);
                      False finds it through the lobe alone, as before issue 13: the
                      same expected value, more noise (for comparisons)
@@ -93,6 +102,9 @@ class SolveOptions:
     kernel_rings: int | None = None
     extra_gather: float | None = None
     gather_tolerance: float | None = None
+    emitter_highlights: bool = True
+    visibility_samples: int | None = None
+    emitter_nodes: int | None = None
     lobe_light: bool = True
     seed: int = 1
     threads: int | None = None
@@ -113,18 +125,33 @@ class SolveOptions:
             ),
             "grid": self.grid,
             "lobe_light": bool(self.lobe_light),
+            "emitter_highlights": bool(self.emitter_highlights),
+            "visibility_samples": (
+                self.visibility_samples if self.visibility_samples is not None else preset.visibility_samples
+            ),
+            "emitter_nodes": self.emitter_nodes if self.emitter_nodes is not None else preset.emitter_nodes,
             "seed": int(self.seed),
             "threads": default_threads() if self.threads is None else self.threads,
         }
         out["max_edge"], out["max_edge_chosen_by"] = presets.max_edge(scene, self.quality, self.max_edge)
         if not math.isfinite(out["max_edge"]):
             raise InputError(f"--max-edge must be a finite length, got {out['max_edge']}")
-        for key, low in (("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1)):
+        for key, low in (
+            ("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1),
+            ("visibility_samples", 1), ("emitter_nodes", 1),
+        ):  # fmt: skip
             if int(out[key]) != out[key] or out[key] < low:
                 raise InputError(f"--{key.replace('_', '-')} must be a whole number >= {low}, got {out[key]}")
         for key in ("extra_gather", "gather_tolerance"):
             if not (math.isfinite(out[key]) and out[key] >= 0):
                 raise InputError(f"--{key.replace('_', '-')} must be a number >= 0, got {out[key]:g}")
+        if out["emitter_nodes"] > MAX_NODES:
+            raise InputError(f"--emitter-nodes must be a whole number from 1 to {MAX_NODES}, got {out['emitter_nodes']}")
+        if out["visibility_samples"] > MAX_VISIBILITY_SAMPLES:
+            raise InputError(
+                f"--visibility-samples must be a whole number from 1 to {MAX_VISIBILITY_SAMPLES}, "
+                f"got {out['visibility_samples']}"
+            )
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
         if self.scheduler != "threads":
@@ -256,8 +283,26 @@ def _progress_factory(enabled):
     return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, disable=None, **kw)
 
 
-def scene_arrays(scene, merged, epsilon):
-    """The merged scene as the kernels read it (``kernels.SceneArrays``)."""
+def _emitter_table(power, faces_area2, chosen):
+    """(cdf, triangles, area pdf (T,)) of choosing a point on the ``chosen`` triangles
+    in proportion to their power (a cdf of one 1 and no area pdf where none emits)."""
+    emit_area_pdf = np.zeros(len(power))
+    emitting = np.nonzero((power > 0) & chosen)[0]
+    if len(emitting):
+        probability = power[emitting] / power[emitting].sum()
+        emit_area_pdf[emitting] = probability / (0.5 * faces_area2[emitting])
+        cdf = np.cumsum(probability)
+        cdf[-1] = 1.0
+    else:
+        cdf = np.ones(1)
+        emitting = np.zeros(1, dtype=np.int64)
+    return cdf, emitting.astype(np.int64), emit_area_pdf
+
+
+def scene_arrays(scene, merged, epsilon, analytic=()):
+    """The merged scene as the kernels read it (``kernels.SceneArrays``); ``analytic``
+    names the emitting objects whose direct glossy highlights the solver adds in closed
+    form (the gather leaves them out)."""
     material_names = list(scene.materials)
     table = pack_materials([scene.materials[n] for n in material_names])
     cos_grid = np.linspace(0.0, 1.0, ALBEDO_TABLE_SIZE)
@@ -272,16 +317,9 @@ def scene_arrays(scene, merged, epsilon):
     twice_area = np.linalg.norm(cross, axis=1)
     face_normals = cross / np.maximum(twice_area, 1e-300)[:, None]
     power = np.pi * table[face_material, 7:10].sum(axis=1) * 0.5 * twice_area
-    emitting = np.nonzero(power > 0)[0]
-    emit_area_pdf = np.zeros(len(faces))
-    if len(emitting):
-        probability = power[emitting] / power[emitting].sum()
-        emit_area_pdf[emitting] = probability / (0.5 * twice_area[emitting])
-        cdf = np.cumsum(probability)
-        cdf[-1] = 1.0
-    else:
-        cdf = np.ones(1)
-        emitting = np.zeros(1, dtype=np.int64)
+    cdf, emitting, emit_area_pdf = _emitter_table(power, twice_area, np.ones(len(faces), dtype=bool))
+    gathered = ~np.isin(merged.triangle_object, [i for i, o in enumerate(scene.objects) if o.name in set(analytic)])
+    direct = (cdf, emitting, emit_area_pdf) if gathered.all() else _emitter_table(power, twice_area, gathered)
     return kernels.SceneArrays(
         positions=positions,
         normals=np.concatenate([o.normals for o in scene.objects]),
@@ -292,9 +330,12 @@ def scene_arrays(scene, merged, epsilon):
         materials=table,
         albedo_table=albedo_table,
         emit_cdf=cdf,
-        emit_triangles=emitting.astype(np.int64),
+        emit_triangles=emitting,
         emit_area_pdf=emit_area_pdf,
         epsilon=float(epsilon),
+        direct_cdf=direct[0],
+        direct_triangles=direct[1],
+        direct_area_pdf=direct[2],
     )
 
 
@@ -430,7 +471,9 @@ def _solve(scene, settings, runner, progress):
     refined = scene.refined(settings["max_edge"])
     check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings))
     merged = refined.merged()
-    sa = scene_arrays(refined, merged, origin_offset(merged.positions))
+    # parts from the scene as given: refinement would add vertices off a sphere lamp
+    parts, analytic = emitter_parts(scene) if settings["emitter_highlights"] else ((), ())
+    sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic)
     seed = settings["seed"]
     runner.start(merged, sa, seed)
     times["setup"] = time.perf_counter() - t0
@@ -482,6 +525,25 @@ def _solve(scene, settings, runner, progress):
     ]
     gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
     glossy_dirs = {o.name: dirs for o, _, dirs in glossy}
+    if bar is not None:
+        bar.close()
+    gather_rays = runner.rays_cast - rays_before
+    times["gather"] = time.perf_counter() - t0
+
+    # -- the emitters' direct highlights, in closed form ---------------------------------
+    t0 = time.perf_counter()
+    visible = {}
+    shadow_rays = 0
+    if parts and glossy:
+        tracer = RayTracer(merged.positions, merged.faces)
+        for o, _, dirs in glossy:
+            visible[o.name] = highlights.visibility(
+                tracer, parts, o.positions, o.normals, settings["visibility_samples"], sa.epsilon, source=o.name
+            )
+            gathered[o.name] += highlights.grid_highlights(parts, o, dirs, visible[o.name], settings["emitter_nodes"])
+        shadow_rays = tracer.rays_cast
+        tracer.close()
+    times["highlights"] = time.perf_counter() - t0
     for i, o in enumerate(refined.objects):
         if o.material.is_glossy:
             dirs = glossy_dirs[o.name]
@@ -493,16 +555,14 @@ def _solve(scene, settings, runner, progress):
                 :, None, :
             ]
         results.append((o, dirs, radiance))
-    if bar is not None:
-        bar.close()
-    gather_rays = runner.rays_cast - rays_before
-    times["gather"] = time.perf_counter() - t0
 
     stats = {
         "photons": int(total) if refined.emitters else 0,
         "rays": int(runner.rays_cast),
         "photon_rays": int(photon_rays),
         "gather_rays": int(gather_rays),
+        "visibility_rays": int(shadow_rays),
+        "emitter_parts": {name: sum(p.source == name for p in parts) for name in analytic},
         "time_s": {k: round(v, 4) for k, v in times.items()},
         "photon_rays_per_s": photon_rays / times["photons"] if times["photons"] > 0 else 0.0,
         "gather_rays_per_s": gather_rays / times["gather"] if times["gather"] > 0 else 0.0,
@@ -541,11 +601,14 @@ def _solve(scene, settings, runner, progress):
             directions=np.asarray(dirs, dtype=np.float32),
             radiance=np.asarray(radiance, dtype=np.float32),
             material=o.material.to_dict(),
+            visibility=visible.get(o.name, np.ones((o.n_vertices, len(parts)), np.float32))
+            if o.material.is_glossy and parts else None,
         )
         for o, dirs, radiance in results
     )
     return Solution(
-        objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera
+        objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
+        emitters=parts, emitter_nodes=int(settings["emitter_nodes"]),
     )
 
 
@@ -561,7 +624,7 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
     faces, where noise shows), and pass
     k (seed ``regather.pass_seed(seed, k)``) gathers the vertices with more than k. The
     result is the mean of each vertex's passes."""
-    n_light = settings["light_samples"] if len(sa.emit_triangles) and sa.emit_area_pdf.any() else 0
+    n_light = settings["light_samples"] if sa.direct_area_pdf.any() else 0
     strata = math.isqrt(settings["gather_samples"])
     block = _gather_block_size(n_light, settings["gather_samples"])
     radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3)) for o, _, dirs in glossy}

@@ -145,7 +145,8 @@ def test_file_has_exactly_the_contract_keys_and_plain_numpy_reads_it(saved):
         raw = npz["meta"]
         assert raw.shape == () and raw.dtype.kind == "U"
         meta = json.loads(str(raw))
-    assert meta["format"] == "vlights.solution" and meta["version"] == 1
+    assert meta["format"] == "vlights.solution" and meta["version"] == 2
+    assert meta["emitters"] == [] and meta["emitter_nodes"] == 8  # version 2: no closed-form highlights here
     assert meta["objects"] == [DIFFUSE_NAME, GLOSSY_NAME]
     assert meta["materials"] == {DIFFUSE_NAME: WHITE, GLOSSY_NAME: POLISHED}
     assert set(meta) >= {"settings", "stats", "scene"}
@@ -355,7 +356,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [2, "1", None, True])
+@pytest.mark.parametrize("version", [3, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version

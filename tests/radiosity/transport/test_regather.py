@@ -94,7 +94,10 @@ def test_extra_passes_keep_the_answer_and_pass_0_bits(relay, monkeypatch):
     info = extra.stats["regather"]["plate"]
     assert plain.stats["regather"]["plate"]["extra_passes"] == 0
     assert 0 < info["extra_passes"] <= 3.0 * len(extra.object("plate").positions)
-    assert info["max_passes"] > 1 and extra.stats["gather_rays"] > 2 * plain.stats["gather_rays"]
+    # each extra pass of a vertex traces at least its 1024 gather rays (the floor's own
+    # noise, its sharp reflection of the lamp, is in closed form and asks for none)
+    assert info["max_passes"] > 1
+    assert extra.stats["gather_rays"] >= plain.stats["gather_rays"] + 1024 * info["extra_passes"]
     p0, p1 = plain.object("plate"), extra.object("plate")
     # a vertex with one pass keeps pass 0's bits (pass 0 uses the solve's own seed)
     same = (p0.radiance == p1.radiance).all(axis=(1, 2))

@@ -1,0 +1,136 @@
+"""The emitters' direct glossy highlights in closed form (``radiosity.formats.emitters``):
+what fraction of each emitter part every glossy vertex sees, by shadow rays, and the
+highlights' radiance on each glossy object's direction grid.
+
+The solver leaves these highlights out of the gather (``solve.scene_arrays``'s
+``analytic``) and adds them here, so the solution's radiance is the same quantity as
+before (emission included, every light) while the part the displays recompute per
+pixel is exactly the part they can subtract.
+
+Visibility: from each vertex (offset along its normal, as the gather's rays), shadow
+rays to ``samples`` fixed points of each part, the same points for every vertex so
+that visibility is a smooth function of position, not noise: a polygon's points
+spread over its area by the plastic-number (R2) sequence; a sphere's over the cap the
+vertex sees, by the same sequence in the cap's solid angle. A point behind the
+vertex's tangent plane or behind the part's front does not count; the vertex's value
+is the fraction of the counted points that are unoccluded (1 where none counts: the
+part's highlight is 0 there anyway). The part's own object does not shadow it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from radiosity.formats.emitters import emitter_grid
+
+__all__ = ["grid_highlights", "r2_points", "visibility"]
+
+PLASTIC = 1.324717957244746  # the plastic number: the R2 sequence's generator
+SPHERE_MARGIN = 1.05  # shadow rays to a sphere lamp stop at this times its radius (its mesh lies within)
+RELATIVE_SHORTEN = 1e-4  # ... to a polygon, this fraction of their length short of it
+
+
+def r2_points(count):
+    """(count, 2) float64 in [0, 1)^2: the R2 low-discrepancy sequence (Roberts 2018)."""
+    i = np.arange(count, dtype=np.float64)[:, None]
+    alpha = np.array([1.0 / PLASTIC, 1.0 / PLASTIC**2])
+    return np.mod(0.5 + alpha * (i + 1), 1.0)
+
+
+def polygon_points(vertices, count):
+    """(count, 3) points spread over a convex polygon's area (a fan of triangles, each
+    getting its share of the R2 sequence by area)."""
+    q = np.asarray(vertices, np.float64)
+    a, b, c = q[0], q[1:-1], q[2:]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    cdf = np.cumsum(area) / area.sum()
+    uv = r2_points(count)
+    tri = np.minimum(np.searchsorted(cdf, uv[:, 0], side="right"), len(area) - 1)
+    low = np.concatenate([[0.0], cdf[:-1]])[tri]
+    x = np.clip((uv[:, 0] - low) / (cdf[tri] - low), 0.0, 1.0)
+    s = np.sqrt(x)[:, None]
+    y = uv[:, 1:2]
+    return a * (1 - s) + s * ((1 - y) * b[tri] + y * c[tri])
+
+
+def _frame(c):
+    """Unit vectors (..., 3) t, b perpendicular to unit c (..., 3)."""
+    helper = np.where(np.abs(c[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    t = np.cross(c, helper)
+    t /= np.linalg.norm(t, axis=-1, keepdims=True)
+    return t, np.cross(c, t)
+
+
+def _rays_to_part(part, origins, normals, count):
+    """Shadow rays from ``origins`` (V, 3) to ``count`` points of ``part``: (directions
+    (V, S, 3), lengths (V, S), counted (V, S) bool)."""
+    if part.kind == "polygon":
+        points = polygon_points(part.points, count)
+        to = points[None, :, :] - origins[:, None, :]
+        length = np.linalg.norm(to, axis=2)
+        directions = to / np.maximum(length, 1e-300)[..., None]
+        front = (origins - part.points[0]) @ part.normal > 0
+        counted = front[:, None] & (np.einsum("vsi,vi->vs", directions, normals) > 0) & (length > 0)
+        return directions, length * (1 - RELATIVE_SHORTEN), counted
+    centre, radius = part.points[0], part.radius
+    to = centre[None, :] - origins
+    dist = np.linalg.norm(to, axis=1)
+    c = to / np.maximum(dist, 1e-300)[:, None]
+    sin_beta = np.minimum(radius / np.maximum(dist, 1e-300), 1.0)
+    cos_beta = np.sqrt(1 - sin_beta**2)
+    uv = r2_points(count)
+    cos_t = 1 - uv[None, :, 0] * (1 - cos_beta[:, None])
+    sin_t = np.sqrt(np.maximum(0.0, 1 - cos_t**2))
+    phi = 2 * np.pi * uv[None, :, 1]
+    t, b = _frame(c)
+    directions = (
+        cos_t[..., None] * c[:, None, :]
+        + (sin_t * np.cos(phi))[..., None] * t[:, None, :]
+        + (sin_t * np.sin(phi))[..., None] * b[:, None, :]
+    )
+    # stop where the ray enters the sphere that holds the lamp's mesh
+    outer = SPHERE_MARGIN * radius
+    along = np.einsum("vsi,vi->vs", directions, to)
+    disc = along**2 - (dist**2 - outer**2)[:, None]
+    length = np.where(disc > 0, along - np.sqrt(np.maximum(disc, 0.0)), 0.0)
+    counted = (np.einsum("vsi,vi->vs", directions, normals) > 0) & (dist[:, None] > radius) & (length > 0)
+    return directions, np.maximum(length, 0.0), counted
+
+
+def visibility(tracer, parts, positions, normals, samples, epsilon, source=None, chunk=1 << 18):
+    """(V, P) float32: the fraction of each part that each vertex (positions, unit
+    normals (V, 3)) sees, from ``samples`` shadow rays per part traced on ``tracer``
+    (a ``embree.RayTracer`` of the whole scene); ``source`` the vertices' own object
+    (its own parts: 0)."""
+    positions = np.asarray(positions, np.float64)
+    normals = np.asarray(normals, np.float64)
+    origins = positions + epsilon * normals
+    out = np.ones((len(positions), len(parts)), np.float32)
+    per_chunk = max(1, chunk // max(samples, 1))
+    for i, part in enumerate(parts):
+        if source is not None and part.source == source:
+            out[:, i] = 0.0
+            continue
+        for start in range(0, len(positions), per_chunk):
+            sl = slice(start, start + per_chunk)
+            directions, length, counted = _rays_to_part(part, origins[sl], normals[sl], samples)
+            o = np.broadcast_to(origins[sl, None, :], directions.shape)[counted]
+            blocked = np.zeros(counted.shape, dtype=bool)
+            if counted.any():
+                blocked[counted] = tracer.occluded(o, directions[counted], length[counted])
+            n_counted = counted.sum(axis=1)
+            seen = (counted & ~blocked).sum(axis=1)
+            out[sl, i] = np.where(n_counted > 0, seen / np.maximum(n_counted, 1), 1.0)
+    return out
+
+
+def grid_highlights(parts, obj, directions, visible, nodes):
+    """E (V, D, 3) float64 of the glossy object ``obj`` (a ``SceneObject``) on its grid
+    ``directions`` (D, 3), with its vertices' visibility ``visible`` (V, P)."""
+    material = obj.material
+    return emitter_grid(
+        parts, obj.positions, obj.normals, obj.tangents, directions, material.specular, material.exponent,
+        visibility=visible, nodes=nodes, source=obj.name,
+    )
