@@ -40,16 +40,19 @@ import math
 import moderngl
 import numpy as np
 
+from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, sample_plan
+from .glsl import PROBE_GLSL, emitter_glsl, emitter_table
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
+PARTS = ("lights", "probe", "emitters")  # what ``parts`` may switch off
 FLOAT_TEXTURE_WIDTH = 4096
 RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
 
-SHADE_GLSL = """
+LIGHTS_GLSL = """
 uniform int n_lights;          // lights drawn: the object's first n_lights (--lights)
 uniform int light_stride;      // the object's K: per-light coefficients per vertex
 uniform int per_light;         // 1: light k's coefficient of vertex v is texel coefficient_base + v * K + k
@@ -76,9 +79,9 @@ vec3 light_term(int k, vec3 n, vec3 x, vec3 w) {
     if (!(c > 0.0) || (1.0 - c) * rgb_p.a > NEGLIGIBLE) return vec3(0.0);
     return pow(c, rgb_p.a) * rgb_p.rgb;
 }
-// the shading formula; per-light coefficients are the three vertices' blended by weights
-// (per pixel: barycentrics; at a vertex: (v, v, v), (1, 0, 0))
-vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) {
+// emitted + the virtual lights; per-light coefficients are the three vertices' blended by
+// weights (per pixel: barycentrics; at a vertex: (v, v, v), (1, 0, 0))
+vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) {
     vec3 colour = emitted;
     for (int k = 0; k < n_lights; ++k) {
         vec3 term = light_term(k, n, x, w);
@@ -95,6 +98,25 @@ vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, 
 }
 """.replace("FLOAT_TEXTURE_WIDTH", str(FLOAT_TEXTURE_WIDTH))
 
+SHADE_MAIN_GLSL = """
+// Contract 2's shading formula (version 3): emitted + lights + probe + the emitters' highlights
+vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, vec3 probe_weight, ivec3 vertices, vec3 weights) {
+    return lights_shade(n, x, w, emitted, specular, vertices, weights) + probe_term(x, n, w, probe_weight)
+         + emitter_term(x, n, w, vertices, weights);
+}
+"""
+
+
+def shade_glsl(nodes=DEFAULT_NODES):
+    """The whole shading formula's GLSL (the fitted programs' and the web page's), for the
+    emitter quadrature's ``nodes``."""
+    return LIGHTS_GLSL + PROBE_GLSL + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH) + SHADE_MAIN_GLSL
+
+
+SHADE_GLSL = shade_glsl()
+SHADE = "//@SHADE\n"  # where a program's source gets shade_glsl(nodes)
+EMITTERS = "//@EMITTERS\n"  # ... the emitter term alone (the reference programs)
+
 FITTED_VS = """
 #version 330
 uniform mat4 mvp;
@@ -104,20 +126,23 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
+in vec3 in_probe;
 centroid out vec3 v_position;
 centroid out vec3 v_normal;
 centroid out vec3 v_emitted;
 centroid out vec3 v_specular;
+centroid out vec3 v_probe;
 centroid out vec3 v_colour;
-""" + SHADE_GLSL + """
+""" + SHADE + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
     v_position = in_position;
     v_normal = in_normal;
     v_emitted = in_emitted;
     v_specular = in_specular;
+    v_probe = in_probe;
     v_colour = gouraud == 1 ? shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted,
-                                    in_specular, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0))
+                                    in_specular, in_probe, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0))
                             : vec3(0.0);
 }
 """
@@ -130,12 +155,13 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
+in vec3 in_probe;
 centroid out vec3 v_colour;
-""" + SHADE_GLSL + """
+""" + SHADE + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
     v_colour = shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted, in_specular,
-                     ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
+                     in_probe, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
 }
 """
 
@@ -148,12 +174,14 @@ centroid in vec3 v_position;
 centroid in vec3 v_normal;
 centroid in vec3 v_emitted;
 centroid in vec3 v_specular;
+centroid in vec3 v_probe;
 centroid in vec3 v_colour;
 out vec4 f_colour;
-""" + SHADE_GLSL + """
+""" + SHADE + """
 void main() {
+    // (an object with emitter highlights is drawn per pixel by the geometry shader's program)
     vec3 c = gouraud == 1 ? v_colour : shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted,
-                                             v_specular, ivec3(0), vec3(1.0, 0.0, 0.0));
+                                             v_specular, v_probe, ivec3(0), vec3(1.0, 0.0, 0.0));
     f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
 }
 """
@@ -168,10 +196,12 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
+in vec3 in_probe;
 out vec3 g_position;
 out vec3 g_normal;
 out vec3 g_emitted;
 out vec3 g_specular;
+out vec3 g_probe;
 flat out int g_vertex;
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
@@ -179,6 +209,7 @@ void main() {
     g_normal = in_normal;
     g_emitted = in_emitted;
     g_specular = in_specular;
+    g_probe = in_probe;
     g_vertex = gl_VertexID;
 }
 """
@@ -191,11 +222,13 @@ in vec3 g_position[];
 in vec3 g_normal[];
 in vec3 g_emitted[];
 in vec3 g_specular[];
+in vec3 g_probe[];
 flat in int g_vertex[];
 centroid out vec3 v_position;
 centroid out vec3 v_normal;
 centroid out vec3 v_emitted;
 centroid out vec3 v_specular;
+centroid out vec3 v_probe;
 centroid out vec3 v_bary;
 flat out ivec3 v_vertices;
 void main() {
@@ -205,6 +238,7 @@ void main() {
         v_normal = g_normal[i];
         v_emitted = g_emitted[i];
         v_specular = g_specular[i];
+        v_probe = g_probe[i];
         v_bary = vec3(i == 0, i == 1, i == 2);
         v_vertices = ivec3(g_vertex[0], g_vertex[1], g_vertex[2]);
         EmitVertex();
@@ -221,12 +255,14 @@ centroid in vec3 v_position;
 centroid in vec3 v_normal;
 centroid in vec3 v_emitted;
 centroid in vec3 v_specular;
+centroid in vec3 v_probe;
 centroid in vec3 v_bary;
 flat in ivec3 v_vertices;
 out vec4 f_colour;
-""" + SHADE_GLSL + """
+""" + SHADE + """
 void main() {
-    vec3 c = shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_vertices, v_bary);
+    vec3 c = shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_probe,
+                   v_vertices, v_bary);
     f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
 }
 """
@@ -309,10 +345,12 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_tangent;
 centroid out vec3 v_colour;
-""" + LOOKUP_GLSL + """
+""" + LOOKUP_GLSL + EMITTERS + """
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
-    v_colour = lookup(gl_VertexID, in_normal, in_tangent, normalize(eye - in_position));
+    vec3 w = normalize(eye - in_position);
+    v_colour = lookup(gl_VertexID, in_normal, in_tangent, w)
+             + emitter_term(in_position, normalize(in_normal), w, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
 }
 """
 
@@ -386,12 +424,15 @@ flat in vec3 f_t0;
 flat in vec3 f_t1;
 flat in vec3 f_t2;
 out vec4 f_colour;
-""" + LOOKUP_GLSL + """
+""" + LOOKUP_GLSL + EMITTERS + """
 void main() {
     vec3 w = normalize(eye - f_position);
     vec3 c = f_bary.x * lookup(f_vertices.x, f_n0, f_t0, w)
            + f_bary.y * lookup(f_vertices.y, f_n1, f_t1, w)
            + f_bary.z * lookup(f_vertices.z, f_n2, f_t2, w);
+    // the emitters' highlights at the pixel (the grid holds the rest: the solution minus them)
+    vec3 n = normalize(f_bary.x * f_n0 + f_bary.y * f_n1 + f_bary.z * f_n2);
+    c += emitter_term(f_position, n, w, f_vertices, f_bary);
     f_colour = vec4(c, 1.0);
 }
 """
@@ -447,6 +488,10 @@ class _Object:
         self.specular = None  # the fitted coefficients as given, (V, 3) or (V, K, 3) (render_attributes)
         self.base = 0
         self.grid_n = 0
+        # the emitters' highlights per mode ("fitted", "reference"): (visibility base, parts,
+        # own-part mask, ks, exponent), absent where the object has none
+        self.highlight = {}
+        self.probe = None  # (row in the atlas, M, centre, lo, hi) of the fitted probe
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
 
     def add(self, ctx, attribute, values):
@@ -549,19 +594,57 @@ class Renderer:
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
         self.radiance = None
         self.coefficients = None
+        self.probes = None
+        self.emitter_tables = {}  # mode -> the emitter parts' texture
+        self.nodes = {"fitted": DEFAULT_NODES, "reference": DEFAULT_NODES}
+        visibility = []  # (N,) chunks of the visibility texture
         if fit is not None:
-            self._upload_fit(fit)
+            self._upload_fit(fit, visibility)
         if solution is not None:
-            self._upload_solution(solution)
+            self._upload_solution(solution, visibility)
+        values = np.concatenate(visibility) if visibility else np.zeros(1, np.float32)
+        self.visibility = _float_texture(
+            ctx, np.stack([values, np.zeros_like(values), np.zeros_like(values)], axis=1),
+            "the emitters' visibility (vertices x parts)",
+        )
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
         self._box = None  # the vertex array of the supersampling average (no attributes)
 
-    def _upload_fit(self, fit):
+    def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks):
+        """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) appended to
+        the visibility texture's ``chunks``."""
+        base = sum(len(c) for c in chunks)
+        chunks.append(np.asarray(visibility, np.float32).reshape(-1))
+        own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
+        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent))
+
+    def _emitter_table(self, mode, parts):
+        table = emitter_table(parts)
+        texture = self.ctx.texture((table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
+        texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.emitter_tables[mode] = texture
+
+    def _upload_fit(self, fit, visibility):
         ctx = self.ctx
         chunks, base = [], 0
+        self.nodes["fitted"] = fit.emitter_nodes
+        self._emitter_table("fitted", fit.emitters)
+        probes, row = [], 0
         for obj, f in zip(self.objects, fit.objects):
+            if f.highlight is not None:
+                h = f.highlight
+                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility)
+            weight = np.zeros((obj.n_vertices, 3), np.float32)
+            if f.probe is not None:
+                m = f.probe.size
+                obj.probe = (row, m, tuple(map(float, f.probe.centre)), tuple(map(float, f.probe.box[0])),
+                             tuple(map(float, f.probe.box[1])))
+                probes.append(np.asarray(f.probe.texels, np.float32))
+                row += m
+                weight = np.asarray(f.probe_weight, np.float32)
+            obj.add(ctx, "in_probe", weight)
             obj.add(ctx, "in_emitted", f.emitted)
             obj.n_lights = f.n_lights
             obj.per_light = bool(f.per_light) and f.n_lights > 0
@@ -579,9 +662,20 @@ class Renderer:
         self.coefficients = _float_texture(
             ctx, values, "the fitted model's per-light coefficients (vertices x lights)"
         )
+        if probes:
+            width = max(p.shape[1] for p in probes)
+            atlas = np.zeros((row, width, 3), np.float32)
+            r = 0
+            for p in probes:
+                atlas[r:r + p.shape[0], : p.shape[1]] = p
+                r += p.shape[0]
+            self.probes = ctx.texture((width, row), 3, atlas.tobytes(), dtype="f4")
+            self.probes.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
-    def _upload_solution(self, solution):
+    def _upload_solution(self, solution, visibility):
         ctx = self.ctx
+        self.nodes["reference"] = solution.emitter_nodes
+        self._emitter_table("reference", solution.emitters)
         by_name = {o.name: o for o in solution.objects}
         chunks, base = [], 0
         for obj in self.objects:
@@ -592,9 +686,18 @@ class Renderer:
             if "in_emitted" not in obj.buffers:  # a solution alone: diffuse = radiance averaged over directions
                 obj.add(ctx, "in_emitted", np.asarray(s.radiance, np.float64).mean(axis=1))
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
+            if "in_probe" not in obj.buffers:
+                obj.add(ctx, "in_probe", np.zeros((obj.n_vertices, 3)))
             obj.base = base
             obj.grid_n = 0 if s.is_diffuse else s.grid_n
-            values = np.asarray(s.radiance, np.float32).reshape(-1, 3)
+            radiance = s.radiance
+            if not s.is_diffuse and solution.emitters and s.visibility is not None:
+                # the grid keeps the rest; the shader draws the highlights per pixel
+                radiance = s.radiance - solution.highlights(s.name)
+                m = s.material
+                self._highlight("reference", obj, solution.emitters, s.visibility, m["specular"], m["exponent"],
+                                visibility)
+            values = np.asarray(radiance, np.float32).reshape(-1, 3)
             chunks.append(values)
             base += len(values)
         try:
@@ -607,9 +710,10 @@ class Renderer:
         """Bytes on the GPU: vertex and index buffers, light tables, coefficient and radiance textures."""
         total = sum(o.bytes for o in self.objects)
         total += sum(o.lights.width * o.lights.height * 16 for o in self.objects if o.lights is not None)
-        for texture in (self.radiance, self.coefficients):
+        for texture in (self.radiance, self.coefficients, self.probes, self.visibility):
             if texture is not None:
                 total += texture.width * texture.height * 12
+        total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
         return total
 
     def _program(self, key):
@@ -629,6 +733,12 @@ class Renderer:
                 "reference-feedback": dict(vertex_shader=REFERENCE_GOURAUD_VS, varyings=["v_colour"]),
                 "box": dict(vertex_shader=FULL_SCREEN_VS, fragment_shader=BOX_FS),
             }[key]
+            nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
+            sources = {
+                k: v.replace(SHADE, shade_glsl(nodes)).replace(EMITTERS, emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH))
+                if isinstance(v, str) else v
+                for k, v in sources.items()
+            }
             self._programs[key] = self.ctx.program(**sources)
         return self._programs[key]
 
@@ -651,8 +761,40 @@ class Renderer:
         n = 0 if mode == "diffuse" or obj.lights is None else obj.n_lights
         return n if lights is None else max(0, min(n, lights))
 
-    def _bind_fitted(self, program, obj, n):
-        """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights."""
+    def _bind_highlight(self, program, obj, mode, on):
+        """The emitter term's uniforms of ``obj`` in ``mode`` ("fitted" or "reference"),
+        drawn if ``on`` and the object has one there."""
+        h = obj.highlight.get(mode) if on else None
+        if mode in self.emitter_tables:
+            self.emitter_tables[mode].use(location=3)
+        self.visibility.use(location=4)
+        self._set(program, "emitter_table", 3)
+        self._set(program, "visibility", 4)
+        self._set(program, "n_parts", 0 if h is None else h[1])
+        if h is not None:
+            self._set(program, "visibility_base", h[0])
+            self._set(program, "own_parts", h[2])
+            self._set(program, "emitter_ks", h[3])
+            self._set(program, "emitter_exponent", h[4])
+
+    def _bind_probe(self, program, obj, on):
+        p = obj.probe if on else None
+        if self.probes is not None:
+            self.probes.use(location=5)
+        self._set(program, "probes", 5)
+        self._set(program, "probe_size", 0 if p is None else p[1])
+        if p is not None:
+            self._set(program, "probe_row", p[0])
+            self._set(program, "probe_centre", p[2])
+            self._set(program, "probe_lo", p[3])
+            self._set(program, "probe_hi", p[4])
+
+    def _bind_fitted(self, program, obj, n, mode="fitted", parts=PARTS):
+        """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights, the ``parts``
+        named (in "diffuse" mode: none)."""
+        drawn = mode == "fitted"
+        self._bind_highlight(program, obj, "fitted", drawn and "emitters" in parts)
+        self._bind_probe(program, obj, drawn and "probe" in parts)
         if obj.lights is not None:
             obj.lights.use(location=1)
         if self.coefficients is not None:
@@ -664,7 +806,8 @@ class Renderer:
         self._set(program, "per_light", int(obj.per_light))
         self._set(program, "coefficient_base", obj.coefficient_base)
 
-    def _bind_reference(self, program, obj):
+    def _bind_reference(self, program, obj, parts=PARTS):
+        self._bind_highlight(program, obj, "reference", "emitters" in parts)
         self.radiance.use(location=0)
         self._set(program, "radiance", 0)
         self._set(program, "base", obj.base)
@@ -702,11 +845,18 @@ class Renderer:
         return fbs.output
 
     def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None,
-             samples=None):
+             samples=None, parts=PARTS):
         """Draw, average the samples, and return the float framebuffer holding the image
         (colour attachment 0, a texture of the view's size; reused between calls, released
         with the renderer). ``samples`` per pixel (None: the renderer's). With ``mask`` (a
-        set of object names) every object is drawn flat: 1 for those named, 0 for the others."""
+        set of object names) every object is drawn flat: 1 for those named, 0 for the others.
+        ``parts``: the parts of the model drawn (of ``PARTS``: "lights", "probe", "emitters";
+        the reference display has the emitters' highlights only)."""
+        unknown = set(parts) - set(PARTS)
+        if unknown:
+            raise InputError(f"unknown part {sorted(unknown)[0]!r} of the model; the parts are {', '.join(PARTS)}")
+        if "lights" not in parts:
+            lights = 0
         if mode not in self.modes:
             raise InputError(f"mode {mode!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; this input has {', '.join(self.modes)}")
         if shading not in SHADINGS:
@@ -724,7 +874,8 @@ class Renderer:
         for index, obj in enumerate(self.objects):
             key = program_key
             n = self._light_count(obj, mode, lights)
-            pixel = shading == "pixel" and obj.per_light  # per-light coefficients by vertex ids and barycentrics
+            # per-light coefficients and the emitters' visibility: by vertex ids and barycentrics
+            pixel = shading == "pixel" and (obj.per_light or "fitted" in obj.highlight)
             if key == "attributes":  # what the per-pixel program of this object sees
                 key = "attributes-pixel" if pixel else "attributes"
             elif key is None and mode == "reference":
@@ -741,25 +892,26 @@ class Renderer:
                 self._set(program, "gouraud", int(shading == "gouraud"))
                 ready.add(key)
             if key.startswith("reference"):
-                self._bind_reference(program, obj)
+                self._bind_reference(program, obj, parts)
                 attributes = ("in_position", "in_normal", "in_tangent")
             else:
-                self._bind_fitted(program, obj, n)
+                self._bind_fitted(program, obj, n, mode, parts if mask is None else ())
                 flat = (0.0, 0.0, 0.0, 0.0) if mask is None else ((1.0,) * 3 + (1.0,) if obj.name in mask else (0.0, 0.0, 0.0, 1.0))
                 self._set(program, "flat_colour", flat)
                 self._set(program, "object_index", index)
-                attributes = ("in_position", "in_normal", "in_emitted", "in_specular")
+                attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
             vao = obj.vao(ctx, program, attributes)
             vao.render(moderngl.TRIANGLES)
             vao.release()
         return self._average(fbs)
 
-    def render(self, view, mode="fitted", shading="pixel", lights=None, samples=None):
+    def render(self, view, mode="fitted", shading="pixel", lights=None, samples=None, parts=PARTS):
         """Linear radiance (H, W, 3) float32, row 0 at the top, background 0: each pixel
         the mean of its ``samples`` (None: the renderer's).
 
-        ``lights``: use only the first K lights of each object (None: all)."""
-        return self._read(self.draw(view, mode, shading, lights, samples=samples), 0)
+        ``lights``: use only the first K lights of each object (None: all); ``parts``: the
+        parts of the model drawn (``draw``)."""
+        return self._read(self.draw(view, mode, shading, lights, samples=samples, parts=parts), 0)
 
     def object_mask(self, view, names):
         """(H, W) bool: pixels whose centre sees one of the objects ``names`` (one sample)."""
@@ -826,8 +978,8 @@ class Renderer:
             self._bind_reference(program, obj)
             attributes = ("in_position", "in_normal", "in_tangent")
         else:
-            self._bind_fitted(program, obj, self._light_count(obj, mode, lights))
-            attributes = ("in_position", "in_normal", "in_emitted", "in_specular")
+            self._bind_fitted(program, obj, self._light_count(obj, mode, lights), mode)
+            attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
         vao = obj.vao(self.ctx, program, attributes, indexed=False)  # gl_VertexID = 0 .. V-1
         out = self.ctx.buffer(reserve=obj.n_vertices * 12)
         if self._scratch is None:  # transform feedback writes nothing without a bound framebuffer
@@ -850,7 +1002,7 @@ class Renderer:
             o.release()
         for p in self._programs.values():
             p.release()
-        for texture in (self.radiance, self.coefficients):
+        for texture in (self.radiance, self.coefficients, self.probes, self.visibility, *self.emitter_tables.values()):
             if texture is not None:
                 texture.release()
         for resource in (self._scratch, self._box):

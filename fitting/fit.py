@@ -18,11 +18,14 @@ import numpy as np
 
 from radiosity.formats.errors import InputError
 
-from . import mixed, paper, refine
+from . import glossy, mixed, paper, refine
 from .data import fit_data, relative_error
-from .model import FittedModel, FittedObject, directional
+from .model import FittedModel, FittedObject, Highlight, directional
+from .probe import Probe
 
 METHODS = ("paper", "refined", "per-light")
+MODELS = ("auto", *glossy.MODELS)
+PROBE_SIZES = ("auto", *(str(s) for s in glossy.PROBE_SIZES))
 LIGHT_KINDS = mixed.KINDS
 COEFFICIENTS = mixed.COEFFICIENTS
 PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
@@ -43,6 +46,11 @@ class FitOptions:
     loss            : "linear" or "relative" (see ``refine.loss_weights``)
     exponent_bounds : the exponent search's range
     iterations      : L-BFGS iterations of the refinement
+    model           : what a glossy object's model is made of (``fitting.glossy``):
+                      "auto" (the cheapest reaching ``target``), "diffuse", "emitters",
+                      "probe", "probe+lights", or "lights" (virtual lights alone on the
+                      whole radiance, as before issue 22; "paper" always is)
+    probe_size      : the probe's M (M x M texels), or "auto" (``glossy.PROBE_SIZES``)
     """
 
     lights: int | str = 8
@@ -54,6 +62,8 @@ class FitOptions:
     loss: str = "linear"
     exponent_bounds: tuple[float, float] = (1.0, 1e4)
     iterations: int = 100
+    model: str = "auto"
+    probe_size: int | str = "auto"
 
     def check(self):
         if self.lights != "auto" and not (isinstance(self.lights, int) and 0 <= self.lights <= 64):
@@ -75,7 +85,18 @@ class FitOptions:
             raise InputError(f"--max-lights must be a whole number from 1 to 64, got {self.max_lights!r}")
         if not (isinstance(self.iterations, int) and self.iterations >= 0):
             raise InputError(f"--iterations must be a whole number >= 0, got {self.iterations!r}")
+        if self.model not in MODELS:
+            raise InputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
+        if self.probe_size != "auto" and not (
+            isinstance(self.probe_size, int) and not isinstance(self.probe_size, bool) and 2 <= self.probe_size <= 128
+        ):
+            raise InputError(f"--probe-size must be 'auto' or a whole number from 2 to 128, got {self.probe_size!r}")
         return self
+
+    @property
+    def glossy_model(self):
+        """The model glossy objects get: the paper's method is always lights alone."""
+        return "lights" if self.method == "paper" else self.model
 
 
 def reconstruct(problem, result):
@@ -124,9 +145,12 @@ def _json_number(value):
     return value if math.isfinite(value) else None
 
 
-def fit_object(obj, options, scene=None, progress=None):
+def fit_object(obj, options, scene=None, progress=None, solution=None, box=None):
     """FittedObject for one ``ObjectSolution``; ``scene`` the ``mixed.SceneGeometry`` of
-    the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None."""
+    the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None;
+    ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models of issue 22."""
+    if not obj.is_diffuse and options.glossy_model != "lights":
+        return _fit_components(obj, options, scene, progress, solution, box)
     t0 = time.perf_counter()
     data = fit_data(obj)
     problem = problem_for(data, options, scene)
@@ -149,6 +173,7 @@ def fit_object(obj, options, scene=None, progress=None):
     diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
     kinds = ["positional" if w == 1 else "directional" for w in result.pos[:, 3]]
     info = {
+        "model": "diffuse" if obj.is_diffuse else "lights",
         "method": "diffuse" if obj.is_diffuse else options.method,
         "loss": options.loss,
         "chosen_by": chosen_by,
@@ -177,6 +202,73 @@ def fit_object(obj, options, scene=None, progress=None):
         light_rgb=np.asarray(result.rgb, np.float32).reshape(-1, 3),
         shininess=np.asarray(result.shininess, np.float32).reshape(-1),
         info=info,
+    )
+
+
+def _fit_components(obj, options, scene, progress, solution, box):
+    """A glossy object's model of emitter term, probe and lights (``fitting.glossy``)."""
+    t0 = time.perf_counter()
+    if solution is None:
+        raise ValueError("the models of issue 22 need the solution (its emitters)")
+    log = None
+    if progress is not None:
+        def log(fit):
+            progress.set_postfix_str(f"{obj.name}: {fit.n_lights} lights", refresh=True)
+    exponent = start_exponent(obj, options)
+    chosen_by = []
+
+    def lights_for(data, loss_weights, start):
+        problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
+                                     options.exponent_bounds)
+        if options.lights == "auto":
+            fit, why = _auto_lights(problem, options, start, log)
+            chosen_by.append(why)
+            return fit
+        chosen_by.append(f"--lights {options.lights}")
+        return fit_lights(problem, options.lights, options, start, log=log)
+
+    highlights = solution.highlights(obj.name)
+    parts = len(solution.emitters) if obj.visibility is not None else 0
+    c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for)
+    data = fit_data(obj)
+    diffuse_part = relative_error(data, np.broadcast_to(data.radiance.mean(axis=1, keepdims=True), data.radiance.shape))
+    highlight = None
+    if c.emitters and parts:
+        m = obj.material
+        highlight = Highlight(tuple(solution.emitters), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
+                              float(m["exponent"]), np.asarray(obj.visibility, np.float32))
+    per_light = c.n_lights and c.specular.ndim == 3
+    info = {
+        "model": c.model,
+        "method": options.method,
+        "loss": options.loss,
+        "chosen_by": ("--model " + options.model) + (f"; lights: {chosen_by[-1]}" if chosen_by and c.n_lights else ""),
+        "coefficients": "per-light" if per_light else ("shared" if c.n_lights else "none"),
+        "kinds": ["positional" if w == 1 else "directional" for w in np.asarray(c.lights[0])[:, 3]],
+        "shininess": [round(float(p), 4) for p in c.lights[2]],
+        "error": {
+            "relative_rms": _json_number(c.error),
+            "diffuse_only_relative_rms": _json_number(diffuse_part["relative_rms"]),
+        },
+        "floats": int(c.floats),
+        "tried": c.tried,
+        "time_s": round(time.perf_counter() - t0, 4),
+    }
+    specular = np.asarray(c.specular, np.float32) if c.n_lights else np.zeros((obj.num_vertices, 3), np.float32)
+    return FittedObject(
+        name=obj.name,
+        positions=np.asarray(obj.positions, np.float32),
+        normals=np.asarray(obj.normals, np.float32),
+        faces=np.asarray(obj.faces, np.int32),
+        emitted=np.asarray(c.emitted, np.float32),
+        specular=specular,
+        light_pos=np.asarray(c.lights[0], np.float32).reshape(-1, 4),
+        light_rgb=np.asarray(c.lights[1], np.float32).reshape(-1, 3),
+        shininess=np.asarray(c.lights[2], np.float32).reshape(-1),
+        info=info,
+        highlight=highlight,
+        probe=c.probe if c.probe is not None else None,
+        probe_weight=np.asarray(c.probe_weight, np.float32) if c.probe is not None else None,
     )
 
 
@@ -211,6 +303,7 @@ def fit(solution, options=FitOptions(), progress=False):
     """The fitted model of every object of ``solution``."""
     options.check()
     scene = mixed.SceneGeometry.of_solution(solution)
+    box = glossy.proxy_box(solution)
     objects = []
     bar = None
     if progress:
@@ -219,14 +312,17 @@ def fit(solution, options=FitOptions(), progress=False):
         bar = tqdm(total=len(solution.objects), desc="fit", unit="object", disable=None, dynamic_ncols=True)
     try:
         for obj in solution.objects:
-            objects.append(fit_object(obj, options, scene, bar))
+            objects.append(fit_object(obj, options, scene, bar, solution, box))
             if bar is not None:
                 bar.update(1)
     finally:
         if bar is not None:
             bar.close()
+    used = any(o.highlight is not None for o in objects)
     return FittedModel(
         objects=tuple(objects),
+        emitters=tuple(solution.emitters) if used else (),
+        emitter_nodes=solution.emitter_nodes,
         source=str(solution.scene),
         model=("virtual lights (Walter et al. 1997): emitted + Blinn-Phong lights"
                + ("" if options.method == "paper" else f", kinds {options.light_kind}, coefficients {options.coefficients}")),
@@ -235,6 +331,7 @@ def fit(solution, options=FitOptions(), progress=False):
             "method": options.method, "loss": options.loss, "light_kind": options.light_kind,
             "coefficients": "shared" if options.method == "paper" else options.coefficients,
             "exponent_bounds": list(options.exponent_bounds), "iterations": options.iterations,
+            "model": options.glossy_model, "probe_size": options.probe_size,
         },
         camera=solution.camera,
     )

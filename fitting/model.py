@@ -39,13 +39,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
+from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_radiance, parts_from_meta
 from radiosity.formats.npz import open_archive, write_archive
 
 from .lobes import lobe_vectorised
+from .probe import Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 2
-READS = (1, 2)
+VERSION = 3
+READS = (1, 2, 3)
+MAX_PROBE_SIZE = 256
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
 ARRAY_KEYS_V1 = ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")
 UNIT_TOLERANCE = 1e-3  # a stored light direction's length may be off 1 by this much (float32 storage)
@@ -100,6 +103,37 @@ def directional(light_dirs):
 
 
 @dataclass(frozen=True, eq=False)
+class Highlight:
+    """An object's emitter term (version 3): the emitters' glossy highlights in closed
+    form (``radiosity.formats.emitters``).
+
+    parts: the scene's ``EmitterPart`` s; nodes: N of the quadrature; ks (3,) and exponent:
+    the surface's modified-Phong specular part; visibility (V, P) float32: how much of
+    each part each vertex sees."""
+
+    parts: tuple
+    nodes: int
+    ks: np.ndarray
+    exponent: float
+    visibility: np.ndarray
+
+    def radiance(self, positions, normals, views, source):
+        """E (..., 3) float64 at points (..., 3) with unit normals, unit views, the
+        visibility of ``visibility`` rows (broadcast over the leading axes' first)."""
+        positions = np.asarray(positions, np.float64)
+        shape = np.broadcast_shapes(positions.shape, np.shape(normals), np.shape(views))
+        vis = np.asarray(self.visibility, np.float64)
+        lead = shape[:-1]
+        vis = np.broadcast_to(vis.reshape(vis.shape[:1] + (1,) * (len(lead) - 1) + vis.shape[1:]), lead + vis.shape[1:])
+        out = emitter_radiance(
+            self.parts, np.broadcast_to(positions, shape).reshape(-1, 3), np.broadcast_to(normals, shape).reshape(-1, 3),
+            np.broadcast_to(views, shape).reshape(-1, 3), self.ks, self.exponent,
+            visibility=vis.reshape(-1, len(self.parts)), nodes=self.nodes, source=source,
+        )
+        return out.reshape(shape)
+
+
+@dataclass(frozen=True, eq=False)
 class FittedObject:
     """One object's fitted model; arrays as in the module docstring (``light_pos`` (K, 4),
     ``specular`` (V, 3) shared or (V, K, 3) per light)."""
@@ -114,6 +148,9 @@ class FittedObject:
     light_rgb: np.ndarray
     shininess: np.ndarray
     info: dict = field(default_factory=dict)
+    highlight: Highlight | None = None  # version 3: the emitters' highlights
+    probe: Probe | None = None  # version 3: the reflection probe ...
+    probe_weight: np.ndarray | None = None  # ... and its per-vertex weight s (V, 3)
 
     def __post_init__(self):
         v, k = len(self.positions), len(self.light_pos)
@@ -135,6 +172,15 @@ class FittedObject:
         w = np.asarray(self.light_pos)[:, 3] if k else np.zeros(0)
         if not np.isin(w, (0.0, 1.0)).all():
             raise ValueError(f"object {self.name!r}: 'light_pos' w must be 0 (directional) or 1 (positional), got {w}")
+        if (self.probe is None) != (self.probe_weight is None):
+            raise ValueError(f"object {self.name!r}: a probe needs its per-vertex weight and the weight its probe")
+        if self.probe_weight is not None and np.shape(self.probe_weight) != (v, 3):
+            raise ValueError(f"object {self.name!r}: 'probe_weight' has shape {np.shape(self.probe_weight)}, expected ({v}, 3)")
+        if self.highlight is not None and np.shape(self.highlight.visibility) != (v, len(self.highlight.parts)):
+            raise ValueError(
+                f"object {self.name!r}: 'visibility' has shape {np.shape(self.highlight.visibility)}, "
+                f"expected ({v}, {len(self.highlight.parts)})"
+            )
 
     @property
     def n_lights(self):
@@ -156,15 +202,41 @@ class FittedObject:
 
     @property
     def floats_per_vertex(self):
-        """Numbers stored per vertex besides the mesh: emitted and specular."""
-        return 3 + int(np.prod(np.shape(self.specular)[1:]))
+        """Numbers stored per vertex besides the mesh: emitted, specular, the probe's
+        weight, the emitters' visibility."""
+        n = 3 + (int(np.prod(np.shape(self.specular)[1:])) if self.n_lights else 0)
+        n += 3 if self.probe_weight is not None else 0
+        n += self.highlight.visibility.shape[1] if self.highlight is not None else 0
+        return n
 
-    def shade(self, w, vertices=slice(None)):
-        """Colour (..., 3) of ``vertices`` seen from unit directions ``w`` (..., 3) (world)."""
-        return shade_arrays(
-            self.emitted[vertices], self.specular[vertices], self.normals[vertices], self.positions[vertices],
-            self.lights, w,
-        )
+    @property
+    def floats(self):
+        """Numbers stored in all (per vertex x V, the probe's texels, the lights)."""
+        extra = 3 * self.probe.size**2 if self.probe is not None else 0
+        return self.floats_per_vertex * len(self.positions) + extra + 8 * self.n_lights
+
+    def shade(self, w, vertices=slice(None), parts=("lights", "probe", "emitters")):
+        """Colour (..., 3) of ``vertices`` seen from unit directions ``w`` (..., 3) (world):
+        the whole shading formula, or the emitted colour plus the ``parts`` named."""
+        index = np.arange(len(self.positions))[vertices]
+        return self._shade(index, np.asarray(w, np.float64), parts)
+
+    def _shade(self, index, w, parts=("lights", "probe", "emitters")):
+        """The formula at vertices ``index`` (V,) seen from w (V, 3) or (V, M, 3)."""
+        extra = (slice(None),) + (None,) * (w.ndim - 2)
+        emitted, normals, positions = self.emitted[index][extra], self.normals[index][extra], self.positions[index][extra]
+        lights = self.lights if "lights" in parts else (np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
+        specular = self.specular[index][extra] if self.n_lights else np.zeros_like(emitted)
+        out = shade_arrays(emitted, specular, normals, positions, lights, w)
+        if self.probe is not None and "probe" in parts:
+            out = out + np.asarray(self.probe_weight, np.float64)[index][extra] * probe_values(
+                self.probe, positions, w, normals
+            )
+        if self.highlight is not None and "emitters" in parts:
+            h = self.highlight
+            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index])
+            out = out + vis.radiance(positions, normals, w, self.name)
+        return out
 
     def arrays(self):
         return {
@@ -176,7 +248,19 @@ class FittedObject:
             "light_pos": np.asarray(self.light_pos, np.float32).reshape(-1, 4),
             "light_rgb": np.asarray(self.light_rgb, np.float32).reshape(-1, 3),
             "shininess": np.asarray(self.shininess, np.float32).reshape(-1),
+            **({"visibility": np.asarray(self.highlight.visibility, np.float32)} if self.highlight is not None else {}),
+            **({"probe": np.asarray(self.probe.texels, np.float32), "probe_weight": np.asarray(self.probe_weight, np.float32)}
+               if self.probe is not None else {}),
         }
+
+    def meta_info(self):
+        """This object's entry of the meta's "objects" (version 3 adds "highlight", "probe")."""
+        out = {"lights": self.n_lights, **self.info}
+        if self.highlight is not None:
+            out["highlight"] = {"specular": [float(v) for v in self.highlight.ks], "exponent": float(self.highlight.exponent)}
+        if self.probe is not None:
+            out["probe"] = self.probe.to_meta()
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,6 +270,8 @@ class FittedModel:
     model: str = ""
     settings: dict = field(default_factory=dict)
     camera: Camera | None = None  # the scene's default camera, from the solution
+    emitters: tuple = ()  # version 3: the emitter parts the objects' highlights come from
+    emitter_nodes: int = DEFAULT_NODES
 
     def object(self, name):
         for o in self.objects:
@@ -204,7 +290,9 @@ class FittedModel:
             "source": self.source,
             "model": self.model,
             "settings": self.settings,
-            "objects": {o.name: {"lights": o.n_lights, **o.info} for o in self.objects},
+            "objects": {o.name: o.meta_info() for o in self.objects},
+            "emitters": [p.to_dict() for p in self.emitters],
+            "emitter_nodes": self.emitter_nodes,
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
         }
 
@@ -244,12 +332,7 @@ def shade(model, name, world_dirs, vertices=slice(None)):
             f"shade: object {name!r} ({n_v} vertices selected) takes world_dirs of shape ({n_v}, 3), one direction "
             f"per vertex, or ({n_v}, M, 3), M directions per vertex; got shape {w.shape}"
         )
-    if w.ndim == 3:
-        return shade_arrays(
-            obj.emitted[index][:, None], obj.specular[index][:, None], obj.normals[index][:, None],
-            obj.positions[index][:, None], obj.lights, w,
-        )
-    return obj.shade(w, index)
+    return obj._shade(index, w)
 
 
 def _kind_error(archive, key, a, kinds):
@@ -257,7 +340,7 @@ def _kind_error(archive, key, a, kinds):
     return archive.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
 
 
-def _read_object(archive, name, info, version):
+def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES):
     """One object's arrays, checked; InputError naming the file and the key."""
     fail = archive.fail
     keys = ARRAY_KEYS if version >= 2 else ARRAY_KEYS_V1
@@ -311,14 +394,85 @@ def _read_object(archive, name, info, version):
     lights_meta = info.get("lights", n_k)
     if isinstance(lights_meta, bool) or not isinstance(lights_meta, int) or lights_meta != n_k:
         raise fail(f"meta 'objects' says object {name!r} has {lights_meta!r} lights; its arrays hold {n_k}")
+    highlight, probe, weight = None, None, None
+    if version >= 3:
+        highlight = _read_highlight(archive, name, info, n_v, emitters, nodes)
+        probe, weight = _read_probe(archive, name, info, n_v)
     try:
         return FittedObject(
             name=name,
-            info={k: v for k, v in info.items() if k != "lights"},
+            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe")},
+            highlight=highlight,
+            probe=probe,
+            probe_weight=weight,
             **{k: np.asarray(a, np.int32 if k == "faces" else np.float32) for k, a in arrays.items()},
         )
     except ValueError as exc:
         raise fail(str(exc)) from None
+
+
+def _finite_numbers(value, count):
+    """``value`` as a float64 array of ``count`` finite numbers, or None."""
+    try:
+        a = np.asarray(value, np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        return None
+    return a if a.shape == (count,) and np.isfinite(a).all() else None
+
+
+def _read_highlight(archive, name, info, n_v, emitters, nodes):
+    """The object's emitter term (version 3), or None where it has none."""
+    fail = archive.fail
+    entry = info.get("highlight")
+    key = f"{name}/visibility"
+    if entry is None:
+        if key in archive.keys:
+            raise fail(f"'{key}' is present but meta 'objects' gives object {name!r} no 'highlight'")
+        return None
+    if not isinstance(entry, dict):
+        raise fail(f"meta 'objects': object {name!r}'s 'highlight' must be a JSON object")
+    ks = _finite_numbers(entry.get("specular"), 3)
+    exponent = _finite_numbers(entry.get("exponent"), 1)
+    if ks is None or (ks < 0).any() or exponent is None or exponent[0] < 0:
+        raise fail(f"meta 'objects': object {name!r}'s 'highlight' needs 'specular' [r, g, b] >= 0 and 'exponent' >= 0")
+    if key not in archive.keys:
+        raise fail(f"object {name!r} has a 'highlight' but no '{key}' array")
+    vis = archive.array(key, "fiu", (n_v, len(emitters)))
+    if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
+        raise fail(f"'{key}' has values outside [0, 1]")
+    return Highlight(emitters, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32))
+
+
+def _read_probe(archive, name, info, n_v):
+    """The object's (Probe, weight (V, 3)) (version 3), or (None, None)."""
+    fail = archive.fail
+    entry = info.get("probe")
+    keys = (f"{name}/probe", f"{name}/probe_weight")
+    if entry is None:
+        present = [k for k in keys if k in archive.keys]
+        if present:
+            raise fail(f"'{present[0]}' is present but meta 'objects' gives object {name!r} no 'probe'")
+        return None, None
+    if not isinstance(entry, dict):
+        raise fail(f"meta 'objects': object {name!r}'s 'probe' must be a JSON object")
+    size = entry.get("size")
+    if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= MAX_PROBE_SIZE:
+        raise fail(f"meta 'objects': object {name!r}'s probe 'size' must be a whole number from 1 to {MAX_PROBE_SIZE}")
+    centre = _finite_numbers(entry.get("centre"), 3)
+    box = _finite_numbers(entry.get("box"), 6)
+    if centre is None or box is None or not (box[:3] < box[3:]).all():
+        raise fail(f"meta 'objects': object {name!r}'s probe needs 'centre' [x, y, z] and 'box' [[lo], [hi]] with lo < hi")
+    for key in keys:
+        if key not in archive.keys:
+            raise fail(f"object {name!r} has a 'probe' but no '{key}' array")
+    texels = archive.array(keys[0], "fiu", (size, size, 3))
+    weight = archive.array(keys[1], "fiu", (n_v, 3))
+    for key, a in zip(keys, (texels, weight)):
+        if not np.isfinite(a).all():
+            raise fail(f"'{key}' has NaN or infinite values")
+        if (a < 0).any():
+            raise fail(f"'{key}' has a negative value ({float(a.min()):g}); it must not be negative")
+    return Probe(np.asarray(texels, np.float32), centre, box.reshape(2, 3)), np.asarray(weight, np.float32)
 
 
 def load_fit(path):
@@ -334,17 +488,23 @@ def load_fit(path):
         for key, kind, default in (("source", str, ""), ("model", str, ""), ("settings", dict, {})):
             if not isinstance(meta.get(key, default), kind):
                 raise fail(f"meta '{key}' must be a JSON {'string' if kind is str else 'object'}, got {_json_type(meta[key])}")
+        emitters, nodes = (), DEFAULT_NODES
+        if meta["version"] >= 3:
+            emitters = parts_from_meta(meta.get("emitters", []), fail)
+            nodes = meta.get("emitter_nodes", DEFAULT_NODES)
+            if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
+                raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
         objects = []
         for name, info in objects_meta.items():
             if not name or "/" in name:
                 raise fail(f"meta 'objects' has an object name {name!r}: names are non-empty and contain no '/'")
             if not isinstance(info, dict):
                 raise fail(f"meta 'objects': the info of object {name!r} must be a JSON object, got {_json_type(info)}")
-            objects.append(_read_object(archive, name, info, meta["version"]))
+            objects.append(_read_object(archive, name, info, meta["version"], emitters, nodes))
         camera = camera_from_meta(meta, fail)
     return FittedModel(
         objects=tuple(objects), source=meta.get("source", ""), model=meta.get("model", ""),
-        settings=meta.get("settings", {}), camera=camera,
+        settings=meta.get("settings", {}), camera=camera, emitters=emitters, emitter_nodes=nodes,
     )
 
 

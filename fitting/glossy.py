@@ -1,0 +1,271 @@
+"""What a glossy object's model is made of, fitted part by part (issue 22).
+
+    colour(x, w) = emitted(x)                               every object
+                 + E(x, w)                                   the emitters' own highlights, in closed
+                                                             form (``radiosity.formats.emitters``)
+                 + s(x) P(u(x, w))                           a reflection probe (``fitting.probe``)
+                 + sum_k c_k(x) lobe_k(x, w)                 virtual lights for the rest (``mixed``)
+
+The emitter term is not fitted: the solution holds it (``Solution.highlights``), so what
+is fitted is the rest, R = L - E, and every display adds E back. The probe draws the
+broad reflections of the surroundings, the lights what remains (a lamp seen in a glossy
+neighbour, an object the probe's box does not know).
+
+Models, cheapest first (``MODELS``): "diffuse" (emitted alone), "emitters", "probe"
+(emitters + probe), "probe+lights", and "lights" (virtual lights on the whole radiance,
+no emitter term: the paper's model and its extensions, as before issue 22). "auto" fits
+them in order of stored floats and keeps the first whose relative RMS error (against
+the solution's whole radiance) reaches the target; if none does, the one with the least
+error, unless a cheaper one is within ``WITHIN`` of it (error per stored float).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import mixed, probe
+from .data import FitData, relative_error
+from .lobes import MixedLights
+
+__all__ = ["MODELS", "Components", "fit_components"]
+
+MODELS = ("diffuse", "emitters", "probe", "probe+lights", "lights")
+PROBE_SIZES = (8, 16, 32)
+WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fraction of the best's
+HIGHLIGHT = 0.25  # a residual peak above this fraction of the object's mean radiance is a highlight: lights fit it
+BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal
+
+
+@dataclass(frozen=True, eq=False)
+class Components:
+    """One glossy object's fitted model.
+
+    model: one of MODELS; emitters: whether the emitter term is part of it;
+    emitted (V, 3); lights: (pos (K, 4), rgb (K, 3), shininess (K,));
+    specular (V, K, 3) per light or (V, 3) shared; probe: a ``fitting.probe.Probe`` or
+    None, probe_weight (V, 3) its per-vertex s; error: relative RMS against the whole
+    radiance; floats: the numbers stored (per vertex x V + per object); tried: what
+    "auto" compared, [(model, probe size, lights, floats, error)]
+    """
+
+    model: str
+    emitters: bool
+    emitted: np.ndarray
+    lights: tuple
+    specular: np.ndarray
+    probe: probe.Probe | None
+    probe_weight: np.ndarray | None
+    error: float
+    floats: int
+    tried: list = field(default_factory=list)
+
+    @property
+    def n_lights(self):
+        return len(self.lights[0])
+
+
+def _floats(n_vertices, parts, probe_size, n_lights, emitters):
+    per_vertex = 3 + (parts if emitters else 0) + (3 if probe_size else 0) + 3 * n_lights
+    return per_vertex * n_vertices + 3 * probe_size * probe_size + 8 * n_lights
+
+
+def proxy_box(solution):
+    """The probe's proxy: the scene's bounding box (every object of ``solution``), grown a little."""
+    points = np.concatenate([np.asarray(o.positions, np.float64) for o in solution.objects])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    pad = BOX_MARGIN * float(np.linalg.norm(hi - lo))
+    return np.stack([lo - pad, hi + pad])
+
+
+def _no_lights():
+    return np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)
+
+
+def _lobe_columns(data, lights):
+    """(V, D, K) each light's lobe at the data's samples (its colour one)."""
+    pos, _, shininess = lights
+    n_k = len(pos)
+    out = np.empty(data.radiance.shape[:2] + (n_k,))
+    samples = mixed.Samples(np.ascontiguousarray(data.positions), np.ascontiguousarray(data.radiance),
+                            np.ascontiguousarray(data.weights), np.ones((1, 1, 1)))
+    one = np.ones((data.n_vertices, 1, 3))
+    tmp = np.empty(data.radiance.shape)
+    for k in range(n_k):
+        light = MixedLights(np.ascontiguousarray(pos[k:k + 1], np.float64), np.ones((1, 3)),
+                            np.ascontiguousarray(shininess[k:k + 1], np.float64))
+        mixed.mixed_light_sum(data.normals, data.views, light, samples, one, tmp)
+        out[:, :, k] = tmp[:, :, 0]
+    return out
+
+
+def _joint(data, target, loss_weights, probe_values, lobes, light_caps):
+    """Per-vertex coefficients [emitted, probe weight?, light coefficients...] >= 0 of
+    ``target`` (V, D, 3) with the columns given (probe_values (V, D, 3) or None, lobes
+    (V, D, K)); returns (emitted (V, 3), probe weight (V, 3) or None, c (V, K, 3))."""
+    v, d, _ = target.shape
+    n_k = lobes.shape[2]
+    columns = [np.ones((v, d, 1, 3))]
+    if probe_values is not None:
+        columns.append(probe_values[:, :, None, :])
+    if n_k:
+        columns.append(np.broadcast_to(lobes[..., None], (v, d, n_k, 3)))
+    columns = np.concatenate(columns, axis=2)
+    n = columns.shape[2]
+    cap = np.full((v, 3, n), 1e200)
+    if n_k:
+        cap[:, :, n - n_k:] = light_caps
+    x, _ = probe.vertex_coefficients(columns, target, data.weights, loss_weights, cap)
+    emitted = x[:, :, 0]
+    weight = x[:, :, 1] if probe_values is not None else None
+    c = np.transpose(x[:, :, n - n_k:], (0, 2, 1)) if n_k else np.zeros((v, 0, 3))
+    return emitted, weight, np.ascontiguousarray(c)
+
+
+def _light_caps(data, lights):
+    """(V, 3, K) the per-light coefficients' caps, as ``mixed.coefficients`` sets them."""
+    pos, _, shininess = lights
+    unit = mixed.light_vectors(pos, data.positions)
+    theta = np.arccos(np.clip(np.einsum("vi,vki->vk", data.normals, unit), -1.0, 1.0))
+    peak = np.cos(np.maximum(theta - np.pi / 2, 0.0) / 2) ** shininess[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.where(peak[:, None, :] > 0, mixed.CAP_FACTOR * data.radiance.max(axis=1)[:, :, None] / peak[:, None, :], 0.0)
+    return np.minimum(cap, 1e200)
+
+
+def fit_probe_part(data, target, loss_weights, size, centre, box, fixed=None, rounds=probe.ALTERNATIONS):
+    """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
+    ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares."""
+    rest = target if fixed is None else target - fixed
+    u = probe.box_directions(data.positions[:, None, :], data.views, data.normals[:, None, :], centre, box)
+    idx, wts = probe.texels(u.reshape(-1, 3), size)
+    weight = data.weights.reshape(-1)
+    lw = None if loss_weights is None else loss_weights.reshape(-1, 3)
+    sample_weight = weight[:, None] * (1.0 if lw is None else lw)
+    emitted = np.maximum(rest.min(axis=1), 0.0)
+    scale = np.ones_like(emitted)
+    texels = np.zeros((size, size, 3))
+    for _ in range(rounds):
+        s_rep = np.repeat(scale, data.n_directions, axis=0)
+        e_rep = np.repeat(emitted, data.n_directions, axis=0)
+        texels = probe.solve_texels(idx, wts, sample_weight, rest.reshape(-1, 3) - e_rep, s_rep, size)
+        # the scale between P and s is free: keep s near 1 where the object is
+        mean = np.sum(data.weights.sum(axis=1)[:, None] * scale, axis=0) / max(data.weights.sum(), 1e-300)
+        texels *= np.where(mean > 0, mean, 1.0)
+        values = np.einsum("sk,skc->sc", wts, texels.reshape(-1, 3)[idx]).reshape(rest.shape)
+        emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros(rest.shape[:2] + (0,)), None)
+    return probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64)), emitted, scale
+
+
+def _model(data_full, highlights, emitted, probe_term, light_term):
+    out = emitted[:, None, :] + highlights
+    if probe_term is not None:
+        out = out + probe_term
+    if light_term is not None:
+        out = out + light_term
+    return out
+
+
+def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights):
+    """The ``Components`` of one glossy ``ObjectSolution`` ``obj``.
+
+    highlights (V, D, 3): the emitter term on its grid (zeros without emitters); parts:
+    the emitter parts' count; options: ``FitOptions`` (model, probe_size, loss, target,
+    lights...); scene: the ``mixed.SceneGeometry``; box: the probe's proxy (2, 3);
+    exponent: where the lights' exponent starts; fit_lights(problem, options, exponent)
+    -> ``mixed.MixedFit`` (``fit._fit_or_auto``)."""
+    from .data import fit_data
+    from .refine import loss_weights as make_loss_weights
+
+    full = fit_data(obj)
+    v = full.n_vertices
+    rest = full.radiance - highlights
+    data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights, positions=full.positions)
+    lw = make_loss_weights(full, options.loss)  # relative to what a viewer sees: the whole radiance
+    centre = 0.5 * (full.positions.min(axis=0) + full.positions.max(axis=0))
+    tried = []
+    fits = []
+
+    def record(model, size, n_lights, emitters, emitted, light_fit, probe_fit, weight, probe_term, light_term):
+        floats = _floats(v, parts, size, n_lights, emitters)
+        error = relative_error(full, _model(full, highlights if emitters else 0.0, emitted, probe_term, light_term))
+        c = Components(
+            model=model, emitters=emitters, emitted=emitted,
+            lights=tuple(light_fit[:3]) if light_fit is not None else _no_lights(),
+            specular=(np.zeros((v, 0, 3)) if light_fit is None else light_fit[3]), probe=probe_fit,
+            probe_weight=weight, error=error["relative_rms"], floats=floats,
+        )
+        tried.append({"model": model, "probe_size": size, "lights": n_lights, "floats": floats,
+                      "relative_rms": round(error["relative_rms"], 5)})
+        fits.append(c)
+        return c
+
+    wanted = options.model
+    automatic = wanted == "auto"
+    # diffuse, emitters: the best colour per vertex, without and with the emitter term
+    for model, with_e in (("diffuse", False), ("emitters", True)):
+        if automatic or wanted == model:
+            target = full.radiance if not with_e else rest
+            e, _, _ = _joint(data, target, lw, None, np.zeros((v, full.n_directions, 0)), None)
+            record(model, 0, 0, with_e, e, None, None, None, None, None)
+    if automatic or wanted in ("probe", "probe+lights"):
+        sizes = PROBE_SIZES if (automatic and options.probe_size == "auto") else (
+            [options.probe_size] if options.probe_size != "auto" else [16])
+        best = None
+        for size in sizes:
+            p, e, s = fit_probe_part(data, rest, lw, size, centre, box)
+            term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
+            c = record("probe", size, 0, True, e, None, p, s, term, None)
+            if best is None or c.error < best[0].error * (1 - WITHIN):
+                best = (c, term)
+        chosen, probe_term = best
+        if wanted == "probe+lights" or (automatic and _shows_highlight(rest - probe_term - chosen.emitted[:, None, :], full)):
+            # lights for what the probe leaves
+            lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
+                                  weights=full.weights, positions=full.positions)
+            fitted = fit_lights(lights_data, lw, exponent)
+            if fitted.n_lights:
+                lights = (fitted.pos, fitted.rgb, fitted.shininess)
+                lobes = _lobe_columns(full, lights)
+                caps = _light_caps(data, lights)
+                probe_values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
+                e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
+                # the probe again, with the lights' part held
+                light_term = np.einsum("vdk,vkc->vdc", lobes, c)
+                p2, e2, s2 = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, fixed=light_term, rounds=2)
+                probe_values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
+                e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
+                light_term = np.einsum("vdk,vkc->vdc", lobes, c)
+                record("probe+lights", p2.size, fitted.n_lights, True, e, (*lights, c), p2, s,
+                       s[:, None, :] * probe_values, light_term)
+    if wanted == "lights":
+        raise ValueError("the 'lights' model is fitted by fitting.fit (the paper's path)")
+    if automatic:
+        return _choose(fits, options.target, tried)
+    chosen = [f for f in fits if f.model == wanted]
+    return _with_tried(chosen[-1], tried)
+
+
+def _with_tried(c, tried):
+    return Components(**{**c.__dict__, "tried": tried})
+
+
+def _shows_highlight(residual, full):
+    """True where the residual still peaks above HIGHLIGHT x the object's mean radiance."""
+    mean = float(np.sum(full.weights[:, :, None] * full.radiance) / max(full.weights.sum(), 1e-300) / 3.0)
+    return bool(np.max(residual) > HIGHLIGHT * mean) if mean > 0 else False
+
+
+def _choose(fits, target, tried):
+    """The cheapest fit reaching ``target``; else the best, or a cheaper one within WITHIN of it."""
+    order = sorted(fits, key=lambda f: f.floats)
+    for f in order:
+        if f.error <= target:
+            return _with_tried(f, tried)
+    best = min(order, key=lambda f: f.error)
+    for f in order:
+        if f.error <= best.error * (1 + WITHIN) or math.isclose(f.error, best.error):
+            return _with_tried(f, tried)
+    return _with_tried(best, tried)
