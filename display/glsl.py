@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fitting.probe import ALBEDO_POINTS
 from radiosity.formats.emitters import CULL, MAX_POLYGON_VERTICES, PackedParts, rules
 
 TABLE_WIDTH = 3 + MAX_POLYGON_VERTICES
@@ -258,6 +259,7 @@ uniform int probe_row;
 uniform vec3 probe_centre;
 uniform vec3 probe_lo;
 uniform vec3 probe_hi;
+uniform float probe_albedo[ALBEDO_POINTS];   // S at n . w = 0, 1 / (ALBEDO_POINTS - 1), ..., 1
 const float PROBE_INSET = 1e-6;
 vec2 octahedral(vec3 u) {   // fitting.probe.encode
     vec2 p = u.xy / (abs(u.x) + abs(u.y) + abs(u.z));
@@ -295,8 +297,14 @@ vec3 probe_lookup(vec3 u) {   // fitting.probe.look_up: bilinear, texel centres 
     return (1.0 - t.x) * (1.0 - t.y) * probe_texel(i0, j0) + t.x * (1.0 - t.y) * probe_texel(i0 + 1, j0)
          + (1.0 - t.x) * t.y * probe_texel(i0, j0 + 1) + t.x * t.y * probe_texel(i0 + 1, j0 + 1);
 }
+float probe_albedo_at(vec3 n, vec3 w) {   // fitting.probe.albedo_factor
+    float x = clamp(dot(n, w), 0.0, 1.0) * float(ALBEDO_POINTS - 1);
+    int i = min(int(floor(x)), ALBEDO_POINTS - 2);
+    float f = x - float(i);
+    return (1.0 - f) * probe_albedo[i] + f * probe_albedo[i + 1];
+}
 vec3 probe_term(vec3 x, vec3 n, vec3 w, vec3 weight) {
     if (probe_size == 0) return vec3(0.0);
-    return weight * probe_lookup(probe_direction(x, n, w));
+    return weight * probe_albedo_at(n, w) * probe_lookup(probe_direction(x, n, w));
 }
-"""
+""".replace("ALBEDO_POINTS", str(ALBEDO_POINTS))

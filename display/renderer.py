@@ -640,7 +640,7 @@ class Renderer:
             if f.probe is not None:
                 m = f.probe.size
                 obj.probe = (row, m, tuple(map(float, f.probe.centre)), tuple(map(float, f.probe.box[0])),
-                             tuple(map(float, f.probe.box[1])))
+                             tuple(map(float, f.probe.box[1])), np.asarray(f.probe.albedo, np.float32))
                 probes.append(np.asarray(f.probe.texels, np.float32))
                 row += m
                 weight = np.asarray(f.probe_weight, np.float32)
@@ -788,6 +788,8 @@ class Renderer:
             self._set(program, "probe_centre", p[2])
             self._set(program, "probe_lo", p[3])
             self._set(program, "probe_hi", p[4])
+            if "probe_albedo" in program:
+                program["probe_albedo"].write(p[5].tobytes())
 
     def _bind_fitted(self, program, obj, n, mode="fitted", parts=PARTS):
         """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights, the ``parts``

@@ -135,12 +135,15 @@ def _light_caps(data, lights):
     return np.minimum(cap, 1e200)
 
 
-def fit_probe_part(data, target, loss_weights, size, centre, box, fixed=None, rounds=probe.ALTERNATIONS):
+def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=None, rounds=probe.ALTERNATIONS):
     """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
-    ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares."""
+    ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares;
+    ``albedo``: the table of S (``probe.albedo_table``)."""
     rest = target if fixed is None else target - fixed
     u = probe.box_directions(data.positions[:, None, :], data.views, data.normals[:, None, :], centre, box)
     idx, wts = probe.texels(u.reshape(-1, 3), size)
+    factor = probe.albedo_factor(albedo, data.normals[:, None, :], data.views)  # (V, D)
+    wts = wts * factor.reshape(-1, 1)  # S folds into the look-up's weights
     weight = data.weights.reshape(-1)
     lw = None if loss_weights is None else loss_weights.reshape(-1, 3)
     sample_weight = weight[:, None] * (1.0 if lw is None else lw)
@@ -156,7 +159,9 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, fixed=None, ro
         texels *= np.where(mean > 0, mean, 1.0)
         values = np.einsum("sk,skc->sc", wts, texels.reshape(-1, 3)[idx]).reshape(rest.shape)
         emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros(rest.shape[:2] + (0,)), None)
-    return probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64)), emitted, scale
+    found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
+                        np.asarray(albedo, np.float64))
+    return found, emitted, scale
 
 
 def _model(data_full, highlights, emitted, probe_term, light_term):
@@ -185,6 +190,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights, positions=full.positions)
     lw = make_loss_weights(full, options.loss)  # relative to what a viewer sees: the whole radiance
     centre = 0.5 * (full.positions.min(axis=0) + full.positions.max(axis=0))
+    albedo = probe.albedo_table(obj.material["exponent"])
     tried = []
     fits = []
 
@@ -215,7 +221,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
             [options.probe_size] if options.probe_size != "auto" else [16])
         best = None
         for size in sizes:
-            p, e, s = fit_probe_part(data, rest, lw, size, centre, box)
+            p, e, s = fit_probe_part(data, rest, lw, size, centre, box, albedo)
             term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
             c = record("probe", size, 0, True, e, None, p, s, term, None)
             if best is None or c.error < best[0].error * (1 - WITHIN):
@@ -234,7 +240,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
                 e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
                 # the probe again, with the lights' part held
                 light_term = np.einsum("vdk,vkc->vdc", lobes, c)
-                p2, e2, s2 = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, fixed=light_term, rounds=2)
+                p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, rounds=2)
                 probe_values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
                 e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
                 light_term = np.einsum("vdk,vkc->vdc", lobes, c)

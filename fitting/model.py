@@ -43,7 +43,7 @@ from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, em
 from radiosity.formats.npz import open_archive, write_archive
 
 from .lobes import lobe_vectorised
-from .probe import Probe, probe_values
+from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
 VERSION = 3
@@ -462,6 +462,9 @@ def _read_probe(archive, name, info, n_v):
     box = _finite_numbers(entry.get("box"), 6)
     if centre is None or box is None or not (box[:3] < box[3:]).all():
         raise fail(f"meta 'objects': object {name!r}'s probe needs 'centre' [x, y, z] and 'box' [[lo], [hi]] with lo < hi")
+    albedo = _finite_numbers(entry.get("albedo"), ALBEDO_POINTS)
+    if albedo is None or (albedo < 0).any():
+        raise fail(f"meta 'objects': object {name!r}'s probe needs 'albedo', {ALBEDO_POINTS} numbers >= 0")
     for key in keys:
         if key not in archive.keys:
             raise fail(f"object {name!r} has a 'probe' but no '{key}' array")
@@ -472,7 +475,7 @@ def _read_probe(archive, name, info, n_v):
             raise fail(f"'{key}' has NaN or infinite values")
         if (a < 0).any():
             raise fail(f"'{key}' has a negative value ({float(a.min()):g}); it must not be negative")
-    return Probe(np.asarray(texels, np.float32), centre, box.reshape(2, 3)), np.asarray(weight, np.float32)
+    return Probe(np.asarray(texels, np.float32), centre, box.reshape(2, 3), albedo), np.asarray(weight, np.float32)
 
 
 def load_fit(path):

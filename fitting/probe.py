@@ -7,7 +7,15 @@ unit normal n seen from the unit direction w:
     x'   = x clamped into the proxy box [lo, hi]
     t    = the distance along r at which x' + t r leaves the box
     u    = normalize(x' + t r - c)              seen from the probe's centre c
-    term = s(x) * P(u)                          s per vertex (RGB), P the probe's texels
+    term = s(x) * S(n . w) * P(u)               s per vertex (RGB), P the probe's texels
+
+and S the material's specular albedo (``radiosity.formats.material.specular_albedo``),
+linear in a table of ``ALBEDO_POINTS`` values at n . w = 0, 1/32, ..., 1 (clamped to
+[0, 1]): a Phong lobe about a mirror direction near the horizon loses what falls below
+it, so what a glossy surface reflects falls with the view's angle like the cosine. The
+probe holds what the surroundings send, S how much of it the view sees; without S the
+teapot's fit error was 0.092 (relative RMS), with it 0.073, the satin block's 0.021 and
+0.007 (draft, 32 x 32 texels).
 
 Parallax-corrected ("box-projected") look-ups: a reflection of a wall is found where the
 wall is, not where an infinitely far environment would put it. P is an octahedral map
@@ -35,6 +43,8 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
+from radiosity.formats.material import specular_albedo
+
 from .nnls import solve_many
 
 __all__ = ["Probe", "box_directions", "encode", "fit_probe", "look_up", "texels"]
@@ -42,6 +52,7 @@ __all__ = ["Probe", "box_directions", "encode", "fit_probe", "look_up", "texels"
 SMOOTHNESS = 1e-3  # the smoothness term's weight, relative to the mean of the data term's diagonal
 INSET = 1e-6  # points are kept this fraction of the box's size inside it
 ALTERNATIONS = 6
+ALBEDO_POINTS = 33
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,11 +61,13 @@ class Probe:
 
     texels : (M, M, 3) float32, the octahedral map P (>= 0)
     centre : (3,) float64, c; box : (2, 3) float64, the proxy's (lo, hi) corners
+    albedo : (ALBEDO_POINTS,) float64, S at n . w = 0, 1 / (ALBEDO_POINTS - 1), ..., 1
     """
 
     texels: np.ndarray
     centre: np.ndarray
     box: np.ndarray
+    albedo: np.ndarray
 
     @property
     def size(self):
@@ -62,7 +75,23 @@ class Probe:
 
     def to_meta(self):
         return {"size": int(self.size), "centre": [float(v) for v in self.centre],
-                "box": [[float(v) for v in row] for row in self.box]}
+                "box": [[float(v) for v in row] for row in self.box], "albedo": [float(v) for v in self.albedo]}
+
+
+def albedo_table(exponent):
+    """(ALBEDO_POINTS,) the specular albedo S of a modified-Phong lobe of ``exponent`` at
+    n . w = 0, 1 / (ALBEDO_POINTS - 1), ..., 1."""
+    return specular_albedo(float(exponent), np.linspace(0.0, 1.0, ALBEDO_POINTS))
+
+
+def albedo_factor(albedo, normals, views):
+    """S(n . w) (...,) by linear interpolation in the table ``albedo``."""
+    mu = np.clip(np.sum(np.asarray(normals, np.float64) * np.asarray(views, np.float64), axis=-1), 0.0, 1.0)
+    x = mu * (len(albedo) - 1)
+    i = np.minimum(np.floor(x).astype(np.int64), len(albedo) - 2)
+    f = x - i
+    a = np.asarray(albedo, np.float64)
+    return (1.0 - f) * a[i] + f * a[i + 1]
 
 
 def encode(u):
@@ -140,8 +169,9 @@ def look_up(texel_values, u):
 
 
 def probe_values(probe, positions, views, normals):
-    """P(u) (..., 3) at surface points seen from ``views`` (the probe term without s)."""
-    return look_up(probe.texels, box_directions(positions, views, normals, probe.centre, probe.box))
+    """S(n . w) P(u) (..., 3) at surface points seen from ``views`` (the probe term without s)."""
+    u = box_directions(positions, views, normals, probe.centre, probe.box)
+    return albedo_factor(probe.albedo, normals, views)[..., None] * look_up(probe.texels, u)
 
 
 def _laplacian(m):
