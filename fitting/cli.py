@@ -18,7 +18,8 @@ from radiosity.formats.errors import InputError
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import load_solution
 
-from .fit import COEFFICIENTS, LIGHT_KINDS, FitOptions, fit
+from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit
+from .glossy import MODEL_TARGET
 
 
 def _lights(text):
@@ -30,15 +31,26 @@ def _lights(text):
         raise InputError(f"--lights takes a whole number or 'auto', got {text!r}") from None
 
 
+def _probe_size(text):
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise InputError(f"--probe-size takes a whole number or 'auto', got {text!r}") from None
+
+
 def register(subparsers, not_built):
     p = subparsers.add_parser(
         "fit",
         help="fit virtual lights to a solution (fit.npz)",
-        description="Fit a few virtual lights per glossy object so that the Phong shading formula "
-        "reproduces the solution (Walter et al. 1997): by default each light directional or positional "
-        "as the data require, with a specular coefficient per light at each vertex, refined by variable "
-        "projection; --method paper runs the paper's section 3.2 exactly. Writes fit.npz (its format: "
-        "docs/formats.md) and prints each object's error.",
+        description="Fit each glossy object's model: the emitters' own highlights in closed form, a "
+        "reflection probe for its surroundings and virtual lights for what remains (each object gets the "
+        "cheapest that reaches the error target: --model auto), or virtual lights alone as the paper does "
+        "(Walter et al. 1997; --model lights): each light directional or positional as the data require, "
+        "with a specular coefficient per light at each vertex, refined by variable projection; --method "
+        "paper runs the paper's section 3.2 exactly. Writes fit.npz (its format: docs/formats.md) and "
+        "prints each object's model and error.",
     )
     table = ", ".join(f"{q} {preset(q).fit_lights} / {preset(q).fit_iterations}" for q in QUALITIES)
     p.add_argument("solution", help="a solution.npz from 'vlights solve'")
@@ -47,8 +59,21 @@ def register(subparsers, not_built):
                    help=f"sets the defaults of --lights / --iterations ({table}); a flag given explicitly wins "
                    f"(default: the quality the solution was solved at, else {DEFAULT_QUALITY})")
     p.add_argument("--lights", default=None, metavar="K",
-                   help="lights per glossy object, or 'auto' (default: the quality preset's)")
-    p.add_argument("--target", type=float, default=0.1, metavar="E", help="relative RMS error target of --lights auto (default: %(default)s)")
+                   help="virtual lights per glossy object, or 'auto' (default: the quality preset's: fit_lights for "
+                   "--model lights, probe_lights beside a probe)")
+    p.add_argument("--model", choices=MODELS, default="auto",
+                   help="what a glossy object's model is made of: auto (the cheapest reaching --target), diffuse, "
+                   "emitters (their highlights in closed form), probe (and a reflection probe), probe+lights (and "
+                   "virtual lights), lights (virtual lights alone on the whole radiance, as the paper; --method paper "
+                   "always is) (default: %(default)s)")
+    p.add_argument("--probe-size", type=_probe_size, default="auto", metavar="M",
+                   help="the reflection probe's M x M texels, or auto: the quality preset's sizes tried, the cheapest "
+                   "within reach of the best kept (default: %(default)s)")
+    p.add_argument("--target", type=float, default=0.1, metavar="E",
+                   help="relative RMS error target of --lights auto (default: %(default)s)")
+    p.add_argument("--model-target", type=float, default=MODEL_TARGET, metavar="E",
+                   help="error target of --model auto: relative RMS in a space near what a viewer sees (radiance to "
+                   "the display's gamma, scaled by the object's mean) (default: %(default)s)")
     p.add_argument("--max-lights", type=int, default=16, metavar="N", help="most lights --lights auto may use (default: %(default)s)")
     p.add_argument("--method", choices=("paper", "refined", "per-light"), default="refined",
                    help="paper: section 3.2 exactly; refined: then non-linear refinement; per-light: refined with an exponent per light (default: %(default)s)")
@@ -82,10 +107,13 @@ def fit_options(args, quality):
     """The ``FitOptions`` of the command line: explicit flags win over ``quality``'s preset."""
     knobs = preset(quality)
     lights = _lights(args.lights) if args.lights is not None else knobs.fit_lights
+    probe_lights = _lights(args.lights) if args.lights is not None else knobs.probe_lights
     iterations = args.iterations if args.iterations is not None else knobs.fit_iterations
     return FitOptions(
         lights=lights, target=args.target, max_lights=args.max_lights, method=args.method,
         light_kind=args.light_kind, coefficients=args.coefficients, loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
+        model=args.model, probe_size=args.probe_size, probe_sizes=tuple(knobs.probe_sizes), probe_lights=probe_lights,
+        model_target=args.model_target,
     ).check()
 
 
@@ -107,30 +135,41 @@ def _number(value, width, digits=4):
 
 
 def format_report(model, path):
-    """Per glossy object: lights, exponents, error of the fit and of its diffuse part
-    alone; diffuse objects (no lights, nothing fitted) in one row each, without numbers."""
+    """Per glossy object: its model (what "auto" chose and from what), lights, exponents,
+    stored floats, error of the fit (relative RMS, and in the viewer's space) and of the
+    best colour per vertex alone; diffuse objects in one row each, without numbers."""
     lines = [
-        f"{'object':<14} {'K':>3} {'kinds':<10} {'floats/v':>8} {'exponent(s)':<18} {'rel. RMS':>9} {'worst vertex':>13} "
-        f"{'diffuse only':>13} {'time':>7}"
+        f"{'object':<14} {'model':<13} {'K':>3} {'kinds':<7} {'probe':>6} {'floats/v':>8} {'exponent(s)':<14} "
+        f"{'rel. RMS':>9} {'perceptual':>10} {'diffuse only':>13} {'time':>7}"
     ]
     for o in model.objects:
         if o.info.get("method") == "diffuse":
-            lines.append(f"{o.name:<14} {'-':>3} diffuse, no lights")
+            lines.append(f"{o.name:<14} {'diffuse':<13} {'-':>3} (a diffuse material: one colour per vertex)")
             continue
         e = o.info["error"]
         exps = o.info["shininess"]
         shown = "-" if not exps else (f"{exps[0]:.4g}" if len(set(exps)) == 1 else f"{min(exps):.3g} .. {max(exps):.3g}")
         n_point = int(np.count_nonzero(o.positional))
-        kinds = f"{n_point}P {o.n_lights - n_point}D"
+        kinds = f"{n_point}P {o.n_lights - n_point}D" if o.n_lights else "-"
+        probe = f"{o.probe.size}^2" if o.probe is not None else "-"
         lines.append(
-            f"{o.name:<14} {o.n_lights:>3} {kinds:<10} {o.floats_per_vertex:>8} {shown:<18} {_number(e['relative_rms'], 9)} "
-            f"{_number(e['worst_vertex'], 13)} {_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
+            f"{o.name:<14} {o.info.get('model', 'lights'):<13} {o.n_lights:>3} {kinds:<7} {probe:>6} "
+            f"{o.floats_per_vertex:>8} {shown:<14} {_number(e['relative_rms'], 9)} {_number(e.get('perceptual'), 10)} "
+            f"{_number(e['diffuse_only_relative_rms'], 13)} {o.info['time_s']:>6.2f}s"
         )
+        tried = o.info.get("tried") or []
+        if len(tried) > 1:
+            alternatives = ", ".join(
+                f"{t['model']}{' ' + str(t['probe_size']) if t['probe_size'] else ''}"
+                f"{' ' + str(t['lights']) + 'L' if t['lights'] else ''} {t['perceptual']:.3g} ({t['floats'] / 1000:.0f}k)"
+                for t in tried
+            )
+            lines.append(f"{'':<14} tried (perceptual error, floats): {alternatives}")
         if "not reached" in o.info.get("chosen_by", ""):
             lines.append(f"{'':<14} {o.info['chosen_by']}")
     size = Path(path).stat().st_size
     settings = model.settings
-    how = f"method {settings['method']}, loss {settings['loss']}"
+    how = f"model {settings.get('model', 'lights')}, method {settings['method']}, loss {settings['loss']}"
     if settings["method"] != "paper":
         how += f", light kinds {settings.get('light_kind')}, coefficients {settings.get('coefficients')}"
     if "quality" in settings:

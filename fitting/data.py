@@ -93,3 +93,20 @@ def relative_error(data, approximation):
         "worst_vertex": float(per_vertex[worst]) if len(per_vertex) else 0.0,
         "worst_vertex_index": worst,
     }
+
+
+GAMMA = 1.0 / 2.2  # the display's: what a viewer sees of radiance, roughly
+
+
+def perceptual_error(data, approximation):
+    """The relative RMS error of an approximation (V, D, 3) of ``data.radiance`` in a
+    space nearer what a viewer sees: both scaled by the object's mean radiance (an
+    exposure) and raised to the display's gamma 1 / 2.2, so that a dim reflection's
+    error counts about as the eye weighs it, not as its square in radiance."""
+    w = data.weights[:, :, None]
+    mean = float(np.sum(w * data.radiance) / max(float(w.sum()), 1e-300) / 3.0)
+    if not mean > 0:
+        return 0.0 if not np.any(approximation) else float("inf")
+    a = np.maximum(approximation / mean, 0.0) ** GAMMA
+    b = np.maximum(data.radiance / mean, 0.0) ** GAMMA
+    return float(np.sqrt(np.sum(w * (a - b) ** 2) / np.sum(w * b**2)))

@@ -25,7 +25,6 @@ from .probe import Probe
 
 METHODS = ("paper", "refined", "per-light")
 MODELS = ("auto", *glossy.MODELS)
-PROBE_SIZES = ("auto", *(str(s) for s in glossy.PROBE_SIZES))
 LIGHT_KINDS = mixed.KINDS
 COEFFICIENTS = mixed.COEFFICIENTS
 PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
@@ -50,7 +49,11 @@ class FitOptions:
                       "auto" (the cheapest reaching ``target``), "diffuse", "emitters",
                       "probe", "probe+lights", or "lights" (virtual lights alone on the
                       whole radiance, as before issue 22; "paper" always is)
-    probe_size      : the probe's M (M x M texels), or "auto" (``glossy.PROBE_SIZES``)
+    probe_size      : the probe's M (M x M texels), or "auto": the sizes ``probe_sizes``
+                      tried (the quality preset's), each fitted, the cheapest within reach
+                      of the best kept
+    probe_lights    : lights beside a probe (the model "probe+lights"), or "auto"
+    model_target    : the error target of --model auto (``data.perceptual_error``)
     """
 
     lights: int | str = 8
@@ -64,10 +67,16 @@ class FitOptions:
     iterations: int = 100
     model: str = "auto"
     probe_size: int | str = "auto"
+    probe_sizes: tuple[int, ...] = glossy.PROBE_SIZES
+    probe_lights: int | str = 4
+    model_target: float = glossy.MODEL_TARGET
 
     def check(self):
-        if self.lights != "auto" and not (isinstance(self.lights, int) and 0 <= self.lights <= 64):
-            raise InputError(f"--lights must be a whole number from 0 to 64 or 'auto', got {self.lights!r}")
+        for lights in (self.lights, self.probe_lights):
+            if lights != "auto" and not (isinstance(lights, int) and 0 <= lights <= 64):
+                raise InputError(f"--lights must be a whole number from 0 to 64 or 'auto', got {lights!r}")
+        if not 0 < self.model_target < 10:
+            raise InputError(f"--model-target must be an error between 0 and 10, got {self.model_target:g}")
         if self.method not in METHODS:
             raise InputError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
         if self.light_kind not in LIGHT_KINDS:
@@ -220,16 +229,17 @@ def _fit_components(obj, options, scene, progress, solution, box):
     def lights_for(data, loss_weights, start):
         problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
                                      options.exponent_bounds)
-        if options.lights == "auto":
+        if options.probe_lights == "auto":
             fit, why = _auto_lights(problem, options, start, log)
             chosen_by.append(why)
             return fit
-        chosen_by.append(f"--lights {options.lights}")
-        return fit_lights(problem, options.lights, options, start, log=log)
+        chosen_by.append(f"{options.probe_lights} lights")
+        return fit_lights(problem, options.probe_lights, options, start, log=log)
 
     highlights = solution.highlights(obj.name)
     parts = len(solution.emitters) if obj.visibility is not None else 0
-    c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for)
+    c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for,
+                              probe_sizes=options.probe_sizes)
     data = fit_data(obj)
     diffuse_part = relative_error(data, np.broadcast_to(data.radiance.mean(axis=1, keepdims=True), data.radiance.shape))
     highlight = None
@@ -248,6 +258,7 @@ def _fit_components(obj, options, scene, progress, solution, box):
         "shininess": [round(float(p), 4) for p in c.lights[2]],
         "error": {
             "relative_rms": _json_number(c.error),
+            "perceptual": _json_number(c.perceptual),
             "diffuse_only_relative_rms": _json_number(diffuse_part["relative_rms"]),
         },
         "floats": int(c.floats),

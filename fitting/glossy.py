@@ -3,7 +3,7 @@
     colour(x, w) = emitted(x)                               every object
                  + E(x, w)                                   the emitters' own highlights, in closed
                                                              form (``radiosity.formats.emitters``)
-                 + s(x) P(u(x, w))                           a reflection probe (``fitting.probe``)
+                 + s(x) S(n . w) P(u(x, w))                  a reflection probe (``fitting.probe``)
                  + sum_k c_k(x) lobe_k(x, w)                 virtual lights for the rest (``mixed``)
 
 The emitter term is not fitted: the solution holds it (``Solution.highlights``), so what
@@ -14,9 +14,11 @@ neighbour, an object the probe's box does not know).
 Models, cheapest first (``MODELS``): "diffuse" (emitted alone), "emitters", "probe"
 (emitters + probe), "probe+lights", and "lights" (virtual lights on the whole radiance,
 no emitter term: the paper's model and its extensions, as before issue 22). "auto" fits
-them in order of stored floats and keeps the first whose relative RMS error (against
-the solution's whole radiance) reaches the target; if none does, the one with the least
-error, unless a cheaper one is within ``WITHIN`` of it (error per stored float).
+them all (the probe at several sizes; lights only where the rest still shows a
+highlight) and keeps, in order of stored floats, the first whose error in a space near
+what a viewer sees (``data.perceptual_error``, against the solution's whole radiance)
+reaches the target or comes within ``WITHIN`` of the best one's: more floats that buy
+less are not kept.
 """
 
 from __future__ import annotations
@@ -35,7 +37,8 @@ __all__ = ["MODELS", "Components", "fit_components"]
 MODELS = ("diffuse", "emitters", "probe", "probe+lights", "lights")
 PROBE_SIZES = (8, 16, 32)
 WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fraction of the best's
-HIGHLIGHT = 0.25  # a residual peak above this fraction of the object's mean radiance is a highlight: lights fit it
+MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
+HIGHLIGHT = 1.0  # a residual peak above this times the object's mean radiance is a highlight: lights fit it
 BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal
 
 
@@ -60,6 +63,7 @@ class Components:
     probe_weight: np.ndarray | None
     error: float
     floats: int
+    perceptual: float = 0.0
     tried: list = field(default_factory=list)
 
     @property
@@ -135,25 +139,30 @@ def _light_caps(data, lights):
     return np.minimum(cap, 1e200)
 
 
-def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=None, rounds=probe.ALTERNATIONS):
+def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=None, rounds=probe.ALTERNATIONS,
+                   start=None):
     """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
     ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares;
-    ``albedo``: the table of S (``probe.albedo_table``)."""
+    ``albedo``: the table of S (``probe.albedo_table``); ``start``: (emitted, weight) to
+    begin from (default: each vertex's least radiance and 1)."""
     rest = target if fixed is None else target - fixed
     u = probe.box_directions(data.positions[:, None, :], data.views, data.normals[:, None, :], centre, box)
-    idx, wts = probe.texels(u.reshape(-1, 3), size)
+    idx, wts, cells = probe.texels(u.reshape(-1, 3), size, cells=True)
     factor = probe.albedo_factor(albedo, data.normals[:, None, :], data.views)  # (V, D)
     wts = wts * factor.reshape(-1, 1)  # S folds into the look-up's weights
     weight = data.weights.reshape(-1)
     lw = None if loss_weights is None else loss_weights.reshape(-1, 3)
     sample_weight = weight[:, None] * (1.0 if lw is None else lw)
-    emitted = np.maximum(rest.min(axis=1), 0.0)
-    scale = np.ones_like(emitted)
+    if start is None:
+        emitted = np.maximum(rest.min(axis=1), 0.0)
+        scale = np.ones_like(emitted)
+    else:
+        emitted, scale = (np.asarray(a, np.float64) for a in start)
     texels = np.zeros((size, size, 3))
     for _ in range(rounds):
         s_rep = np.repeat(scale, data.n_directions, axis=0)
         e_rep = np.repeat(emitted, data.n_directions, axis=0)
-        texels = probe.solve_texels(idx, wts, sample_weight, rest.reshape(-1, 3) - e_rep, s_rep, size)
+        texels = probe.solve_texels(idx, wts, cells, sample_weight, rest.reshape(-1, 3) - e_rep, s_rep, size)
         # the scale between P and s is free: keep s near 1 where the object is
         mean = np.sum(data.weights.sum(axis=1)[:, None] * scale, axis=0) / max(data.weights.sum(), 1e-300)
         texels *= np.where(mean > 0, mean, 1.0)
@@ -164,7 +173,7 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
     return found, emitted, scale
 
 
-def _model(data_full, highlights, emitted, probe_term, light_term):
+def _model(highlights, emitted, probe_term, light_term):
     out = emitted[:, None, :] + highlights
     if probe_term is not None:
         out = out + probe_term
@@ -173,15 +182,15 @@ def _model(data_full, highlights, emitted, probe_term, light_term):
     return out
 
 
-def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights):
+def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights, probe_sizes=PROBE_SIZES):
     """The ``Components`` of one glossy ``ObjectSolution`` ``obj``.
 
     highlights (V, D, 3): the emitter term on its grid (zeros without emitters); parts:
     the emitter parts' count; options: ``FitOptions`` (model, probe_size, loss, target,
     lights...); scene: the ``mixed.SceneGeometry``; box: the probe's proxy (2, 3);
-    exponent: where the lights' exponent starts; fit_lights(problem, options, exponent)
-    -> ``mixed.MixedFit`` (``fit._fit_or_auto``)."""
-    from .data import fit_data
+    exponent: where the lights' exponent starts; fit_lights(data, loss_weights, exponent)
+    -> ``mixed.MixedFit``; probe_sizes: what "auto" tries."""
+    from .data import fit_data, perceptual_error
     from .refine import loss_weights as make_loss_weights
 
     full = fit_data(obj)
@@ -191,67 +200,83 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     lw = make_loss_weights(full, options.loss)  # relative to what a viewer sees: the whole radiance
     centre = 0.5 * (full.positions.min(axis=0) + full.positions.max(axis=0))
     albedo = probe.albedo_table(obj.material["exponent"])
-    tried = []
-    fits = []
+    tried, fits = [], []
 
-    def record(model, size, n_lights, emitters, emitted, light_fit, probe_fit, weight, probe_term, light_term):
+    def record(model, size, emitters, emitted, light_fit, probe_fit, weight, probe_term, light_term):
+        n_lights = 0 if light_fit is None else len(light_fit[0])
         floats = _floats(v, parts, size, n_lights, emitters)
-        error = relative_error(full, _model(full, highlights if emitters else 0.0, emitted, probe_term, light_term))
+        approximation = _model(highlights if emitters else 0.0, emitted, probe_term, light_term)
+        error = relative_error(full, approximation)["relative_rms"]
+        seen = perceptual_error(full, approximation)
         c = Components(
             model=model, emitters=emitters, emitted=emitted,
             lights=tuple(light_fit[:3]) if light_fit is not None else _no_lights(),
             specular=(np.zeros((v, 0, 3)) if light_fit is None else light_fit[3]), probe=probe_fit,
-            probe_weight=weight, error=error["relative_rms"], floats=floats,
+            probe_weight=weight, error=error, floats=floats, perceptual=seen,
         )
         tried.append({"model": model, "probe_size": size, "lights": n_lights, "floats": floats,
-                      "relative_rms": round(error["relative_rms"], 5)})
+                      "relative_rms": round(error, 5), "perceptual": round(seen, 5)})
         fits.append(c)
         return c
 
     wanted = options.model
     automatic = wanted == "auto"
-    # diffuse, emitters: the best colour per vertex, without and with the emitter term
+    no_columns = np.zeros((v, full.n_directions, 0))
     for model, with_e in (("diffuse", False), ("emitters", True)):
         if automatic or wanted == model:
-            target = full.radiance if not with_e else rest
-            e, _, _ = _joint(data, target, lw, None, np.zeros((v, full.n_directions, 0)), None)
-            record(model, 0, 0, with_e, e, None, None, None, None, None)
+            e, _, _ = _joint(data, rest if with_e else full.radiance, lw, None, no_columns, None)
+            record(model, 0, with_e, e, None, None, None, None, None)
     if automatic or wanted in ("probe", "probe+lights"):
-        sizes = PROBE_SIZES if (automatic and options.probe_size == "auto") else (
-            [options.probe_size] if options.probe_size != "auto" else [16])
+        if options.probe_size != "auto":
+            sizes = [options.probe_size]
+        else:
+            sizes = list(probe_sizes) if automatic else [max(probe_sizes)]
         best = None
         for size in sizes:
             p, e, s = fit_probe_part(data, rest, lw, size, centre, box, albedo)
             term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
-            c = record("probe", size, 0, True, e, None, p, s, term, None)
-            if best is None or c.error < best[0].error * (1 - WITHIN):
+            c = record("probe", size, True, e, None, p, s, term, None)
+            if best is None or c.perceptual < best[0].perceptual * (1 - WITHIN):
                 best = (c, term)
         chosen, probe_term = best
-        if wanted == "probe+lights" or (automatic and _shows_highlight(rest - probe_term - chosen.emitted[:, None, :], full)):
-            # lights for what the probe leaves
-            lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
-                                  weights=full.weights, positions=full.positions)
-            fitted = fit_lights(lights_data, lw, exponent)
-            if fitted.n_lights:
-                lights = (fitted.pos, fitted.rgb, fitted.shininess)
-                lobes = _lobe_columns(full, lights)
-                caps = _light_caps(data, lights)
-                probe_values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
-                e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
-                # the probe again, with the lights' part held
-                light_term = np.einsum("vdk,vkc->vdc", lobes, c)
-                p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, rounds=2)
-                probe_values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
-                e, s, c = _joint(data, rest, lw, probe_values, lobes, caps)
-                light_term = np.einsum("vdk,vkc->vdc", lobes, c)
-                record("probe+lights", p2.size, fitted.n_lights, True, e, (*lights, c), p2, s,
-                       s[:, None, :] * probe_values, light_term)
+        left = rest - probe_term - chosen.emitted[:, None, :]
+        highlight = _shows_highlight(left, full)
+        if wanted == "probe+lights" or (automatic and highlight):
+            _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, box, albedo, exponent,
+                              fit_lights, wanted == "probe+lights")
+        if automatic and highlight and fits[-1].n_lights:
+            # a highlight neither the emitters nor the probe draw: the object keeps lights
+            return _choose([f for f in fits if f.n_lights], options.model_target, tried)
     if wanted == "lights":
         raise ValueError("the 'lights' model is fitted by fitting.fit (the paper's path)")
     if automatic:
-        return _choose(fits, options.target, tried)
-    chosen = [f for f in fits if f.model == wanted]
-    return _with_tried(chosen[-1], tried)
+        return _choose(fits, options.model_target, tried)
+    return _with_tried([f for f in fits if f.model == wanted][-1], tried)
+
+
+def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, box, albedo, exponent, fit_lights,
+                      required):
+    """Lights for what the probe leaves, then the probe again with them held, then every
+    per-vertex coefficient together."""
+    lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
+                          weights=full.weights, positions=full.positions)
+    fitted = fit_lights(lights_data, lw, exponent)
+    if not fitted.n_lights:
+        if required:  # nothing left for a light to explain
+            record("probe+lights", chosen.probe.size, True, chosen.emitted, None, chosen.probe, chosen.probe_weight,
+                   probe_term, None)
+        return
+    lights = (fitted.pos, fitted.rgb, fitted.shininess)
+    lobes = _lobe_columns(full, lights)
+    caps = _light_caps(data, lights)
+    values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
+    e, s, c = _joint(data, rest, lw, values, lobes, caps)
+    light_term = np.einsum("vdk,vkc->vdc", lobes, c)
+    p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, start=(e, s))
+    values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
+    e, s, c = _joint(data, rest, lw, values, lobes, caps)
+    record("probe+lights", p2.size, True, e, (*lights, c), p2, s, s[:, None, :] * values,
+           np.einsum("vdk,vkc->vdc", lobes, c))
 
 
 def _with_tried(c, tried):
@@ -259,19 +284,18 @@ def _with_tried(c, tried):
 
 
 def _shows_highlight(residual, full):
-    """True where the residual still peaks above HIGHLIGHT x the object's mean radiance."""
+    """True where the residual still peaks above HIGHLIGHT x the object's mean radiance:
+    a highlight the emitters and the probe do not draw (a lamp seen in a glossy neighbour)."""
     mean = float(np.sum(full.weights[:, :, None] * full.radiance) / max(full.weights.sum(), 1e-300) / 3.0)
     return bool(np.max(residual) > HIGHLIGHT * mean) if mean > 0 else False
 
 
 def _choose(fits, target, tried):
-    """The cheapest fit reaching ``target``; else the best, or a cheaper one within WITHIN of it."""
+    """Error per stored float: the cheapest fit whose perceptual error reaches ``target``
+    or comes within WITHIN of the best fit's (more floats that buy less are not kept)."""
     order = sorted(fits, key=lambda f: f.floats)
+    best = min(f.perceptual for f in order)
     for f in order:
-        if f.error <= target:
+        if f.perceptual <= target or f.perceptual <= best * (1 + WITHIN) or math.isclose(f.perceptual, best):
             return _with_tried(f, tried)
-    best = min(order, key=lambda f: f.error)
-    for f in order:
-        if f.error <= best.error * (1 + WITHIN) or math.isclose(f.error, best.error):
-            return _with_tried(f, tried)
-    return _with_tried(best, tried)
+    return _with_tried(order[-1], tried)

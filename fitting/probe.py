@@ -124,19 +124,22 @@ def _wrap(i, j, m):
     return i, j
 
 
-def texels(u, m):
+def texels(u, m, cells=False):
     """The bilinear look-up of unit directions u (..., 3) in an m x m map: (indices (..., 4)
-    int64 as j * m + i, weights (..., 4) float64 summing to 1)."""
+    int64 as j * m + i, weights (..., 4) float64 summing to 1); with ``cells`` also each
+    look-up's footprint, (j0 + 1) (m + 1) + i0 + 1 for its lower corner (i0, j0)."""
     f = encode(u) * m - 0.5
     f0 = np.floor(f)
     fx, fy = (f - f0)[..., 0], (f - f0)[..., 1]
     i0, j0 = f0[..., 0].astype(np.int64), f0[..., 1].astype(np.int64)
+    i0, j0 = np.clip(i0, -1, m - 1), np.clip(j0, -1, m - 1)  # u on the square's far edge (rounding)
     idx, wts = [], []
     for di, dj, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
         i, j = _wrap(i0 + di, j0 + dj, m)
         idx.append(j * m + i)
         wts.append(w)
-    return np.stack(idx, axis=-1), np.stack(wts, axis=-1)
+    out = np.stack(idx, axis=-1), np.stack(wts, axis=-1)
+    return (*out, (j0 + 1) * (m + 1) + i0 + 1) if cells else out
 
 
 def box_directions(positions, views, normals, centre, box):
@@ -193,29 +196,70 @@ def _laplacian(m):
     return scipy.sparse.diags(degree) - adjacency
 
 
-def solve_texels(idx, wts, weight, target, scale, m):
+_PATTERNS = {}
+
+
+def _pattern(m):
+    """The normal equations' sparsity of an m x m map: (CSR indptr, indices, and for each
+    bilinear footprint (``texels``'s cells, (m + 1)^2) the positions (cells, 16) of its 16
+    texel pairs in the CSR data), border wrap included; cached per m."""
+    if m not in _PATTERNS:
+        i0, j0 = np.meshgrid(np.arange(-1, m), np.arange(-1, m), indexing="xy")
+        i0, j0 = i0.ravel(), j0.ravel()
+        corners = [_wrap(i0 + di, j0 + dj, m) for di, dj in ((0, 0), (1, 0), (0, 1), (1, 1))]
+        ids = [j * m + i for i, j in corners]
+        a = np.stack([x for x in ids for _ in ids], axis=1)  # (cells, 16)
+        b = np.stack([y for _ in ids for y in ids], axis=1)
+        keys = np.unique(a * (m * m) + b)
+        rows, cols = keys // (m * m), keys % (m * m)
+        indptr = np.searchsorted(rows, np.arange(m * m + 1)).astype(np.int64)
+        positions = np.searchsorted(keys, a * (m * m) + b).astype(np.int64)
+        _PATTERNS[m] = (indptr, cols.astype(np.int64), positions)
+    return _PATTERNS[m]
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _accumulate(idx, wts, cells, weight, target, scale, positions, data, rhs):
+    """The normal equations of ``solve_texels`` into CSR ``data`` (nnz, 3) and ``rhs`` (n, 3),
+    a channel per thread."""
+    for c in numba.prange(3):
+        for s in range(idx.shape[0]):
+            w = weight[s, c]
+            if w == 0.0:
+                continue
+            sc = scale[s, c]
+            ws2 = w * sc * sc
+            wt = w * sc * target[s, c]
+            cell = cells[s]
+            for k in range(4):
+                wa = wts[s, k]
+                rhs[idx[s, k], c] += wt * wa
+                for q in range(4):
+                    data[positions[cell, 4 * k + q], c] += ws2 * wa * wts[s, q]
+
+
+def solve_texels(idx, wts, cells, weight, target, scale, m):
     """P (m, m, 3) >= 0 minimising sum weight (target - scale * sum_k wts_k P[idx_k])^2
     per channel, plus the smoothness term.
 
-    idx, wts : (S, 4) look-ups of S samples; weight : (S,) or (S, 3); target, scale :
-    (S, 3)."""
+    idx, wts, cells : the look-ups of S samples (``texels(..., cells=True)``); weight :
+    (S,) or (S, 3); target, scale : (S, 3)."""
     n = m * m
-    weight = np.broadcast_to(np.asarray(weight, np.float64).reshape(len(idx), -1), (len(idx), 3))
+    weight = np.ascontiguousarray(np.broadcast_to(np.asarray(weight, np.float64).reshape(len(idx), -1), (len(idx), 3)))
+    indptr, indices, positions = _pattern(m)
+    data = np.zeros((len(indices), 3))
+    rhs = np.zeros((n, 3))
+    _accumulate(np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(wts, np.float64),
+                np.ascontiguousarray(cells, np.int64), weight, np.ascontiguousarray(target, np.float64),
+                np.ascontiguousarray(scale, np.float64), positions, data, rhs)
     lap = _laplacian(m)
     out = np.zeros((n, 3))
-    pairs = (idx[:, :, None] * n + idx[:, None, :]).ravel()
     for c in range(3):
-        ws2 = weight[:, c] * scale[:, c] ** 2
-        values = (ws2[:, None, None] * wts[:, :, None] * wts[:, None, :]).ravel()
-        gram = np.bincount(pairs, weights=values, minlength=n * n)
-        rhs = np.bincount(idx.ravel(), weights=((weight[:, c] * scale[:, c] * target[:, c])[:, None] * wts).ravel(),
-                          minlength=n)
-        nz = np.nonzero(gram)[0]
-        A = scipy.sparse.csr_matrix((gram[nz], (nz // n, nz % n)), shape=(n, n))
+        A = scipy.sparse.csr_matrix((data[:, c], indices, indptr), shape=(n, n))
         diag = A.diagonal()
         level = diag[diag > 0].mean() if (diag > 0).any() else 1.0
         A = A + SMOOTHNESS * level * lap + scipy.sparse.identity(n) * (1e-9 * level)
-        out[:, c] = np.maximum(scipy.sparse.linalg.spsolve(A.tocsc(), rhs), 0.0)
+        out[:, c] = np.maximum(scipy.sparse.linalg.spsolve(A.tocsc(), rhs[:, c]), 0.0)
     return out.reshape(m, m, 3)
 
 

@@ -46,6 +46,10 @@ class Preset:
                        emitter a vertex sees (its highlight's shadow, ``transport.highlights``)
     emitter_nodes    : N of the quadrature of the emitters' highlights (solver and every
                        display: ``formats.emitters``; more is more exact and slower to draw)
+    probe_sizes      : the reflection probe's sizes (M x M texels) ``vlights fit --model auto``
+                       tries for each glossy object (``fitting.glossy``)
+    probe_lights     : virtual lights per glossy object beside a probe (what the emitters and
+                       the probe leave: fewer than ``fit_lights`` alone need)
     """
 
     photons: int
@@ -66,6 +70,8 @@ class Preset:
     gather_tolerance: float = 0.02
     visibility_samples: int = 64
     emitter_nodes: int = 8
+    probe_sizes: tuple[int, ...] = (16, 32)
+    probe_lights: int = 4
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -73,12 +79,12 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03, 32, 8),
+    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03, 32, 8, (16, 32), 4),
     "medium": Preset(
-        8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02, 64, 8
+        8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02, 64, 8, (16, 32, 64), 4
     ),
     "high": Preset(
-        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12
+        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12, (32, 64), 8
     ),
 }
 QUALITIES = tuple(PRESETS)
