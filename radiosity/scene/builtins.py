@@ -10,7 +10,8 @@ Meshes, each a raw (positions (V, 3) float64, faces (F, 3) int64) pair, fronts o
                     back_wall, left_wall, right_wall, short_block, tall_block, light;
                     walls face into the box, blocks face out, the light faces down
 
-Scenes are TOML files shipped in ``radiosity/data``: ``cornell`` and ``cornell-teapot``.
+Scenes are TOML files shipped in ``radiosity/scene/data``: ``cornell``, ``cornell-teapot`` and
+``plates`` (glossy plates under sphere lamps, after Veach's multiple-importance-sampling scene).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import trimesh
 from radiosity.formats.errors import InputError
 from radiosity.scene import teapot
 
-SCENES = ("cornell", "cornell-teapot")
+SCENES = ("cornell", "cornell-teapot", "plates")
 MESHES = ("teapot", "sphere", "quad", "cube", "cornell:<part>")
 LIGHT_DROP_MM = 0.1  # the measured light lies in the ceiling plane; lower it this much
 
