@@ -23,6 +23,7 @@ from display.export import add_export_command
 from display.gl import DEFAULT_SAMPLES, MAX_SAMPLES, check_sample_count
 from display.serve import add_serve_command
 from display.truth import add_truth_command, check_spp
+from fitting.model import PARTS
 from radiosity.formats import InputError, presets
 
 PROG = "vlights"
@@ -92,6 +93,8 @@ def register(subparsers, not_built):
     p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: render.png if no --hdr)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
     p.add_argument("--lights", type=int, metavar="K", help="use only the first K lights of each object")
+    p.add_argument("--off", nargs="+", default=[], metavar="PART", choices=PARTS,
+                   help="draw the model without these parts: emitters (their highlights), probe, lights")
     add_samples_flag(p)
     p.set_defaults(func=_render)
 
@@ -134,7 +137,7 @@ def register(subparsers, not_built):
     p.add_argument("--exposure", type=float, default=1.0)
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
-    p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p) after the first frame")
+    p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p 1 2 3) after the first frame")
     add_samples_flag(p)
     p.set_defaults(func=_view)
 
@@ -244,7 +247,7 @@ def _render(args):
     if args.hdr is not None:
         check_output(args.hdr, ".npy", inputs, flag="--hdr")
     with _rendering(args) as (renderer, view, mode):
-        hdr = renderer.render(view, mode, args.shading, args.lights)
+        hdr = renderer.render(view, mode, args.shading, args.lights, parts=tuple(p for p in PARTS if p not in args.off))
     # both files or neither: each is committed only when both are written
     with contextlib.ExitStack() as stack:
         if args.hdr:
@@ -324,8 +327,8 @@ def _view(args):
         raise InputError(f"--exposure must be positive, got {args.exposure:g}")
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames must be >= 1, got {args.frames}")
-    if set(args.press) - set("mgl+-p"):
-        raise InputError(f"--press takes the keys m g l + - p, got {args.press!r}")
+    if set(args.press) - set("mgl+-p123"):
+        raise InputError(f"--press takes the keys m g l + - p 1 2 3, got {args.press!r}")
     check_sample_count(args.samples)
     if args.screenshot is not None:
         if args.frames is None:

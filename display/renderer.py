@@ -40,6 +40,7 @@ import math
 import moderngl
 import numpy as np
 
+from fitting.model import PARTS
 from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
@@ -48,7 +49,6 @@ from .glsl import PROBE_GLSL, emitter_glsl, emitter_table
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
-PARTS = ("lights", "probe", "emitters")  # what ``parts`` may switch off
 FLOAT_TEXTURE_WIDTH = 4096
 RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
 

@@ -8,12 +8,14 @@ is held). Keys:
 
     M  cycle mode (fitted, diffuse, reference)     G  Gouraud / per-pixel shading
     L  2 lights / all lights (the paper's figure 6)   + / -  exposure x 2 / x 0.5
-    P  screenshot (PNG, tone-mapped)                ESC  quit
+    1  the emitters' highlights on / off          2  the reflection probe on / off
+    3  the virtual lights on / off                P  screenshot (PNG, tone-mapped)
+    ESC  quit
 
-A status line shows mode, shading, lights, exposure, samples per pixel ("spp") and frame
-time. ``--frames N`` draws N frames and closes (for tests and scripted captures);
-``--screenshot FILE`` writes the last frame; ``--press KEYS`` presses keys (m g l + - p)
-after the first frame.
+A status line shows mode, shading, lights, the parts switched off, exposure, samples per
+pixel ("spp") and frame time. ``--frames N`` draws N frames and closes (for tests and
+scripted captures); ``--screenshot FILE`` writes the last frame; ``--press KEYS``
+presses keys (m g l + - p 1 2 3) after the first frame.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 from radiosity.formats import Camera, InputError, atomic_output
 
 from .gl import DEFAULT_SAMPLES
-from .renderer import Renderer
+from .renderer import PARTS, Renderer
 
 with warnings.catch_warnings():  # moderngl-window imports PyGLM by its old name, which warns
     warnings.simplefilter("ignore", PendingDeprecationWarning)
@@ -99,6 +101,7 @@ class Walkthrough(mglw.WindowConfig):
         self.mode = s["mode"] or self.modes[0]
         self.shading = "pixel"
         self.all_lights = True
+        self.parts = set(PARTS)  # the parts of the model drawn (keys 1, 2, 3)
         self.exposure = s["exposure"]
         self.frames_left = s["frames"]
         self.screenshot_path = s["screenshot"]
@@ -135,21 +138,24 @@ class Walkthrough(mglw.WindowConfig):
         start = time.perf_counter()
         view = self.current_view()
         lights = None if self.all_lights else 2
-        fbo = self.renderer.draw(view, self.mode, self.shading, lights)
+        fbo = self.renderer.draw(view, self.mode, self.shading, lights, parts=tuple(sorted(self.parts)))
         self.wnd.use()
         self.ctx.disable(moderngl.DEPTH_TEST)
         fbo.color_attachments[0].use(location=0)
         self.tonemap["hdr"].value = 0
         self.tonemap["exposure"].value = self.exposure
         self.quad_vao.render(moderngl.TRIANGLE_STRIP)
+        off = [p for p in PARTS if p not in self.parts]
         self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
-                          f"exposure {self.exposure:g} | {self.renderer.samples} spp | {self.last_frame_ms:.1f} ms")
+                          + (f"off: {', '.join(off)} | " if off else "")
+                          + f"exposure {self.exposure:g} | {self.renderer.samples} spp | {self.last_frame_ms:.1f} ms")
         self.text.draw((10, self.wnd.buffer_size[1] - 24), size=14)
         self.ctx.finish()
         self.last_frame_ms = 1000 * (time.perf_counter() - start)
         if self.press:  # scripted key presses, through the same handler as the keyboard's
             keys = self.wnd.keys
-            table = {"m": keys.M, "g": keys.G, "l": keys.L, "+": keys.EQUAL, "-": keys.MINUS, "p": keys.P}
+            table = {"m": keys.M, "g": keys.G, "l": keys.L, "+": keys.EQUAL, "-": keys.MINUS, "p": keys.P,
+                     "1": keys.NUMBER_1, "2": keys.NUMBER_2, "3": keys.NUMBER_3}
             for char in self.press:
                 self.on_key_event(table[char], keys.ACTION_PRESS, None)
             self.press = ""
@@ -198,6 +204,9 @@ class Walkthrough(mglw.WindowConfig):
             self.exposure *= 0.5
         elif key == keys.P:
             self.save_screenshot()
+        elif key in (keys.NUMBER_1, keys.NUMBER_2, keys.NUMBER_3):
+            part = {keys.NUMBER_1: "emitters", keys.NUMBER_2: "probe", keys.NUMBER_3: "lights"}[key]
+            self.parts ^= {part}
 
     def on_mouse_drag_event(self, x, y, dx, dy):
         self.camera.rot_state(-dx, -dy)

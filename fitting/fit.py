@@ -21,7 +21,6 @@ from radiosity.formats.errors import InputError
 from . import glossy, mixed, paper, refine
 from .data import fit_data, relative_error
 from .model import FittedModel, FittedObject, Highlight, directional
-from .probe import Probe
 
 METHODS = ("paper", "refined", "per-light")
 MODELS = ("auto", *glossy.MODELS)

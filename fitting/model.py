@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
-from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_radiance, parts_from_meta
+from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, emitter_radiance, parts_from_meta
 from radiosity.formats.npz import open_archive, write_archive
 
 from .lobes import lobe_vectorised
@@ -49,6 +49,7 @@ FORMAT = "vlights.fit"
 VERSION = 3
 READS = (1, 2, 3)
 MAX_PROBE_SIZE = 256
+PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
 ARRAY_KEYS_V1 = ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")
 UNIT_TOLERANCE = 1e-3  # a stored light direction's length may be off 1 by this much (float32 storage)
@@ -215,13 +216,13 @@ class FittedObject:
         extra = 3 * self.probe.size**2 if self.probe is not None else 0
         return self.floats_per_vertex * len(self.positions) + extra + 8 * self.n_lights
 
-    def shade(self, w, vertices=slice(None), parts=("lights", "probe", "emitters")):
+    def shade(self, w, vertices=slice(None), parts=PARTS):
         """Colour (..., 3) of ``vertices`` seen from unit directions ``w`` (..., 3) (world):
         the whole shading formula, or the emitted colour plus the ``parts`` named."""
         index = np.arange(len(self.positions))[vertices]
         return self._shade(index, np.asarray(w, np.float64), parts)
 
-    def _shade(self, index, w, parts=("lights", "probe", "emitters")):
+    def _shade(self, index, w, parts=PARTS):
         """The formula at vertices ``index`` (V,) seen from w (V, 3) or (V, M, 3)."""
         extra = (slice(None),) + (None,) * (w.ndim - 2)
         emitted, normals, positions = self.emitted[index][extra], self.normals[index][extra], self.positions[index][extra]

@@ -47,7 +47,7 @@ from radiosity.formats.material import specular_albedo
 
 from .nnls import solve_many
 
-__all__ = ["Probe", "box_directions", "encode", "fit_probe", "look_up", "texels"]
+__all__ = ["Probe", "albedo_table", "box_directions", "decode", "encode", "look_up", "probe_values", "solve_texels", "texels"]
 
 SMOOTHNESS = 1e-3  # the smoothness term's weight, relative to the mean of the data term's diagonal
 INSET = 1e-6  # points are kept this fraction of the box's size inside it

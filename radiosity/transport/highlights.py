@@ -19,8 +19,6 @@ part's highlight is 0 there anyway). The part's own object does not shadow it.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from radiosity.formats.emitters import emitter_grid

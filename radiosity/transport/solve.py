@@ -42,8 +42,8 @@ from radiosity.formats.emitters import MAX_NODES
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
-from radiosity.scene.materials import albedo, pack_materials
 from radiosity.scene.emitters import emitter_parts
+from radiosity.scene.materials import albedo, pack_materials
 from radiosity.transport import density, highlights, kernels, regather
 from radiosity.transport.embree import RayTracer, default_threads, empty_hits, origin_offset
 
