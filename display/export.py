@@ -1,9 +1,11 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 2) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``: the directory works offline,
 served by ``vlights serve DIR`` or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 1; the README's "Export" section):
+Schema (format ``vlights.fit.gltf``, version 2; the README's "Export" section). V is an
+object's vertex count, K its number of virtual lights, P the scene's number of emitter
+parts, M an object's probe size:
 
 - one glTF mesh (and one node, identity transform) per object of the fit, named as
   the object, in the fit's order; one triangle primitive with attributes
@@ -13,22 +15,41 @@ Schema (format ``vlights.fit.gltf``, version 1; the README's "Export" section):
   - ``_EMITTED`` (V, 3) float32: the emitted colour;
   - ``_SPECULAR`` (V, 3) float32: the coefficient shared by all lights, or
     ``_SPECULAR_0`` .. ``_SPECULAR_{K-1}`` (V, 3) float32 each: the coefficient of
-    light k, when the coefficients are per light. A diffuse object (K = 0) has
-    ``_EMITTED`` alone (its specular part is 0);
+    light k, when the coefficients are per light. A diffuse object (K = 0) has no
+    ``_SPECULAR`` (its specular part is 0);
+  - ``_PROBE`` (V, 3) float32, an object with a reflection probe: its per-vertex
+    weight s;
+  - ``_VISIBILITY_0`` .. ``_VISIBILITY_{ceil(P/3)-1}`` (V, 3) float32, an object with
+    the emitters' highlights: the fraction of each part each vertex sees, three parts
+    per attribute (part 3 j + c in channel c of ``_VISIBILITY_j``; the last one's
+    channels past part P - 1 are 0);
 
   values are the fit's float32 bits, not clamped;
 - the mesh's ``extras``: ``{"name", "lights": K, "per_light": bool, "light_pos":
   K x [x, y, z, w], "light_rgb": K x [r, g, b], "shininess": [K numbers]}``, with
   ``light_pos`` as in Contract 2 (w = 0: a unit vector towards a distant light, w = 1:
-  a point light's world position);
-- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 1, "source",
-  "model", "objects": [names], "camera": {"eye", "look_at", "up", "fov_y_deg"}}``
-  (``camera`` only when the fit has one, Contract 3).
+  a point light's world position); and where the object has them
+  ``"highlight": {"ks": [r, g, b], "exponent": p}`` (its modified-Phong specular part)
+  and ``"probe": {"size": M, "centre": [x, y, z], "box": [[lo], [hi]], "albedo":
+  [ALBEDO_POINTS numbers], "texels": [M * M * 3 numbers]}`` (texels C-ordered as the
+  fit's (M, M, 3) array: ``texels[(j * M + i) * 3 + c]`` is texel (i, j) = column i,
+  row j of the octahedral map);
+- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2, "source",
+  "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
+  "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
+  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3);
+  ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
+  texels the shaders read (written so that a viewer need not repeat its arithmetic).
 
-The shading formula is Contract 2's (``fitting.model.shade_arrays``), with these
+Every number in the JSON is a float32 of the fit written exactly (every float32 is a
+double), except the emitters, ``ks``, ``exponent``, the probe's ``centre``, ``box``
+and ``albedo``, which the fit holds as doubles and which are written as such.
+
+The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file back into a ``FittedModel``.
+``load_export`` reads the file (version 2, or 1: no emitters and no probes) back into a
+``FittedModel``.
 """
 
 from __future__ import annotations
@@ -40,14 +61,16 @@ import numpy as np
 
 from radiosity.formats import InputError
 
-__all__ = ["FILE", "FORMAT", "PAGE", "SHADING", "VERSION", "add_export_command", "export_glb", "load_export", "page_files",
-           "write_export", "write_files"]
+__all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADING", "VERSION", "add_export_command", "export_glb", "load_export",
+           "page_files", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 1
+VERSION = 2
+READS = (1, 2)
 FILE = "scene.glb"
 PAGE = "index.html"
 WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
+PARTS_PER_ATTRIBUTE = 3  # emitter parts' visibility per VEC3 attribute
 
 
 def page_files():
@@ -55,16 +78,31 @@ def page_files():
     return sorted(p.relative_to(WEB) for p in WEB.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
 
 
+def visibility_attributes(visibility):
+    """``_VISIBILITY_j``: (V, P) visibility as ceil(P / 3) (V, 3) float32 arrays, part
+    3 j + c in channel c of the j-th, the last one padded with 0."""
+    vis = np.asarray(visibility, np.float32)
+    v, p = vis.shape
+    count = -(-p // PARTS_PER_ATTRIBUTE)
+    padded = np.zeros((v, count * PARTS_PER_ATTRIBUTE), np.float32)
+    padded[:, :p] = vis
+    return {f"_VISIBILITY_{j}": np.ascontiguousarray(padded[:, PARTS_PER_ATTRIBUTE * j:PARTS_PER_ATTRIBUTE * (j + 1)])
+            for j in range(count)}
+
+
 def vertex_attributes(obj):
     """The custom glTF attributes of one ``FittedObject``: name -> (V, 3) float32."""
     attributes = {"_EMITTED": np.asarray(obj.emitted, np.float32)}
-    if obj.n_lights == 0:
-        return attributes
-    specular = np.asarray(obj.specular, np.float32)
-    if obj.per_light:
-        attributes.update({f"_SPECULAR_{k}": np.ascontiguousarray(specular[:, k]) for k in range(obj.n_lights)})
-    else:
-        attributes["_SPECULAR"] = specular
+    if obj.n_lights:
+        specular = np.asarray(obj.specular, np.float32)
+        if obj.per_light:
+            attributes.update({f"_SPECULAR_{k}": np.ascontiguousarray(specular[:, k]) for k in range(obj.n_lights)})
+        else:
+            attributes["_SPECULAR"] = specular
+    if obj.probe is not None:
+        attributes["_PROBE"] = np.asarray(obj.probe_weight, np.float32)
+    if obj.highlight is not None:
+        attributes.update(visibility_attributes(obj.highlight.visibility))
     return attributes
 
 
@@ -73,9 +111,14 @@ def _rows(a, width):
     return np.asarray(a, np.float32).reshape(-1, width).astype(np.float64).tolist()
 
 
+def _doubles(a):
+    """A float64 array as a flat JSON list (exact: Python's float repr round-trips)."""
+    return np.asarray(a, np.float64).reshape(-1).tolist()
+
+
 def mesh_extras(obj):
-    """The mesh's ``extras``: the object's lights (JSON-ready)."""
-    return {
+    """The mesh's ``extras``: the object's lights, highlight and probe (JSON-ready)."""
+    extras = {
         "name": obj.name,
         "lights": obj.n_lights,
         "per_light": bool(obj.per_light and obj.n_lights > 0),
@@ -83,12 +126,41 @@ def mesh_extras(obj):
         "light_rgb": _rows(obj.light_rgb, 3),
         "shininess": np.asarray(obj.shininess, np.float32).reshape(-1).astype(np.float64).tolist(),
     }
+    if obj.highlight is not None:
+        extras["highlight"] = {"ks": _doubles(obj.highlight.ks), "exponent": float(obj.highlight.exponent)}
+    if obj.probe is not None:
+        p = obj.probe
+        extras["probe"] = {
+            "size": int(p.size),
+            "centre": _doubles(p.centre),
+            "box": np.asarray(p.box, np.float64).reshape(2, 3).tolist(),
+            "albedo": _doubles(p.albedo),
+            "texels": np.asarray(p.texels, np.float32).reshape(-1).astype(np.float64).tolist(),
+        }
+    return extras
+
+
+def _check_highlights(model):
+    """Every highlight reflects the model's own emitter parts with its nodes (the file
+    holds one list of parts); ValueError otherwise."""
+    parts = [p.to_dict() for p in model.emitters]
+    for obj in model.objects:
+        h = obj.highlight
+        if h is None:
+            continue
+        if [p.to_dict() for p in h.parts] != parts or h.nodes != model.emitter_nodes:
+            raise ValueError(f"object {obj.name!r}: its highlight's emitter parts or nodes are not the model's")
 
 
 def scene_extras(model):
-    """The scene's ``extras``: format marker, provenance, object order, camera."""
+    """The scene's ``extras``: format marker, provenance, object order, emitters, camera."""
+    from display.glsl import emitter_table
+
     extras = {"format": FORMAT, "version": VERSION, "source": model.source, "model": model.model,
-              "objects": list(model.names)}
+              "objects": list(model.names), "emitters": [p.to_dict() for p in model.emitters],
+              "emitter_nodes": int(model.emitter_nodes)}
+    table = emitter_table(model.emitters)[:len(model.emitters)]
+    extras["emitter_table"] = table.reshape(len(table), -1).astype(np.float64).tolist()
     if model.camera is not None:
         extras["camera"] = {k: (np.asarray(v, np.float64).tolist() if k != "fov_y_deg" else float(v))
                             for k, v in model.camera.to_dict().items()}
@@ -99,6 +171,7 @@ def export_glb(model):
     """The binary glTF (bytes) of a ``FittedModel``; schema in the module docstring."""
     import trimesh
 
+    _check_highlights(model)
     scene = trimesh.Scene(base_frame="vlights/root")  # an object name never holds a "/": no node clashes with it
     for obj in model.objects:
         mesh = trimesh.Trimesh(
@@ -118,14 +191,22 @@ def export_glb(model):
 SHADING = "shading.js"  # written with the page: the renderer's shading GLSL as an ES module
 
 
-def shading_module():
-    """``shading.js``: display.renderer's SHADE_GLSL (the shading formula the page and
-    ``vlights render`` share) and its coefficient texture width, as JavaScript."""
-    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL
+def shading_module(nodes=None):
+    """``shading.js``: display.renderer's ``shade_glsl(nodes)`` (the shading formula the
+    page and ``vlights render`` share; ``nodes``: the emitter quadrature's, None the
+    default) and the constants the page lays its textures out with, as JavaScript."""
+    from display.glsl import TABLE_WIDTH
+    from display.renderer import FLOAT_TEXTURE_WIDTH, shade_glsl
+    from fitting.probe import ALBEDO_POINTS
+    from radiosity.formats.emitters import DEFAULT_NODES
 
+    nodes = DEFAULT_NODES if nodes is None else int(nodes)
     return ("// Written by `vlights export` from display/renderer.py: the renderer's shading code.\n"
-            f"export const SHADE_GLSL = {json.dumps(SHADE_GLSL)};\n"
-            f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n")
+            f"export const SHADE_GLSL = {json.dumps(shade_glsl(nodes))};\n"
+            f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n"
+            f"export const EMITTER_NODES = {nodes};\n"
+            f"export const TABLE_WIDTH = {TABLE_WIDTH};\n"
+            f"export const ALBEDO_POINTS = {ALBEDO_POINTS};\n")
 
 
 def write_files(model, directory, page=True):
@@ -140,7 +221,7 @@ def write_files(model, directory, page=True):
         (directory / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(WEB / name, directory / name)
     if page:
-        (directory / SHADING).write_text(shading_module())
+        (directory / SHADING).write_text(shading_module(model.emitter_nodes))
     return directory / FILE
 
 
@@ -165,19 +246,76 @@ def _chunks(path):
     return json.loads(data[20:20 + length])
 
 
+def _attribute(attributes, key, v, fail):
+    a = attributes.get(key)
+    if a is None or np.shape(a) != (v, 3):
+        raise fail(f"has no vertex attribute {key} (VEC3)")
+    return np.asarray(a, np.float32)
+
+
+def _read_highlight(info, attributes, v, parts, nodes, fail):
+    """An object's ``Highlight`` from its mesh extras and attributes (None if it has none)."""
+    from fitting.model import Highlight
+
+    entry = info.get("highlight")
+    if entry is None:
+        return None
+    try:
+        ks = np.asarray(entry["ks"], np.float64).reshape(3)
+        exponent = float(entry["exponent"])
+    except (KeyError, TypeError, ValueError):
+        raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent'") from None
+    p = len(parts)
+    columns = [_attribute(attributes, key, v, fail) for key in visibility_attributes(np.zeros((0, p)))]
+    visibility = np.concatenate(columns, axis=1)[:, :p] if columns else np.zeros((v, 0), np.float32)
+    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32))
+
+
+def _read_probe(info, attributes, v, fail):
+    """An object's (``Probe``, weight (V, 3)) from its mesh extras and attributes, or (None, None)."""
+    from fitting.probe import ALBEDO_POINTS, Probe
+
+    entry = info.get("probe")
+    if entry is None:
+        return None, None
+    try:
+        m = int(entry["size"])
+        probe = Probe(texels=np.asarray(entry["texels"], np.float32).reshape(m, m, 3),
+                      centre=np.asarray(entry["centre"], np.float64).reshape(3),
+                      box=np.asarray(entry["box"], np.float64).reshape(2, 3),
+                      albedo=np.asarray(entry["albedo"], np.float64).reshape(ALBEDO_POINTS))
+    except (KeyError, TypeError, ValueError):
+        raise fail(f"'probe' needs 'size' M, 'centre', 'box', 'albedo' ({ALBEDO_POINTS} numbers) and "
+                   "'texels' (M * M * 3 numbers)") from None
+    return probe, _attribute(attributes, "_PROBE", v, fail)
+
+
 def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` back into a ``FittedModel``
-    (arrays float32 / int32 as in ``fitting.model``; a diffuse object's specular is
-    zeros (V, 3)). InputError if the file is not of this schema."""
+    """Read a ``scene.glb`` written by ``export_glb`` (version 2, or 1) back into a
+    ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
+    specular is zeros (V, 3)). InputError if the file is not of this schema."""
     import trimesh
 
     from fitting.model import FittedModel, FittedObject
     from radiosity.formats.camera import camera_from_dict
+    from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, parts_from_meta
 
+    shown = repr(str(path))
     header = _chunks(path)
     extras = (header.get("scenes") or [{}])[0].get("extras") or {}
-    if extras.get("format") != FORMAT or extras.get("version") != VERSION:
-        raise InputError(f"{str(path)!r} is not a {FORMAT} version {VERSION} file")
+    if extras.get("format") != FORMAT or extras.get("version") not in READS:
+        raise InputError(f"{shown} is not a {FORMAT} version {' or '.join(map(str, READS))} file")
+    version = extras["version"]
+
+    def fail(message):
+        return InputError(f"{shown}: {message}")
+
+    parts, nodes = (), DEFAULT_NODES
+    if version >= 2:
+        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"))
+        nodes = extras.get("emitter_nodes", DEFAULT_NODES)
+        if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
+            raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
     scene = trimesh.load(path, file_type="glb", force="scene", process=False)
     objects = []
     for name in extras["objects"]:
@@ -186,12 +324,20 @@ def load_export(path):
         k = int(info["lights"])
         v = len(mesh.vertices)
         attributes = mesh.vertex_attributes
+
+        def object_fail(message, name=name):
+            return fail(f"object {name!r} {message}")
+
         if k == 0:
             specular = np.zeros((v, 3), np.float32)
         elif info["per_light"]:
             specular = np.stack([np.asarray(attributes[f"_SPECULAR_{i}"], np.float32) for i in range(k)], axis=1)
         else:
             specular = np.asarray(attributes["_SPECULAR"], np.float32)
+        highlight, (probe, weight) = None, (None, None)
+        if version >= 2:
+            highlight = _read_highlight(info, attributes, v, parts, nodes, object_fail)
+            probe, weight = _read_probe(info, attributes, v, object_fail)
         objects.append(FittedObject(
             name=name,
             positions=np.asarray(mesh.vertices, np.float32),
@@ -202,10 +348,13 @@ def load_export(path):
             light_pos=np.asarray(info["light_pos"], np.float32).reshape(k, 4),
             light_rgb=np.asarray(info["light_rgb"], np.float32).reshape(k, 3),
             shininess=np.asarray(info["shininess"], np.float32).reshape(k),
+            highlight=highlight,
+            probe=probe,
+            probe_weight=weight,
         ))
     camera = camera_from_dict(extras["camera"], where="scene extras 'camera'") if "camera" in extras else None
     return FittedModel(objects=tuple(objects), source=extras.get("source", ""), model=extras.get("model", ""),
-                       camera=camera)
+                       camera=camera, emitters=parts, emitter_nodes=nodes)
 
 
 def add_export_command(subparsers):
@@ -215,9 +364,11 @@ def add_export_command(subparsers):
         help="write a fitted model as a binary glTF (DIR/scene.glb) for other viewers",
         description="Write fit.npz as DIR/scene.glb: per object its mesh (positions, normals, faces), the emitted "
         "colour as the vertex attribute _EMITTED and the specular coefficients as _SPECULAR (shared by the "
-        "lights) or _SPECULAR_0 .. _SPECULAR_{K-1} (one per light), float32 as in the fit; the object's lights "
-        "(light_pos, light_rgb, shininess, per_light) in the mesh's extras; the format marker and the scene "
-        "camera in the scene's extras.",
+        "lights) or _SPECULAR_0 .. _SPECULAR_{K-1} (one per light), the reflection probe's weight as _PROBE and "
+        "the emitters' visibility as _VISIBILITY_0, _VISIBILITY_1, ... (three parts each), float32 as in the fit; "
+        "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent) and its "
+        "probe (size, centre, box, albedo, texels) in the mesh's extras; the format marker, the emitter parts "
+        "and the scene camera in the scene's extras.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
@@ -267,7 +418,14 @@ def run_export_command(args):
     try:
         path = write_export(model, out, page=args.page)
         lights = sum(o.n_lights for o in model.objects)
-        print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights, {path.stat().st_size} bytes)")
+        extra = ""
+        if model.emitters:
+            highlights = sum(o.highlight is not None for o in model.objects)
+            extra += f", {len(model.emitters)} emitter parts highlighted on {highlights} objects"
+        probes = sum(o.probe is not None for o in model.objects)
+        if probes:
+            extra += f", {probes} reflection probes"
+        print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights{extra}, {path.stat().st_size} bytes)")
         if args.page:
             print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")
         if server is not None:

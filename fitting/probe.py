@@ -307,7 +307,13 @@ def vertex_coefficients(columns, target, weights, loss_weights, cap):
     lw = np.ones((1, 1, 1)) if loss_weights is None else np.ascontiguousarray(loss_weights, np.float64)
     _vertex_equations(np.ascontiguousarray(columns, np.float64), np.ascontiguousarray(target, np.float64),
                       np.ascontiguousarray(weights, np.float64), lw, G, h, yy)
-    x = solve_many(G.reshape(-1, n, n), h.reshape(-1, n), np.ascontiguousarray(cap, np.float64).reshape(-1, n),
-                   np.zeros((v * 3, n))).reshape(v, 3, n)
+    # columns of very different sizes (the constant 1 and a probe's radiance of 1e8): solve
+    # for x scaled by each column's norm, so that the solver's relative ridge treats all alike
+    diag = np.einsum("vcii->vci", G)
+    d = np.where(diag > 0, 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), 1.0)
+    scaled = G * d[..., :, None] * d[..., None, :]
+    xs = solve_many(scaled.reshape(-1, n, n), (h * d).reshape(-1, n),
+                    (np.asarray(cap, np.float64) / d).reshape(-1, n), np.zeros((v * 3, n))).reshape(v, 3, n)
+    x = xs * d
     err = yy - 2 * np.einsum("vci,vci->vc", h, x) + np.einsum("vci,vcij,vcj->vc", x, G, x)
     return x, np.maximum(err, 0.0)

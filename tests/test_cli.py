@@ -121,7 +121,7 @@ def test_solve_writes_a_readable_solution_and_a_summary(tmp_path, capsys):
         assert word in stdout
     solution = load_solution(out)
     assert solution.stats["photons"] == 20000 and solution.stats["seed"] == 3
-    assert set(solution.stats["time_s"]) == {"setup", "photons", "density", "gather"}
+    assert set(solution.stats["time_s"]) == {"setup", "photons", "density", "gather", "highlights"}
     assert {"photons", "rays", "threads", "quality", "seed"} <= set(solution.stats)
 
 

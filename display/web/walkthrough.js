@@ -1,24 +1,36 @@
-// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v1;
-// display/export.py and the README's "Export" hold the schema).
+// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v2, or
+// v1; display/export.py and the README's "Export" hold the schema).
 //
-// Shading is Contract 2's formula per pixel, as `vlights render --shading pixel` draws it,
-// with the renderer's own GLSL (display/renderer.py SHADE_GLSL, written into shading.js
-// by `vlights export`): emitted colour plus, for each virtual light k,
-//     pow(dot(n, h), shininess_k) * rgb_k * coefficient_k
-// with h the half vector of the light direction normalize(xyz - w x) and the eye
-// direction, and the lobe cut to 0 where (1 - dot(n, h)) * shininess > 30. Coefficients
-// are shared by the lights (the vertex attribute _SPECULAR) or one per light
-// (_SPECULAR_k): those are blended from the triangle's three vertices by barycentrics, as
-// the renderer's geometry-shader program does. The scene is drawn in linear radiance into
-// a float framebuffer (MSAA, `samples` per pixel), then exposure, clipping and sRGB map it
-// to the screen exactly as display.renderer.tonemap.
+// Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
+// pixel` draws it, with the renderer's own GLSL (display/renderer.py shade_glsl(nodes),
+// written into shading.js by `vlights export`): the emitted colour, plus
+//   - the virtual lights: for each light k, pow(dot(n, h), shininess_k) * rgb_k *
+//     coefficient_k, h the half vector of the light direction normalize(xyz - w x) and
+//     the eye direction, the lobe cut to 0 where (1 - dot(n, h)) * shininess > 30;
+//     coefficients shared by the lights (the vertex attribute _SPECULAR) or one per
+//     light (_SPECULAR_k, read from a texture by vertex id);
+//   - the reflection probe: the per-vertex weight (_PROBE) times the specular albedo
+//     S(n . w) times the box-projected look-up of the octahedral map in the mirror
+//     direction (a texture per object);
+//   - the emitters' glossy highlights: each emitter part (sphere or convex polygon, the
+//     table in the scene's extras) integrated against the object's lobe per pixel,
+//     times the fraction of the part the vertices see (_VISIBILITY_j, a texture).
+// Per-light coefficients and visibilities are blended from the triangle's three
+// vertices by barycentrics, as the renderer's geometry-shader program does: such
+// objects are drawn with one vertex per triangle corner carrying the triangle's vertex
+// ids and the corner's barycentrics. The scene is drawn in linear radiance into a float
+// framebuffer (MSAA, `samples` per pixel), then exposure, clipping and sRGB map it to
+// the screen exactly as display.renderer.tonemap.
 //
 // URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
-// exposure=e lights=n samples=1|2|4 file=scene.glb. document.title becomes "rendered"
-// after the first complete frame ("error" if the scene cannot be shown).
+// exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
+// of the model are not drawn, as `vlights render --off`) file=scene.glb. document.title
+// becomes "rendered" after the first complete frame ("error" if the scene cannot be
+// shown).
 //
 // Keys: W A S D walk, Q E down / up, Shift faster, mouse look after a click (Esc frees
-// the mouse); M fitted / diffuse-only; L two lights / all lights; + - exposure x2 / x0.5;
+// the mouse); M fitted / diffuse-only; L two lights / all lights; 1 2 3 switch the
+// emitters' highlights / the probe / the lights off and on; + - exposure x2 / x0.5;
 // O orbit / walk; R back to the start camera; H hides this help.
 
 import * as THREE from 'three';
@@ -26,11 +38,13 @@ import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { PointerLockControls } from 'three/addons/controls/PointerLockControls.js';
 // written by `vlights export` from display/renderer.py: the renderer's own shading code
-import { SHADE_GLSL, TEXTURE_WIDTH } from './shading.js';
+import { ALBEDO_POINTS, EMITTER_NODES, SHADE_GLSL, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSION = 1;
+const VERSIONS = [1, 2]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
+const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
+const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
 const DEFAULT_FOV = 39.3; // display.camera.framing_view
 
 
@@ -43,12 +57,14 @@ in vec3 position;
 in vec3 normal;
 in vec3 emitted;
 in vec3 specular;
-in vec3 vertices;   // per light: the triangle's three vertex ids (else 0)
-in vec3 bary;       // per light: this corner's barycentrics (else 0)
+in vec3 probe;      // the probe's weight (0 without a probe)
+in vec3 vertices;   // per light or highlight: the triangle's three vertex ids (else 0)
+in vec3 bary;       // per light or highlight: this corner's barycentrics (else 0)
 centroid out vec3 v_position;
 centroid out vec3 v_normal;
 centroid out vec3 v_emitted;
 centroid out vec3 v_specular;
+centroid out vec3 v_probe;
 centroid out vec3 v_bary;
 flat out ivec3 v_vertices;
 void main() {
@@ -57,6 +73,7 @@ void main() {
     v_normal = normal;
     v_emitted = emitted;
     v_specular = specular;
+    v_probe = probe;
     v_bary = bary;
     v_vertices = ivec3(vertices);
 }
@@ -71,13 +88,14 @@ centroid in vec3 v_position;
 centroid in vec3 v_normal;
 centroid in vec3 v_emitted;
 centroid in vec3 v_specular;
+centroid in vec3 v_probe;
 centroid in vec3 v_bary;
 flat in ivec3 v_vertices;
 out vec4 f_colour;
 ${SHADE_GLSL}
 void main() {
     f_colour = vec4(shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular,
-                          v_vertices, v_bary), 1.0);
+                          v_probe, v_vertices, v_bary), 1.0);
 }
 `;
 
@@ -128,6 +146,12 @@ export function parseQuery(search) {
         if (!MODES.includes(q.get('mode'))) throw new Error(`mode: want ${MODES.join(' or ')}, got '${q.get('mode')}'`);
         state.mode = q.get('mode');
     }
+    if (q.has('off')) {
+        const off = q.get('off').split(',').filter((p) => p !== '');
+        const bad = off.find((p) => !PARTS.includes(p));
+        if (bad !== undefined) throw new Error(`off: want parts among ${PARTS.join(',')}, got '${bad}'`);
+        state.off = off;
+    }
     state.file = q.get('file') || 'scene.glb';
     return state;
 }
@@ -143,6 +167,15 @@ function floatTexture(data, width, height) {
     return texture;
 }
 
+// RGBA texels, TEXTURE_WIDTH wide, value i at texel (i % width, i / width): the layout of
+// the renderer's float textures (display.renderer._float_texture); fill(data, texel)
+function wideTexture(count, fill) {
+    const height = Math.max(1, Math.ceil(count / TEXTURE_WIDTH));
+    const data = new Float32Array(TEXTURE_WIDTH * height * 4);
+    fill(data);
+    return floatTexture(data, TEXTURE_WIDTH, height);
+}
+
 function lightTexture(info) {
     const k = info.lights;
     const data = new Float32Array(2 * Math.max(k, 1) * 4);
@@ -155,19 +188,53 @@ function lightTexture(info) {
 
 // per-light coefficients of every vertex, texel v * K + k (the renderer's layout)
 function coefficientTexture(attributes, v, k) {
-    const n = Math.max(v * k, 1);
-    const height = Math.ceil(n / TEXTURE_WIDTH);
-    const data = new Float32Array(TEXTURE_WIDTH * height * 4);
-    for (let light = 0; light < k; ++light) {
-        const a = attributes[`_specular_${light}`].array;
-        for (let i = 0; i < v; ++i) {
-            const t = 4 * (i * k + light);
-            data[t] = a[3 * i];
-            data[t + 1] = a[3 * i + 1];
-            data[t + 2] = a[3 * i + 2];
+    return wideTexture(v * k, (data) => {
+        for (let light = 0; light < k; ++light) {
+            const a = attributes[`_specular_${light}`].array;
+            for (let i = 0; i < v; ++i) {
+                const t = 4 * (i * k + light);
+                data[t] = a[3 * i];
+                data[t + 1] = a[3 * i + 1];
+                data[t + 2] = a[3 * i + 2];
+            }
         }
+    });
+}
+
+// the visibility of every vertex, part i of vertex v in the red channel of texel v * P + i
+// (the renderer's layout, display.glsl visibility_at, with visibility_base 0); from the
+// attributes _VISIBILITY_j, which hold parts 3 j, 3 j + 1, 3 j + 2
+function visibilityTexture(attributes, v, parts, where) {
+    const columns = [];
+    for (let j = 0; 3 * j < parts; ++j) columns.push(requireAttribute({ attributes }, `_visibility_${j}`, where).array);
+    return wideTexture(v * parts, (data) => {
+        for (let i = 0; i < v; ++i) {
+            for (let part = 0; part < parts; ++part) data[4 * (i * parts + part)] = columns[Math.floor(part / 3)][3 * i + (part % 3)];
+        }
+    });
+}
+
+// the probe's M x M texels, texel (i, j) = column i, row j (the renderer's atlas holds one
+// object's block at rows probe_row .. probe_row + M - 1; here every object has its own, probe_row 0)
+function probeTexture(probe, where) {
+    const m = probe.size;
+    if (!Number.isInteger(m) || m < 1 || probe.texels.length !== 3 * m * m || probe.albedo.length !== ALBEDO_POINTS) {
+        throw new Error(`${where}: its probe needs 'size' M, M * M * 3 'texels' and ${ALBEDO_POINTS} 'albedo' values`);
     }
-    return floatTexture(data, TEXTURE_WIDTH, height);
+    const data = new Float32Array(4 * m * m);
+    for (let t = 0; t < m * m; ++t) data.set(probe.texels.slice(3 * t, 3 * t + 3), 4 * t);
+    return floatTexture(data, m, m);
+}
+
+// the emitter parts' table (display.glsl.emitter_table, written by export into the
+// scene's extras): row i = part i, TABLE_WIDTH RGBA texels; at least one row
+function emitterTable(rows) {
+    const data = new Float32Array(TABLE_WIDTH * 4 * Math.max(rows.length, 1));
+    rows.forEach((row, i) => {
+        if (row.length !== TABLE_WIDTH * 4) throw new Error(`emitter table row ${i}: want ${TABLE_WIDTH * 4} numbers, got ${row.length}`);
+        data.set(row, TABLE_WIDTH * 4 * i);
+    });
+    return floatTexture(data, TABLE_WIDTH, Math.max(rows.length, 1));
 }
 
 function requireAttribute(geometry, name, where) {
@@ -176,9 +243,10 @@ function requireAttribute(geometry, name, where) {
     return a;
 }
 
-// The triangle geometry of one object for the shader: indexed with shared coefficients;
-// with per-light ones, one vertex per triangle corner carrying the triangle's vertex ids
-// and the corner's barycentrics (what the renderer's geometry shader hands its fragments).
+// The triangle geometry of one object for the shader: indexed when its coefficients are
+// shared and it has no highlight; with per-light coefficients or the emitters'
+// highlights, one vertex per triangle corner carrying the triangle's vertex ids and the
+// corner's barycentrics (what the renderer's geometry shader hands its fragments).
 function objectGeometry(source, info) {
     const where = `object '${info.name}'`;
     const position = requireAttribute(source, 'position', where);
@@ -188,47 +256,59 @@ function objectGeometry(source, info) {
     const k = info.lights;
     if (!source.index) throw new Error(`${where}: the mesh has no indices`);
     const faces = source.index.array;
-    if (!info.per_light) {
+    const zeros = () => new THREE.BufferAttribute(new Float32Array(3 * v), 3);
+    const specular = k > 0 && !info.per_light ? requireAttribute(source, '_specular', where) : zeros();
+    const probe = info.probe ? requireAttribute(source, '_probe', where) : zeros();
+    const coefficients = info.per_light ? coefficientTexture(source.attributes, v, k) : null;
+    if (info.per_light) for (let i = 0; i < k; ++i) requireAttribute(source, `_specular_${i}`, where);
+    if (!info.per_light && !info.highlight) {
         const g = new THREE.BufferGeometry();
         g.setIndex(new THREE.BufferAttribute(faces, 1));
         g.setAttribute('position', position);
         g.setAttribute('normal', normal);
         g.setAttribute('emitted', emitted);
-        const specular = k > 0 ? requireAttribute(source, '_specular', where) : new THREE.BufferAttribute(new Float32Array(3 * v), 3);
         g.setAttribute('specular', specular);
-        g.setAttribute('vertices', new THREE.BufferAttribute(new Float32Array(3 * v), 3));
-        g.setAttribute('bary', new THREE.BufferAttribute(new Float32Array(3 * v), 3));
-        return { geometry: g, coefficients: null };
+        g.setAttribute('probe', probe);
+        g.setAttribute('vertices', zeros());
+        g.setAttribute('bary', zeros());
+        return { geometry: g, coefficients };
     }
-    for (let i = 0; i < k; ++i) requireAttribute(source, `_specular_${i}`, where);
     const corners = faces.length;
-    const out = {
-        position: new Float32Array(3 * corners), normal: new Float32Array(3 * corners),
-        emitted: new Float32Array(3 * corners), vertices: new Float32Array(3 * corners),
-        bary: new Float32Array(3 * corners),
-    };
-    const src = { position: position.array, normal: normal.array, emitted: emitted.array };
+    const src = { position, normal, emitted, specular, probe };
+    const out = { vertices: new Float32Array(3 * corners), bary: new Float32Array(3 * corners) };
+    for (const key of Object.keys(src)) out[key] = new Float32Array(3 * corners);
     for (let c = 0; c < corners; ++c) {
         const vertex = faces[c];
         const tri = c - (c % 3);
-        for (const key of ['position', 'normal', 'emitted']) {
-            out[key][3 * c] = src[key][3 * vertex];
-            out[key][3 * c + 1] = src[key][3 * vertex + 1];
-            out[key][3 * c + 2] = src[key][3 * vertex + 2];
+        for (const [key, attribute] of Object.entries(src)) {
+            const a = attribute.array;
+            out[key][3 * c] = a[3 * vertex];
+            out[key][3 * c + 1] = a[3 * vertex + 1];
+            out[key][3 * c + 2] = a[3 * vertex + 2];
         }
         out.vertices.set([faces[tri], faces[tri + 1], faces[tri + 2]], 3 * c);
         out.bary[3 * c + (c % 3)] = 1;
     }
     const g = new THREE.BufferGeometry();
     for (const [key, array] of Object.entries(out)) g.setAttribute(key, new THREE.BufferAttribute(array, 3));
-    g.setAttribute('specular', new THREE.BufferAttribute(new Float32Array(3 * corners), 3));
-    return { geometry: g, coefficients: coefficientTexture(source.attributes, v, k) };
+    return { geometry: g, coefficients };
 }
 
 const EMPTY = floatTexture(new Float32Array(4), 1, 1);
 
-function makeObject(source, info) {
+// One object's mesh and material: the uniforms and textures display.renderer's
+// _bind_fitted, _bind_highlight and _bind_probe set (each object with its own textures,
+// so every base and row is 0). userData.parts: the emitter parts its highlight draws
+// (0: none), userData.probeSize its probe's M (0: none).
+function makeObject(source, info, fit) {
+    const where = `object '${info.name}'`;
     const { geometry, coefficients } = objectGeometry(source, info);
+    const v = source.attributes.position.count;
+    const parts = info.highlight ? fit.parts.length : 0;
+    const h = info.highlight || { ks: [0, 0, 0], exponent: 0 };
+    const probe = info.probe || null;
+    let own = 0; // bit i: part i belongs to this object (it does not see itself)
+    fit.parts.forEach((part, i) => { if (part.source === info.name) own |= 1 << i; });
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3,
         vertexShader: FITTED_VS,
@@ -236,27 +316,51 @@ function makeObject(source, info) {
         side: THREE.DoubleSide, // one-sided surfaces are still seen from behind
         uniforms: {
             eye: { value: new THREE.Vector3() },
+            // the virtual lights
             n_lights: { value: info.lights },
             per_light: { value: info.per_light ? 1 : 0 },
             light_stride: { value: info.lights },
             coefficient_base: { value: 0 }, // one coefficient texture per object
             lights: { value: lightTexture(info) },
             coefficients: { value: coefficients || EMPTY },
+            // the emitters' highlights
+            emitter_table: { value: fit.emitterTable },
+            n_parts: { value: parts },
+            own_parts: { value: own },
+            emitter_ks: { value: new THREE.Vector3(...h.ks) },
+            emitter_exponent: { value: h.exponent },
+            visibility: { value: parts ? visibilityTexture(source.attributes, v, parts, where) : EMPTY },
+            visibility_base: { value: 0 }, // one visibility texture per object
+            // the reflection probe
+            probes: { value: probe ? probeTexture(probe, where) : EMPTY },
+            probe_size: { value: probe ? probe.size : 0 },
+            probe_row: { value: 0 }, // one probe texture per object
+            probe_centre: { value: new THREE.Vector3(...(probe ? probe.centre : [0, 0, 0])) },
+            probe_lo: { value: new THREE.Vector3(...(probe ? probe.box[0] : [0, 0, 0])) },
+            probe_hi: { value: new THREE.Vector3(...(probe ? probe.box[1] : [0, 0, 0])) },
+            probe_albedo: { value: new Float32Array(probe ? probe.albedo : ALBEDO_POINTS) },
         },
     });
     const mesh = new THREE.Mesh(geometry, material);
     mesh.name = info.name;
     mesh.frustumCulled = false;
-    mesh.userData = info;
+    mesh.userData = { ...info, parts, probeSize: probe ? probe.size : 0 };
     return mesh;
 }
 
 export async function loadFit(url) {
     const gltf = await new GLTFLoader().loadAsync(url);
     const extras = gltf.scene.userData || {};
-    if (extras.format !== FORMAT || extras.version !== VERSION) {
-        throw new Error(`${url} is not a ${FORMAT} version ${VERSION} file (was it written by 'vlights export'?)`);
+    if (extras.format !== FORMAT || !VERSIONS.includes(extras.version)) {
+        throw new Error(`${url} is not a ${FORMAT} version ${VERSIONS.join(' or ')} file (was it written by 'vlights export'?)`);
     }
+    const parts = extras.emitters || [];
+    const nodes = extras.emitter_nodes ?? EMITTER_NODES;
+    if (parts.length && nodes !== EMITTER_NODES) {
+        throw new Error(`${url}: its emitters are drawn with ${nodes} nodes, this page's shading.js with ${EMITTER_NODES} (export it again)`);
+    }
+    if (parts.length > 31) throw new Error(`${url}: ${parts.length} emitter parts; the shader's own_parts mask holds 31`);
+    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []) };
     const sources = new Map(); // object name -> its mesh (geometry, and the extras in userData)
     gltf.scene.traverse((node) => {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
@@ -266,7 +370,7 @@ export async function loadFit(url) {
     for (const name of extras.objects) {
         const source = sources.get(name);
         if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
-        scene.add(makeObject(source.geometry, source.userData));
+        scene.add(makeObject(source.geometry, source.userData, fit));
         source.geometry.computeBoundingBox();
         bounds.union(source.geometry.boundingBox);
     }
@@ -293,6 +397,7 @@ class Walkthrough {
         this.maxLights = Math.max(0, ...fit.scene.children.map((m) => m.userData.lights));
         this.lights = query.lights ?? null; // null: all
         this.samples = query.samples ?? 4;
+        this.off = new Set(query.off || []); // the parts of the model not drawn (keys 1, 2, 3)
         this.frames = 0;
         this.frameMs = [];
         this.showHelp = true;
@@ -354,6 +459,10 @@ class Walkthrough {
         if (!down || e.repeat) return;
         if (k === 'm') this.mode = MODES[(MODES.indexOf(this.mode) + 1) % MODES.length];
         else if (k === 'l') this.lights = this.lights === null ? Math.min(2, this.maxLights) : null;
+        else if (Object.hasOwn(PART_KEYS, k)) {
+            const part = PART_KEYS[k];
+            if (this.off.has(part)) this.off.delete(part); else this.off.add(part);
+        }
         else if (k === '+' || k === '=') this.exposure *= 2;
         else if (k === '-' || k === '_') this.exposure *= 0.5;
         else if (k === 'o') {
@@ -413,10 +522,16 @@ class Walkthrough {
         this.camera.aspect = width / height;
         this.depthRange();
         this.camera.updateProjectionMatrix();
+        // display.renderer.Renderer.draw and _bind_fitted: the diffuse mode draws the emitted
+        // colour alone; a part switched off is not drawn
+        const fitted = this.mode === 'fitted';
         for (const mesh of this.fit.scene.children) {
             const u = mesh.material.uniforms;
-            const k = this.mode === 'diffuse' ? 0 : mesh.userData.lights;
+            const info = mesh.userData;
+            const k = fitted && !this.off.has('lights') ? info.lights : 0;
             u.n_lights.value = this.lights === null ? k : Math.max(0, Math.min(k, this.lights));
+            u.n_parts.value = fitted && !this.off.has('emitters') ? info.parts : 0;
+            u.probe_size.value = fitted && !this.off.has('probe') ? info.probeSize : 0;
             u.eye.value.copy(this.camera.position);
         }
         const hdr = this.target(width, height);
@@ -444,11 +559,12 @@ class Walkthrough {
     status() {
         const mean = this.frameMs.reduce((a, b) => a + b, 0) / Math.max(1, this.frameMs.length);
         const lights = this.mode === 'diffuse' ? 'none' : (this.lights === null ? `all ${this.maxLights}` : `${this.lights}`);
-        let text = `${this.mode} | lights ${lights} | exposure ${this.exposure} | ${this.samples} spp | `
-            + `frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps)`;
+        const off = this.offParts();
+        let text = `${this.mode} | lights ${lights}${off.length ? ` | off: ${off.join(', ')}` : ''} | `
+            + `exposure ${this.exposure} | ${this.samples} spp | frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps)`;
         if (this.showHelp) {
             text += '\nclick: mouse look (Esc frees) | W A S D walk, Q E down/up, Shift faster | M fitted/diffuse | '
-                + 'L 2/all lights | + - exposure | O orbit/walk | R reset | H hide help';
+                + 'L 2/all lights | 1 2 3 emitters/probe/lights off/on | + - exposure | O orbit/walk | R reset | H hide help';
         }
         this.overlay.textContent = text;
     }
@@ -472,9 +588,13 @@ class Walkthrough {
         return times;
     }
 
+    // the parts switched off, in fitting.model.PARTS's order
+    offParts() { return PARTS.filter((p) => this.off.has(p)); }
+
     state() {
         return {
-            mode: this.mode, exposure: this.exposure, lights: this.lights, samples: this.samples, frames: this.frames,
+            mode: this.mode, exposure: this.exposure, lights: this.lights, samples: this.samples, off: this.offParts(),
+            frames: this.frames,
             eye: this.camera.position.toArray(), frameMs: [...this.frameMs],
         };
     }

@@ -295,7 +295,7 @@ def test_a_version_1_fit_file_renders_as_its_version_2(gl_context, rng, tmp_path
     })
     v2 = tmp_path / "v2.npz"
     FittedModel(objects=(obj,)).save(v2)
-    assert json.loads(str(np.load(v2)["meta"]))["version"] == 2
+    assert json.loads(str(np.load(v2)["meta"]))["version"] == 3
     old, new = load_fit(v1), load_fit(v2)
     o = old.objects[0]
     assert not o.per_light and not o.positional.any()

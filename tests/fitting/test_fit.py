@@ -112,7 +112,7 @@ def test_per_light_exponents_recover_two_widths(rng):
 @pytest.mark.slow  # ~15 s of CPU: six refined fits with warm starts
 def test_adding_a_light_never_increases_the_error(rng):
     solution, _ = synthetic(rng, lights=4, shininess=25.0)
-    options = FitOptions(lights=1, method="refined", iterations=60)
+    options = FitOptions(model="lights", lights=1, method="refined", iterations=60)
     errors, previous = [], None
     for k in range(1, 7):
         problem, previous = lights_of(solution, options, k, previous)
@@ -124,7 +124,7 @@ def test_adding_a_light_never_increases_the_error(rng):
 def test_adding_a_light_never_increases_the_error_small(rng):
     """The fast cousin of the test above: a coarser dome, three lights, short refinements."""
     solution, _ = synthetic(rng, lights=3, shininess=25.0, grid=8, subdivisions=1)
-    options = FitOptions(lights=1, method="refined", iterations=20)
+    options = FitOptions(model="lights", lights=1, method="refined", iterations=20)
     errors, previous = [], None
     for k in range(1, 4):
         problem, previous = lights_of(solution, options, k, previous)
@@ -135,7 +135,7 @@ def test_adding_a_light_never_increases_the_error_small(rng):
 
 def test_zero_data_gives_zeros(rng):
     solution, _ = synthetic(rng, scale=0.0)
-    model = fit(solution, FitOptions(lights=4))
+    model = fit(solution, FitOptions(model="lights", lights=4))
     o = model.objects[0]
     for a in (o.emitted, o.specular, o.light_rgb, o.light_pos):
         assert np.isfinite(a).all()
@@ -147,7 +147,7 @@ def test_zero_data_gives_zeros(rng):
 def test_scaled_data_scale_the_coefficients(rng, scale):
     base_solution, _ = synthetic(np.random.default_rng(3))
     scaled_solution, _ = synthetic(np.random.default_rng(3), scale=scale)
-    options = FitOptions(lights=3, method="paper")
+    options = FitOptions(model="lights", lights=3, method="paper")
     a, b = fit(base_solution, options).objects[0], fit(scaled_solution, options).objects[0]
     assert np.allclose(b.shininess, a.shininess, rtol=1e-4)
     assert np.allclose(b.light_pos, a.light_pos, atol=1e-4)
@@ -162,7 +162,7 @@ def test_scaled_data_scale_the_coefficients(rng, scale):
 def test_exponents_at_the_bounds_stay_finite(rng, bounds):
     solution, _ = synthetic(rng, shininess=50.0)
     for method in ("paper", "refined", "per-light"):
-        o = fit(solution, FitOptions(lights=3, method=method, exponent_bounds=bounds, iterations=20)).objects[0]
+        o = fit(solution, FitOptions(model="lights", lights=3, method=method, exponent_bounds=bounds, iterations=20)).objects[0]
         for a in (o.emitted, o.specular, o.light_rgb, o.light_pos, o.shininess):
             assert np.isfinite(a).all()
         assert np.allclose(o.shininess, bounds[0])
@@ -175,14 +175,14 @@ def test_a_single_vertex(rng):
         name="one", positions=obj.positions[:3], normals=obj.normals[:3], tangents=obj.tangents[:3],
         faces=np.array([[0, 1, 2]], np.int32), directions=obj.directions, radiance=obj.radiance[:3], material=MATERIAL,
     )
-    o = fit(Solution(objects=(one,), settings={}, stats={}, scene="x"), FitOptions(lights=2)).objects[0]
+    o = fit(Solution(objects=(one,), settings={}, stats={}, scene="x"), FitOptions(model="lights", lights=2)).objects[0]
     assert np.isfinite(o.emitted).all() and o.info["error"]["relative_rms"] < 0.5
 
 
 def test_directions_only_near_grazing(rng):
     solution, truth = synthetic(rng, lights=2, shininess=20.0,
                                 light_dirs=np.array([[1.0, 0.0, 0.05], [0.0, -1.0, 0.08]]))
-    o = fit(solution, FitOptions(lights=2)).objects[0]
+    o = fit(solution, FitOptions(model="lights", lights=2)).objects[0]
     assert np.isfinite(o.light_pos).all()
     assert o.info["error"]["relative_rms"] < 0.05
 
@@ -190,8 +190,8 @@ def test_directions_only_near_grazing(rng):
 def test_noisy_data_stay_stable(rng):
     clean, truth = synthetic(np.random.default_rng(5), lights=2, shininess=30.0)
     noisy, _ = synthetic(np.random.default_rng(5), lights=2, shininess=30.0, noise=0.05)
-    a = fit(clean, FitOptions(lights=2)).objects[0]
-    b = fit(noisy, FitOptions(lights=2)).objects[0]
+    a = fit(clean, FitOptions(model="lights", lights=2)).objects[0]
+    b = fit(noisy, FitOptions(model="lights", lights=2)).objects[0]
     assert (b.light_pos[:, 3] == 0).all()
     assert matched_angles(b.light_pos[:, :3], truth["light_dirs"]).max() < 3.0
     assert b.shininess[0] == pytest.approx(a.shininess[0], rel=0.15)
@@ -207,7 +207,7 @@ def test_coefficients_are_never_negative(rng):
         directions=obj.directions, radiance=(obj.radiance.max() - obj.radiance).astype(np.float32), material=MATERIAL,
     )
     for method in ("paper", "refined"):
-        o = fit(Solution(objects=(flipped,), settings={}, stats={}, scene="x"), FitOptions(lights=3, method=method)).objects[0]
+        o = fit(Solution(objects=(flipped,), settings={}, stats={}, scene="x"), FitOptions(model="lights", lights=3, method=method)).objects[0]
         assert (o.emitted >= 0).all() and (o.specular >= 0).all() and (o.light_rgb >= 0).all()
 
 
@@ -232,7 +232,7 @@ def test_vertex_coefficients_closed_form_matches_nnls(rng):
 @pytest.mark.slow  # ~10 s of CPU: a bisection over K of refined fits
 def test_auto_lights_reaches_the_target_with_fewest_lights(rng):
     solution, _ = synthetic(rng, lights=3, shininess=40.0)
-    model = fit(solution, FitOptions(lights="auto", target=0.01, max_lights=8, method="refined"))
+    model = fit(solution, FitOptions(model="lights", lights="auto", target=0.01, max_lights=8, method="refined"))
     o = model.objects[0]
     assert o.info["error"]["relative_rms"] <= 0.01
     assert 1 <= o.n_lights <= 3 and o.info["chosen_by"].startswith("auto")
@@ -242,7 +242,7 @@ def test_auto_lights_small(rng):
     """The fast cousin of the test above: a coarser dome, short refinements; three true
     lights, so K = 1, 2, 4 bracket the answer and bisection finds 3."""
     solution, _ = synthetic(rng, lights=3, shininess=30.0, grid=8, subdivisions=1)
-    model = fit(solution, FitOptions(lights="auto", target=0.02, max_lights=4, method="refined", iterations=20))
+    model = fit(solution, FitOptions(model="lights", lights="auto", target=0.02, max_lights=4, method="refined", iterations=20))
     o = model.objects[0]
     assert o.info["error"]["relative_rms"] <= 0.02
     assert o.n_lights == 3 and o.info["chosen_by"].startswith("auto: fewest")
@@ -251,8 +251,8 @@ def test_auto_lights_small(rng):
 def test_relative_loss_lowers_the_relative_error_of_dim_regions(rng):
     solution, _ = synthetic(rng, lights=5, shininess=60.0, noise=0.02)
     data = fit_data(solution.objects[0])
-    problem_lin, lin = lights_of(solution, FitOptions(lights=2, loss="linear", coefficients="shared"), 2)
-    problem_rel, rel = lights_of(solution, FitOptions(lights=2, loss="relative", coefficients="shared"), 2)
+    problem_lin, lin = lights_of(solution, FitOptions(model="lights", lights=2, loss="linear", coefficients="shared"), 2)
+    problem_rel, rel = lights_of(solution, FitOptions(model="lights", lights=2, loss="relative", coefficients="shared"), 2)
 
     def relative_to_radiance(result):
         r = reconstruct(problem_lin, result)
@@ -263,7 +263,7 @@ def test_relative_loss_lowers_the_relative_error_of_dim_regions(rng):
 
 def test_fit_file_round_trip_and_shade(rng, tmp_path):
     solution, truth = synthetic(rng, lights=2)
-    model = fit(solution, FitOptions(lights=2))
+    model = fit(solution, FitOptions(model="lights", lights=2))
     path = tmp_path / "fit.npz"
     model.save(path)
     loaded = load_fit(path)

@@ -116,10 +116,11 @@ def test_report_shows_no_numbers_for_diffuse_objects(solution_file, tmp_path, ca
     code, stdout, err = run(["fit", str(solution_file), "-o", str(out), "--method", "paper", "--lights", "2"], capsys)
     assert code == 0, err
     lines = stdout.splitlines()
-    assert "rel. RMS" in lines[0] and "diffuse only" in lines[0]
+    assert "rel. RMS" in lines[0] and "diffuse only" in lines[0] and "model" in lines[0]
     [floor] = [line for line in lines if line.startswith("floor")]
-    assert "diffuse, no lights" in floor and "0.0000" not in floor
+    assert "a diffuse material" in floor and "0.0000" not in floor
     [dome] = [line for line in lines if line.startswith("dome")]
-    # name, K, kinds (point and directional), floats per vertex, exponent, three errors, time
-    assert dome.split()[1] == "2" and dome.split()[2:4] == ["0P", "2D"] and len(dome.split()) == 10
+    # name, model, K, kinds (point and directional), probe, floats per vertex, exponent, three errors, time
+    words = dome.split()
+    assert words[1] == "lights" and words[2] == "2" and words[3:5] == ["0P", "2D"] and len(words) == 12
     assert format_report(load_fit(out), out) == stdout.rstrip("\n")

@@ -232,7 +232,7 @@ def test_a_point_light_close_to_the_surface():
 def test_radiance_from_zero_to_1e8(scale):
     light = np.array([[0.3, -0.2, 1.5, 1.0]])
     solution = synthetic(plane(9), light, 40.0, grid=10, scale=scale)
-    model = fit(solution, FitOptions(lights=2, iterations=30))
+    model = fit(solution, FitOptions(model="lights", lights=2, iterations=30))
     o = model.objects[0]
     for a in (o.emitted, o.specular, o.light_pos, o.light_rgb, o.shininess):
         assert np.isfinite(a).all()
@@ -280,7 +280,7 @@ def test_auto_light_count_says_when_the_target_is_missed():
     obj = ObjectSolution(name="thing", positions=noisy.positions, normals=noisy.normals, tangents=noisy.tangents,
                          faces=noisy.faces, directions=noisy.directions, radiance=radiance, material=MATERIAL)
     model = fit(Solution(objects=(obj,), settings={}, stats={}, scene="x"),
-                FitOptions(lights="auto", target=1e-4, max_lights=6, iterations=20))
+                FitOptions(model="lights", lights="auto", target=1e-4, max_lights=6, iterations=20))
     o = model.objects[0]
     assert "target 0.0001 not reached" in o.info["chosen_by"]
     assert o.n_lights < 6  # it stopped when a light no longer paid
@@ -291,12 +291,12 @@ def test_fit_writes_version_2_with_kinds(tmp_path):
 
     light = np.array([[0.3, -0.2, 1.5, 1.0]])
     solution = synthetic(plane(9), light, 40.0, grid=10)
-    model = fit(solution, FitOptions(lights=1, iterations=40))
+    model = fit(solution, FitOptions(model="lights", lights=1, iterations=40))
     model.save(tmp_path / "fit.npz")
     back = load_fit(tmp_path / "fit.npz").objects[0]
     assert back.light_pos.shape == (1, 4) and back.per_light and back.specular.shape == (81, 1, 3)
     assert back.info["kinds"] == ["positional"] and back.floats_per_vertex == 6
-    shared = fit(solution, FitOptions(lights=1, iterations=40, coefficients="shared")).objects[0]
+    shared = fit(solution, FitOptions(model="lights", lights=1, iterations=40, coefficients="shared")).objects[0]
     assert shared.specular.shape == (81, 3) and not shared.per_light
 
 
