@@ -154,13 +154,13 @@ def _check_highlights(model):
 
 def scene_extras(model):
     """The scene's ``extras``: format marker, provenance, object order, emitters, camera."""
-    from display.glsl import emitter_table
+    from display.glsl import TABLE_WIDTH, emitter_table
 
     extras = {"format": FORMAT, "version": VERSION, "source": model.source, "model": model.model,
               "objects": list(model.names), "emitters": [p.to_dict() for p in model.emitters],
               "emitter_nodes": int(model.emitter_nodes)}
     table = emitter_table(model.emitters)[:len(model.emitters)]
-    extras["emitter_table"] = table.reshape(len(table), -1).astype(np.float64).tolist()
+    extras["emitter_table"] = table.reshape(len(table), TABLE_WIDTH * 4).astype(np.float64).tolist()
     if model.camera is not None:
         extras["camera"] = {k: (np.asarray(v, np.float64).tolist() if k != "fov_y_deg" else float(v))
                             for k, v in model.camera.to_dict().items()}

@@ -19,8 +19,8 @@ Uniforms the emitter term reads (set by the caller; textures as in ``emitter_tab
     own_parts         bit i set: part i belongs to the object (it does not see itself)
     emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
     emitter_exponent  its modified-Phong exponent
-    visibility        R32F texture FLOAT_TEXTURE_WIDTH wide: vertex v's fraction of part i
-                      at texel visibility_base + v * n_parts + i
+    visibility        RGB32F texture FLOAT_TEXTURE_WIDTH wide, the value in red: vertex v's
+                      fraction of part i at texel visibility_base + v * n_parts + i
     visibility_base
 """
 
@@ -76,6 +76,9 @@ const float SPHERE_W[{n}] = float[{n}]({_floats(sphere_w)});
 const int SECTOR_NODES = {g};
 const float SECTOR_S[{g}] = float[{g}]({_floats(sector_s)});
 const float SECTOR_W[{g}] = float[{g}]({_floats(sector_w)});
+float atan2_(float y, float x) {{   // numba's atan2: 0 at (0, 0), where GLSL's atan is undefined
+    return (x == 0.0 && y == 0.0) ? 0.0 : atan(y, x);
+}}
 float log1m(float v) {{   // log(1 - v), exact for small v
     if (v < 0.01) return -v * (1.0 + v * (0.5 + v * (1.0 / 3.0 + v * 0.25)));
     return log(1.0 - v);
@@ -117,12 +120,12 @@ float sphere_integral(vec3 centre, float radius, vec3 x, vec3 n, vec3 r, float p
     if (!(dist > radius)) return 0.0;
     c /= dist;
     float sin_beta = radius / dist;
-    float gamma = atan(length(cross(r, c)), dot(r, c));
+    float gamma = atan2_(length(cross(r, c)), dot(r, c));
     float beta = asin(sin_beta);
     if (gamma - beta >= HALF_PI) return 0.0;
     bool full = gamma <= beta;
     float half_ = full ? 0.0 : asin(min(sin_beta / sin(gamma), 1.0));
-    float mid = atan(dot(c, b), dot(c, t));
+    float mid = atan2_(dot(c, b), dot(c, t));
     float total = 0.0;
     for (int k = 0; k < SPHERE_NODES; ++k) {{
         float phi, weight;
@@ -142,7 +145,7 @@ float sphere_integral(vec3 centre, float radius, vec3 x, vec3 n, vec3 r, float p
         float rho = sqrt(a_ * a_ + b_ * b_);
         if (!(inside > 0.0 && rho > 0.0)) continue;
         float kappa = asin(min(sqrt(inside) / rho, 1.0));
-        float delta = atan(b_, a_);
+        float delta = atan2_(b_, a_);
         float lo = max(0.0, delta - kappa);
         float hi = min(HALF_PI, delta + kappa);
         if (hi > lo) total += weight * lobe_slice(lo, hi, p1, rn, cp * tn + sp * bn);
@@ -175,10 +178,10 @@ float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {{
         neg = neg && pm[i] <= 0.0;
     }}
     if (!ahead) return 0.0;
-    float ref = atan(dot(ac, b), dot(ac, t));
+    float ref = atan2_(dot(ac, b), dot(ac, t));
     for (int i = 0; i < count; ++i) {{
         vec3 a = emitter_point(part, i) - x;
-        float d = atan(dot(a, b), dot(a, t)) - ref;
+        float d = atan2_(dot(a, b), dot(a, t)) - ref;
         azimuth[i] = d - TWO_PI * floor((d + 3.141592653589793) / TWO_PI);
     }}
     for (int i = 1; i < count; ++i) {{
@@ -203,8 +206,8 @@ float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {{
                 float p_ = pm[i], q_ = dot(d, m[i]);
                 if (p_ >= 0.0 && q_ >= 0.0) continue;
                 if (p_ < 0.0 && q_ < 0.0) {{ hi = -1.0; break; }}
-                if (p_ >= 0.0) hi = min(hi, atan(p_, -q_));
-                else lo = max(lo, atan(-p_, q_));
+                if (p_ >= 0.0) hi = min(hi, atan2_(p_, -q_));
+                else lo = max(lo, atan2_(-p_, q_));
             }}
             if (hi > lo) total += SECTOR_W[k] * half_ * lobe_slice(lo, hi, p1, rn, cp * tn + sp * bn);
         }}
@@ -215,7 +218,7 @@ bool emitter_culled(vec4 bound, vec3 x, vec3 r, float p) {{
     vec3 c = bound.xyz - x;
     float dist = length(c);
     if (!(dist > bound.w)) return false;
-    float nearest = atan(length(cross(r, c)), dot(r, c)) - asin(bound.w / dist);
+    float nearest = atan2_(length(cross(r, c)), dot(r, c)) - asin(bound.w / dist);
     return nearest > 0.0 && lobe_cdf(nearest, p) < CULL;
 }}
 float visibility_at(int vertex, int part) {{

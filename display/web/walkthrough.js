@@ -168,7 +168,7 @@ function floatTexture(data, width, height) {
 }
 
 // RGBA texels, TEXTURE_WIDTH wide, value i at texel (i % width, i / width): the layout of
-// the renderer's float textures (display.renderer._float_texture); fill(data, texel)
+// the renderer's float textures (display.renderer._float_texture); fill(data) writes the values
 function wideTexture(count, fill) {
     const height = Math.max(1, Math.ceil(count / TEXTURE_WIDTH));
     const data = new Float32Array(TEXTURE_WIDTH * height * 4);
@@ -209,7 +209,9 @@ function visibilityTexture(attributes, v, parts, where) {
     for (let j = 0; 3 * j < parts; ++j) columns.push(requireAttribute({ attributes }, `_visibility_${j}`, where).array);
     return wideTexture(v * parts, (data) => {
         for (let i = 0; i < v; ++i) {
-            for (let part = 0; part < parts; ++part) data[4 * (i * parts + part)] = columns[Math.floor(part / 3)][3 * i + (part % 3)];
+            for (let part = 0; part < parts; ++part) {
+                data[4 * (i * parts + part)] = columns[Math.floor(part / 3)][3 * i + (part % 3)];
+            }
         }
     });
 }
@@ -359,7 +361,8 @@ export async function loadFit(url) {
     if (parts.length && nodes !== EMITTER_NODES) {
         throw new Error(`${url}: its emitters are drawn with ${nodes} nodes, this page's shading.js with ${EMITTER_NODES} (export it again)`);
     }
-    if (parts.length > 31) throw new Error(`${url}: ${parts.length} emitter parts; the shader's own_parts mask holds 31`);
+    // own_parts, an int, is a bit mask of the parts
+    if (parts.length > 32) throw new Error(`${url}: ${parts.length} emitter parts; the shader draws at most 32`);
     const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []) };
     const sources = new Map(); // object name -> its mesh (geometry, and the extras in userData)
     gltf.scene.traverse((node) => {

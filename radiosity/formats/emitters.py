@@ -64,6 +64,7 @@ KINDS = ("sphere", "polygon")
 MAX_POLYGON_VERTICES = 8
 DEFAULT_NODES = 8
 MAX_NODES = 32
+MAX_FILE_PARTS = 31  # a file's parts at most: the displays mark an object's own parts in a 32-bit mask
 HALF_PI = 0.5 * math.pi
 CULL = 1e-4  # a part whose bounding sphere sees the lobe below this fraction of its peak reflects nothing
 U_NODE = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre on [0, 1]: 1/2 -+ this, weights 1/2
@@ -159,6 +160,8 @@ def parts_from_meta(entries, fail):
     to raise (naming the file) for a bad entry."""
     if not isinstance(entries, list):
         raise fail("meta 'emitters' must be a list of emitter parts")
+    if len(entries) > MAX_FILE_PARTS:
+        raise fail(f"meta 'emitters' has {len(entries)} parts; a file holds at most {MAX_FILE_PARTS}")
     parts = []
     for i, e in enumerate(entries):
         where = f"meta 'emitters' entry {i}"

@@ -2,10 +2,13 @@
 
 The glTF is read back with trimesh independently of ``display.export.load_export``;
 every array must come back bit for bit in float32, and shading the re-read arrays with
-``fitting.model.shade_arrays`` must equal shading the fit. The Khronos validator runs
+``fitting.model.shade_arrays`` must equal shading the fit. A version 3 fit (emitter
+highlights and reflection probes, ``glossy_model``) must come back from
+``load_export`` equal, array for array, and shade the same. The Khronos validator runs
 where node and the npm package ``gltf-validator`` are installed (see ``validator_path``).
 """
 
+import dataclasses
 import json
 import os
 import shutil
@@ -15,11 +18,45 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from display_fixtures import assert_refused, listing, lit_model
+from display_fixtures import CAMERA, assert_refused, listing, lit_model
 
-from display.export import FILE, FORMAT, VERSION, load_export
+from display.export import FILE, FORMAT, READS, VERSION, export_glb, load_export
 from fitting import FittedModel, load_fit
-from fitting.model import shade_arrays
+from fitting.model import PARTS, Highlight, shade_arrays
+from fitting.probe import Probe, albedo_table
+from radiosity.formats import InputError
+from radiosity.formats.emitters import EmitterPart
+
+# Emitter parts in front of the tiny scene, each seen in it from test_web's camera: a
+# sphere lamp in the tile, a square panel and a triangle in the wall, and a sphere that
+# is a part of the tile itself (its highlight would be on the tile: the tile does not
+# reflect its own parts; the wall's is hidden behind the tile).
+LAMPS = (
+    EmitterPart("sphere", [[0.25, 0.15, -1.0]], 0.15, [20.0, 16.0, 12.0], "lamp"),
+    EmitterPart("polygon", [[-1.45, -1.1, -1.4], [-0.95, -1.1, -1.4], [-0.95, -0.7, -1.4], [-1.45, -0.7, -1.4]],
+                0.0, [16.0, 20.0, 28.0], "panel"),
+    EmitterPart("sphere", [[-0.15, -0.15, -1.0]], 0.1, [30.0, 30.0, 30.0], "tile"),
+    EmitterPart("polygon", [[0.6, 0.6, -1.2], [1.0, 0.6, -1.2], [0.8, 0.95, -1.2]], 0.0, [24.0, 12.0, 6.0], "shade"),
+)
+
+
+def glossy_model(per_light, rng, camera=CAMERA, nodes=8):
+    """``lit_model`` as a version 3 fit: both objects reflect the emitter parts ``LAMPS``
+    (the tile not its own), each part's visibility random per vertex, and each has
+    a reflection probe (4 x 4 and 8 x 8 random texels, random per-vertex weights)."""
+    base = lit_model(per_light, rng, camera)
+    objects = []
+    for o, (ks, exponent, m) in zip(base.objects, (((0.3, 0.3, 0.25), 20.0, 4), ((0.5, 0.45, 0.4), 30.0, 8)),
+                                    strict=True):
+        v = len(o.positions)
+        highlight = Highlight(LAMPS, nodes, np.array(ks), exponent,
+                              rng.uniform(0.3, 1.0, (v, len(LAMPS))).astype(np.float32))
+        probe = Probe(rng.uniform(0, 2, (m, m, 3)).astype(np.float32), np.array([0.0, 0.0, -0.8]),
+                      np.array([[-1.5, -1.5, -2.5], [1.5, 1.5, 0.3]]), albedo_table(exponent))
+        objects.append(dataclasses.replace(o, highlight=highlight, probe=probe,
+                                           probe_weight=rng.uniform(0, 0.6, (v, 3)).astype(np.float32)))
+    return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=camera, emitters=LAMPS,
+                       emitter_nodes=nodes)
 
 
 @pytest.fixture(params=["per-light", "shared"])
@@ -109,8 +146,9 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and extras["version"] == VERSION == 1
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and extras["version"] == VERSION == 2
     assert extras["objects"] == list(model.names)
+    assert extras["emitters"] == [] and extras["emitter_table"] == [] and extras["emitter_nodes"] == 8
     assert extras["camera"] == {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
                                 "fov_y_deg": 40.0}
 
@@ -120,6 +158,158 @@ def test_a_fit_without_a_camera_has_none_in_the_extras(tmp_path, cli, rng):
     assert cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")[0] == 0
     assert "camera" not in glb_header(tmp_path / "web" / FILE)["scenes"][0]["extras"]
     assert load_export(tmp_path / "web" / FILE).camera is None
+
+
+# ------------------------------------------------------------------------------ version 3 fits
+
+@pytest.fixture(params=["per-light", "shared"])
+def exported_v3(request, tmp_path_factory, cli, rng):
+    """(the model, fit.npz, DIR) of ``glossy_model`` after ``vlights export``."""
+    base = tmp_path_factory.mktemp(f"export-v3-{request.param}")
+    glossy_model(request.param == "per-light", rng).save(base / "fit.npz")
+    code, out, err = cli("export", base / "fit.npz", "-o", base / "web")
+    assert code == 0 and err == "", (code, out, err)
+    assert "4 emitter parts highlighted on 2 objects, 2 reflection probes" in out
+    return load_fit(base / "fit.npz"), base / "fit.npz", base / "web"
+
+
+def bits_equal(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+
+
+def test_a_version_3_fit_round_trips(exported_v3, rng):
+    """load_export gives the fit back: every array bit for bit (visibility, probe texels
+    and weights among them), the highlight's and the probe's numbers exactly, the same
+    emitter parts; and ``shade`` (whole, and each part alone) equal to the fit's."""
+    model, _, out = exported_v3
+    back = load_export(out / FILE)
+    assert back.names == model.names and back.camera.to_dict() == model.camera.to_dict()
+    assert [p.to_dict() for p in back.emitters] == [p.to_dict() for p in model.emitters] == [p.to_dict() for p in LAMPS]
+    assert back.emitter_nodes == model.emitter_nodes == 8
+    for a, b in zip(model.objects, back.objects, strict=True):
+        assert a.arrays().keys() == b.arrays().keys() >= {"visibility", "probe", "probe_weight"}
+        for key, want in a.arrays().items():
+            assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
+        ha, hb = a.highlight, b.highlight
+        assert hb.parts is back.emitters and hb.nodes == ha.nodes
+        assert bits_equal(hb.ks, ha.ks) and hb.exponent == ha.exponent
+        for key in ("texels", "centre", "box", "albedo"):
+            assert bits_equal(getattr(b.probe, key), getattr(a.probe, key)), f"{a.name}/probe {key}"
+        assert bits_equal(b.probe_weight, a.probe_weight)
+        w = rng.normal(size=(len(a.positions), 5, 3))
+        w /= np.linalg.norm(w, axis=-1, keepdims=True)
+        for parts in (PARTS, *((p,) for p in PARTS)):
+            assert np.array_equal(b.shade(w, parts=parts), a.shade(w, parts=parts)), (a.name, parts)
+        assert not np.array_equal(a.shade(w), a.shade(w, parts=("lights",)))  # the probe and emitters do contribute
+
+
+def test_a_version_3_fit_in_the_gltf(exported_v3):
+    """The schema, read with trimesh alone: _PROBE and _VISIBILITY_j (three parts each,
+    padded with 0), the highlight and the probe in the mesh's extras, the emitter parts
+    and their table (display.glsl.emitter_table, float32 bits) in the scene's."""
+    from display.glsl import TABLE_WIDTH, emitter_table
+
+    model, _, out = exported_v3
+    meshes, extras = read_with_trimesh(out / FILE)
+    p = len(LAMPS)
+    assert extras["version"] == 2 and extras["emitter_nodes"] == 8
+    assert extras["emitters"] == [part.to_dict() for part in LAMPS]
+    table = np.asarray(extras["emitter_table"], np.float32)
+    assert table.shape == (p, TABLE_WIDTH * 4)
+    assert bits_equal(table.reshape(p, TABLE_WIDTH, 4), emitter_table(LAMPS)[:p])
+    for obj in model.objects:
+        mesh, info = meshes[obj.name]
+        attributes = mesh.vertex_attributes
+        v = len(obj.positions)
+        assert sorted(a for a in attributes if a.startswith(("_PROBE", "_VISIBILITY"))) == [
+            "_PROBE", "_VISIBILITY_0", "_VISIBILITY_1"]
+        visibility = np.concatenate([np.asarray(attributes[f"_VISIBILITY_{j}"]) for j in range(2)], axis=1)
+        assert visibility.dtype == np.float32 and visibility.shape == (v, 6)
+        assert bits_equal(visibility[:, :p], obj.highlight.visibility) and not visibility[:, p:].any()
+        assert bits_equal(np.asarray(attributes["_PROBE"]), obj.probe_weight)
+        assert info["highlight"] == {"ks": obj.highlight.ks.tolist(), "exponent": obj.highlight.exponent}
+        probe = info["probe"]
+        assert probe.keys() == {"size", "centre", "box", "albedo", "texels"}
+        assert probe["size"] == obj.probe.size and probe["centre"] == obj.probe.centre.tolist()
+        assert probe["box"] == obj.probe.box.tolist() and probe["albedo"] == obj.probe.albedo.tolist()
+        assert bits_equal(np.asarray(probe["texels"], np.float32), obj.probe.texels.reshape(-1))
+
+
+def test_visibility_of_many_parts_packs_three_to_an_attribute(tmp_path, rng):
+    """Seven parts: _VISIBILITY_0 .. _2, the last with one part and two zeros; read back exact."""
+    model = glossy_model(True, rng)
+    lamps = tuple(EmitterPart("sphere", [[0.2 * i - 0.6, 0.1, -1.2]], 0.05, [5.0, 5.0, 5.0], f"lamp{i}")
+                  for i in range(7))
+    objects = tuple(dataclasses.replace(o, highlight=Highlight(
+        lamps, 8, o.highlight.ks, o.highlight.exponent, rng.uniform(0, 1, (len(o.positions), 7)).astype(np.float32)))
+        for o in model.objects)
+    model = dataclasses.replace(model, objects=objects, emitters=lamps)
+    (tmp_path / FILE).write_bytes(export_glb(model))
+    meshes, _ = read_with_trimesh(tmp_path / FILE)
+    for obj in model.objects:
+        attributes = meshes[obj.name][0].vertex_attributes
+        assert sorted(a for a in attributes if a.startswith("_VISIBILITY")) == [f"_VISIBILITY_{j}" for j in range(3)]
+        assert not np.asarray(attributes["_VISIBILITY_2"])[:, 1:].any()
+    back = load_export(tmp_path / FILE)
+    for a, b in zip(model.objects, back.objects, strict=True):
+        assert bits_equal(b.highlight.visibility, a.highlight.visibility)
+
+
+def test_a_highlight_of_other_parts_is_refused(rng):
+    """The file holds one list of emitter parts: a highlight of others cannot be written."""
+    model = glossy_model(True, rng)
+    with pytest.raises(ValueError, match="not the model's"):
+        export_glb(dataclasses.replace(model, emitters=LAMPS[:1]))
+    with pytest.raises(ValueError, match="not the model's"):
+        export_glb(dataclasses.replace(model, emitter_nodes=4))
+
+
+def rewrite_json(path, edit):
+    """Rewrite the JSON chunk of the .glb at ``path`` with ``edit(header)`` (in place)."""
+    data = Path(path).read_bytes()
+    length = int.from_bytes(data[12:16], "little")
+    header = json.loads(data[20:20 + length])
+    edit(header)
+    text = json.dumps(header).encode()
+    text += b" " * (-len(text) % 4)
+    rest = data[20 + length:]
+    body = len(text).to_bytes(4, "little") + b"JSON" + text + rest
+    Path(path).write_bytes(data[:8] + (12 + len(body)).to_bytes(4, "little") + body)
+
+
+def test_version_1_files_are_still_read(tmp_path, rng):
+    """A version 1 file (no emitters, no probes: what export wrote before) loads as before;
+    a version it does not know is refused in one line."""
+    model = lit_model(True, rng)
+    path = tmp_path / FILE
+    path.write_bytes(export_glb(model))
+
+    def to_version_1(header):
+        extras = header["scenes"][0]["extras"]
+        extras["version"] = 1
+        for key in ("emitters", "emitter_nodes", "emitter_table"):
+            del extras[key]
+
+    rewrite_json(path, to_version_1)
+    assert READS == (1, 2)
+    back = load_export(path)
+    assert back.names == model.names and back.emitters == ()
+    for a, b in zip(model.objects, back.objects, strict=True):
+        assert b.highlight is None and b.probe is None
+        for key, want in a.arrays().items():
+            assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=3))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1 or 2 file"):
+        load_export(path)
+
+
+def test_a_probe_without_its_weight_is_refused(tmp_path, rng):
+    path = tmp_path / FILE
+    path.write_bytes(export_glb(glossy_model(False, rng)))
+    rewrite_json(path, lambda header: header["meshes"][1]["extras"]["probe"].pop("texels"))
+    with pytest.raises(InputError, match="object 'tile' 'probe' needs"):
+        load_export(path)
 
 
 def validator_path():
@@ -140,11 +330,19 @@ validator.validateBytes(new Uint8Array(fs.readFileSync(process.argv[2])), {maxIs
 
 
 def test_the_khronos_validator_finds_no_errors(exported):
+    validate(exported[2] / FILE)
+
+
+def test_the_khronos_validator_finds_no_errors_in_a_version_3_export(exported_v3):
+    validate(exported_v3[2] / FILE)
+
+
+def validate(path):
+    """The Khronos validator's report of the .glb ``path``: no errors, no warnings."""
     node, package = shutil.which("node"), validator_path()
     if node is None or package is None:
         pytest.skip("node or the npm package gltf-validator is not installed (see validator_path)")
-    _, _, out = exported
-    run = subprocess.run([node, "-e", VALIDATE_JS, str(package.resolve()), str(out / FILE)],
+    run = subprocess.run([node, "-e", VALIDATE_JS, str(package.resolve()), str(path)],
                          capture_output=True, text=True, timeout=120, check=False)
     assert run.returncode == 0, run.stderr
     report = json.loads(run.stdout)
@@ -219,7 +417,7 @@ def test_a_failed_write_leaves_no_file(a_fit, tmp_path, cli, monkeypatch):
 def test_help_names_the_attributes_and_no_design_document(cli):
     code, out, _ = cli("export", "--help")
     assert code == 0
-    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0"):
+    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0", "_PROBE", "_VISIBILITY_0"):
         assert word in out
     for word in ("Contract", "DESIGN", "shared/"):
         assert word not in out

@@ -3,8 +3,10 @@
 Headless Debian chromium renders WebGL2 through SwiftShader; Playwright for Python drives
 it. The page's screenshot at a camera given in the URL must equal ``vlights render
 --shading pixel -o`` at the same camera within 2/255 on average, for directional and
-point lights, coefficients shared and per light, fitted and diffuse-only, and keys must
-switch what it shows. Skipped where chromium or Playwright is missing (the test set-up,
+point lights, coefficients shared and per light, fitted and diffuse-only, and for a
+version 3 fit (the emitters' highlights from a sphere and a polygon, reflection probes)
+with everything drawn and with each part off (``off=``, ``--off``); keys must switch
+what it shows. Skipped where chromium or Playwright is missing (the test set-up,
 ``tests/install_browser``, installs chromium where apt can).
 """
 
@@ -25,6 +27,7 @@ import numpy as np
 import pytest
 from display_fixtures import lit_model
 from PIL import Image
+from test_export import glossy_model, rewrite_json
 
 from display.export import PAGE, SHADING, WEB, page_files, shading_module
 from display.serve import start
@@ -76,22 +79,30 @@ def test_page_files_resolve_every_import():
 
 
 def test_shading_module_is_the_renderers_glsl():
-    """The page shades with the renderer's own GLSL: shading.js holds SHADE_GLSL verbatim."""
-    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL
+    """The page shades with the renderer's own GLSL: shading.js holds shade_glsl(nodes)
+    verbatim, for the fit's emitter nodes, and the constants of the textures' layout."""
+    from display.glsl import TABLE_WIDTH
+    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL, shade_glsl
+    from fitting.probe import ALBEDO_POINTS
 
-    text = shading_module()
-    literal = re.search(r"export const SHADE_GLSL = (.*);\n", text).group(1)
-    assert json.loads(literal) == SHADE_GLSL
-    assert f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};" in text
+    for nodes, text in ((8, shading_module()), (8, shading_module(8)), (5, shading_module(5))):
+        literal = re.search(r"export const SHADE_GLSL = (.*);\n", text).group(1)
+        assert json.loads(literal) == shade_glsl(nodes)
+        assert f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};" in text
+        assert f"export const EMITTER_NODES = {nodes};" in text
+        assert f"export const TABLE_WIDTH = {TABLE_WIDTH};" in text
+        assert f"export const ALBEDO_POINTS = {ALBEDO_POINTS};" in text
+    assert json.loads(re.search(r"export const SHADE_GLSL = (.*);\n", shading_module()).group(1)) == SHADE_GLSL
+    assert shading_module(5) != shading_module(8)
 
 
 def test_exported_directory_has_the_page(tmp_path, cli, rng):
-    lit_model(True, rng).save(tmp_path / "fit.npz")
+    glossy_model(True, rng, nodes=6).save(tmp_path / "fit.npz")
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")
     assert code == 0, err
     for name in page_files():
         assert (tmp_path / "web" / name).read_bytes() == (WEB / name).read_bytes()
-    assert (tmp_path / "web" / SHADING).read_text() == shading_module()
+    assert (tmp_path / "web" / SHADING).read_text() == shading_module(6)  # the fit's emitter nodes
     assert f"wrote {tmp_path / 'web' / PAGE}" in out
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "glb", "--no-page")
     assert code == 0 and sorted(p.name for p in (tmp_path / "glb").iterdir()) == ["scene.glb"]
@@ -192,14 +203,16 @@ def screenshot(page):
     return np.asarray(Image.open(io.BytesIO(page.locator("#view").screenshot())).convert("RGB"), np.float64)
 
 
-def rendered(tmp_path, fit, mode="fitted", exposure=EXPOSURE, view=VIEW, size=SIZE):
-    """``vlights render --shading pixel -o`` of the same camera, (H, W, 3) float64 in 0..255."""
+def rendered(tmp_path, fit, mode="fitted", exposure=EXPOSURE, view=VIEW, size=SIZE, off=()):
+    """``vlights render --shading pixel -o`` of the same camera (``off``: ``--off`` those
+    parts), (H, W, 3) float64 in 0..255."""
     from display.cli import main
 
-    out = tmp_path / f"render-{mode}-{exposure}.png"
+    out = tmp_path / f"render-{mode}-{exposure}-{'-'.join(off)}.png"
     code = main(["render", str(fit), "--shading", "pixel", "--mode", mode, "--exposure", str(exposure),
                  "--size", f"{size[0]}x{size[1]}", "-o", str(out), "--eye", *map(str, view["eye"]),
-                 "--look-at", *map(str, view["look"]), "--up", *map(str, view["up"]), "--fov", str(view["fov"])])
+                 "--look-at", *map(str, view["look"]), "--up", *map(str, view["up"]), "--fov", str(view["fov"]),
+                 *(["--off", *off] if off else [])])
     assert code == 0
     return np.asarray(Image.open(out).convert("RGB"), np.float64)
 
@@ -266,7 +279,8 @@ def test_page_reports_a_bad_file_and_a_bad_query(browser, site, tmp_path):
     page = browser.new_page(viewport={"width": 64, "height": 64})
     try:
         for query, fragment in (("file=missing.glb", "missing.glb"), ("mode=reference", "mode: want fitted or diffuse"),
-                                ("eye=1,2", "eye: want three numbers")):
+                                ("eye=1,2", "eye: want three numbers"),
+                                ("off=probe,glare", "off: want parts among lights,probe,emitters, got 'glare'")):
             page.goto(f"{url}{PAGE}?{query}")
             page.wait_for_function("document.title === 'error' || document.title === 'rendered'", timeout=60_000)
             assert page.title() == "error"
@@ -307,3 +321,154 @@ def test_mouse_look_and_orbit(browser, site):
         page.close()
     assert np.linalg.norm(orbited - eye) > 0.05
     assert np.linalg.norm(orbited - target) == pytest.approx(np.linalg.norm(eye - target), rel=1e-4)
+
+
+# ------------------------------------------------------------------ version 3: emitters, probes
+
+def assert_matches(got, want):
+    """The screenshot test's tolerance: 2/255 on average, more only at a few edges."""
+    assert got.shape == want.shape == (SIZE[1], SIZE[0], 3)
+    diff = np.abs(got - want)
+    assert diff.mean() <= 2.0, diff.mean()
+    assert np.mean(diff.max(axis=2) > 16) < 0.02  # only antialiased edges may differ by more
+
+
+@pytest.fixture(scope="module", params=["per-light", "shared"])
+def site_v3(request, tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene as a version 3 fit."""
+    base = tmp_path_factory.mktemp(f"web-v3-{request.param}")
+    glossy_model(request.param == "per-light", np.random.default_rng(5)).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+@needs_browser
+@pytest.mark.gl
+@pytest.mark.parametrize("off", [(), ("emitters",), ("probe",), ("lights",), ("emitters", "probe", "lights")],
+                         ids=lambda off: "+".join(off) or "all")
+def test_version_3_page_equals_render(browser, site_v3, tmp_path, off, gl_context):
+    """The emitters' highlights, the probe and the lights drawn as ``vlights render``
+    draws them, with everything on and with ``off=`` any of them (``--off``)."""
+    fit, url = site_v3
+    page = open_page(browser, url, view_query() + (f"&off={','.join(off)}" if off else ""))
+    try:
+        assert page.evaluate("window.vlights.state().off") == [p for p in ("lights", "probe", "emitters") if p in off]
+        got = screenshot(page)
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit, off=off)
+    assert_matches(got, want)
+    assert np.mean(want.max(axis=2) > 10) > 0.8 and np.mean(want == 255) < 0.01
+    if not off:  # not vacuous: each part shows on a good part of the picture
+        for part in ("emitters", "probe", "lights"):
+            without = rendered(tmp_path, fit, off=(part,))
+            assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05, part
+
+
+@needs_browser
+@pytest.mark.gl
+def test_version_3_diffuse_mode_is_the_emitted_colour(browser, site_v3, tmp_path, gl_context):
+    fit, url = site_v3
+    page = open_page(browser, url, view_query("diffuse"))
+    try:
+        got = screenshot(page)
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit, "diffuse")
+    assert_matches(got, want)
+    assert np.abs(want - rendered(tmp_path, fit, off=("emitters", "probe", "lights"))).max() == 0
+
+
+@needs_browser
+@pytest.mark.gl
+def test_keys_1_2_3_switch_the_parts(browser, site_v3, tmp_path, gl_context):
+    """1, 2, 3 switch the emitters' highlights, the probe, the lights off (and on again):
+    each picture is ``vlights render --off`` of the parts off."""
+    fit, url = site_v3
+    page = open_page(browser, url, view_query())
+    shots = []
+    try:
+        for key, off in (("1", ["emitters"]), ("2", ["probe", "emitters"]), ("3", ["lights", "probe", "emitters"]),
+                         ("1", ["lights", "probe"])):
+            frames = page.evaluate("window.vlights.state().frames")
+            page.keyboard.press(key)
+            wait_frames(page, frames)
+            assert page.evaluate("window.vlights.state().off") == off, key
+            shots.append((off, screenshot(page)))
+        status = page.locator("#status").inner_text()
+    finally:
+        page.close()
+    assert "off: lights, probe" in status and "1 2 3 emitters/probe/lights off/on" in status
+    for off, got in shots:
+        assert_matches(got, rendered(tmp_path, fit, off=tuple(off)))
+
+
+@needs_browser
+def test_page_reads_version_1_and_refuses_other_nodes(browser, site):
+    """A version 1 file (no emitters, no probes) shows as its version 2; a file whose
+    emitters need another quadrature than shading.js's is refused (export it again)."""
+    from display.export import export_glb
+
+    fit, url = site
+    web = fit.parent / "web"
+    shutil.copyfile(web / "scene.glb", web / "v1.glb")
+
+    def to_version_1(header):
+        extras = header["scenes"][0]["extras"]
+        extras["version"] = 1
+        for key in ("emitters", "emitter_nodes", "emitter_table"):
+            del extras[key]
+
+    rewrite_json(web / "v1.glb", to_version_1)
+    (web / "nodes6.glb").write_bytes(export_glb(glossy_model(True, np.random.default_rng(1), nodes=6)))
+    shots = []
+    for name in ("scene.glb", "v1.glb"):
+        page = open_page(browser, url, f"{view_query()}&file={name}")
+        try:
+            shots.append(screenshot(page))
+        finally:
+            page.close()
+    assert np.array_equal(shots[0], shots[1])
+    page = browser.new_page(viewport={"width": 64, "height": 64})
+    try:
+        page.goto(f"{url}{PAGE}?file=nodes6.glb")
+        page.wait_for_function("document.title === 'error' || document.title === 'rendered'", timeout=60_000)
+        assert page.title() == "error"
+        assert "drawn with 6 nodes, this page's shading.js with 8" in page.evaluate("window.vlights.error")
+    finally:
+        page.close()
+
+
+@needs_browser
+@pytest.mark.parametrize("nodes", [1, 8, 32])
+def test_the_shading_glsl_compiles_in_webgl2(browser, nodes):
+    """display.renderer.shade_glsl(nodes), every part of it, is GLSL ES 3.00 that
+    WebGL2 compiles and links (the fewest and the most emitter nodes)."""
+    from display.renderer import shade_glsl
+
+    fragment = ("#version 300 es\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
+                + shade_glsl(nodes) + "\nin vec3 v;\nout vec4 f_colour;\n"
+                "void main() { f_colour = vec4(shade(normalize(v), v, normalize(-v), v, v, v, ivec3(v), v), 1.0); }\n")
+    vertex = "#version 300 es\nin vec3 p;\nout vec3 v;\nvoid main() { v = p; gl_Position = vec4(p, 1.0); }\n"
+    page = browser.new_page()
+    try:
+        log = page.evaluate("""([vs, fs]) => {
+            const gl = document.createElement('canvas').getContext('webgl2');
+            if (!gl) return 'no webgl2';
+            const program = gl.createProgram();
+            for (const [type, source] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+                const shader = gl.createShader(type);
+                gl.shaderSource(shader, source);
+                gl.compileShader(shader);
+                if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) return gl.getShaderInfoLog(shader);
+                gl.attachShader(program, shader);
+            }
+            gl.linkProgram(program);
+            return gl.getProgramParameter(program, gl.LINK_STATUS) ? 'ok' : gl.getProgramInfoLog(program);
+        }""", [vertex, fragment])
+    finally:
+        page.close()
+    assert log == "ok", log
