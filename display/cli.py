@@ -143,9 +143,11 @@ def register(subparsers, not_built):
 
     p = subparsers.add_parser(
         "demo",
-        help="solve, fit and compare the built-in cornell-teapot scene",
-        description="The whole pipeline on the built-in cornell-teapot scene: solution.npz, fit.npz, the paper's "
-        "figures 5-7 with error images and numbers, an error-against-lights plot, report.md and summary.json.",
+        help="solve, fit and compare the built-in scenes cornell-teapot and plates",
+        description="The whole pipeline on the built-in scenes cornell-teapot and plates: for each, solution.npz, "
+        "fit.npz, the paper's figures 5-7 with error images and numbers against a path-traced truth, and the "
+        "WebGL walkthrough; then a plot of each glossy object's models (error against floats stored), "
+        "report.md and summary.json.",
     )
     p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY, help="every knob of every stage at once (default: %(default)s)")
     p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
@@ -381,9 +383,9 @@ def _demo(args):
             from fitting import load_fit
             from radiosity.formats import load_solution
 
-            solution = load_solution(out / "solution.npz")
-            Walkthrough.configure(load_fit(out / "fit.npz"), solution, solution.camera.sized(1280, 720),
-                                  samples=args.samples)
+            solution = load_solution(out / "cornell-teapot" / "solution.npz")
+            Walkthrough.configure(load_fit(out / "cornell-teapot" / "fit.npz"), solution,
+                                  solution.camera.sized(1280, 720), samples=args.samples)
             mglw.run_window_config(Walkthrough, args=["--window", "pyglet"])
     return 0
 

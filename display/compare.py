@@ -2,7 +2,8 @@
 
     figure 5   reference against fitted, from three viewpoints
     figure 6   2 against 8 virtual lights (each against the reference)
-    figure 7   with and without virtual lights (fitted against diffuse only)
+    figure 7   the fitted model against a diffuse walkthrough (the solution's radiance
+               averaged over directions at each vertex)
 
 Every panel pair gets an error image (NVIDIA FLIP, HDR mode, on linear radiance) and
 three numbers in ``compare.json``: FLIP mean, PSNR (dB) of the tone-mapped 8-bit
@@ -28,10 +29,10 @@ starts with the truth and ends with the fitted display's FLIP against it, and
 and diffuse-only displays against the truth (whole image and glossy objects), with the
 truth's samples and noise floor (FLIP between its two halves).
 
-Figure 7 is what the lights buy: ``compare.json``'s "glossy_flip" holds FLIP on the
-glossy objects with the lights and with the emitted colour alone (lights off), their
-ratio, and whether it meets the target (with lights at most ``FIGURE7_TARGET`` times
-diffuse-only).
+Figure 7 is what the model buys over a diffuse walkthrough: ``compare.json``'s
+"glossy_flip" holds FLIP on the glossy objects of the fitted display and of the
+diffuse one, their ratio, and whether it meets the target (at most ``FIGURE7_TARGET``
+times diffuse-only).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ from .truth import against_truth
 
 FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
 BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
-FIGURE7_TARGET = 0.6  # issue 15: FLIP on the glossy objects with the lights <= 0.6 x diffuse-only
+FIGURE7_TARGET = 0.5  # issue 22: FLIP on the glossy objects of the fitted display <= 0.5 x diffuse-only
 CAPTION = 22  # height of the caption strip above each panel, pixels
 BAR_WIDTH = 44  # the colour bar column beside each FLIP error image, pixels
 
@@ -205,6 +206,20 @@ def glossy_flip(with_lights, diffuse_only, target=FIGURE7_TARGET):
     }
 
 
+def _fitted_words(renderer):
+    """The fitted panel's label: what the glossy objects' models hold."""
+    objects = [o for o in renderer.objects if o.glossy]
+    parts = []
+    if any("fitted" in o.highlight for o in objects):
+        parts.append("emitters")
+    if any(o.probe is not None for o in objects):
+        parts.append("probe")
+    k = max((o.n_lights for o in objects), default=0)
+    if k:
+        parts.append(f"{k} lights")
+    return "fitted: " + (" + ".join(parts) if parts else "emitted colour")
+
+
 def figure5_views(base_view):
     """Figure 5's three viewpoints: ``base_view`` and it turned 35 degrees each way."""
     return [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
@@ -239,7 +254,7 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
                "antialiasing": {"msaa": plan.msaa, "supersampling": plan.factor, "samples_per_pixel": plan.per_pixel,
                                 "filter": "box (the mean of the samples inside each pixel)"}}
 
-    glossy = [o.name for o in renderer.objects if o.n_lights > 0]
+    glossy = [o.name for o in renderer.objects if o.glossy]
     results["glossy_objects"] = glossy
 
     def shot(view, mode, lights=None):
@@ -263,7 +278,7 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             numbers, error = metrics(reference, fitted, exposure, mask)
             results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
             panels = [tonemap(reference, exposure), tonemap(fitted, exposure), error]
-            labels = ["reference (solution)", f"fitted, {k_max} virtual lights",
+            labels = ["reference (solution)", _fitted_words(renderer),
                       f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"]
             errors = (2,)
             if truth is not None:
@@ -295,9 +310,9 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
         results["figure7"] = {"with_virtual_lights": with_lights, "diffuse_only": without}
         results["glossy_flip"] = glossy_flip(with_lights, without)
         _panel_row([tonemap(fitted, exposure), tonemap(diffuse, exposure), error_with, error_without],
-                   ["with virtual lights", "diffuse only (lights off)",
-                    f"FLIP with lights: glossy {_glossy(with_lights):.3f}, image {with_lights['flip_mean']:.3f}",
-                    f"FLIP without: glossy {_glossy(without):.3f}, image {without['flip_mean']:.3f}"],
+                   ["fitted model", "diffuse walkthrough",
+                    f"FLIP fitted: glossy {_glossy(with_lights):.3f}, image {with_lights['flip_mean']:.3f}",
+                    f"FLIP diffuse: glossy {_glossy(without):.3f}, image {without['flip_mean']:.3f}"],
                    stage / "figure7.png", errors=(2, 3))
 
         with atomic_output(stage / "compare.json") as f:

@@ -1,13 +1,16 @@
-"""``vlights demo``: the whole pipeline on the built-in ``cornell-teapot`` scene.
+"""``vlights demo``: the whole pipeline on the built-in scenes ``cornell-teapot`` (the
+paper's kind of room: a glazed teapot, a satin block, the box's walls reflected) and
+``plates`` (glossy plates from near-mirror to broad under sphere lamps, after Veach).
 
-Writes into ``out``: solution.npz, fit.npz (the default model: each light directional
-or positional as the data require, a specular coefficient per light), the comparison
-figures (compare/), an error-against-lights plot (one curve per model, per glossy
-object), report.md (a one-line verdict of what the lights bought, what each number
-means, the pictures and tables of times and errors) and summary.json (the same
-numbers: times per phase, errors per object and per model and K, sizes), and web/ (the
-fit as glTF with the WebGL walkthrough, as ``vlights export`` writes). The files appear
-together at the end: a failure or Ctrl-C on the way leaves none of them.
+For each scene, into ``out/<scene>/``: solution.npz, fit.npz (``vlights fit``'s default
+model: per glossy object the emitters' highlights in closed form, a reflection probe and
+virtual lights, the cheapest that reaches the error target), the comparison figures
+(compare/), and web/ (the fit as glTF with the WebGL walkthrough, as ``vlights export``
+writes). Then ``models.png`` (each glossy object's error against the numbers it stores,
+for every model the fitter tried), ``report.md`` (a verdict per scene, what each number
+means, the pictures and tables of times and errors) and ``summary.json`` (the same
+numbers). The files appear together at the end: a failure or Ctrl-C on the way leaves
+none of them.
 """
 
 from __future__ import annotations
@@ -23,16 +26,21 @@ from . import export as _export
 from .gl import DEFAULT_SAMPLES
 from .outputs import staged_directory
 
-FILES = ("solution.npz", "fit.npz", "summary.json", "report.md", "error_vs_lights.png") + tuple(
-    f"compare/{name}" for name in _compare.FILES
-) + (f"web/{_export.FILE}", f"web/{_export.SHADING}") + tuple(f"web/{name}" for name in _export.page_files())
+SCENES = ("cornell-teapot", "plates")
+ASPECT = {"plates": 9 / 16}  # height over width of a scene's figures (the plates are wide)
+FILES = ("summary.json", "report.md", "models.png") + tuple(
+    f"{scene}/{name}" for scene in SCENES
+    for name in ("solution.npz", "fit.npz", *(f"compare/{f}" for f in _compare.FILES), f"web/{_export.FILE}",
+                 f"web/{_export.SHADING}", *(f"web/{f}" for f in _export.page_files()))
+)
 
 
-def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES, truth_spp=None):
-    """Run the pipeline into ``out`` (created if missing, not its parents); returns the summary.
-    The figures have ``samples`` per pixel (antialiasing, ``display.renderer``); the first
-    view is also path-traced with ``truth_spp`` samples per pixel (None: the quality
-    preset's; 0: no truth) and every display measured against it.
+def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_SAMPLES, truth_spp=None, scenes=SCENES):
+    """Run the pipeline for each of ``scenes`` into ``out`` (created if missing, not its
+    parents); returns the summary. The figures have ``samples`` per pixel (antialiasing,
+    ``display.renderer``); the first view of each scene is also path-traced with
+    ``truth_spp`` samples per pixel (None: the quality preset's; 0: no truth) and every
+    display measured against it.
 
     Everything is written into a hidden directory inside ``out`` and moved into place
     when all of it is done (``display.outputs.staged_directory``). The OpenGL context
@@ -42,7 +50,7 @@ def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_S
     ctx = _context(size, samples)
     try:
         with staged_directory(out) as stage:
-            return _run(stage, ctx, quality, size, log, samples, truth_spp)
+            return _run(stage, ctx, quality, size, log, samples, truth_spp, scenes)
     finally:
         ctx.release()
 
@@ -63,47 +71,72 @@ def _context(size, samples):
     return ctx
 
 
-SWEEP_MODELS = (
-    ("directional/shared", "directional lights, one coefficient per vertex (the paper's model, refined)",
-     {"light_kind": "directional", "coefficients": "shared"}, "o-"),
-    ("auto/shared", "directional or positional lights, one coefficient per vertex",
-     {"light_kind": "auto", "coefficients": "shared"}, "s-"),
-    ("auto/per-light", "directional or positional lights, a coefficient per light (the default)",
-     {"light_kind": "auto", "coefficients": "per-light"}, "^-"),
-)
-"""The models of the error-against-lights plot: (key, what it is, FitOptions fields, marker)."""
-
 FLIP_MEANS = ("FLIP: NVIDIA's perceptual difference between two pictures, per pixel from 0 (identical) to 1, "
               "averaged over the glossy objects' pixels; lower is better.")
 RMS_MEANS = ("relative RMS: the root of the squared error of the radiance, weighted by vertex area and solid "
              "angle over every vertex and direction of the object, divided by the same sum of the squared "
              "radiance; lower is better, 0 is exact, 1 is as large as the radiance itself.")
-
-
-def sweep_counts(quality):
-    """The light counts the error-against-lights sweep refits: the preset's
-    ``demo_light_sweep``, at draft only its two smallest (the sweep refits three models
-    at every count, and at draft it must not dwarf the rest of the demo). The demo's
-    own fit adds its K to the default model's curve at no cost."""
-    from radiosity.formats.presets import preset
-
-    counts = sorted(set(preset(quality).demo_light_sweep))
-    return tuple(counts[:2] if quality == "draft" else counts)
+PERCEPTUAL_MEANS = ("perceptual: the same relative RMS with the radiance scaled by the object's mean and raised "
+                    "to the display's gamma 1 / 2.2, nearer what a viewer sees; what --model auto chooses by.")
 
 
 def model_words(o):
-    """The model of a fitted object in words: kinds, coefficients, floats per vertex."""
-    kinds = o.info.get("kinds", [])
-    n_pos = sum(k == "positional" for k in kinds)
-    kind = (f"{n_pos} positional and {len(kinds) - n_pos} directional" if 0 < n_pos < len(kinds)
-            else ("positional" if n_pos else "directional"))
-    coeffs = "a specular coefficient per light at each vertex" if o.per_light else "one specular coefficient per vertex"
-    return f"{o.n_lights} lights ({kind}), {coeffs}: {o.floats_per_vertex} floats per vertex"
+    """The model of a fitted object in words: its parts and the floats it stores."""
+    parts = []
+    if o.highlight is not None:
+        parts.append("the emitters' highlights")
+    if o.probe is not None:
+        parts.append(f"a {o.probe.size}x{o.probe.size} reflection probe")
+    if o.n_lights:
+        n_pos = int(o.positional.sum())
+        kind = (f"{n_pos} positional and {o.n_lights - n_pos} directional" if 0 < n_pos < o.n_lights
+                else ("positional" if n_pos else "directional"))
+        parts.append(f"{o.n_lights} virtual lights ({kind})")
+    what = " + ".join(parts) if parts else "its emitted colour alone"
+    return f"{o.info.get('model', 'lights')}: {what}; {o.floats_per_vertex} floats per vertex"
 
 
-def _run(out, ctx, quality, size, log, samples, truth_spp):
-    from fitting import FitOptions, fit
+def _run(out, ctx, quality, size, log, samples, truth_spp, scenes):
     from radiosity.formats.presets import preset
+
+    p = preset(quality)
+    truth_spp = p.truth_spp if truth_spp is None else truth_spp
+    summary = {"verdict": "", "quality": quality, "samples": samples, "scenes": {}, "times_s": {}}
+    steps = len(scenes) * (4 if truth_spp else 3) + 1
+    step = [0]
+
+    def say(text):
+        step[0] += 1
+        log(f"[{step[0]}/{steps}] {text}")
+
+    for name in scenes:
+        (out / name).mkdir()
+        summary["scenes"][name] = _scene(out / name, name, ctx, quality, _scene_size(name, size), samples, truth_spp, say)
+    say("plotting each glossy object's error against what it stores")
+    t = time.perf_counter()
+    _plot_models(summary["scenes"], out / "models.png")
+    summary["times_s"]["plot_s"] = time.perf_counter() - t
+    summary["times_s"]["total_s"] = sum(s["times_s"]["total_s"] for s in summary["scenes"].values()) + summary["times_s"]["plot_s"]
+    summary["meaning"] = {"truth": TRUTH_MEANS, "relative_rms": RMS_MEANS, "perceptual": PERCEPTUAL_MEANS, "flip": FLIP_MEANS,
+                          "diffuse": "a diffuse walkthrough of the solution: each vertex's radiance averaged over "
+                                     "directions (3 floats per vertex)"}
+    summary["verdict"] = " ".join(verdict(name, s) for name, s in summary["scenes"].items())
+    with atomic_output(out / "summary.json") as f:
+        f.write(_compare.json_text(summary).encode())
+    with atomic_output(out / "report.md") as f:
+        f.write(_report(summary).encode())
+    return summary
+
+
+def _scene_size(name, size):
+    w, h = size
+    return (w, max(16, round(w * ASPECT[name]))) if name in ASPECT else (w, h)
+
+
+def _scene(out, name, ctx, quality, size, samples, truth_spp, say):
+    """One scene's solve, fit, export, truth and figures into ``out``; its summary."""
+    from fitting import fit
+    from fitting.cli import fit_options_for_quality
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.adaptive import solve_adaptive
     from radiosity.transport.solve import SolveOptions
@@ -111,20 +144,15 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     from .renderer import Renderer
 
     times = {}
-    scene = load_scene("cornell-teapot")
-    p = preset(quality)
-
-    truth_spp = p.truth_spp if truth_spp is None else truth_spp
-    steps = 5 if truth_spp else 4
-    log(f"[1/{steps}] solving cornell-teapot ({quality})")
+    scene = load_scene(name)
+    say(f"{name}: solving ({quality})")
     t = time.perf_counter()
-    solution = solve_adaptive(scene, SolveOptions(quality=quality, seed=1), progress=True)  # mesh refined where the light changes
+    solution = solve_adaptive(scene, SolveOptions(quality=quality, seed=1), progress=True)
     solution.save(out / "solution.npz")
     times["solve_s"] = time.perf_counter() - t
 
-    options = FitOptions(lights=p.fit_lights, iterations=p.fit_iterations)
-    log(f"[2/{steps}] fitting virtual lights ({p.fit_lights} per glossy object; each directional or positional as the "
-        f"data require, a coefficient per light)")
+    options = fit_options_for_quality(quality)
+    say(f"{name}: fitting each glossy object's model (--model {options.model})")
     t = time.perf_counter()
     model = fit(solution, options, progress=True)
     model.save(out / "fit.npz")
@@ -137,136 +165,64 @@ def _run(out, ctx, quality, size, log, samples, truth_spp):
     if truth_spp:
         from .truth import ground_truth
 
-        log(f"[3/{steps}] path-tracing the truth of view 1 ({truth_spp} samples per pixel)")
+        say(f"{name}: path-tracing the truth of view 1 ({truth_spp} samples per pixel)")
         t = time.perf_counter()
         truths = [ground_truth(solution, view, truth_spp, seed=1, progress=True)]
         times["truth_s"] = time.perf_counter() - t
 
-    log(f"[{steps - 1}/{steps}] rendering the paper's figures ({samples} samples per pixel)")
+    say(f"{name}: rendering the paper's figures ({samples} samples per pixel)")
     t = time.perf_counter()
     renderer = Renderer(ctx, fit=model, solution=solution, samples=samples)
     numbers = _compare.compare(renderer, out / "compare", view, truths=truths)
     renderer.release()
     times["compare_s"] = time.perf_counter() - t
-
-    counts = sweep_counts(quality)
-    log(f"[{steps}/{steps}] error against the number of lights (K = {', '.join(map(str, counts))}; "
-        f"{len(SWEEP_MODELS)} models per glossy object)")
-    t = time.perf_counter()
-    sweep, baseline = _sweep(solution, model, options, counts)
-    _plot_sweep(sweep, baseline, model, out / "error_vs_lights.png")
-    times["sweep_s"] = time.perf_counter() - t
     times["total_s"] = sum(times.values())
 
-    sizes = {name: (out / name).stat().st_size for name in ("solution.npz", "fit.npz")}
+    sizes = {f: (out / f).stat().st_size for f in ("solution.npz", "fit.npz")}
     objects = {
         o.name: {
-            "lights": o.n_lights, "kinds": o.info.get("kinds", []), "coefficients": o.info.get("coefficients"),
-            "floats_per_vertex": o.floats_per_vertex, "model": model_words(o), "shininess": o.info["shininess"],
-            **o.info["error"], "diffuse_baseline_relative_rms": baseline[o.name],
+            "model": o.info.get("model"), "words": model_words(o), "lights": o.n_lights,
+            "probe_size": o.probe.size if o.probe is not None else 0, "emitters": o.highlight is not None,
+            "floats_per_vertex": o.floats_per_vertex, "floats": o.floats, "shininess": o.info["shininess"],
+            "tried": o.info.get("tried", []), "time_s": o.info.get("time_s"), **o.info["error"],
         }
-        for o in model.objects if o.n_lights
+        for o in model.objects if o.info.get("model") not in (None, "diffuse") or o.n_lights
     }
-    summary = {
-        "verdict": "", "scene": "cornell-teapot", "quality": quality, "samples": samples,
-        "times_s": {k: round(v, 3) for k, v in times.items()},
-        "solver_time_s": solution.stats["time_s"], "mesh": solution.stats.get("adaptive"),
-        "fit_settings": model.settings, "objects": objects,
-        "sizes_bytes": sizes,
-        "error_vs_lights": {
-            "counts": list(counts), "preset_counts": list(p.demo_light_sweep), "iterations": options.iterations,
-            "models": {key: words for key, words, _, _ in SWEEP_MODELS},
-            "relative_rms": sweep,
-        },
-        "figures": numbers,
-        "truth": numbers.get("truth", {}).get("view1"),
-        "meaning": {"truth": TRUTH_MEANS,"relative_rms": RMS_MEANS, "flip": FLIP_MEANS,
-                    "diffuse_baseline_relative_rms": "the error of the best colour per vertex with no lights (3 floats)",
-                    "diffuse_only_relative_rms": "the error of the fit's emitted colour alone (its lights off)"},
+    return {
+        "scene": name, "times_s": {k: round(v, 3) for k, v in times.items()}, "solver_time_s": solution.stats["time_s"],
+        "mesh": solution.stats.get("adaptive"), "emitter_parts": len(solution.emitters), "fit_settings": model.settings,
+        "objects": objects, "sizes_bytes": sizes, "figures": numbers, "truth": numbers.get("truth", {}).get("view1"),
     }
-    summary["verdict"] = verdict(summary)
-    with atomic_output(out / "summary.json") as f:
-        f.write(_compare.json_text(summary).encode())
-    with atomic_output(out / "report.md") as f:
-        f.write(_report(summary).encode())
-    return summary
 
 
-def _sweep(solution, model, options, counts):
-    """Relative RMS of every model of ``SWEEP_MODELS`` at every count, per glossy object
-    ({object: {model: {K: error}}}), each fit from scratch as ``vlights fit --lights K``
-    would; the demo's own fit is the default model's point at its K (not refitted).
-    Also the diffuse baseline's error per object (the best colour per vertex, no lights)."""
-    from dataclasses import replace
-
-    from fitting.baselines import diffuse_only
-    from fitting.data import fit_data, relative_error
-    from fitting.fit import fit_lights, problem_for, reconstruct, start_exponent
-    from fitting.mixed import SceneGeometry
-
-    scene = SceneGeometry.of_solution(solution)
-    sweep, baseline = {}, {}
-    for obj in solution.objects:
-        if obj.is_diffuse:
-            continue
-        data = fit_data(obj)
-        baseline[obj.name] = relative_error(data, diffuse_only(obj, data).reconstruction)["relative_rms"]
-        fitted = model.object(obj.name)
-        curves = {}
-        for key, _, fields, _ in SWEEP_MODELS:
-            sweep_options = replace(options, method="refined", **fields)
-            problem = problem_for(data, sweep_options, scene)
-            exponent = start_exponent(obj, sweep_options)
-            default = all(getattr(options, f) == v for f, v in fields.items())
-            curve = {}
-            for k in sorted(set(counts) | ({options.lights} if default else set())):
-                if default and k == options.lights:  # the demo's own fit
-                    curve[str(k)] = fitted.info["error"]["relative_rms"]
-                    continue
-                result = fit_lights(problem, k, sweep_options, exponent)
-                curve[str(k)] = relative_error(data, reconstruct(problem, result))["relative_rms"]
-            curves[key] = curve
-        sweep[obj.name] = curves
-    return sweep, baseline
-
-
-def _plot_sweep(sweep, baseline, model, path):
+def _plot_models(scenes, path):
+    """One panel per glossy object: the perceptual error of each model tried against the
+    floats it stores (log scale), the model kept ringed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = list(sweep)
-    n = max(len(names), 1)
-    fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.0), squeeze=False)
-    words = {key: (words, marker) for key, words, _, marker in SWEEP_MODELS}
-    requested = model.settings.get("lights")
-    for ax, name in zip(axes[0], names):
-        top = baseline[name]
-        for i, (key, curve) in enumerate(sweep[name].items()):
-            ks = [int(k) for k in curve]
-            ax.plot(ks, list(curve.values()), words[key][1], color=f"C{i}", label=f"{key}: {words[key][0]}")
-            top = max([top, *[v for v in curve.values() if v is not None]])
-        o = model.object(name)
-        k = requested if isinstance(requested, int) else o.n_lights
-        kept = "" if k == o.n_lights else f", {o.n_lights} kept"
-        ax.plot([k], [o.info["error"]["relative_rms"]], "*", ms=15, color="k", zorder=5,
-                label="the demo's fit (the default model)")
-        ax.annotate(f"{o.floats_per_vertex} floats / vertex{kept}", (k, o.info["error"]["relative_rms"]), fontsize=7,
-                    xytext=(-8, 10), textcoords="offset points", ha="right")
-        ax.axhline(baseline[name], ls=":", color="grey", lw=1.5, label="diffuse only: best colour per vertex, no lights")
-        ax.set_xscale("log", base=2)
-        ks = sorted({int(k) for curve in sweep[name].values() for k in curve} | {k})
-        ax.set_xticks(ks, [str(k) for k in ks])
-        ax.minorticks_off()
-        ax.set_ylim(0, top * 1.08)
-        ax.set_xlabel("virtual lights K (log scale)")
-        ax.set_ylabel("relative RMS error (lower is better)")
-        ax.set_title(name)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=1 if n == 1 else 2, fontsize=8, frameon=False)
-    fig.suptitle("fit error against the number of virtual lights, per model", fontsize=11)
-    fig.tight_layout(rect=(0, 0.2, 1, 1))
+    panels = [(scene, name, o) for scene, s in scenes.items() for name, o in s["objects"].items() if o["tried"]]
+    n = max(len(panels), 1)
+    cols = min(n, 3)
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.8 * rows), squeeze=False)
+    for ax in axes.ravel()[len(panels):]:
+        ax.axis("off")
+    for ax, (scene, name, o) in zip(axes.ravel(), panels):
+        for t in o["tried"]:
+            label = t["model"] + (f" {t['probe_size']}" if t["probe_size"] else "") + (f" {t['lights']}L" if t["lights"] else "")
+            kept = t["model"] == o["model"] and t["probe_size"] == o["probe_size"] and t["lights"] == o["lights"]
+            ax.plot(t["floats"], t["perceptual"], "o", color="C1" if kept else "C0", ms=9 if kept else 6)
+            ax.annotate(label, (t["floats"], t["perceptual"]), fontsize=7, xytext=(4, 4), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("floats stored (log)")
+        ax.set_ylabel("perceptual error (log, lower is better)")
+        ax.set_title(f"{scene}: {name}", fontsize=9)
+    fig.suptitle("each glossy object's models: error against what they store (orange: kept)", fontsize=10)
+    fig.tight_layout()
     with atomic_output(path) as f:
         fig.savefig(f, format="png", dpi=110)
     plt.close(fig)
@@ -293,34 +249,20 @@ def _fmt(value, digits=2):
     return "n/a" if value is None else f"{value:.{digits}f}"
 
 
-def verdict(s):
-    """The report's first line: what the virtual lights bought, in relative RMS per
-    glossy object against the diffuse baseline and in FLIP on the glossy objects with
-    the lights on and off (figure 7)."""
-    objects = s["objects"]
-    if not objects:
-        return "No glossy object: the scene has nothing for virtual lights to do."
-    parts = [f"of the {name} from {_fmt(o['diffuse_baseline_relative_rms'])}" + (" (diffuse only)" if i == 0 else "")
-             + f" to {_fmt(o['relative_rms'])}" for i, (name, o) in enumerate(objects.items())]
-    fell = all(o["relative_rms"] is not None and o["diffuse_baseline_relative_rms"] is not None
-               and o["relative_rms"] < o["diffuse_baseline_relative_rms"] for o in objects.values())
-    cut = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
-    line = f"Virtual lights {'cut' if fell else 'took'} the relative RMS error {cut}"
-    line = _verdict_lights(s, line)
-    return line + (" " + truth_line(s["truth"]) if s.get("truth") else "")
-
-
-def _verdict_lights(s, line):
+def verdict(name, s):
+    """One sentence per scene: what the model buys a viewer, in FLIP on the glossy objects
+    against a diffuse walkthrough (figure 7) and, with a truth, of every display against it."""
     g = s["figures"].get("glossy_flip")
-    if not g:
-        return line + "."
-    ratio = g.get("ratio")
-    finite = isinstance(ratio, float) and math.isfinite(ratio)
-    off, on = _fmt(g["diffuse_only"], 3), _fmt(g["with_virtual_lights"], 3)
-    if finite and ratio <= 0.95:
-        return line + f", and FLIP on the glossy objects from {off} (lights off) to {on} ({ratio:.2f}x)."
-    return line + (f"; but FLIP on the glossy objects did not fall: {off} with the lights off, {on} with them"
-                   + (f" ({ratio:.2f}x)." if finite else "."))
+    objects = ", ".join(f"{n} {o['model']}" for n, o in s["objects"].items()) or "no glossy object"
+    line = f"{name} ({objects}):"
+    if g:
+        ratio = g.get("ratio")
+        finite = isinstance(ratio, float) and math.isfinite(ratio)
+        line += (f" FLIP on the glossy objects {_fmt(g['with_virtual_lights'], 3)} fitted against "
+                 f"{_fmt(g['diffuse_only'], 3)} diffuse" + (f" ({ratio:.2f}x) against the solution." if finite else "."))
+    if s.get("truth"):
+        line += " " + truth_line(s["truth"])
+    return line
 
 
 def _mesh_words(mesh):
@@ -333,103 +275,76 @@ def _mesh_words(mesh):
             f"{mesh['vertices_after']:,} vertices (budget {mesh['vertex_budget']:,}).")
 
 
-def _report(s):
-    t = s["times_s"]
-    sw = s["error_vs_lights"]
+def _report(summary):
     lines = [
-        "# virtual-lights demo: cornell-teapot", "",
-        f"**{s['verdict']}**", "",
+        "# virtual-lights demo: " + ", ".join(summary["scenes"]), "",
+        f"**{summary['verdict']}**", "",
         "## What the numbers mean", "",
-        f"- **Relative RMS** ({RMS_MEANS[len('relative RMS: '):]}) *Diffuse only* is the best colour per vertex "
-        "with no lights at all (3 floats per vertex); *lights off* is the fit's own emitted colour alone.",
+        f"- **Relative RMS** ({RMS_MEANS[len('relative RMS: '):]})",
+        f"- **Perceptual** ({PERCEPTUAL_MEANS[len('perceptual: '):]})",
         f"- **FLIP** ({FLIP_MEANS[len('FLIP: '):]}) The error images show it per pixel through the magma colour "
         "map, black 0 to pale yellow 1, with the scale beside each.",
+        "- **Diffuse**: " + summary["meaning"]["diffuse"] + ".",
         "- **PSNR** of the tone-mapped pictures: higher is better.", "",
-        "The model: per glossy object, " + "; ".join(f"{name}: {o['model']}" for name, o in s["objects"].items())
-        + ". Floats per vertex are what the display stores per vertex besides the mesh (emitted colour and "
-        "specular coefficients); the lights themselves are a few numbers per object.", "",
-        f"Quality `{s['quality']}`; figures with {s['samples']} samples per pixel (antialiasing: their mean, a box "
-        f"filter over each pixel). Total {t['total_s']:.1f} s: solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, "
-        + (f"truth {t['truth_s']:.1f} s, " if "truth_s" in t else "")
-        + f"figures {t['compare_s']:.1f} s, lights sweep {t['sweep_s']:.1f} s. "
-        f"solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz {s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB."
-        + _mesh_words(s.get("mesh")), "",
-        "## Fit per glossy object", "",
-        "| object | lights | kinds | floats / vertex | exponent(s) | relative RMS | worst vertex | diffuse only | lights off |",
-        "|---|---|---|---|---|---|---|---|---|",
+        f"Quality `{summary['quality']}`; figures with {summary['samples']} samples per pixel (antialiasing: their "
+        f"mean, a box filter over each pixel). Total {summary['times_s']['total_s']:.1f} s.", "",
+        "![models](models.png)", "",
+        "*Each glossy object's models, as `vlights fit --model auto` tried them: the perceptual error against the "
+        "numbers stored; the one kept in orange.*", "",
     ]
-    for name, o in s["objects"].items():
-        exps = ", ".join(f"{p:.4g}" for p in sorted(set(o["shininess"])))
-        kinds = ", ".join(f"{o['kinds'].count(k)} {k}" for k in ("positional", "directional") if o["kinds"].count(k))
-        lines.append(f"| {name} | {o['lights']} | {kinds} | {o['floats_per_vertex']} | {exps} | {_fmt(o['relative_rms'], 4)} | "
-                     f"{_fmt(o['worst_vertex'], 4)} | {_fmt(o['diffuse_baseline_relative_rms'], 4)} | "
-                     f"{_fmt(o['diffuse_only_relative_rms'], 4)} |")
-    counts = ", ".join(map(str, sw["counts"]))
-    preset_counts = sorted(set(sw.get("preset_counts", sw["counts"])))
-    thinned = list(sw["counts"]) != preset_counts
-    all_counts = sorted({int(k) for curves in sw["relative_rms"].values() for c in curves.values() for k in c})
-    lines += ["", "## Error against the number of lights", "",
-              f"Swept: K = {counts} for every model"
-              + (f" (the `{s['quality']}` preset's light counts are {', '.join(map(str, preset_counts))}; draft refits "
-                 "only the two smallest to keep the demo quick: `--quality medium` sweeps them all)" if thinned else "")
-              + ", and the demo's own fit for the default model; each fit from scratch, as `vlights fit --lights K` "
-              f"would, with {sw['iterations']} refinement iterations. The models:", ""]
-    lines += [f"- `{key}`: {words}" for key, words in sw["models"].items()]
-    lines += ["", "| object | model | " + " | ".join(f"K = {k}" for k in all_counts) + " |",
-              "|---|---|" + "---|" * len(all_counts)]
-    for name, curves in sw["relative_rms"].items():
-        for key, curve in curves.items():
-            lines.append(f"| {name} | {key} | "
-                         + " | ".join(_fmt(curve[str(k)], 4) if str(k) in curve else "" for k in all_counts) + " |")
-    lines += ["", "![error against lights](error_vs_lights.png)", "",
-              "## Figures (reference from the solution; FLIP over the image / the glossy objects)", ""]
+    for name, s in summary["scenes"].items():
+        lines += _scene_report(name, s)
+    return "\n".join(lines)
+
+
+def _scene_report(name, s):
+    t = s["times_s"]
+    lines = [
+        f"## {name}", "",
+        f"Solve {t['solve_s']:.1f} s, fit {t['fit_s']:.1f} s, " + (f"truth {t['truth_s']:.1f} s, " if "truth_s" in t else "")
+        + f"figures {t['compare_s']:.1f} s. solution.npz {s['sizes_bytes']['solution.npz'] / 1e6:.2f} MB, fit.npz "
+        f"{s['sizes_bytes']['fit.npz'] / 1e6:.2f} MB; {s['emitter_parts']} emitter part(s) in closed form."
+        + _mesh_words(s.get("mesh")), "",
+        "| object | model | floats / vertex | relative RMS | perceptual | best colour per vertex | fit time |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for obj, o in s["objects"].items():
+        lines.append(f"| {obj} | {o['words']} | {o['floats_per_vertex']} | {_fmt(o.get('relative_rms'), 4)} | "
+                     f"{_fmt(o.get('perceptual'), 4)} | {_fmt(o.get('diffuse_only_relative_rms'), 4)} | "
+                     f"{_fmt(o.get('time_s'), 1)} s |")
     f = s["figures"]
+    lines.append("")
     for i in range(1, 4):
         m = f["figure5"][f"view{i}"]
-        lines += [f"**Figure 5, view {i}**: reference, fitted, FLIP error. FLIP {m['flip_mean']:.4f} / {m.get('flip_mean_glossy', float('nan')):.4f}, "
-                  f"PSNR {m['psnr_db']:.2f} / {m.get('psnr_db_glossy', float('nan')):.2f} dB", "", f"![figure 5 view {i}](compare/figure5_view{i}.png)", ""]
-    lines += ["**Figure 6**: 2 against all lights", "", "![figure 6](compare/figure6.png)", "",
-              "**Figure 7**: with and without virtual lights", "", "![figure 7](compare/figure7.png)", ""]
-    w, wo = f["figure7"]["with_virtual_lights"], f["figure7"]["diffuse_only"]
-    g = f.get("glossy_flip", {})
-    ratio = g.get("ratio")
-    lines += [f"On the glossy objects: FLIP {w.get('flip_mean_glossy', float('nan')):.4f} with the lights, "
-              f"{wo.get('flip_mean_glossy', float('nan')):.4f} without"
-              + (f" (ratio {ratio:.2f}; target <= {g['target_ratio']}: {'met' if g['meets_target'] else 'not met'})"
-                 if isinstance(ratio, float) and math.isfinite(ratio) else "")
-              + f"; PSNR {w.get('psnr_db_glossy', float('nan')):.2f} against {wo.get('psnr_db_glossy', float('nan')):.2f} dB.", ""]
+        lines += [f"**Figure 5, view {i}**: reference, fitted, FLIP error. FLIP {m['flip_mean']:.4f} / "
+                  f"{m.get('flip_mean_glossy', float('nan')):.4f} (image / glossy objects), PSNR {m['psnr_db']:.2f} dB",
+                  "", f"![figure 5 view {i}]({name}/compare/figure5_view{i}.png)", ""]
+    lines += ["**Figure 6**: 2 against all virtual lights", "", f"![figure 6]({name}/compare/figure6.png)", "",
+              "**Figure 7**: the fitted model against a diffuse walkthrough", "", f"![figure 7]({name}/compare/figure7.png)", ""]
     truth = s.get("truth")
     if truth:
         noise = "n/a" if truth["noise_flip"] is None else f"{truth['noise_flip']:.4f}"
-        lines += ["## Against the truth (view 1, path-traced)", "",
-                  f"{TRUTH_MEANS[0].upper() + TRUTH_MEANS[1:]}. {truth['spp']} samples per pixel in "
-                  f"{t.get('truth_s', float('nan')):.1f} s; noise floor {noise}. Figure 5, view 1 starts with it.", "",
+        lines += [f"Against the truth (view 1, path-traced, {truth['spp']} samples per pixel; noise floor {noise}):", "",
                   "| display | FLIP | relative MSE | FLIP, glossy | relative MSE, glossy |", "|---|---|---|---|---|"]
         for mode in ("reference", "fitted", "diffuse"):
             m = truth[mode]
             lines.append(f"| {mode} | {m['flip_mean']:.4f} | {m['relative_mse']:.4g} | "
                          f"{_fmt(m.get('flip_mean_glossy'), 4)} | {_fmt(m.get('relative_mse_glossy'), 4)} |")
         lines.append("")
-    return "\n".join(lines)
+    return lines
 
 
 def key_numbers(summary, out):
     t = summary["times_s"]
-    lines = [summary["verdict"],
-             f"done in {t['total_s']:.1f} s; everything is in {out}/:",
-             "  solution.npz, fit.npz           the solution and its fitted model",
-             "  compare/figure5_view*.png       reference against fitted (the paper's figure 5)",
-             "  compare/figure6.png             2 against all lights (figure 6)",
-             "  compare/figure7.png             with and without virtual lights (figure 7)",
-             "  error_vs_lights.png             fit error against the number of lights, per model",
-             "  report.md, summary.json         the verdict, pictures, times and errors",
-             f"  web/                            the walkthrough in a browser: vlights serve {out}/web"]
-    for name, o in summary["objects"].items():
-        lines.append(f"  {name}: {o['model']}; relative RMS {_fmt(o['relative_rms'], 3)} "
-                     f"(diffuse only {_fmt(o['diffuse_baseline_relative_rms'], 3)}, lights off {_fmt(o['diffuse_only_relative_rms'], 3)})")
-    m = summary["figures"]["figure5"]["view1"]
-    lines.append(f"  figure 5, view 1: FLIP {m['flip_mean']:.4f} (glossy objects {m.get('flip_mean_glossy', float('nan')):.4f}), PSNR {m['psnr_db']:.2f} dB")
-    if summary.get("truth"):
-        lines.append("  " + truth_line(summary["truth"]))
-    lines.append("  (relative RMS and FLIP: lower is better, 0 = exact; see report.md)")
+    lines = [summary["verdict"], f"done in {t['total_s']:.1f} s; everything is in {out}/:"]
+    for name, s in summary["scenes"].items():
+        lines += [f"  {name}/solution.npz, fit.npz   the solution and its fitted model",
+                  f"  {name}/compare/               reference against fitted (figures 5, 6, 7)",
+                  f"  {name}/web/                   the walkthrough in a browser: vlights serve {out}/{name}/web"]
+        for obj, o in s["objects"].items():
+            lines.append(f"    {obj}: {o['words']}; relative RMS {_fmt(o.get('relative_rms'), 3)}, "
+                         f"perceptual {_fmt(o.get('perceptual'), 3)}")
+    lines += ["  models.png                        each glossy object's models: error against floats stored",
+              "  report.md, summary.json           the verdicts, pictures, times and errors",
+              "  (relative RMS and FLIP: lower is better, 0 = exact; see report.md)"]
     return "\n".join(lines)

@@ -9,9 +9,9 @@ Modes
                of lights per object, directional and point lights mixed (GL_POSITION w = 0
                or 1, the light vector taken from the shaded point), coefficients shared
                by the lights or one per light
-    diffuse    the emitted colour alone: the fitted model without its virtual lights
-               (the paper's figure 7); from a solution alone, its radiance averaged
-               over directions
+    diffuse    a diffuse walkthrough: with a solution, each vertex's radiance averaged over
+               directions; from a fitted model alone, its emitted colour (the model with
+               every part off: the paper's figure 7 with its lights off)
     reference  the solution's directional radiance, bilinear in the equal-area grid
                of each vertex (read in that vertex's frame) for the view direction
 Shading
@@ -491,17 +491,20 @@ class _Object:
         # the emitters' highlights per mode ("fitted", "reference"): (visibility base, parts,
         # own-part mask, ks, exponent), absent where the object has none
         self.highlight = {}
-        self.probe = None  # (row in the atlas, M, centre, lo, hi) of the fitted probe
+        self.probe = None  # (row in the atlas, M, centre, lo, hi, albedo) of the fitted probe
+        self.glossy = False  # a glossy object: lights, a probe or highlights in the fit, a grid in the solution
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
 
     def add(self, ctx, attribute, values):
         self.buffers[attribute] = ctx.buffer(np.asarray(values, np.float32).tobytes())
         self.bytes += self.buffers[attribute].size
 
-    def vao(self, ctx, program, attributes, indexed=True):
+    def vao(self, ctx, program, attributes, indexed=True, sources=None):
         # an attribute with no buffer (in_specular of per-light coefficients) reads the
-        # generic value, unused by the shaders
-        content = [(self.buffers[a], "3f", a) for a in attributes if a in program and a in self.buffers]
+        # generic value, unused by the shaders; ``sources`` feeds an attribute from another buffer
+        sources = sources or {}
+        content = [(self.buffers[sources.get(a, a)], "3f", a) for a in attributes
+                   if a in program and sources.get(a, a) in self.buffers]
         if not indexed:
             return ctx.vertex_array(program, content)
         return ctx.vertex_array(program, content, index_buffer=self.index, index_element_size=4)
@@ -636,6 +639,7 @@ class Renderer:
             if f.highlight is not None:
                 h = f.highlight
                 self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility)
+            obj.glossy = obj.glossy or bool(f.n_lights or f.probe is not None or f.highlight is not None)
             weight = np.zeros((obj.n_vertices, 3), np.float32)
             if f.probe is not None:
                 m = f.probe.size
@@ -683,13 +687,17 @@ class Renderer:
             if s is None or len(s.positions) != obj.n_vertices:
                 raise InputError(f"the solution and the fitted model differ (object {obj.name!r})")
             obj.add(ctx, "in_tangent", s.tangents)
-            if "in_emitted" not in obj.buffers:  # a solution alone: diffuse = radiance averaged over directions
+            # the diffuse display: each vertex's radiance averaged over directions (what a
+            # diffuse walkthrough of this solution shows)
+            obj.add(ctx, "in_mean", np.asarray(s.radiance, np.float64).mean(axis=1))
+            if "in_emitted" not in obj.buffers:  # a solution alone
                 obj.add(ctx, "in_emitted", np.asarray(s.radiance, np.float64).mean(axis=1))
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
             if "in_probe" not in obj.buffers:
                 obj.add(ctx, "in_probe", np.zeros((obj.n_vertices, 3)))
             obj.base = base
             obj.grid_n = 0 if s.is_diffuse else s.grid_n
+            obj.glossy = obj.glossy or not s.is_diffuse
             radiance = s.radiance
             if not s.is_diffuse and solution.emitters and s.visibility is not None:
                 # the grid keeps the rest; the shader draws the highlights per pixel
@@ -902,7 +910,10 @@ class Renderer:
                 self._set(program, "flat_colour", flat)
                 self._set(program, "object_index", index)
                 attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
-            vao = obj.vao(ctx, program, attributes)
+            # diffuse with a solution: its directional mean, not the fitted emitted colour
+            # (with a probe or highlights that is only part of what is diffuse)
+            sources = {"in_emitted": "in_mean"} if mode == "diffuse" and mask is None else None
+            vao = obj.vao(ctx, program, attributes, sources=sources)
             vao.render(moderngl.TRIANGLES)
             vao.release()
         return self._average(fbs)

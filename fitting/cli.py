@@ -117,6 +117,13 @@ def fit_options(args, quality):
     ).check()
 
 
+def fit_options_for_quality(quality):
+    """The ``FitOptions`` ``vlights fit`` uses at ``quality`` with no other flag."""
+    knobs = preset(quality)
+    return FitOptions(lights=knobs.fit_lights, iterations=knobs.fit_iterations, probe_sizes=tuple(knobs.probe_sizes),
+                      probe_lights=knobs.probe_lights).check()
+
+
 def _fit(args):
     out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
