@@ -912,7 +912,7 @@ class Renderer:
                 attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
             # diffuse with a solution: its directional mean, not the fitted emitted colour
             # (with a probe or highlights that is only part of what is diffuse)
-            sources = {"in_emitted": "in_mean"} if mode == "diffuse" and mask is None else None
+            sources = {"in_emitted": "in_mean"} if mode == "diffuse" and mask is None and "in_mean" in obj.buffers else None
             vao = obj.vao(ctx, program, attributes, sources=sources)
             vao.render(moderngl.TRIANGLES)
             vao.release()
