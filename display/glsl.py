@@ -11,6 +11,10 @@ each part blended from the triangle's vertices); tested against it.
 (M; 0: no probe), ``probe_row`` (the object's first row in ``probes``, an RGB32F atlas of
 M x M blocks stacked in rows), ``probe_centre``, ``probe_lo``, ``probe_hi`` (the box).
 
+Each part compiles to nothing under ``#define VL_NO_EMITTERS`` / ``VL_NO_PROBE`` (the
+renderer's programs for objects and modes without it: Mesa's llvmpipe pays for the code
+of a shader even where a uniform skips it, measured 6-8 times a diffuse frame's time).
+
 Uniforms the emitter term reads (set by the caller; textures as in ``emitter_table``):
 
     emitter_table     RGBA32F, row i = part i: texel 0 (kind, vertex count, radius, 0),
@@ -58,6 +62,9 @@ def emitter_glsl(nodes, texture_width):
     sphere_s, sphere_w, sector_s, sector_w = rules(nodes)
     n, g = len(sphere_s), len(sector_s)
     return f"""
+#ifdef VL_NO_EMITTERS
+vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {{ return vec3(0.0); }}
+#else
 uniform sampler2D emitter_table;
 uniform int n_parts;
 uniform int own_parts;
@@ -252,10 +259,14 @@ vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {{
     }}
     return colour;
 }}
+#endif
 """
 
 
 PROBE_GLSL = """
+#ifdef VL_NO_PROBE
+vec3 probe_term(vec3 x, vec3 n, vec3 w, vec3 weight) { return vec3(0.0); }
+#else
 uniform sampler2D probes;
 uniform int probe_size;
 uniform int probe_row;
@@ -310,4 +321,5 @@ vec3 probe_term(vec3 x, vec3 n, vec3 w, vec3 weight) {
     if (probe_size == 0) return vec3(0.0);
     return weight * probe_albedo_at(n, w) * probe_lookup(probe_direction(x, n, w));
 }
+#endif
 """.replace("ALBEDO_POINTS", str(ALBEDO_POINTS))

@@ -53,6 +53,9 @@ FLOAT_TEXTURE_WIDTH = 4096
 RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
 
 LIGHTS_GLSL = """
+#ifdef VL_NO_LIGHTS
+vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) { return emitted; }
+#else
 uniform int n_lights;          // lights drawn: the object's first n_lights (--lights)
 uniform int light_stride;      // the object's K: per-light coefficients per vertex
 uniform int per_light;         // 1: light k's coefficient of vertex v is texel coefficient_base + v * K + k
@@ -96,6 +99,7 @@ vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 ver
     }
     return colour;
 }
+#endif
 """.replace("FLOAT_TEXTURE_WIDTH", str(FLOAT_TEXTURE_WIDTH))
 
 SHADE_MAIN_GLSL = """
@@ -107,10 +111,16 @@ vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, vec3 probe_weigh
 """
 
 
-def shade_glsl(nodes=DEFAULT_NODES):
+def shade_glsl(nodes=DEFAULT_NODES, parts=PARTS):
     """The whole shading formula's GLSL (the fitted programs' and the web page's), for the
-    emitter quadrature's ``nodes``."""
-    return LIGHTS_GLSL + PROBE_GLSL + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH) + SHADE_MAIN_GLSL
+    emitter quadrature's ``nodes``, with the code of the ``parts`` only (the others
+    compile to nothing: ``display.glsl``)."""
+    return features(parts) + LIGHTS_GLSL + PROBE_GLSL + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH) + SHADE_MAIN_GLSL
+
+
+def features(parts):
+    """The ``#define`` lines that leave out the parts of PARTS not in ``parts``."""
+    return "".join(f"#define VL_NO_{p.upper()}\n" for p in PARTS if p not in parts)
 
 
 SHADE_GLSL = shade_glsl()
@@ -724,8 +734,10 @@ class Renderer:
         total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
         return total
 
-    def _program(self, key):
-        if key not in self._programs:
+    def _program(self, key, parts=PARTS):
+        """The program ``key`` with the shading code of ``parts`` alone (``shade_glsl``)."""
+        parts = tuple(p for p in PARTS if p in parts)
+        if (key, parts) not in self._programs:
             pixel = dict(vertex_shader=FITTED_PIXEL_VS, geometry_shader=FITTED_PIXEL_GS)
             sources = {
                 "fitted": dict(vertex_shader=FITTED_VS, fragment_shader=FITTED_FS),
@@ -742,13 +754,22 @@ class Renderer:
                 "box": dict(vertex_shader=FULL_SCREEN_VS, fragment_shader=BOX_FS),
             }[key]
             nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
+            emitters = features(parts) + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH)
             sources = {
-                k: v.replace(SHADE, shade_glsl(nodes)).replace(EMITTERS, emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH))
-                if isinstance(v, str) else v
+                k: v.replace(SHADE, shade_glsl(nodes, parts)).replace(EMITTERS, emitters) if isinstance(v, str) else v
                 for k, v in sources.items()
             }
-            self._programs[key] = self.ctx.program(**sources)
-        return self._programs[key]
+            self._programs[(key, parts)] = self.ctx.program(**sources)
+        return self._programs[(key, parts)]
+
+    def _drawn_parts(self, obj, mode, parts, n_lights):
+        """The parts of ``obj``'s model a ``mode`` draws (of ``parts``): what its program holds."""
+        if mode == "diffuse":
+            return ()
+        if mode == "reference":
+            return ("emitters",) if "emitters" in parts and "reference" in obj.highlight else ()
+        have = {"lights": n_lights > 0, "probe": obj.probe is not None, "emitters": "fitted" in obj.highlight}
+        return tuple(p for p in PARTS if p in parts and have[p])
 
     def _matrices(self, view):
         eye = np.asarray(view.eye, np.float64)
@@ -895,12 +916,13 @@ class Renderer:
                 # coefficients (per-light ones through the geometry shader's program,
                 # in every mode, so that all modes rasterise alike)
                 key = "gouraud" if shading == "gouraud" and mask is None else "fitted-pixel" if pixel else "fitted"
-            program = self._program(key)
-            if key not in ready:
+            drawn = self._drawn_parts(obj, mode, parts, n) if mask is None else ()
+            program = self._program(key, drawn)
+            if (key, drawn) not in ready:
                 program["mvp"].write(mvp)
                 self._set(program, "eye", eye)
                 self._set(program, "gouraud", int(shading == "gouraud"))
-                ready.add(key)
+                ready.add((key, drawn))
             if key.startswith("reference"):
                 self._bind_reference(program, obj, parts)
                 attributes = ("in_position", "in_normal", "in_tangent")
@@ -983,8 +1005,8 @@ class Renderer:
         """The Gouraud vertex shader's colours (V, 3) of object ``name`` for ``mode``,
         read back by transform feedback (what is interpolated across the triangles)."""
         key = "reference-feedback" if mode == "reference" else "fitted-feedback"
-        program = self._program(key)
         obj = next(o for o in self.objects if o.name == name)
+        program = self._program(key, self._drawn_parts(obj, mode, PARTS, self._light_count(obj, mode, lights)))
         program["mvp"].write(self._matrices(view))
         self._set(program, "eye", tuple(float(v) for v in view.eye))
         if mode == "reference":
