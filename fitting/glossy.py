@@ -40,6 +40,8 @@ WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fractio
 MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
 HIGHLIGHT = 1.0  # a residual peak above this times the object's mean radiance is a highlight: lights fit it
 BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal
+PROBE_SAMPLES = 2_000_000  # the texels are fitted to at most about this many samples (every k-th vertex's)
+BLOCK_FLOATS = 1 << 24  # the per-vertex solves' design matrices, a block of vertices at a time (128 MB)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,20 +110,27 @@ def _lobe_columns(data, lights):
 def _joint(data, target, loss_weights, probe_values, lobes, light_caps):
     """Per-vertex coefficients [emitted, probe weight?, light coefficients...] >= 0 of
     ``target`` (V, D, 3) with the columns given (probe_values (V, D, 3) or None, lobes
-    (V, D, K)); returns (emitted (V, 3), probe weight (V, 3) or None, c (V, K, 3))."""
+    (V, D, K)); returns (emitted (V, 3), probe weight (V, 3) or None, c (V, K, 3)).
+    Vertices are solved a block at a time (the design is (V, D, columns, 3))."""
     v, d, _ = target.shape
     n_k = lobes.shape[2]
-    columns = [np.ones((v, d, 1, 3))]
-    if probe_values is not None:
-        columns.append(probe_values[:, :, None, :])
-    if n_k:
-        columns.append(np.broadcast_to(lobes[..., None], (v, d, n_k, 3)))
-    columns = np.concatenate(columns, axis=2)
-    n = columns.shape[2]
-    cap = np.full((v, 3, n), 1e200)
-    if n_k:
-        cap[:, :, n - n_k:] = light_caps
-    x, _ = probe.vertex_coefficients(columns, target, data.weights, loss_weights, cap)
+    n = 1 + (probe_values is not None) + n_k
+    x = np.empty((v, 3, n))
+    block = max(1, BLOCK_FLOATS // max(d * n * 3, 1))
+    for start in range(0, v, block):
+        sl = slice(start, start + block)
+        b = len(range(*sl.indices(v)))
+        columns = [np.ones((b, d, 1, 3))]
+        if probe_values is not None:
+            columns.append(probe_values[sl, :, None, :])
+        if n_k:
+            columns.append(np.broadcast_to(lobes[sl, :, :, None], (b, d, n_k, 3)))
+        columns = np.concatenate(columns, axis=2)
+        cap = np.full((b, 3, n), 1e200)
+        if n_k:
+            cap[:, :, n - n_k:] = light_caps[sl]
+        lw = None if loss_weights is None or loss_weights.shape[0] == 1 else loss_weights[sl]
+        x[sl], _ = probe.vertex_coefficients(columns, target[sl], data.weights[sl], lw, cap)
     emitted = x[:, :, 0]
     weight = x[:, :, 1] if probe_values is not None else None
     c = np.transpose(x[:, :, n - n_k:], (0, 2, 1)) if n_k else np.zeros((v, 0, 3))
@@ -146,12 +155,22 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
     ``albedo``: the table of S (``probe.albedo_table``); ``start``: (emitted, weight) to
     begin from (default: each vertex's least radiance and 1)."""
     rest = target if fixed is None else target - fixed
-    u = probe.box_directions(data.positions[:, None, :], data.views, data.normals[:, None, :], centre, box)
-    idx, wts, cells = probe.texels(u.reshape(-1, 3), size, cells=True)
-    factor = probe.albedo_factor(albedo, data.normals[:, None, :], data.views)  # (V, D)
-    wts = wts * factor.reshape(-1, 1)  # S folds into the look-up's weights
-    weight = data.weights.reshape(-1)
-    lw = None if loss_weights is None else loss_weights.reshape(-1, 3)
+    v, d = data.n_vertices, data.n_directions
+    # the texels from every step-th vertex (at most PROBE_SAMPLES samples: a large
+    # object's probe sees plenty of its surroundings), the vertices' coefficients from all
+    step = max(1, math.ceil(v * d / PROBE_SAMPLES))
+    sub = np.arange(0, v, step)
+
+    def look_ups(vertices):
+        u = probe.box_directions(data.positions[vertices, None, :], data.views[vertices],
+                                 data.normals[vertices, None, :], centre, box)
+        idx, wts, cells = probe.texels(u.reshape(-1, 3), size, cells=True)
+        factor = probe.albedo_factor(albedo, data.normals[vertices, None, :], data.views[vertices])
+        return idx, wts * factor.reshape(-1, 1), cells  # S folds into the look-up's weights
+
+    idx, wts, cells = look_ups(sub)
+    weight = data.weights[sub].reshape(-1)
+    lw = None if loss_weights is None or loss_weights.shape[0] == 1 else loss_weights[sub].reshape(-1, 3)
     sample_weight = weight[:, None] * (1.0 if lw is None else lw)
     if start is None:
         emitted = np.maximum(rest.min(axis=1), 0.0)
@@ -159,15 +178,21 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
     else:
         emitted, scale = (np.asarray(a, np.float64) for a in start)
     texels = np.zeros((size, size, 3))
+    values = np.empty(rest.shape)
+    block = max(1, BLOCK_FLOATS // (d * 3))
     for _ in range(rounds):
-        s_rep = np.repeat(scale, data.n_directions, axis=0)
-        e_rep = np.repeat(emitted, data.n_directions, axis=0)
-        texels = probe.solve_texels(idx, wts, cells, sample_weight, rest.reshape(-1, 3) - e_rep, s_rep, size)
+        s_rep = np.repeat(scale[sub], d, axis=0)
+        e_rep = np.repeat(emitted[sub], d, axis=0)
+        texels = probe.solve_texels(idx, wts, cells, sample_weight, rest[sub].reshape(-1, 3) - e_rep, s_rep, size)
         # the scale between P and s is free: keep s near 1 where the object is
         mean = np.sum(data.weights.sum(axis=1)[:, None] * scale, axis=0) / max(data.weights.sum(), 1e-300)
         texels *= np.where(mean > 0, mean, 1.0)
-        values = np.einsum("sk,skc->sc", wts, texels.reshape(-1, 3)[idx]).reshape(rest.shape)
-        emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros(rest.shape[:2] + (0,)), None)
+        flat = texels.reshape(-1, 3)
+        for first in range(0, v, block):
+            part = np.arange(first, min(v, first + block))
+            i, w, _ = look_ups(part)
+            values[part] = np.einsum("sk,skc->sc", w, flat[i]).reshape(len(part), d, 3)
+        emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros((v, d, 0)), None)
     found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
                         np.asarray(albedo, np.float64))
     return found, emitted, scale

@@ -101,8 +101,8 @@ def test_files_in_the_way_inside_an_output_directory(tiny_pair, tmp_path, cli, n
     (tmp_path / "cmp" / "figure6.png").mkdir(parents=True)
     assert_refused(cli("compare", fit, solution, "--out", tmp_path / "cmp"), "figure6.png", "is not a file")
     (tmp_path / "demo").mkdir()
-    (tmp_path / "demo" / "compare").write_text("x")
-    assert_refused(cli("demo", "--out", tmp_path / "demo"), "compare", "is a file")
+    (tmp_path / "demo" / "cornell-teapot").write_text("x")  # where the demo puts a scene's directory
+    assert_refused(cli("demo", "--out", tmp_path / "demo"), "cornell-teapot", "is a file")
 
 
 def test_an_input_is_never_an_output(tiny_pair, tmp_path, cli, no_gl):
@@ -220,9 +220,9 @@ def test_compare_failing_half_way_leaves_no_file(failure, status, tiny_pair, tmp
 
 @pytest.mark.gl
 def test_demo_disk_full_leaves_no_file(tmp_path, cli, monkeypatch, gl_context):
-    import radiosity.transport.solve
+    import radiosity.transport.adaptive
 
-    monkeypatch.setattr(radiosity.transport.solve, "solve", lambda *args, **kwargs: tiny_solution())
+    monkeypatch.setattr(radiosity.transport.adaptive, "solve_adaptive", lambda *args, **kwargs: tiny_solution())
 
     def full(*_args, **_kwargs):
         raise ENOSPC
@@ -230,7 +230,7 @@ def test_demo_disk_full_leaves_no_file(tmp_path, cli, monkeypatch, gl_context):
     monkeypatch.setattr(np, "savez_compressed", full)
     code, out, err = cli("demo", "--size", "8x8", "--out", tmp_path / "demo")
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
-    assert "demo/solution.npz" in err and "No space left on device" in err and ".partial" not in err
+    assert "demo/cornell-teapot/solution.npz" in err and "No space left on device" in err and ".partial" not in err
     assert listing(tmp_path) == []
 
 
