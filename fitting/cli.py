@@ -83,8 +83,9 @@ def register(subparsers, not_built):
     p.add_argument("--coefficients", choices=COEFFICIENTS, default="per-light",
                    help="per-light: a specular coefficient per light at each vertex (3 + 3K numbers a vertex); shared: one "
                    "for all lights, the paper's model (6 numbers a vertex) (refined methods; default: %(default)s)")
-    p.add_argument("--loss", choices=("linear", "relative"), default="linear",
-                   help="error measure to minimise: linear least squares, or relative to the radiance (default: %(default)s)")
+    p.add_argument("--loss", choices=("auto", "linear", "relative"), default="auto",
+                   help="error measure to minimise: linear least squares, or relative to the radiance; auto: relative "
+                   "for the models with a probe (it won in pictures), linear for lights alone (default: %(default)s)")
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",

@@ -40,6 +40,7 @@ WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fractio
 MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
 HIGHLIGHT = 1.0  # a residual peak above this times the object's mean radiance is a highlight: lights fit it
 BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal
+WARM_ROUNDS = 3  # alternations of a probe fit that starts from another's coefficients
 PROBE_SAMPLES = 2_000_000  # the texels are fitted to at most about this many samples (every k-th vertex's)
 BLOCK_FLOATS = 1 << 24  # the per-vertex solves' design matrices, a block of vertices at a time (128 MB)
 
@@ -169,6 +170,9 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
         return idx, wts * factor.reshape(-1, 1), cells  # S folds into the look-up's weights
 
     idx, wts, cells = look_ups(sub)
+    # every vertex's look-ups, kept where they fit (else made again a block at a time each round)
+    block = max(1, BLOCK_FLOATS // (d * 3))
+    kept = (idx, wts) if step == 1 else (look_ups(np.arange(v))[:2] if v * d <= 4 * PROBE_SAMPLES else None)
     weight = data.weights[sub].reshape(-1)
     lw = None if loss_weights is None or loss_weights.shape[0] == 1 else loss_weights[sub].reshape(-1, 3)
     sample_weight = weight[:, None] * (1.0 if lw is None else lw)
@@ -179,7 +183,6 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
         emitted, scale = (np.asarray(a, np.float64) for a in start)
     texels = np.zeros((size, size, 3))
     values = np.empty(rest.shape)
-    block = max(1, BLOCK_FLOATS // (d * 3))
     for _ in range(rounds):
         s_rep = np.repeat(scale[sub], d, axis=0)
         e_rep = np.repeat(emitted[sub], d, axis=0)
@@ -188,10 +191,13 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=
         mean = np.sum(data.weights.sum(axis=1)[:, None] * scale, axis=0) / max(data.weights.sum(), 1e-300)
         texels *= np.where(mean > 0, mean, 1.0)
         flat = texels.reshape(-1, 3)
-        for first in range(0, v, block):
-            part = np.arange(first, min(v, first + block))
-            i, w, _ = look_ups(part)
-            values[part] = np.einsum("sk,skc->sc", w, flat[i]).reshape(len(part), d, 3)
+        if kept is not None:
+            values[:] = np.einsum("sk,skc->sc", kept[1], flat[kept[0]]).reshape(v, d, 3)
+        else:
+            for first in range(0, v, block):
+                part = np.arange(first, min(v, first + block))
+                i, w, _ = look_ups(part)
+                values[part] = np.einsum("sk,skc->sc", w, flat[i]).reshape(len(part), d, 3)
         emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros((v, d, 0)), None)
     found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
                         np.asarray(albedo, np.float64))
@@ -222,7 +228,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     v = full.n_vertices
     rest = full.radiance - highlights
     data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights, positions=full.positions)
-    lw = make_loss_weights(full, options.loss)  # relative to what a viewer sees: the whole radiance
+    lw = make_loss_weights(full, options.loss_for("probe"))  # of what a viewer sees: the whole radiance
     centre = 0.5 * (full.positions.min(axis=0) + full.positions.max(axis=0))
     albedo = probe.albedo_table(obj.material["exponent"])
     tried, fits = [], []
@@ -256,9 +262,12 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
             sizes = [options.probe_size]
         else:
             sizes = list(probe_sizes) if automatic else [max(probe_sizes)]
-        best = None
+        best, start = None, None
         for size in sizes:
-            p, e, s = fit_probe_part(data, rest, lw, size, centre, box, albedo)
+            # each size after the first starts from the coefficients of the one before
+            p, e, s = fit_probe_part(data, rest, lw, size, centre, box, albedo, start=start,
+                                     rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS)
+            start = (e, s)
             term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
             c = record("probe", size, True, e, None, p, s, term, None)
             if best is None or c.perceptual < best[0].perceptual * (1 - WITHIN):
@@ -297,7 +306,8 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, 
     values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     light_term = np.einsum("vdk,vkc->vdc", lobes, c)
-    p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, start=(e, s))
+    p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, start=(e, s),
+                              rounds=WARM_ROUNDS)
     values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     record("probe+lights", p2.size, True, e, (*lights, c), p2, s, s[:, None, :] * values,
