@@ -204,19 +204,12 @@ def highlights(record, args, pictures):
 
 
 def frame_times(renderer, view, frames, keys):
-    ctx = renderer.ctx
+    """Median ms per frame of each (mode, shading) of ``keys``, one sample per pixel
+    (``bench_display.median_times``: interleaved, drawing only, up to glFinish)."""
+    from bench_display import median_times
+
     draws = {k: (lambda k=k: renderer.draw(view, k[0], k[1], samples=1)) for k in keys}
-    for draw in draws.values():
-        draw()
-        ctx.finish()
-    times = {k: [] for k in draws}
-    for _ in range(frames):
-        for k, draw in draws.items():
-            t = time.perf_counter()
-            draw()
-            ctx.finish()
-            times[k].append(1000 * (time.perf_counter() - t))
-    return {k: float(np.median(v)) for k, v in times.items()}
+    return median_times(draws, renderer.ctx, frames)
 
 
 def timing(record, args):
