@@ -87,9 +87,12 @@ def test_window_draws_point_lights_with_per_light_coefficients(x_display, tmp_pa
     every = view(x_display, model_path, tmp_path, "all")
     two = view(x_display, model_path, tmp_path, "two", "--press", "l")
     gouraud = view(x_display, model_path, tmp_path, "gouraud", "--press", "g")
+    no_lights = view(x_display, model_path, tmp_path, "nolights", "--press", "3")  # key 3: the lights off
+    back_on = view(x_display, model_path, tmp_path, "backon", "--press", "33")
     assert every.max() > 50 and two.max() > 50 and gouraud.max() > 50
     assert two.astype(int).sum() < every.astype(int).sum()  # the third light's highlight is gone
     assert not np.array_equal(every, gouraud)
+    assert no_lights.astype(int).sum() < two.astype(int).sum() and np.array_equal(back_on, every)
 
 
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
