@@ -8,6 +8,7 @@ explicitly wins), then ``fit`` runs and ``format_report`` prints the errors.
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import replace
 from pathlib import Path
 
@@ -37,7 +38,7 @@ def _probe_size(text):
     try:
         return int(text)
     except ValueError:
-        raise InputError(f"--probe-size takes a whole number or 'auto', got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"takes a whole number or 'auto', got {text!r}") from None
 
 
 def register(subparsers, not_built):

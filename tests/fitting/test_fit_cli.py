@@ -124,3 +124,17 @@ def test_report_shows_no_numbers_for_diffuse_objects(solution_file, tmp_path, ca
     words = dome.split()
     assert words[1] == "lights" and words[2] == "2" and words[3:5] == ["0P", "2D"] and len(words) == 12
     assert format_report(load_fit(out), out) == stdout.rstrip("\n")
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--probe-size", "abc"], "--probe-size: takes a whole number or 'auto'"),
+    (["--probe-size", "1"], "--probe-size must be 'auto' or a whole number from 2 to 128"),
+    (["--model-target", "0"], "--model-target must be an error between 0 and 10"),
+    (["--model", "glare"], "invalid choice: 'glare'"),
+    (["--loss", "log"], "invalid choice: 'log'"),
+])
+def test_bad_model_flags_are_one_line_and_no_file(flags, message, solution_file, tmp_path, capsys):
+    out = tmp_path / "f.npz"
+    code, _, err = run(["fit", str(solution_file), "-o", str(out), *flags], capsys)
+    assert code == 2 and message in err and err.count("\n") == 1 and "Traceback" not in err, err
+    assert not out.exists()

@@ -39,3 +39,12 @@ def test_bad_extra_gather_flags_are_refused(tmp_path, capsys, monkeypatch):
         code, out, err = run(["solve", "cornell-teapot", flag, value], capsys)
         assert code == 2 and out == "" and err.count("\n") == 1 and flag in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_emitter_highlight_flags_are_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for flag, value in (("--emitter-nodes", "0"), ("--emitter-nodes", "33"), ("--visibility-samples", "0"),
+                        ("--visibility-samples", "99999")):
+        code, out, err = run(["solve", "cornell-teapot", flag, value], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1 and flag in err, err
+    assert list(tmp_path.iterdir()) == []
