@@ -699,9 +699,10 @@ class Renderer:
             obj.add(ctx, "in_tangent", s.tangents)
             # the diffuse display: each vertex's radiance averaged over directions (what a
             # diffuse walkthrough of this solution shows)
-            obj.add(ctx, "in_mean", np.asarray(s.radiance, np.float64).mean(axis=1))
+            mean = np.asarray(s.radiance, np.float64).mean(axis=1)
+            obj.add(ctx, "in_mean", mean)
             if "in_emitted" not in obj.buffers:  # a solution alone
-                obj.add(ctx, "in_emitted", np.asarray(s.radiance, np.float64).mean(axis=1))
+                obj.add(ctx, "in_emitted", mean)
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
             if "in_probe" not in obj.buffers:
                 obj.add(ctx, "in_probe", np.zeros((obj.n_vertices, 3)))

@@ -208,18 +208,7 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     }
     if result.iterations:
         info["iterations"] = result.iterations
-    return FittedObject(
-        name=obj.name,
-        positions=np.asarray(obj.positions, np.float32),
-        normals=np.asarray(obj.normals, np.float32),
-        faces=np.asarray(obj.faces, np.int32),
-        emitted=np.asarray(result.emitted, np.float32),
-        specular=np.asarray(result.specular, np.float32),
-        light_pos=np.asarray(result.pos, np.float32).reshape(-1, 4),
-        light_rgb=np.asarray(result.rgb, np.float32).reshape(-1, 3),
-        shininess=np.asarray(result.shininess, np.float32).reshape(-1),
-        info=info,
-    )
+    return _fitted_object(obj, result.emitted, result.specular, (result.pos, result.rgb, result.shininess), info)
 
 
 def _fit_components(obj, options, scene, progress, solution, box):
@@ -248,8 +237,6 @@ def _fit_components(obj, options, scene, progress, solution, box):
     parts = len(solution.emitters) if obj.visibility is not None else 0
     c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for,
                               probe_sizes=options.probe_sizes)
-    data = fit_data(obj)
-    diffuse_part = relative_error(data, np.broadcast_to(data.radiance.mean(axis=1, keepdims=True), data.radiance.shape))
     highlight = None
     if c.emitters and parts:
         m = obj.material
@@ -267,27 +254,34 @@ def _fit_components(obj, options, scene, progress, solution, box):
         "error": {
             "relative_rms": _json_number(c.error),
             "perceptual": _json_number(c.perceptual),
-            "diffuse_only_relative_rms": _json_number(diffuse_part["relative_rms"]),
+            "diffuse_only_relative_rms": _json_number(c.baseline),
         },
         "floats": int(c.floats),
         "tried": c.tried,
         "time_s": round(time.perf_counter() - t0, 4),
     }
-    specular = np.asarray(c.specular, np.float32) if c.n_lights else np.zeros((obj.num_vertices, 3), np.float32)
+    specular = c.specular if c.n_lights else np.zeros((obj.num_vertices, 3))
+    weight = None if c.probe is None else np.asarray(c.probe_weight, np.float32)
+    return _fitted_object(obj, c.emitted, specular, c.lights, info, highlight=highlight, probe=c.probe,
+                          probe_weight=weight)
+
+
+def _fitted_object(obj, emitted, specular, lights, info, **parts):
+    """The FittedObject of solution object ``obj``: its mesh, these coefficients and
+    lights ((pos, rgb, shininess)), and the version-3 ``parts`` (highlight, probe, weight)."""
+    pos, rgb, shininess = lights
     return FittedObject(
         name=obj.name,
         positions=np.asarray(obj.positions, np.float32),
         normals=np.asarray(obj.normals, np.float32),
         faces=np.asarray(obj.faces, np.int32),
-        emitted=np.asarray(c.emitted, np.float32),
-        specular=specular,
-        light_pos=np.asarray(c.lights[0], np.float32).reshape(-1, 4),
-        light_rgb=np.asarray(c.lights[1], np.float32).reshape(-1, 3),
-        shininess=np.asarray(c.lights[2], np.float32).reshape(-1),
+        emitted=np.asarray(emitted, np.float32),
+        specular=np.asarray(specular, np.float32),
+        light_pos=np.asarray(pos, np.float32).reshape(-1, 4),
+        light_rgb=np.asarray(rgb, np.float32).reshape(-1, 3),
+        shininess=np.asarray(shininess, np.float32).reshape(-1),
         info=info,
-        highlight=highlight,
-        probe=c.probe if c.probe is not None else None,
-        probe_weight=np.asarray(c.probe_weight, np.float32) if c.probe is not None else None,
+        **parts,
     )
 
 

@@ -29,8 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import mixed, probe
-from .data import FitData, relative_error
+from .data import FitData, fit_data, perceptual_error, relative_error
 from .lobes import MixedLights
+from .refine import loss_weights as make_loss_weights
 
 __all__ = ["MODELS", "Components", "fit_components"]
 
@@ -68,6 +69,7 @@ class Components:
     floats: int
     perceptual: float = 0.0
     tried: list = field(default_factory=list)
+    baseline: float = 0.0  # the relative RMS of each vertex's directional mean (a diffuse walkthrough)
 
     @property
     def n_lights(self):
@@ -221,9 +223,6 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     lights...); scene: the ``mixed.SceneGeometry``; box: the probe's proxy (2, 3);
     exponent: where the lights' exponent starts; fit_lights(data, loss_weights, exponent)
     -> ``mixed.MixedFit``; probe_sizes: what "auto" tries."""
-    from .data import fit_data, perceptual_error
-    from .refine import loss_weights as make_loss_weights
-
     full = fit_data(obj)
     v = full.n_vertices
     rest = full.radiance - highlights
@@ -280,12 +279,12 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
                               fit_lights, wanted == "probe+lights")
         if automatic and highlight and fits[-1].n_lights:
             # a highlight neither the emitters nor the probe draw: the object keeps lights
-            return _choose([f for f in fits if f.n_lights], options.model_target, tried)
+            return _choose([f for f in fits if f.n_lights], options.model_target, tried, full)
     if wanted == "lights":
         raise ValueError("the 'lights' model is fitted by fitting.fit (the paper's path)")
     if automatic:
-        return _choose(fits, options.model_target, tried)
-    return _with_tried([f for f in fits if f.model == wanted][-1], tried)
+        return _choose(fits, options.model_target, tried, full)
+    return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)
 
 
 def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, box, albedo, exponent, fit_lights,
@@ -314,8 +313,9 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, 
            np.einsum("vdk,vkc->vdc", lobes, c))
 
 
-def _with_tried(c, tried):
-    return Components(**{**c.__dict__, "tried": tried})
+def _with_tried(c, tried, full):
+    mean = np.broadcast_to(full.radiance.mean(axis=1, keepdims=True), full.radiance.shape)
+    return Components(**{**c.__dict__, "tried": tried, "baseline": relative_error(full, mean)["relative_rms"]})
 
 
 def _shows_highlight(residual, full):
@@ -325,12 +325,12 @@ def _shows_highlight(residual, full):
     return bool(np.max(residual) > HIGHLIGHT * mean) if mean > 0 else False
 
 
-def _choose(fits, target, tried):
+def _choose(fits, target, tried, full):
     """Error per stored float: the cheapest fit whose perceptual error reaches ``target``
     or comes within WITHIN of the best fit's (more floats that buy less are not kept)."""
     order = sorted(fits, key=lambda f: f.floats)
     best = min(f.perceptual for f in order)
     for f in order:
         if f.perceptual <= target or f.perceptual <= best * (1 + WITHIN) or math.isclose(f.perceptual, best):
-            return _with_tried(f, tried)
-    return _with_tried(order[-1], tried)
+            return _with_tried(f, tried, full)
+    return _with_tried(order[-1], tried, full)
