@@ -25,6 +25,7 @@ from display.serve import add_serve_command
 from display.truth import add_truth_command, check_spp
 from fitting.model import PARTS
 from radiosity.formats import InputError, presets
+from radiosity.formats.limits import check_exposure, check_seed
 
 PROG = "vlights"
 
@@ -238,8 +239,7 @@ def _render(args):
         return _video(args)
     if args.lights is not None and args.lights < 0:
         raise InputError(f"--lights must be >= 0, got {args.lights}")
-    if not args.exposure > 0:
-        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_exposure(args.exposure)
     check_sample_count(args.samples)
     inputs = (args.file, args.solution)
     png = args.output or (None if args.hdr else "render.png")
@@ -303,8 +303,7 @@ def _video(args):
 
     if not 2 <= args.frames <= 100_000 or not 1 <= args.fps <= 240:
         raise InputError("--frames must be 2 to 100000 and --fps 1 to 240")
-    if not args.exposure > 0:
-        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_exposure(args.exposure)
     check_sample_count(args.samples)
     check_output(args.video, ".mp4", (args.file, args.solution), flag="--video")
     with _rendering(args) as (renderer, view, mode):
@@ -325,8 +324,7 @@ def _view(args):
     problem = display_problem()
     if problem is not None:
         raise InputError(f"no display to open a window on ({problem}); use 'vlights render' for pictures")
-    if not args.exposure > 0:
-        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_exposure(args.exposure)
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames must be >= 1, got {args.frames}")
     if set(args.press) - set("mgl+-p123"):
@@ -419,8 +417,7 @@ def _compare(args):
     from fitting import load_fit
     from radiosity.formats import load_solution
 
-    if not args.exposure > 0:
-        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_exposure(args.exposure)
     check_sample_count(args.samples)
     _check_truth_flags(args)
     _check_compare_inputs(args.fit, args.solution)
@@ -474,8 +471,7 @@ def _check_truth_flags(args):
         if not os.path.isfile(path):
             raise InputError(f"--truth {path!r} not found")
     check_spp(args.truth_spp, "--truth-spp", low=0)
-    if not 0 <= args.seed < 2**63:
-        raise InputError(f"--seed must be between 0 and 2^63, got {args.seed}")
+    check_seed(args.seed)
 
 
 def _compare_truths(args, solution, views):

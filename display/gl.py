@@ -19,12 +19,12 @@ block averaged (supersampling). ``check_samples`` refuses a count outside 1 to
 
 from __future__ import annotations
 
-import os
 from typing import NamedTuple
 
 import moderngl
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.limits import available_memory
 
 REQUIRED_VERSION = 330
 
@@ -151,35 +151,6 @@ def check_samples(ctx, samples, width, height, flag="--samples"):
             f"({w}x{h}, {plan.msaa}x MSAA), and this OpenGL draws images {beyond}; use fewer samples or a smaller size"
         )
     return plan
-
-
-def available_memory():
-    """Bytes of memory this process may still use: the kernel's MemAvailable, lowered
-    to what is left under a cgroup (container) limit; None where unknown."""
-    candidates = []
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    candidates.append(int(line.split()[1]) * 1024)
-                    break
-    except (OSError, ValueError, IndexError):
-        pass
-    if not candidates:
-        try:
-            candidates.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-        except (OSError, ValueError, AttributeError):
-            pass
-    try:
-        with open("/sys/fs/cgroup/memory.max") as f:
-            limit = f.read().strip()
-        with open("/sys/fs/cgroup/memory.current") as f:
-            used = int(f.read().strip())
-        if limit != "max":
-            candidates.append(max(int(limit) - used, 0))
-    except (OSError, ValueError):
-        pass
-    return min(candidates) if candidates else None
 
 
 def _size(n):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from radiosity.formats import InputError
+from radiosity.formats.limits import check_exposure, check_seed
 
 __all__ = ["GroundTruth", "against_truth", "ground_truth", "load_truth", "scene_for_truth"]
 
@@ -169,16 +170,14 @@ def run_truth_command(args):
     from display.cli import _Writer
     from display.renderer import tonemap
     from radiosity.formats import atomic_output, check_output, presets
-    from radiosity.transport.solve import available_memory
+    from radiosity.formats.limits import available_memory
 
     spp = args.spp if args.spp is not None else presets.preset(args.quality).truth_spp
     check_spp(spp)
     if args.threads is not None and args.threads < 1:
         raise InputError(f"--threads must be a whole number >= 1, got {args.threads}")
-    if not 0 <= args.seed < 2**63:
-        raise InputError(f"--seed must be between 0 and 2^63, got {args.seed}")
-    if not args.exposure > 0:
-        raise InputError(f"--exposure must be positive, got {args.exposure:g}")
+    check_seed(args.seed)
+    check_exposure(args.exposure)
     inputs = (args.input,) if os.path.exists(args.input) else ()
     png = args.output or (None if args.hdr else "truth.png")
     if png is not None:

@@ -34,6 +34,7 @@ import numba
 import numpy as np
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
 from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
@@ -476,8 +477,7 @@ class PathTracer:
         """
         check_samples(spp)
         check_samples(first_sample, "first sample", low=0)
-        if not 0 <= seed < 2**63:
-            raise InputError(f"--seed must be between 0 and 2^63, got {seed}")
+        check_seed(seed)
         width, height = camera.width, camera.height
         n_pixels = width * height
         cam = camera_rays(camera)

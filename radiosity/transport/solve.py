@@ -27,7 +27,6 @@ refinement) are refused with an InputError naming the estimate and the memory.
 from __future__ import annotations
 
 import math
-import os
 import time
 import warnings
 from collections import deque
@@ -40,6 +39,7 @@ import numpy as np
 from radiosity.formats import directions, presets
 from radiosity.formats.emitters import MAX_NODES
 from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.formats.limits import available_memory, check_seed
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.emitters import emitter_parts
@@ -158,8 +158,7 @@ class SolveOptions:
             from radiosity.transport.distributed import check_scheduler
 
             check_scheduler(self.scheduler)
-        if not 0 <= self.seed < 2**63:
-            raise InputError(f"--seed must be between 0 and 2^63, got {self.seed}")
+        check_seed(self.seed)
         if out["photons"] > MAX_PHOTONS:
             raise InputError(
                 f"--photons {out['photons']:,} is more than the {MAX_PHOTONS:,} (2^40) one run can trace; "
@@ -180,21 +179,6 @@ def _glossy_sizes(objects, settings):
         for o in objects
         if o.material.is_glossy
     ]
-
-
-def available_memory():
-    """Bytes of memory the machine can give this process now (MemAvailable), or None."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 def _gather_block_size(n_light, n_gather):
