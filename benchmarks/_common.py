@@ -107,7 +107,7 @@ def _trace_prange(rt, origins, directions, chunks, triangle):
         rayhit = new_rayhit()
         for k in range(c * n // chunks, (c + 1) * n // chunks):
             o, d = origins[k], directions[k]
-            triangle[k] = intersect1(rt, rayhit, o[0], o[1], o[2], d[0], d[1], d[2])[0]
+            triangle[k] = intersect1(rt, rayhit, (o[0], o[1], o[2]), (d[0], d[1], d[2]))[0]
 
 
 @numba.njit(cache=True, parallel=True)
@@ -117,21 +117,37 @@ def _occlude_prange(rt, origins, directions, distances, chunks, blocked):
         rayhit = new_rayhit()
         for k in range(c * n // chunks, (c + 1) * n // chunks):
             o, d = origins[k], directions[k]
-            blocked[k] = occluded1(rt, rayhit, o[0], o[1], o[2], d[0], d[1], d[2], distances[k])
+            blocked[k] = occluded1(rt, rayhit, (o[0], o[1], o[2]), (d[0], d[1], d[2]), distances[k])
+
+
+def _oracle():
+    """The tests' wavefront oracle module (tests/wavefront.py), imported from the tree."""
+    import sys
+    from pathlib import Path
+
+    tests = str(Path(__file__).resolve().parent.parent / "tests")
+    if tests not in sys.path:
+        sys.path.insert(0, tests)
+    import wavefront
+
+    return wavefront
 
 
 def photon_rays(tracer, sa, photons, seed=1):
     """(origins, directions) float32 (R, 3): every ray a photon pass of ``photons``
     photons traces in the scene of ``tracer`` (a ``RayTracer``) and ``sa`` (its
-    ``kernels.SceneArrays``), photon by photon, each from its emission to its end.
-    Recorded with the wavefront reference kernels (``kernels.emit_photons``,
-    ``kernels.bounce_photons``), which tests hold to the solver's rays bit for bit."""
-    from radiosity.transport import kernels
+    ``records.SceneArrays``), photon by photon, each from its emission to its end.
+    Recorded with the tests' readable wavefront oracle (tests/wavefront.py:
+    ``emit_photons``, ``bounce_photons``), which tests hold to the solver's rays bit
+    for bit."""
+    from radiosity.transport import records
     from radiosity.transport.solve import MAX_PHOTON_DEPTH
 
-    flying = kernels.empty_rays(photons)
-    kernels.emit_photons(sa, seed, 0, photons, flying)
-    out, acc = kernels.empty_rays(photons), kernels.empty_tally(len(sa.positions))
+    wavefront = _oracle()
+    batch = records.PhotonBatch(seed, 0, photons, photons, MAX_PHOTON_DEPTH)
+    flying = records.empty_rays(photons)
+    wavefront.emit_photons(sa, seed, 0, photons, flying)
+    out, acc = records.empty_rays(photons), records.empty_tally(len(sa.positions))
     ids, origins, directions = [], [], []
     for depth in range(MAX_PHOTON_DEPTH):
         if not len(flying.ids):
@@ -140,8 +156,8 @@ def photon_rays(tracer, sa, photons, seed=1):
         origins.append(flying.origins.copy())
         directions.append(flying.directions.copy())
         hits = tracer.intersect(flying.origins, flying.directions)
-        n = kernels.bounce_photons(sa, seed, depth, MAX_PHOTON_DEPTH, flying, hits, acc, out)
-        flying = kernels.Rays(*(a[:n].copy() for a in out))
+        n = wavefront.bounce_photons(sa, batch, depth, flying, hits, acc, out)
+        flying = records.Rays(*(a[:n].copy() for a in out))
     order = np.argsort(np.concatenate(ids), kind="stable")  # depth-major -> photon by photon
     return np.concatenate(origins)[order], np.concatenate(directions)[order]
 
@@ -149,12 +165,12 @@ def photon_rays(tracer, sa, photons, seed=1):
 def gather_rays(scene, merged, sa, quality, vertices_per_object=256, seed=1):
     """The first rays of the gather at ``quality`` from up to ``vertices_per_object``
     random vertices of each glossy object of ``scene`` (already refined; ``merged`` its
-    merged mesh, ``sa`` its ``kernels.SceneArrays``): the light
+    merged mesh, ``sa`` its ``records.SceneArrays``): the light
     samples' shadow rays (origins, directions, distances: those that can contribute)
     and the gather paths' first segments (origins, directions), as
-    ``kernels.make_gather_rays`` makes them. Later segments and the light samples at
+    ``gather.make_gather_rays`` makes them. Later segments and the light samples at
     glossy hits are not recorded: they leave the same surfaces for the same lights."""
-    from radiosity.transport import kernels
+    from radiosity.transport import gather, records
     from radiosity.transport.solve import MAX_GATHER_DEPTH, SolveOptions
 
     settings = SolveOptions(quality=quality).resolved(scene)
@@ -169,10 +185,10 @@ def gather_rays(scene, merged, sa, quality, vertices_per_object=256, seed=1):
     ).astype(np.int64)
     strata = int(np.sqrt(settings["gather_samples"]))
     n_light = settings["light_samples"]
-    block = kernels.GatherBlock(seed, vertices, n_light, strata, MAX_GATHER_DEPTH)
-    light = kernels.empty_light_samples(len(vertices) * n_light)
-    samples = kernels.empty_gather_samples(len(vertices) * strata * strata)
-    kernels.make_gather_rays(sa, block, light, samples)
+    block = records.GatherBlock(seed, vertices, n_light, strata, MAX_GATHER_DEPTH)
+    light = records.empty_light_samples(len(vertices) * n_light)
+    samples = records.empty_gather_samples(len(vertices) * strata * strata)
+    gather.make_gather_rays(sa, block, light, samples)
     used = light.pdf > 0
     shadow = (light.origins[used].copy(), light.directions[used].copy(), light.distances[used].copy())
     return shadow, (samples.origins.copy(), samples.directions.copy())

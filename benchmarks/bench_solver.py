@@ -161,14 +161,15 @@ def rays_per_second(record, scene, refined, photons, args):
 
 class GatherSplit:
     """Thread-seconds of the gather's two kernels while in use: tracing
-    (``kernels.trace_gather``: the rays and the shading at their hits) and the splat
-    (``kernels.gather_outputs``: every sample into the direction grid, no rays)."""
+    (``gather.trace_gather``: the rays and the shading at their hits) and the splat
+    (``gather.gather_outputs``: every sample into the direction grid, no rays), as
+    ``batches.gather_block`` calls them."""
 
     def __enter__(self):
         import threading
         import time
 
-        from radiosity.transport import kernels
+        from radiosity.transport import batches as kernels
 
         self.seconds = {"trace": 0.0, "splat": 0.0}
         self._saved = {"trace": kernels.trace_gather, "splat": kernels.gather_outputs}
@@ -190,7 +191,7 @@ class GatherSplit:
         return self
 
     def __exit__(self, *exc):
-        from radiosity.transport import kernels
+        from radiosity.transport import batches as kernels
 
         kernels.trace_gather, kernels.gather_outputs = self._saved["trace"], self._saved["splat"]
 

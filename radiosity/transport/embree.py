@@ -195,10 +195,10 @@ def new_rayhit():
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, tfar):
-    floats[ORG], floats[ORG + 1], floats[ORG + 2] = ox, oy, oz
+def _set_ray(floats, ints, origin, direction, tfar):
+    floats[ORG], floats[ORG + 1], floats[ORG + 2] = origin
     floats[TNEAR] = 0.0
-    floats[DIR], floats[DIR + 1], floats[DIR + 2] = dx, dy, dz
+    floats[DIR], floats[DIR + 1], floats[DIR + 2] = direction
     floats[TIME] = 0.0
     floats[TFAR] = tfar
     ints[MASK] = -1
@@ -210,12 +210,12 @@ def _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, tfar):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def intersect1(rt, rayhit, ox, oy, oz, dx, dy, dz):
-    """The closest hit of the ray (ox, oy, oz) + s (dx, dy, dz), s > 0 (float32 ray,
-    unit direction): (triangle int, MISS where none; t, u, v float32) as ``Hits``; a
-    miss has t = inf and u = v = 0."""
+def intersect1(rt, rayhit, origin, direction):
+    """The closest hit of the ray origin + s direction, s > 0 (3-tuples, stored as
+    float32; unit direction): (triangle int, MISS where none; t, u, v float32) as
+    ``Hits``; a miss has t = inf and u = v = 0."""
     floats, ints = rayhit
-    _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, FAR)
+    _set_ray(floats, ints, origin, direction, FAR)
     rt.intersect(rt.scene, floats.ctypes.data, 0)
     if ints[GEOM_ID] == INVALID_ID:
         return MISS, FAR, np.float32(0.0), np.float32(0.0)
@@ -223,10 +223,10 @@ def intersect1(rt, rayhit, ox, oy, oz, dx, dy, dz):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def occluded1(rt, rayhit, ox, oy, oz, dx, dy, dz, distance):
-    """Whether the segment (ox, oy, oz) + s (dx, dy, dz), 0 < s < distance, hits anything."""
+def occluded1(rt, rayhit, origin, direction, distance):
+    """Whether the segment origin + s direction, 0 < s < distance (3-tuples), hits anything."""
     floats, ints = rayhit
-    _set_ray(floats, ints, ox, oy, oz, dx, dy, dz, distance)
+    _set_ray(floats, ints, origin, direction, distance)
     rt.occluded(rt.scene, floats.ctypes.data, 0)
     return floats[TFAR] < 0.0  # Embree sets tfar to -inf on a hit
 
@@ -238,7 +238,7 @@ def intersect_rays(rt, origins, directions, hits, start, stop):
     rayhit = new_rayhit()
     for k in range(start, stop):
         tri, t, u, v = intersect1(
-            rt, rayhit, origins[k, 0], origins[k, 1], origins[k, 2], directions[k, 0], directions[k, 1], directions[k, 2]
+            rt, rayhit, (origins[k, 0], origins[k, 1], origins[k, 2]), (directions[k, 0], directions[k, 1], directions[k, 2])
         )
         hits.triangle[k] = tri
         hits.t[k] = t
@@ -254,8 +254,8 @@ def occluded_rays(rt, origins, directions, distances, blocked, start, stop):
         blocked[k] = occluded1(
             rt,
             rayhit,
-            origins[k, 0], origins[k, 1], origins[k, 2],
-            directions[k, 0], directions[k, 1], directions[k, 2],
+            (origins[k, 0], origins[k, 1], origins[k, 2]),
+            (directions[k, 0], directions[k, 1], directions[k, 2]),
             distances[k],
         )
 

@@ -38,13 +38,23 @@ from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
 from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
-from radiosity.transport.embree import RayTracer, default_threads, empty_hits, head_hits, intersect_rays, occluded_rays
-from radiosity.transport.kernels import (
-    _barycentric_point,
-    _roulette,
-    _shading_normal,
-    _toward_emitter,
-    rand,
+from radiosity.transport.embree import (
+    Hits,
+    RayTracer,
+    default_threads,
+    empty_hits,
+    head_hits,
+    intersect_rays,
+    occluded_rays,
+)
+from radiosity.transport.rng import rand
+from radiosity.transport.sampling import (
+    barycentric_point,
+    off_surface,
+    pick_emitter,
+    roulette,
+    shading_normal,
+    toward_light_point,
 )
 from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers, scene_arrays
 
@@ -155,6 +165,26 @@ def empty_shadow_rays(count):
     )
 
 
+class TileBuffers(NamedTuple):
+    """The buffers a tile's paths swap between, one row per path: the paths in flight
+    and those going on (``Paths``), the light samples waiting for their shadow rays
+    (``ShadowRays``), where the paths in flight landed (``embree.Hits``) and which
+    shadow rays were blocked ((count,) bool)."""
+
+    paths: Paths
+    spare: Paths
+    shadow: ShadowRays
+    hits: Hits
+    blocked: np.ndarray
+
+
+def empty_tile_buffers(count):
+    """``TileBuffers`` for ``count`` paths."""
+    return TileBuffers(
+        empty_paths(count), empty_paths(count), empty_shadow_rays(count), empty_hits(count), np.empty(count, dtype=bool)
+    )
+
+
 # -- kernels ------------------------------------------------------------------------------
 
 
@@ -192,29 +222,32 @@ def start_paths(cam, tile, out):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, s, path, throughput):
+def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     """Next-event estimate at ``point`` (front normal g, shading frame ``shading`` =
-    (t, b, n) as a 9-tuple, outgoing ``wo`` local): a point on an emitter chosen in
-    proportion to power, its contribution weighted by the power heuristic against
-    BRDF sampling, written as shadow ray s. Returns whether it was written."""
-    tri, area_pdf, (ox, oy, oz), (dx, dy, dz), dist, cos_light = _toward_emitter(
-        sa,
-        point,
-        g,
-        rand(seed, STREAM_PATH, key, base),
-        rand(seed, STREAM_PATH, key, base + 1),
-        rand(seed, STREAM_PATH, key, base + 2),
+    (t, b, n) as a 9-tuple, outgoing ``wo`` local), with the uniform numbers rnd = (u0,
+    u1, u2): a point on an emitter chosen in proportion to power, its contribution
+    weighted by the power heuristic against BRDF sampling. Returns (whether it can
+    contribute, the shadow ray's origin, direction and length, the RGB value it adds
+    to the path where the ray reaches the light)."""
+    nothing = (False, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+    tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rnd[0])
+    area_pdf = sa.emit_area_pdf[tri]
+    if area_pdf <= 0.0:
+        return nothing
+    origin = off_surface(point, g, sa.epsilon)
+    (dx, dy, dz), dist, cos_light = toward_light_point(
+        sa.positions, sa.faces, sa.face_normals, sa.epsilon, tri, origin, (rnd[1], rnd[2])
     )
-    if area_pdf <= 0.0 or dist <= 0.0:
-        return False
+    if dist <= 0.0:
+        return nothing
     if cos_light <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
-        return False
+        return nothing
     tx, ty, tz, bx, by, bz, nx, ny, nz = shading
     wix = dx * tx + dy * ty + dz * tz
     wiy = dx * bx + dy * by + dz * bz
     wiz = dx * nx + dy * ny + dz * nz
     if wiz <= 0.0:
-        return False
+        return nothing
     p_light = area_pdf * dist * dist / cos_light
     p_brdf = brdf_pdf(mat, wo[0], wo[1], wo[2], wix, wiy, wiz)
     ratio = p_brdf / p_light
@@ -222,13 +255,12 @@ def _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, s, pa
     f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
     le = sa.materials[sa.face_material[tri]]
     scale = weight * wiz / p_light
-    shadow.ids[s] = path
-    shadow.origins[s, 0], shadow.origins[s, 1], shadow.origins[s, 2] = ox, oy, oz
-    shadow.directions[s, 0], shadow.directions[s, 1], shadow.directions[s, 2] = dx, dy, dz
-    shadow.distances[s] = dist
-    for c in range(3):
-        shadow.values[s, c] = throughput[c] * f[c] * le[EMISSION + c] * scale
-    return True
+    value = (
+        throughput[0] * f[0] * le[EMISSION] * scale,
+        throughput[1] * f[1] * le[EMISSION + 1] * scale,
+        throughput[2] * f[2] * le[EMISSION + 2] * scale,
+    )
+    return True, origin, (dx, dy, dz), dist, value
 
 
 @numba.njit(cache=True, nogil=True)
@@ -278,8 +310,8 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         if max(mat[KD], mat[KD + 1], mat[KD + 2], mat[KS], mat[KS + 1], mat[KS + 2]) <= 0.0:
             continue  # a pure emitter (or black): reflects nothing
         uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
-        point = _barycentric_point(sa, t, uk, vk)
-        nx, ny, nz = _shading_normal(sa, t, uk, vk, d)
+        point = barycentric_point(sa, t, uk, vk)
+        nx, ny, nz = shading_normal(sa, t, uk, vk, d)
         tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
         wo = (
             -(d[0] * tx + d[1] * ty + d[2] * tz),
@@ -288,7 +320,15 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         )
         base = depth * DIMS_PER_BOUNCE
         shading = (tx, ty, tz, bx, by, bz, nx, ny, nz)
-        if _light_sample(sa, point, g, shading, wo, mat, seed, key, base, shadow, n_shadow, path, throughput):
+        rnd = (rand(seed, STREAM_PATH, key, base), rand(seed, STREAM_PATH, key, base + 1), rand(seed, STREAM_PATH, key, base + 2))
+        ok, origin, direction, dist, value = _light_sample(sa, point, g, shading, wo, mat, rnd, throughput)
+        if ok:
+            shadow.ids[n_shadow] = path
+            shadow.distances[n_shadow] = dist
+            for c in range(3):
+                shadow.origins[n_shadow, c] = origin[c]
+                shadow.directions[n_shadow, c] = direction[c]
+                shadow.values[n_shadow, c] = value[c]
             n_shadow += 1
         wix, wiy, wiz, pdf = brdf_sample(
             mat, wo[0], wo[1], wo[2],
@@ -303,7 +343,7 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         scale = wiz / pdf
         carried = (throughput[0] * f[0] * scale, throughput[1] * f[1] * scale, throughput[2] * f[2] * scale)
         if depth + 1 >= ROULETTE_DEPTH:
-            survives, carried = _roulette(carried, 1.0, rand(seed, STREAM_PATH, key, base + 6))
+            survives, carried = roulette(carried, 1.0, rand(seed, STREAM_PATH, key, base + 6))
             if not survives:
                 continue
         if carried[0] <= 0.0 and carried[1] <= 0.0 and carried[2] <= 0.0:
@@ -351,15 +391,15 @@ def _head_shadow(shadow, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_paths(rt, sa, cam, tile, paths, spare, shadow, hits, blocked, radiance):
+def trace_paths(rt, sa, cam, tile, buffers, radiance):
     """Trace every path of ``tile`` to its end through the scene ``rt``
     (``embree.Embree``), adding each path's radiance to ``radiance`` (tile paths, 3).
 
-    paths, spare : ``Paths``, shadow : ``ShadowRays``, hits : ``embree.Hits``, blocked :
-    (tile paths,) bool, the wavefront's buffers. Per bounce: every path in flight
+    buffers : ``TileBuffers`` of the tile's path count. Per bounce: every path in flight
     traced, ``shade``, the light samples' shadow rays traced, ``add_visible``.
     Returns (rays traced, of which shadow rays).
     """
+    paths, spare, shadow, hits, blocked = buffers
     n = tile.pixels * tile.samples
     start_paths(cam, tile, paths)
     rays = 0
@@ -389,10 +429,7 @@ def trace_tile(tracer, sa, cam, tile):
     and counted on ``tracer``."""
     n = tile.pixels * tile.samples
     radiance = np.zeros((n, 3))
-    rays, shadow_rays = trace_paths(
-        tracer.embree, sa, cam, tile, empty_paths(n), empty_paths(n), empty_shadow_rays(n), empty_hits(n),
-        np.empty(n, dtype=bool), radiance,
-    )
+    rays, shadow_rays = trace_paths(tracer.embree, sa, cam, tile, empty_tile_buffers(n), radiance)
     tracer.count(rays, shadow_rays)
     total = np.zeros((tile.pixels, 3))
     squares = np.zeros((tile.pixels, 3))

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from radiosity.scene.geometry import unique_edges
-from radiosity.transport.kernels import LUMINANCE as _LUMINANCE
+from radiosity.transport.gather import LUMINANCE as _LUMINANCE
 
 LUMINANCE = np.array(_LUMINANCE)
 RINGS = 2  # neighbours pooled for a vertex's noise

@@ -13,7 +13,7 @@ Phases
 
 Threads: batches (photons) and vertex blocks (gather) run concurrently, a thread
 each; a batch or a block is one jitted call that releases the GIL and traces its own
-rays, calling Embree directly (``kernels.trace_photons``, ``kernels.trace_gather``). Or Dask
+rays, calling Embree directly (``photons.trace_photons``, ``gather.trace_gather``). Or Dask
 (``SolveOptions(scheduler="dask" | "tcp://HOST:PORT")``, ``solve(..., client=)``): the
 same batches and blocks as tasks on a cluster, combined in the same order, so the
 same bits (``radiosity.transport.distributed``).
@@ -43,14 +43,29 @@ from radiosity.formats.limits import available_memory, check_seed
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene.emitters import emitter_parts
-from radiosity.scene.materials import albedo, pack_materials
-from radiosity.transport import density, highlights, kernels, regather
-from radiosity.transport.embree import RayTracer, default_threads, empty_hits, origin_offset
+from radiosity.transport import density, highlights, regather
+from radiosity.transport.batches import (  # noqa: F401 (the units of work, importable from the solver too)
+    ALBEDO_TABLE_SIZE,
+    MAX_GATHER_DEPTH,
+    MAX_PHOTON_DEPTH,
+    PHOTON_BATCH,
+    gather_block,
+    scene_arrays,
+    trace_photon_batch,
+)
+from radiosity.transport.embree import RayTracer, default_threads, origin_offset
+from radiosity.transport.records import (
+    T_ABSORBED,
+    T_BACKFACE,
+    T_ESCAPED,
+    T_HITS,
+    T_INCIDENT,
+    T_TERMINATED,
+    GatherBlock,
+    SceneArrays,
+    empty_tally,
+)
 
-MAX_PHOTON_DEPTH = 64
-MAX_GATHER_DEPTH = 8
-PHOTON_BATCH = 1 << 16
-ALBEDO_TABLE_SIZE = 129
 MAX_PHOTONS = 1 << 40  # ~1e12: days of tracing on any machine this runs on
 GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
 MAX_VISIBILITY_SAMPLES = 4096
@@ -198,7 +213,7 @@ def memory_estimate(settings, n_vertices, glossy):
     in_flight = 2 * settings["threads"] + 1  # ``_run_ordered`` keeps at most this many jobs
     photons = settings["photons"]
     batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
-    per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # the waves' ray buffers are small (kernels.PHOTON_WAVE rows)
+    per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # the waves' ray buffers are small (PHOTON_WAVE rows)
     n_light, n_gather = settings["light_samples"], settings["gather_samples"]
     block = _gather_block_size(n_light, n_gather)
     buffers = output = 0
@@ -267,76 +282,6 @@ def _progress_factory(enabled):
     return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, disable=None, **kw)
 
 
-def _emitter_table(power, faces_area2, chosen):
-    """(cdf, triangles, area pdf (T,)) of choosing a point on the ``chosen`` triangles
-    in proportion to their power (a cdf of one 1 and no area pdf where none emits)."""
-    emit_area_pdf = np.zeros(len(power))
-    emitting = np.nonzero((power > 0) & chosen)[0]
-    if len(emitting):
-        probability = power[emitting] / power[emitting].sum()
-        emit_area_pdf[emitting] = probability / (0.5 * faces_area2[emitting])
-        cdf = np.cumsum(probability)
-        cdf[-1] = 1.0
-    else:
-        cdf = np.ones(1)
-        emitting = np.zeros(1, dtype=np.int64)
-    return cdf, emitting.astype(np.int64), emit_area_pdf
-
-
-def scene_arrays(scene, merged, epsilon, analytic=()):
-    """The merged scene as the kernels read it (``kernels.SceneArrays``); ``analytic``
-    names the emitting objects whose direct glossy highlights the solver adds in closed
-    form (the gather leaves them out)."""
-    material_names = list(scene.materials)
-    table = pack_materials([scene.materials[n] for n in material_names])
-    cos_grid = np.linspace(0.0, 1.0, ALBEDO_TABLE_SIZE)
-    albedo_table = np.stack([albedo(scene.materials[n], cos_grid) for n in material_names])
-    object_material = np.array([material_names.index(o.material.name) for o in scene.objects])
-    face_material = object_material[merged.triangle_object].astype(np.int64)
-
-    positions = np.concatenate([o.positions for o in scene.objects])
-    faces = merged.faces.astype(np.int64)
-    tri = positions[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    twice_area = np.linalg.norm(cross, axis=1)
-    face_normals = cross / np.maximum(twice_area, 1e-300)[:, None]
-    power = np.pi * table[face_material, 7:10].sum(axis=1) * 0.5 * twice_area
-    cdf, emitting, emit_area_pdf = _emitter_table(power, twice_area, np.ones(len(faces), dtype=bool))
-    gathered = ~np.isin(merged.triangle_object, [i for i, o in enumerate(scene.objects) if o.name in set(analytic)])
-    direct = (cdf, emitting, emit_area_pdf) if gathered.all() else _emitter_table(power, twice_area, gathered)
-    return kernels.SceneArrays(
-        positions=positions,
-        normals=np.concatenate([o.normals for o in scene.objects]),
-        tangents=np.concatenate([o.tangents for o in scene.objects]),
-        faces=faces,
-        face_normals=face_normals,
-        face_material=face_material,
-        materials=table,
-        albedo_table=albedo_table,
-        emit_cdf=cdf,
-        emit_triangles=emitting,
-        emit_area_pdf=emit_area_pdf,
-        epsilon=float(epsilon),
-        direct_cdf=direct[0],
-        direct_triangles=direct[1],
-        direct_area_pdf=direct[2],
-    )
-
-
-def trace_photon_batch(tracer, sa, seed, first_id, count, total):
-    """Trace photons first_id .. first_id + count - 1 of ``total`` (one jitted call,
-    ``kernels.trace_photons``, which releases the GIL), counting their rays on
-    ``tracer`` (a ``RayTracer``, or anything with its ``embree`` and ``count``).
-
-    Returns their ``kernels.PhotonTally``: moment0 (N, 3), moment1 (N, 3, 2), tally
-    (T_LENGTH,), float64, all additive.
-    """
-    acc = kernels.empty_tally(len(sa.positions))
-    rays = kernels.trace_photons(tracer.embree, sa, seed, first_id, count, total, MAX_PHOTON_DEPTH, acc)
-    tracer.count(rays)
-    return acc
-
-
 def _run_ordered(workers, fn, jobs, combine, progress, weights):
     """Run ``fn(job)`` for every job on ``workers.pool``, a few at a time (jobs and
     weights may be lazy iterables), and ``combine`` the results in job order
@@ -365,7 +310,7 @@ class _Workers(NamedTuple):
     pool: ThreadPoolExecutor
     threads: int
     tracer: RayTracer
-    sa: kernels.SceneArrays
+    sa: SceneArrays
     seed: int
 
 
@@ -466,7 +411,7 @@ def _solve(scene, settings, runner, progress):
     # -- photons ------------------------------------------------------------------
     t0 = time.perf_counter()
     total = settings["photons"]
-    photon_sums = kernels.empty_tally(len(sa.positions))
+    photon_sums = empty_tally(len(sa.positions))
     emitted = np.zeros(3)
     for o in refined.emitters:
         emitted += o.emitted_power
@@ -560,12 +505,12 @@ def _solve(scene, settings, runner, progress):
         "regather": regathered,
         "energy": {
             "emitted": emitted.tolist(),
-            "escaped": tally[kernels.T_ESCAPED:kernels.T_ESCAPED + 3].tolist(),
-            "absorbed": tally[kernels.T_ABSORBED:kernels.T_ABSORBED + 3].tolist(),
-            "backface": tally[kernels.T_BACKFACE:kernels.T_BACKFACE + 3].tolist(),
-            "terminated": tally[kernels.T_TERMINATED:kernels.T_TERMINATED + 3].tolist(),
-            "incident": tally[kernels.T_INCIDENT:kernels.T_INCIDENT + 3].tolist(),
-            "photon_hits": int(tally[kernels.T_HITS]),
+            "escaped": tally[T_ESCAPED:T_ESCAPED + 3].tolist(),
+            "absorbed": tally[T_ABSORBED:T_ABSORBED + 3].tolist(),
+            "backface": tally[T_BACKFACE:T_BACKFACE + 3].tolist(),
+            "terminated": tally[T_TERMINATED:T_TERMINATED + 3].tolist(),
+            "incident": tally[T_INCIDENT:T_INCIDENT + 3].tolist(),
+            "photon_hits": int(tally[T_HITS]),
         },
     }
     for o, _, radiance in results:
@@ -623,7 +568,7 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         pass_seed = regather.pass_seed(seed, k)
         return [
             (
-                kernels.GatherBlock(
+                GatherBlock(
                     pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0
                 ),
                 obj,
@@ -685,27 +630,3 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         for obj, _, _ in glossy
     }
     return radiance, info
-
-
-def gather_block(tracer, sa, irradiance, block, material, dirs):
-    """Outgoing radiance (B, D, 3) float64 of a ``kernels.GatherBlock`` of vertices of
-    one glossy object of ``material``, in the local directions ``dirs`` (D, 3) float64,
-    and the variance of each vertex's estimate (B,) (its luminance's, summed over the
-    directions; see ``kernels.gather_outputs``; empty unless ``block.measure_noise``). Its rays are traced in one jitted call
-    (``kernels.trace_gather``) and counted on ``tracer`` (see ``trace_photon_batch``)."""
-    b = len(block.vertices)
-    n_gather = block.strata * block.strata
-    light = kernels.empty_light_samples(b * block.n_light)
-    samples = kernels.empty_gather_samples(b * n_gather)
-    paths, spare, hits = kernels.empty_rays(b * n_gather), kernels.empty_rays(b * n_gather), empty_hits(b * n_gather)
-    pdfs = np.empty((2, b * n_gather))
-    rays, shadow = kernels.trace_gather(tracer.embree, sa, irradiance, block, light, samples, paths, spare, pdfs, hits)
-    tracer.count(rays, shadow)
-
-    values = np.empty((b, len(dirs), 3))
-    mat = pack_materials([material])[0]
-    emission = np.asarray(material.emission, dtype=np.float64)
-    diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
-    variance = np.empty(b if block.measure_noise else 0)
-    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, values, variance)
-    return values, variance

@@ -1,18 +1,21 @@
 """Kernels that call Embree directly (``embree.intersect1`` / ``occluded1`` from numba)
 against the way rays were traced before: embreex's batched ``EmbreeScene.run``, with
 Python between wavefronts. Hits must be bit-identical to embreex's on random rays, and
-a gather block and a path-traced tile must give the same bits as the same kernels
-driven wavefront by wavefront through embreex; a photon batch (traced in waves) the
+a gather block must give the same bits as the readable oracle (tests/wavefront.py)
+driven wavefront by wavefront through embreex, a path-traced tile as its own kernels
+driven so; a photon batch (traced in waves) the
 same bits photon by photon and as one wave, and the same sums up to the order of their
 terms in waves of any size."""
 
 import numpy as np
 import pytest
+import wavefront
 
 from radiosity.formats import directions
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import pack_materials
-from radiosity.transport import kernels, pathtrace, solve
+from radiosity.transport import gather, pathtrace, records, solve
+from radiosity.transport import photons as photons_kernel
 from radiosity.transport.embree import MISS, Hits, RayTracer, new_rayhit, origin_offset
 
 embreex = pytest.importorskip("embreex")
@@ -115,18 +118,19 @@ def test_an_empty_scene_misses_everything():
 
 def embreex_photon_wavefront(sa, reference, seed, first, count, total):
     """The photon tally of photons first .. first + count - 1 traced wavefront by
-    wavefront through embreex (``emit_photons``, then per depth ``bounce_photons``),
-    and the rays traced."""
-    expected = kernels.empty_tally(len(sa.positions))
-    photons = kernels.empty_rays(count)
-    kernels.emit_photons(sa, seed, first, total, photons)
-    out = kernels.empty_rays(count)
+    wavefront through embreex (the oracle's ``emit_photons``, then per depth
+    ``bounce_photons``), and the rays traced."""
+    batch = records.PhotonBatch(seed, first, count, total, solve.MAX_PHOTON_DEPTH)
+    expected = records.empty_tally(len(sa.positions))
+    photons = records.empty_rays(count)
+    wavefront.emit_photons(sa, seed, first, total, photons)
+    out = records.empty_rays(count)
     depth = rays = 0
     while len(photons.ids):
         hits = reference.intersect(photons.origins, photons.directions)
         rays += len(photons.ids)
-        n = kernels.bounce_photons(sa, seed, depth, solve.MAX_PHOTON_DEPTH, photons, hits, expected, out)
-        photons = kernels.Rays(*(a[:n].copy() for a in out))
+        n = wavefront.bounce_photons(sa, batch, depth, photons, hits, expected, out)
+        photons = records.Rays(*(a[:n].copy() for a in out))
         depth += 1
     return expected, rays
 
@@ -154,12 +158,12 @@ def test_a_photon_batch_sums_the_same_deposits_as_the_embreex_wavefront(teapot):
     # order of their terms (wave by wave against depth by depth), so by rounding
     _, _, sa, tracer, reference = teapot
     seed, first, count, total = 3, 70_000, 20_000, 1_000_000
-    assert count > 10 * kernels.PHOTON_WAVE  # many waves
+    assert count > 10 * records.PHOTON_WAVE  # many waves
     expected, rays = embreex_photon_wavefront(sa, reference, seed, first, count, total)
     before = tracer.rays_cast
     got = solve.trace_photon_batch(tracer, sa, seed, first, count, total)
     assert tracer.rays_cast - before == rays > count
-    assert got.tally[kernels.T_HITS] == expected.tally[kernels.T_HITS]
+    assert got.tally[records.T_HITS] == expected.tally[records.T_HITS]
     for a, b in zip(got, expected):
         assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
         assert not np.array_equal(a, np.zeros_like(a))
@@ -171,8 +175,10 @@ def test_a_batch_traced_as_one_wave_gives_the_same_bits_as_the_embreex_wavefront
     _, _, sa, tracer, reference = teapot
     seed, first, count, total = 5, 3_000, 3_000, 1_000_000
     expected, rays = embreex_photon_wavefront(sa, reference, seed, first, count, total)
-    got = kernels.empty_tally(len(sa.positions))
-    traced = kernels.trace_photons(tracer.embree, sa, seed, first, count, total, solve.MAX_PHOTON_DEPTH, got, count)
+    got = records.empty_tally(len(sa.positions))
+    traced = photons_kernel.trace_photons(
+        tracer.embree, sa, records.PhotonBatch(seed, first, count, total, solve.MAX_PHOTON_DEPTH, count), got
+    )
     assert traced == rays
     for a, b in zip(got, expected):
         assert np.array_equal(a, b)
@@ -185,13 +191,15 @@ def test_the_wave_size_changes_only_the_rounding(teapot, wave):
     _, _, sa, tracer, _ = teapot
     seed, first, count, total = 2, 500, 2_500, 1_000_000
     sums = []
-    for w in (kernels.PHOTON_WAVE, wave):
-        acc = kernels.empty_tally(len(sa.positions))
-        rays = kernels.trace_photons(tracer.embree, sa, seed, first, count, total, solve.MAX_PHOTON_DEPTH, acc, w)
+    for w in (records.PHOTON_WAVE, wave):
+        acc = records.empty_tally(len(sa.positions))
+        rays = photons_kernel.trace_photons(
+            tracer.embree, sa, records.PhotonBatch(seed, first, count, total, solve.MAX_PHOTON_DEPTH, w), acc
+        )
         sums.append((rays, acc))
     (rays_a, a), (rays_b, b) = sums
     assert rays_a == rays_b > count
-    assert a.tally[kernels.T_HITS] == b.tally[kernels.T_HITS]
+    assert a.tally[records.T_HITS] == b.tally[records.T_HITS]
     for x, y in zip(a, b):
         assert np.allclose(x, y, rtol=1e-12, atol=1e-12 * np.abs(y).max())
 
@@ -203,17 +211,17 @@ def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot
     first = merged.vertex_offset[index]
     irradiance = rng.uniform(0, 5, (len(sa.positions), 3))
     vertices = np.linspace(first, first + teapot_object.n_vertices - 1, 60).astype(np.int64)  # top to bottom
-    block = kernels.GatherBlock(5, vertices, 4, 5, solve.MAX_GATHER_DEPTH)
+    block = records.GatherBlock(5, vertices, 4, 5, solve.MAX_GATHER_DEPTH)
     dirs = directions.grid_directions(9)
 
     b, n_gather = len(block.vertices), block.strata**2
-    light = kernels.empty_light_samples(b * block.n_light)
-    samples = kernels.empty_gather_samples(b * n_gather)
-    kernels.make_gather_rays(sa, block, light, samples)
+    light = records.empty_light_samples(b * block.n_light)
+    samples = records.empty_gather_samples(b * n_gather)
+    gather.make_gather_rays(sa, block, light, samples)
     valid = light.pdf > 0
     light.visible[valid] = ~reference.occluded(light.origins[valid], light.directions[valid], light.distances[valid])
-    paths = kernels.Rays(np.arange(b * n_gather), np.ones((b * n_gather, 3)), samples.origins, samples.directions)
-    out = kernels.empty_rays(b * n_gather)
+    paths = records.Rays(np.arange(b * n_gather), np.ones((b * n_gather, 3)), samples.origins, samples.directions)
+    out = records.empty_rays(b * n_gather)
     pdf, out_pdf = np.zeros(b * n_gather), np.zeros(b * n_gather)
     rayhit = new_rayhit()  # the glossy hits' light samples are traced inside shade_paths
     lobe_samples = 0
@@ -221,17 +229,17 @@ def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot
         if not len(paths.ids):
             break
         hits = reference.intersect(paths.origins, paths.directions)
-        n, traced = kernels.shade_paths(
-            tracer.embree, rayhit, sa, irradiance, block, depth, paths, pdf, hits, samples, out, out_pdf
+        n, traced = wavefront.shade_paths(
+            (tracer.embree, rayhit), sa, irradiance, block, depth, (paths, pdf, hits), samples, (out, out_pdf)
         )
         lobe_samples += traced
-        paths = kernels.Rays(*(a[:n].copy() for a in out))
+        paths = records.Rays(*(a[:n].copy() for a in out))
         pdf = out_pdf[:n].copy()
     assert lobe_samples > 0  # paths met glossy surfaces and sampled the light there
     expected, expected_variance = np.empty((b, len(dirs), 3)), np.empty(b)
     material = teapot_object.material
     diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
-    kernels.gather_outputs(
+    gather.gather_outputs(
         pack_materials([material])[0],
         np.asarray(material.emission, float),
         diffuse,

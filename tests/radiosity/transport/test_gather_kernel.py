@@ -5,7 +5,7 @@ import pytest
 
 from radiosity.formats import directions
 from radiosity.scene.materials import Material, pack_materials
-from radiosity.transport import kernels
+from radiosity.transport import gather, records
 
 
 def test_concentric_map_never_shrinks_angles_below_the_window_bound(rng):
@@ -16,7 +16,7 @@ def test_concentric_map_never_shrinks_angles_below_the_window_bound(rng):
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", wp, wq), -1, 1))
     distance = np.abs(p - q).max(axis=1)
     ok = distance > 1e-9
-    assert (angle[ok] / distance[ok]).min() > 1.0 / kernels.SQUARE_PER_RADIAN
+    assert (angle[ok] / distance[ok]).min() > 1.0 / gather.SQUARE_PER_RADIAN
 
 
 @pytest.mark.parametrize("exponent, grid_n", [(0.0, 6), (1.0, 8), (8.0, 9), (120.0, 17), (1000.0, 40), (1e4, 64)])
@@ -43,19 +43,19 @@ def test_windowed_outputs_equal_brute_force(rng, exponent, grid_n):
     emission = np.array([0.1, 0.0, 0.2])
     diffuse = rng.uniform(0, 1, (blocks, 3))
     out = np.empty((blocks, len(dirs), 3))
-    light = kernels.empty_light_samples(blocks * n_light)._replace(
+    light = records.empty_light_samples(blocks * n_light)._replace(
         wi=light_wi, radiance=light_le, pdf=light_pdf, visible=visible
     )
-    samples = kernels.empty_gather_samples(blocks * n_gather)._replace(wi=gather_wi, incoming=incoming)
+    samples = records.empty_gather_samples(blocks * n_gather)._replace(wi=gather_wi, incoming=incoming)
     variance = np.empty(blocks)
-    kernels.gather_outputs(mat, emission, diffuse, light, samples, dirs, out, variance)
+    gather.gather_outputs(mat, emission, diffuse, light, samples, dirs, out, variance)
 
     expected = np.empty_like(out)
     truncated = np.empty_like(out)
     bound = np.empty((blocks, 3))
     expected_variance = np.empty(blocks)
-    lum = np.array(kernels.LUMINANCE)
-    cos_min = np.exp(np.log(kernels.LOBE_CUTOFF) / exponent) if exponent > 0 else 0.0
+    lum = np.array(gather.LUMINANCE)
+    cos_min = np.exp(np.log(gather.LOBE_CUTOFF) / exponent) if exponent > 0 else 0.0
     norm = (exponent + 2) / (2 * np.pi)
     for b in range(blocks):
         lw = light_wi[b * n_light:(b + 1) * n_light]
@@ -79,7 +79,7 @@ def test_windowed_outputs_equal_brute_force(rng, exponent, grid_n):
             for group in (terms[:n_light], terms[n_light:])
         ).clip(0).sum()
         # each sample loses at most LOBE_CUTOFF of its peak, norm * ks * weight
-        bound[b] = norm * ks * kernels.LOBE_CUTOFF * weights.sum(axis=0)
+        bound[b] = norm * ks * gather.LOBE_CUTOFF * weights.sum(axis=0)
     # exactly the truncated sum, up to the table's interpolation
     assert np.allclose(out, truncated, rtol=1e-5, atol=1e-12)
     # and the truncation loses no more than it may

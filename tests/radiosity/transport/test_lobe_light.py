@@ -1,4 +1,4 @@
-"""The light sample at the glossy hits of gather paths (``kernels.shade_paths``)
+"""The light sample at the glossy hits of gather paths (``gather.trace_gather``)
 against deterministic quadrature: it changes the noise, not the answer.
 
 A glossy plate looks down at a glossy floor that reflects a small lamp; the lamp faces
@@ -19,7 +19,7 @@ from analytic import GLOSSY_RELAY, glossy_relay_radiance
 
 from radiosity.formats import directions
 from radiosity.scene.loaders import load_scene
-from radiosity.transport import kernels, solve
+from radiosity.transport import gather, records, solve
 from radiosity.transport.embree import RayTracer, origin_offset
 
 
@@ -45,9 +45,9 @@ def gather_passes(setup, lobe_light, passes, seed0):
     irradiance = np.zeros((len(sa.positions), 3))
     out = []
     for p in range(passes):
-        block = kernels.GatherBlock(seed0 + p, vertices, 4, 32, 2, lobe_light)
+        block = records.GatherBlock(seed0 + p, vertices, 4, 32, 2, lobe_light)
         values, _ = solve.gather_block(tracer, sa, irradiance, block, plate.material, dirs)
-        out.append(values @ np.array(kernels.LUMINANCE))
+        out.append(values @ np.array(gather.LUMINANCE))
     return np.array(out), plate, dirs
 
 

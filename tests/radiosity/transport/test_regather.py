@@ -9,7 +9,7 @@ from analytic import GLOSSY_RELAY, glossy_relay_radiance
 
 from radiosity.formats.errors import InputError
 from radiosity.scene.loaders import load_scene
-from radiosity.transport import kernels, regather
+from radiosity.transport import gather, regather
 from radiosity.transport import solve as solve_module
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -113,7 +113,7 @@ def test_extra_passes_keep_the_answer_and_pass_0_bits(relay, monkeypatch):
             for v in range(len(p0.positions))
         ]
     )
-    lum = np.array(kernels.LUMINANCE)
+    lum = np.array(gather.LUMINANCE)
     bright = expected > 0.1 * expected.max()
     errors = []
     for sol in (p0, p1):

@@ -3,14 +3,14 @@
 import numba
 import numpy as np
 
-from radiosity.transport import kernels
+from radiosity.transport import sampling
 
 
 @numba.njit
 def _search_all(cdf, us):
     out = np.empty(len(us), np.int64)
     for i in range(len(us)):
-        out[i] = kernels._search_cdf(cdf, us[i])
+        out[i] = sampling.search_cdf(cdf, us[i])
     return out
 
 

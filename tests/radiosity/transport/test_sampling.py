@@ -1,10 +1,10 @@
-"""Small numba helpers of radiosity.transport.kernels that both the photon bounce and
+"""Small numba helpers of radiosity.transport.sampling that both the photon bounce and
 the gather continuation use."""
 
 import numpy as np
 import pytest
 
-from radiosity.transport import kernels
+from radiosity.transport import sampling
 
 
 @pytest.mark.parametrize(
@@ -19,7 +19,7 @@ from radiosity.transport import kernels
 )
 def test_roulette_survival_and_weight(value, reference, survive):
     for u in (0.0, 0.2499, 0.4999, 0.5, 0.9999):
-        survives, carried = kernels._roulette(value, reference, u)
+        survives, carried = sampling.roulette(value, reference, u)
         assert survives == (u < survive)
         if survives:
             assert carried == pytest.approx(tuple(v / survive for v in value), rel=1e-15)
@@ -30,7 +30,7 @@ def test_roulette_is_unbiased_and_keeps_weights_near_the_reference(rng):
     total = np.zeros(3)
     n = 20_000
     for u in rng.random(n):
-        survives, carried = kernels._roulette(value, reference, u)
+        survives, carried = sampling.roulette(value, reference, u)
         if survives:
             total += carried
             assert max(carried) == pytest.approx(reference)

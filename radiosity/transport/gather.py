@@ -1,0 +1,400 @@
+"""The solver's gather phase: the outgoing radiance of a block of glossy vertices in
+every direction of their grid, from light samples and gather paths traced by one
+jitted kernel (``trace_gather``, calling Embree directly and releasing the GIL) and
+summed over each sample's Phong lobe by ``gather_outputs``.
+
+A gather block goes wavefront-style inside ``trace_gather``: its rays are made
+(``make_gather_rays``), its light samples' shadow rays traced, then per depth every
+path in flight is traced and its hit shaded. The readable form of the shading, on
+records (``shade_paths``), is the tests' oracle (tests/wavefront.py), which the kernel
+matches bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from radiosity.formats.directions import hemisphere_to_square_nb
+from radiosity.scene.materials import EMISSION, EXPONENT, KD, KS, brdf_sample, onb, phong_lobe
+from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
+from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
+from radiosity.transport.sampling import (
+    cosine_direction,
+    facing,
+    lerp3,
+    off_surface,
+    pick_emitter,
+    roulette,
+    toward_light_point,
+)
+
+LOBE_CUTOFF = 1e-3  # gather: lobe values below this fraction of the peak are skipped (<= 0.1 % of its energy)
+LOBE_TABLE = 2048  # entries of the cos^n table
+# the concentric map shrinks no angle by more than 0.73 (square max-norm units per radian
+# at least 1 / 0.73, measured over 2e6 random pairs; tests check it): 0.7 leaves a margin
+SQUARE_PER_RADIAN = 1.0 / 0.7
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709: the gather's noise is measured in luminance
+
+
+@numba.njit(cache=True, nogil=True)
+def make_gather_rays(sa, block, light, samples):
+    """Rays for the vertices of one ``GatherBlock``: ``block.n_light`` light samples
+    (shadow rays, into ``light``: ``LightSamples``) and ``block.strata``^2 stratified
+    cosine-weighted gather rays (into ``samples``: ``GatherSamples``) per vertex.
+    Directions are also kept in the vertex's local frame (x tangent, y bitangent,
+    z normal).
+
+    light.pdf is the solid-angle density of the light sample, 0 for a sample that
+    cannot contribute (behind the vertex or seeing the light's back).
+    """
+    seed, n_light, strata = block.seed, block.n_light, block.strata
+    n_gather = strata * strata
+    for b in range(len(block.vertices)):
+        vert = block.vertices[b]
+        px, py, pz = sa.positions[vert, 0], sa.positions[vert, 1], sa.positions[vert, 2]
+        nx, ny, nz = sa.normals[vert, 0], sa.normals[vert, 1], sa.normals[vert, 2]
+        tx, ty, tz = sa.tangents[vert, 0], sa.tangents[vert, 1], sa.tangents[vert, 2]
+        bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+        ox, oy, oz = px + sa.epsilon * nx, py + sa.epsilon * ny, pz + sa.epsilon * nz
+        for m in range(n_light):
+            i = b * n_light + m
+            item = vert * n_light + m
+            light.origins[i, 0], light.origins[i, 1], light.origins[i, 2] = ox, oy, oz
+            light.pdf[i] = 0.0
+            light.distances[i] = 0.0
+            light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = nx, ny, nz
+            tri = pick_emitter(sa.direct_cdf, sa.direct_triangles, rand(seed, STREAM_LIGHT, item, 0))
+            area_pdf = sa.direct_area_pdf[tri]
+            if area_pdf <= 0.0:
+                continue
+            (dx, dy, dz), dist, cos_light = toward_light_point(
+                sa.positions, sa.faces, sa.face_normals, sa.epsilon, tri, (ox, oy, oz),
+                (rand(seed, STREAM_LIGHT, item, 1), rand(seed, STREAM_LIGHT, item, 2)),
+            )  # fmt: skip
+            wz = dx * nx + dy * ny + dz * nz
+            if dist <= 0.0 or cos_light <= 0.0 or wz <= 0.0:
+                continue
+            light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = dx, dy, dz
+            light.distances[i] = dist
+            light.wi[i, 0] = dx * tx + dy * ty + dz * tz
+            light.wi[i, 1] = dx * bx + dy * by + dz * bz
+            light.wi[i, 2] = wz
+            light.pdf[i] = area_pdf * dist * dist / cos_light
+            mat = sa.face_material[tri]
+            for c in range(3):
+                light.radiance[i, c] = sa.materials[mat, EMISSION + c]
+        for k in range(n_gather):
+            i = b * n_gather + k
+            item = vert * n_gather + k
+            kx, ky = k % strata, k // strata
+            lx, ly, lz = cosine_direction(
+                (kx + rand(seed, STREAM_GATHER, item, 0)) / strata,
+                (ky + rand(seed, STREAM_GATHER, item, 1)) / strata,
+            )
+            samples.wi[i, 0], samples.wi[i, 1], samples.wi[i, 2] = lx, ly, lz
+            samples.directions[i, 0] = lx * tx + ly * bx + lz * nx
+            samples.directions[i, 1] = lx * ty + ly * by + lz * ny
+            samples.directions[i, 2] = lx * tz + ly * bz + lz * nz
+            samples.origins[i, 0], samples.origins[i, 1], samples.origins[i, 2] = ox, oy, oz
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
+    """Trace the light samples and gather paths of a ``GatherBlock`` through the scene
+    ``rt`` (``embree.Embree``): fills ``light`` (``LightSamples``) and ``samples``
+    (``GatherSamples``, the radiance arriving along each gather ray) for
+    ``gather_outputs``. ``buffers`` : ``PathBuffers`` of the block's gather-ray count.
+    Returns (rays traced, of which shadow rays).
+
+    Per depth, every path in flight is traced, and at its hit ``samples.incoming[id]``
+    gains throughput * (emitted + diffusely reflected radiance). The emitted part is
+    weighted by the balance heuristic against the light sample that saw it too: on the
+    first segment (depth 0) the ``block.n_light`` light samples of the vertex (the
+    gather ray's density is cos / pi, its cosine at the vertex being
+    ``samples.wi[id, 2]``), later the previous vertex's light sample (the ray's density
+    the lobe's). The diffuse part is kd / pi times the irradiance interpolated at the
+    hit. At a glossy surface the path goes on through the specular lobe (the diffuse
+    lobe's light is in the irradiance), with Russian roulette, so light that passes
+    from glossy to glossy is not lost.
+
+    There a light sample also catches the emitters the lobe reflects (without it, a
+    lamp seen in a glossy neighbour was found only by chance and made the heavy-tailed
+    outliers that showed as blotches): a point on an emitter (numbers from
+    ``STREAM_GATHER + 2``) and its shadow ray, weighted by the balance heuristic against
+    the lobe's continuation: f_s cos / (p_light + p_lobe), with f_s = ks (n + 2) / (2 pi)
+    cos^n alpha and p_lobe = (n + 1) / (2 pi) cos^n alpha, alpha measured from the
+    mirror direction. Directions the continuation cannot produce (below the shading or
+    the true surface) are skipped by both. ``block.lobe_light`` False leaves that
+    sample out (the same expected value, more noise; for tests). An analytic emitter
+    part's direct highlight is left out (the solver adds it in closed form).
+
+    A path's id indexes the block's gather samples (vertex ``block.vertices[id //
+    n_gather]``, sample ``id % n_gather``), which also key the random numbers. The
+    records are unpacked into locals once (see ``photons.trace_photons``), with the
+    call's own copy of the small material table.
+    """
+    make_gather_rays(sa, block, light, samples)
+    positions, normals, faces, face_normals = sa.positions, sa.normals, sa.faces, sa.face_normals
+    face_material, materials, epsilon = sa.face_material, sa.materials.copy(), sa.epsilon
+    emit_cdf, emit_triangles, emit_area_pdf, direct_area_pdf = (
+        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf,
+    )  # fmt: skip
+    seed, n_light, n_gather, max_depth = block.seed, block.n_light, block.strata * block.strata, block.max_depth
+    vertices, lobe_light = block.vertices, block.lobe_light
+    sample_wi, incoming = samples.wi, samples.incoming
+    rayhit = new_rayhit()
+    shadow = 0
+    for i in range(len(light.pdf)):
+        if light.pdf[i] > 0.0:
+            lo, ld = light.origins, light.directions
+            light.visible[i] = not occluded1(
+                rt, rayhit, (lo[i, 0], lo[i, 1], lo[i, 2]), (ld[i, 0], ld[i, 1], ld[i, 2]), light.distances[i]
+            )
+            shadow += 1
+    paths, spare, hits = buffers.paths, buffers.spare, buffers.hits
+    n = len(sample_wi)
+    for k in range(n):
+        paths.ids[k] = k
+        for c in range(3):
+            paths.values[k, c] = 1.0
+            paths.origins[k, c] = samples.origins[k, c]
+            paths.directions[k, c] = samples.directions[k, c]
+    rays = shadow
+    path_pdf, out_pdf = buffers.pdfs[0], buffers.pdfs[1]
+    has_lights = len(emit_triangles) > 0 and lobe_light
+    triangle, hit_u, hit_v = hits.triangle, hits.u, hits.v
+    for depth in range(max_depth):
+        if n == 0:
+            break
+        intersect_rays(rt, paths.origins, paths.directions, hits, 0, n)
+        ids, values, origins, directions = paths.ids, paths.values, paths.origins, paths.directions
+        out_ids, out_values, out_origins, out_directions = spare.ids, spare.values, spare.origins, spare.directions
+        n_out = 0
+        traced = 0
+        for k in range(n):
+            t = triangle[k]
+            if t < 0:
+                continue
+            d = (directions[k, 0], directions[k, 1], directions[k, 2])
+            gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+            if d[0] * gx + d[1] * gy + d[2] * gz >= 0.0:
+                continue
+            uk, vk = np.float64(hit_u[k]), np.float64(hit_v[k])
+            w = 1.0 - uk - vk
+            i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+            px, py, pz = lerp3(positions, i0, i1, i2, w, uk, vk)
+            m = face_material[t]
+            target = ids[k]
+            weight = 1.0
+            if depth == 0 and emit_area_pdf[t] > 0.0 and direct_area_pdf[t] <= 0.0:
+                weight = 0.0  # an analytic emitter part: its direct highlight is added in closed form
+            elif emit_area_pdf[t] > 0.0 and (depth > 0 or n_light > 0):
+                cos_light = -(d[0] * gx + d[1] * gy + d[2] * gz)
+                ex, ey, ez = px - origins[k, 0], py - origins[k, 1], pz - origins[k, 2]
+                dist = math.sqrt(ex * ex + ey * ey + ez * ez)
+                if depth == 0:
+                    p_light = direct_area_pdf[t] * dist * dist / cos_light
+                    p_gather = sample_wi[target, 2] / math.pi
+                    weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
+                elif lobe_light:
+                    p_light = emit_area_pdf[t] * dist * dist / cos_light
+                    weight = path_pdf[k] / (path_pdf[k] + p_light)
+            for c in range(3):
+                e = w * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]
+                radiance = weight * materials[m, EMISSION + c] + materials[m, KD + c] / math.pi * e
+                incoming[target, c] += values[k, c] * radiance
+            ks0, ks1, ks2 = materials[m, KS], materials[m, KS + 1], materials[m, KS + 2]
+            if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:
+                continue
+            item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+            nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, uk, vk), d, (gx, gy, gz))
+            exponent = materials[m, EXPONENT]
+            if has_lights:
+                # the light sample at the glossy hit
+                tri = pick_emitter(emit_cdf, emit_triangles, rand(seed, STREAM_GATHER + 2, item, 0))
+                area_pdf = emit_area_pdf[tri]
+                origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
+                (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
+                if area_pdf > 0.0:
+                    (dx, dy, dz), dist, cos_light = toward_light_point(
+                        positions, faces, face_normals, epsilon, tri, origin,
+                        (rand(seed, STREAM_GATHER + 2, item, 1), rand(seed, STREAM_GATHER + 2, item, 2)),
+                    )  # fmt: skip
+                if dist > 0.0:
+                    cos_i = dx * nx + dy * ny + dz * nz
+                    if cos_light > 0.0 and cos_i > 0.0 and dx * gx + dy * gy + dz * gz > 0.0:
+                        dn = d[0] * nx + d[1] * ny + d[2] * nz
+                        cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+                        if cos_alpha > 0.0:
+                            lobe = phong_lobe(min(cos_alpha, 1.0), exponent)
+                            if lobe > 0.0:
+                                traced += 1
+                                if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist):
+                                    p_light = area_pdf * dist * dist / cos_light
+                                    p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
+                                    scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
+                                    lm = face_material[tri]
+                                    incoming[target, 0] += values[k, 0] * (ks0 * materials[lm, EMISSION] * scale)
+                                    incoming[target, 1] += values[k, 1] * (ks1 * materials[lm, EMISSION + 1] * scale)
+                                    incoming[target, 2] += values[k, 2] * (ks2 * materials[lm, EMISSION + 2] * scale)
+            # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
+            # diffuse lobe's light is in the irradiance)
+            tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+            wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
+            woy = -(d[0] * bx + d[1] * by + d[2] * bz)
+            woz = -(d[0] * nx + d[1] * ny + d[2] * nz)
+            wix, wiy, wiz, pdf = brdf_sample(
+                materials[m], wox, woy, woz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
+            )
+            sx = wix * tx + wiy * bx + wiz * nx
+            sy = wix * ty + wiy * by + wiz * ny
+            sz = wix * tz + wiy * bz + wiz * nz
+            if not (wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0):
+                continue
+            # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
+            lobe_weight = (exponent + 2.0) / (exponent + 1.0) * wiz
+            q0, q1, q2 = values[k, 0] * ks0 * lobe_weight, values[k, 1] * ks1 * lobe_weight, values[k, 2] * ks2 * lobe_weight
+            survives, carried = roulette((q0, q1, q2), 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+            if not survives:
+                continue
+            cos_alpha = min(max(-wix * wox - wiy * woy + wiz * woz, 0.0), 1.0)
+            out_pdf[n_out] = (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent)
+            out_ids[n_out] = target
+            out_origins[n_out, 0] = px + epsilon * gx
+            out_origins[n_out, 1] = py + epsilon * gy
+            out_origins[n_out, 2] = pz + epsilon * gz
+            out_directions[n_out, 0], out_directions[n_out, 1], out_directions[n_out, 2] = sx, sy, sz
+            out_values[n_out, 0], out_values[n_out, 1], out_values[n_out, 2] = carried
+            n_out += 1
+        rays += n + traced
+        shadow += traced
+        paths, spare = spare, paths
+        path_pdf, out_pdf = out_pdf, path_pdf
+        n = n_out
+    return rays, shadow
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _variance_sum(moments, n_light, n_gather):
+    """sum over directions of S2 - S1^2 / m of each group (light samples, gather rays)
+    from ``moments`` (4, D): light S1, S2, gather S1, S2."""
+    total = 0.0
+    for d in range(moments.shape[1]):
+        if n_light > 0:
+            total += max(moments[1, d] - moments[0, d] * moments[0, d] / n_light, 0.0)
+        if n_gather > 0:
+            total += max(moments[3, d] - moments[2, d] * moments[2, d] / n_gather, 0.0)
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance):
+    """Outgoing radiance of a block of B vertices in every direction of an n x n grid.
+
+    out[b, d] = emission + diffuse_radiance[b] + the specular lobe's integral of the
+    incoming light for wo = directions[d], estimated from the vertex's light samples
+    (balance-heuristic weighted against the gather rays) and its gather rays, all
+    shared by every direction d.
+
+    Each sample adds ks (n + 2) / (2 pi) cos^n(alpha) times its weight to the grid
+    directions within its lobe, alpha measured from its mirror direction; directions
+    where the lobe is below LOBE_CUTOFF of its peak are skipped (that loses at most
+    LOBE_CUTOFF of the lobe's energy). The cells to visit come from the grid's square:
+    the concentric map never shrinks angles by more than SQUARE_PER_RADIAN, so a
+    window of that many square units per radian of lobe holds every cell that
+    matters. cos^n comes from a table over the lobe's range of cos alpha, linearly
+    interpolated (relative error ~1e-6 whatever n).
+
+    mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
+    (B, 3) kd E / pi; light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
+    ``pdf`` and ``visible`` read); samples : ``GatherSamples`` (B * n_gather, its ``wi``
+    and ``incoming`` read); directions : (n^2, 3) local, ``directions.grid_directions``;
+    out : (B, n^2, 3) float64; variance : (B,) float64 (or empty: not measured), receives each vertex's
+    sum over directions of the variance of the luminance (``LUMINANCE``) of out[b, d],
+    estimated from the spread of its samples: a group of m samples (light, gather)
+    whose terms x_s sum to S1 and their squares to S2 adds S2 - S1^2 / m (samples that
+    brought nothing count as zeros). Stratification makes the true variance lower.
+    """
+    n_blocks = out.shape[0]
+    n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
+    n_gather = samples.wi.shape[0] // n_blocks if n_blocks > 0 else 0
+    grid_n = int(round(math.sqrt(directions.shape[0])))
+    n = mat[EXPONENT]
+    norm = (n + 2.0) / (2.0 * math.pi)
+    cos_min = math.exp(math.log(LOBE_CUTOFF) / n) if n > 1e-9 else 0.0
+    half = math.acos(cos_min) * SQUARE_PER_RADIAN
+    table = np.empty(LOBE_TABLE)
+    step = (1.0 - cos_min) / (LOBE_TABLE - 1)
+    for k in range(LOBE_TABLE):
+        table[k] = phong_lobe(cos_min + k * step, n)
+    inv_step = 1.0 / step
+    n_samples = n_light + n_gather
+    mirror = np.empty((n_samples, 3))
+    weight = np.empty((n_samples, 3))
+    n_dirs = directions.shape[0]
+    moments = np.empty((4, n_dirs))  # light S1, S2, gather S1, S2 of luminance
+    lum_ks = (LUMINANCE[0] * mat[KS], LUMINANCE[1] * mat[KS + 1], LUMINANCE[2] * mat[KS + 2])
+    measure = variance.shape[0] > 0
+    for b in range(n_blocks):
+        used = 0
+        for m in range(n_light):
+            i = b * n_light + m
+            p = light.pdf[i]
+            if p <= 0.0 or not light.visible[i]:
+                continue
+            wz = light.wi[i, 2]
+            p_gather = wz / math.pi
+            scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -light.wi[i, 0], -light.wi[i, 1], wz
+            for c in range(3):
+                weight[used, c] = scale * light.radiance[i, c]
+            used += 1
+        used_light = used
+        for k in range(n_gather):
+            i = b * n_gather + k
+            incoming = samples.incoming
+            if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
+                continue
+            wi = samples.wi
+            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -wi[i, 0], -wi[i, 1], wi[i, 2]
+            for c in range(3):
+                weight[used, c] = math.pi / n_gather * incoming[i, c]
+            used += 1
+        acc = out[b]
+        acc[:, :] = 0.0
+        moments[:, :] = 0.0
+        for s in range(used):
+            s1 = moments[0] if s < used_light else moments[2]
+            s2 = moments[1] if s < used_light else moments[3]
+            y = norm * (lum_ks[0] * weight[s, 0] + lum_ks[1] * weight[s, 1] + lum_ks[2] * weight[s, 2])
+            rx, ry, rz = mirror[s, 0], mirror[s, 1], mirror[s, 2]
+            sa_, sb_ = hemisphere_to_square_nb(rx, ry, rz)
+            i_lo = max(0, int(math.floor((sa_ - half + 1.0) * 0.5 * grid_n - 0.5)))
+            i_hi = min(grid_n - 1, int(math.ceil((sa_ + half + 1.0) * 0.5 * grid_n - 0.5)))
+            j_lo = max(0, int(math.floor((sb_ - half + 1.0) * 0.5 * grid_n - 0.5)))
+            j_hi = min(grid_n - 1, int(math.ceil((sb_ + half + 1.0) * 0.5 * grid_n - 0.5)))
+            w0, w1, w2 = weight[s, 0], weight[s, 1], weight[s, 2]
+            for j in range(j_lo, j_hi + 1):
+                for i in range(i_lo, i_hi + 1):
+                    d = j * grid_n + i
+                    cos_alpha = rx * directions[d, 0] + ry * directions[d, 1] + rz * directions[d, 2]
+                    if cos_alpha <= cos_min:
+                        continue
+                    x = min((cos_alpha - cos_min) * inv_step, LOBE_TABLE - 1.0)
+                    k = min(int(x), LOBE_TABLE - 2)
+                    lobe = table[k] + (x - k) * (table[k + 1] - table[k])
+                    acc[d, 0] += lobe * w0
+                    acc[d, 1] += lobe * w1
+                    acc[d, 2] += lobe * w2
+                    if measure:
+                        x = lobe * y
+                        s1[d] += x
+                        s2[d] += x * x
+        if measure:
+            variance[b] = _variance_sum(moments, n_light, n_gather)
+        for d in range(acc.shape[0]):
+            for c in range(3):
+                acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]

@@ -1,0 +1,241 @@
+"""The solver's photon phase: one jitted kernel traces a batch of photons from their
+emission to their end, calling Embree directly and releasing the GIL, and adds their
+incident power to the density moments of the vertices around each hit.
+
+The photons of a batch go in waves of ``batch.wave``: the rays of a wave's photons at
+one depth are traced one after another, then their hits are shaded one after another,
+each hit's triangle and vertices asked of the cache a few hits ahead (PREFETCH_AHEAD).
+So Embree runs with its own data in cache, and the shading does not wait for memory at
+every hit (on a large mesh the hits' data is not in cache).
+
+The readable wavefront form of the same physics (emit every photon, then per depth
+trace them all and bounce them) is the tests' oracle (tests/wavefront.py): each
+photon's rays and deposits are the same bit for bit, and only the order in which a
+batch's deposits are summed depends on the wave size (tests check both).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from radiosity.scene.materials import EMISSION, brdf_eval, brdf_sample, onb
+from radiosity.transport.embree import intersect1, new_rayhit
+from radiosity.transport.records import (
+    T_ABSORBED,
+    T_BACKFACE,
+    T_ESCAPED,
+    T_HITS,
+    T_INCIDENT,
+    T_TERMINATED,
+)
+from radiosity.transport.rng import STREAM_BOUNCE, STREAM_EMIT, rand
+from radiosity.transport.sampling import cosine_direction, facing, lerp3, pick_emitter, prefetch_row
+
+PREFETCH_AHEAD = 4  # hits ahead whose data the wave's shading loop asks the cache for
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _prefetch_hit(t, faces, face_normals, face_material, positions, moment0, moment1):
+    """Ask the cache for what shading a hit on triangle t waits for most: the
+    triangle's rows, and its vertices' positions and density moments (their indices
+    are read, so ``faces`` should be asked first)."""
+    if t < 0:
+        return
+    prefetch_row(face_normals, t)
+    prefetch_row(face_material, t)
+    for j in range(3):
+        vert = faces[t, j]
+        prefetch_row(positions, vert)
+        prefetch_row(moment0, vert)
+        prefetch_row(moment1, vert)
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_photons(rt, sa, batch, acc):
+    """Trace the photons of ``batch`` (``PhotonBatch``) to their end through the scene
+    ``rt`` (``embree.Embree``) and ``sa`` (``SceneArrays``), adding to ``acc``
+    (``PhotonTally``). Returns the rays traced.
+
+    Each photon: an emitter triangle in proportion to its power, a uniform point on
+    it, a cosine-distributed direction about its front, carrying pi Le / (total *
+    area pdf), so a pass's power sums to the emitters' power in expectation. At a
+    front-face hit its incident power is added to the density moments of the
+    triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power
+    * lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric
+    weight, the hat function of vertex j). It then scatters by BRDF sampling with
+    Russian roulette that keeps its power about constant. Backs absorb.
+
+    ``acc.tally`` gains escaped power, the expected absorbed power (incident * (1 -
+    true albedo)), incident power, back-face and forced-termination losses, and the
+    hit count: emitted = escaped + absorbed + backface + terminated in expectation,
+    which tests check.
+
+    The records are unpacked into locals once: the loops index arrays with scalars (a
+    record handed to an inlined helper costs a reference-count update of each of its
+    arrays), and the batch works on its own copy of the small material table (a row
+    of it per bounce, a reference-count update that threads must not share). The
+    survivors of a depth are packed to the front of the wave's buffers in order.
+    ``batch.wave`` = 1 follows one photon at a time. The prefetches
+    (``_prefetch_hit``, PREFETCH_AHEAD hits ahead, the triangle's vertex indices twice
+    as far) change no value.
+    """
+    positions, normals, tangents, faces = sa.positions, sa.normals, sa.tangents, sa.faces
+    face_normals, face_material, materials = sa.face_normals, sa.face_material, sa.materials.copy()
+    albedo_table, emit_cdf, emit_triangles, emit_area_pdf = sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf
+    epsilon = sa.epsilon
+    seed, first_id, count, total, max_depth = batch.seed, batch.first_id, batch.count, batch.total, batch.max_depth
+    wave = max(1, min(batch.wave, count))
+    moment0, moment1, tally = acc.moment0, acc.moment1, acc.tally
+    rayhit = new_rayhit()
+    n_albedo = albedo_table.shape[1]
+    ids = np.empty(wave, np.int64)
+    power = np.empty((wave, 3))
+    ray = np.empty((wave, 6), np.float32)  # origin, direction: float32, as a ``Rays`` stores them
+    hit_triangle = np.empty(wave, np.int64)
+    hit_uv = np.empty((wave, 2), np.float32)
+    rays = 0
+    for first in range(first_id, first_id + count, wave):
+        n = min(wave, first_id + count - first)
+        # -- emission --
+        for i in range(n):
+            pid = first + i
+            u0 = rand(seed, STREAM_EMIT, pid, 0)
+            tri = pick_emitter(emit_cdf, emit_triangles, u0)
+            s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
+            u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
+            v = s - u
+            px, py, pz = lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
+            gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
+            lx, ly, lz = cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
+            tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
+            m = face_material[tri]
+            scale = math.pi / (total * emit_area_pdf[tri])
+            ids[i] = pid
+            power[i, 0] = materials[m, EMISSION] * scale
+            power[i, 1] = materials[m, EMISSION + 1] * scale
+            power[i, 2] = materials[m, EMISSION + 2] * scale
+            ray[i, 0] = px + epsilon * gx
+            ray[i, 1] = py + epsilon * gy
+            ray[i, 2] = pz + epsilon * gz
+            ray[i, 3] = lx * tx + ly * bx + lz * gx
+            ray[i, 4] = lx * ty + ly * by + lz * gy
+            ray[i, 5] = lx * tz + ly * bz + lz * gz
+        for depth in range(max_depth):
+            if n == 0:
+                break
+            # -- the wave's rays, one after another --
+            for k in range(n):
+                r = ray[k]
+                t, _, hu, hv = intersect1(rt, rayhit, (r[0], r[1], r[2]), (r[3], r[4], r[5]))
+                hit_triangle[k] = t
+                hit_uv[k, 0], hit_uv[k, 1] = hu, hv
+            rays += n
+            # -- their hits, survivors packed to the front --
+            for k in range(min(n, 2 * PREFETCH_AHEAD)):
+                if hit_triangle[k] >= 0:
+                    prefetch_row(faces, hit_triangle[k])
+            survivors = 0
+            for k in range(n):
+                if k + 2 * PREFETCH_AHEAD < n and hit_triangle[k + 2 * PREFETCH_AHEAD] >= 0:
+                    prefetch_row(faces, hit_triangle[k + 2 * PREFETCH_AHEAD])
+                if k + PREFETCH_AHEAD < n:
+                    _prefetch_hit(
+                        hit_triangle[k + PREFETCH_AHEAD], faces, face_normals, face_material, positions, moment0, moment1
+                    )
+                pid = ids[k]
+                p0, p1, p2 = power[k, 0], power[k, 1], power[k, 2]
+                t = hit_triangle[k]
+                if t < 0:
+                    tally[T_ESCAPED] += p0
+                    tally[T_ESCAPED + 1] += p1
+                    tally[T_ESCAPED + 2] += p2
+                    continue
+                tally[T_HITS] += 1.0
+                dx, dy, dz = np.float64(ray[k, 3]), np.float64(ray[k, 4]), np.float64(ray[k, 5])
+                gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+                if dx * gx + dy * gy + dz * gz >= 0.0:
+                    tally[T_BACKFACE] += p0
+                    tally[T_BACKFACE + 1] += p1
+                    tally[T_BACKFACE + 2] += p2
+                    continue
+                u, v = np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1])
+                w = 1.0 - u - v
+                i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+                px, py, pz = lerp3(positions, i0, i1, i2, w, u, v)
+                # deposit
+                for j in range(3):
+                    vert = faces[t, j]
+                    lam = w if j == 0 else (u if j == 1 else v)
+                    ex = px - positions[vert, 0]
+                    ey = py - positions[vert, 1]
+                    ez = pz - positions[vert, 2]
+                    t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
+                    n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
+                    cx = n1 * t2 - n2 * t1
+                    cy = n2 * t0 - n0 * t2
+                    cz = n0 * t1 - n1 * t0
+                    along_t = ex * t0 + ey * t1 + ez * t2
+                    along_b = ex * cx + ey * cy + ez * cz
+                    for c in range(3):
+                        wc = (p0 if c == 0 else (p1 if c == 1 else p2)) * lam
+                        moment0[vert, c] += wc
+                        moment1[vert, c, 0] += wc * along_t
+                        moment1[vert, c, 1] += wc * along_b
+                tally[T_INCIDENT] += p0
+                tally[T_INCIDENT + 1] += p1
+                tally[T_INCIDENT + 2] += p2
+                m = face_material[t]
+                base = depth * 8
+                r0 = rand(seed, STREAM_BOUNCE, pid, base)
+                r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
+                r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
+                # scatter: the shading frame, then brdf_sample
+                nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
+                tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+                wox = -(dx * tx + dy * ty + dz * tz)
+                woy = -(dx * bx + dy * by + dz * bz)
+                woz = -(dx * nx + dy * ny + dz * nz)
+                mat = materials[m]
+                wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, r0, r1, r2)
+                sx = wix * tx + wiy * bx + wiz * nx
+                sy = wix * ty + wiy * by + wiz * ny
+                sz = wix * tz + wiy * bz + wiz * nz
+                ok = wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0
+                # the true albedo, interpolated in its table
+                xa = min(max(woz, 0.0), 1.0) * (n_albedo - 1)
+                ka = min(int(xa), n_albedo - 2)
+                fa = xa - ka
+                a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
+                a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
+                a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
+                tally[T_ABSORBED] += p0 * (1.0 - a0)
+                tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
+                tally[T_ABSORBED + 2] += p2 * (1.0 - a2)
+                if depth + 1 >= max_depth:
+                    tally[T_TERMINATED] += p0 * a0
+                    tally[T_TERMINATED + 1] += p1 * a1
+                    tally[T_TERMINATED + 2] += p2 * a2
+                    continue
+                if not ok:
+                    continue  # below the shading or the true surface: absorbed
+                fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
+                scale = wiz / pdf
+                q0, q1, q2 = p0 * fr * scale, p1 * fg * scale, p2 * fb * scale
+                # Russian roulette (``sampling.roulette``)
+                reference = max(p0, p1, p2)
+                survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
+                if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+                    continue
+                # the survivor goes on from slot ``survivors`` <= k: photon k is read already
+                ids[survivors] = pid
+                power[survivors, 0], power[survivors, 1], power[survivors, 2] = q0 / survive, q1 / survive, q2 / survive
+                ray[survivors, 0] = px + epsilon * gx
+                ray[survivors, 1] = py + epsilon * gy
+                ray[survivors, 2] = pz + epsilon * gz
+                ray[survivors, 3], ray[survivors, 4], ray[survivors, 5] = sx, sy, sz
+                survivors += 1
+            n = survivors
+    return rays

@@ -1,0 +1,37 @@
+"""The solver's and the path tracer's random numbers: a counter-based hash of (seed,
+stream, item, dimension), so a result depends on the seed and each item's index
+alone, never on how work is split into batches, threads or machines.
+
+Streams: STREAM_EMIT (photon emission), STREAM_BOUNCE (photon scattering),
+STREAM_LIGHT (a gather vertex's light samples), STREAM_GATHER (its gather rays;
+STREAM_GATHER + 1 and + 2 the lobe continuation and light sample at glossy hits of
+gather paths). The path tracer's stream is its own (``pathtrace.STREAM_PATH``).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_INV_2_53 = 1.0 / 9007199254740992.0
+
+
+@numba.njit(inline="always")
+def _mix(z):
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(cache=True, nogil=True)
+def rand(seed, stream, item, dim):
+    """A uniform number in [0, 1) determined by (seed, stream, item, dim) alone."""
+    z = _mix(np.uint64(seed) * _GOLDEN + np.uint64(stream))
+    z = _mix(z ^ (np.uint64(item) * _GOLDEN))
+    z = _mix(z + np.uint64(dim) * _M1)
+    return float(z >> np.uint64(11)) * _INV_2_53
