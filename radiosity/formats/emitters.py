@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -230,14 +231,24 @@ def pack_parts(parts):
     return PackedParts(parts)
 
 
+class Rules(NamedTuple):
+    """The Gauss-Legendre rules of ``nodes`` = N (``rules``): sphere nodes (N,) on
+    [-1, 1] and their weights (N,), polygon-sector nodes (G,) and weights (G,), G =
+    max(2, ceil(N / 2))."""
+
+    sphere_s: np.ndarray
+    sphere_w: np.ndarray
+    sector_s: np.ndarray
+    sector_w: np.ndarray
+
+
 def rules(nodes):
-    """The quadrature rules of ``nodes`` = N: (sphere nodes (N,) on [-1, 1], weights (N,),
-    polygon-sector nodes (G,), weights (G,)), Gauss-Legendre, G = max(2, ceil(N / 2))."""
+    """The quadrature ``Rules`` of ``nodes`` = N (1 .. MAX_NODES)."""
     if not (isinstance(nodes, int | np.integer) and 1 <= nodes <= MAX_NODES):
         raise ValueError(f"nodes must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
     s, w = np.polynomial.legendre.leggauss(int(nodes))
     g_s, g_w = np.polynomial.legendre.leggauss(max(2, -(-int(nodes) // 2)))
-    return s, w, g_s, g_w
+    return Rules(s, w, g_s, g_w)
 
 
 # -- the scalar kernel -------------------------------------------------------------------
@@ -443,14 +454,15 @@ def polygon_integral(count, points, x, n, r, exponent, rule_s, rule_w):
 
 
 @numba.njit(cache=True, nogil=True)
-def highlight_integral(kind, count, points, radius, x, n, r, exponent, sphere_s, sphere_w, sector_s, sector_w):
-    """J (see the module's docstring) of one part (a row of ``PackedParts``) at point x,
-    unit shading normal n, unit mirror direction r; exponent p >= 0; the rules of
-    ``rules(nodes)``. Returns J >= 0. (No culling: ``_culled`` is the displays' and the
-    solver's test of a negligible part.)"""
+def highlight_integral(kind, count, points, radius, where, exponent, rule):
+    """J (see the module's docstring) of one part (a row of ``PackedParts``: kind,
+    vertex count, points, radius) at where = (point x, unit shading normal n, unit
+    mirror direction r); exponent p >= 0; ``rule`` : ``Rules``. Returns J >= 0. (No
+    culling: ``_culled`` is the displays' and the solver's test of a negligible part.)"""
+    x, n, r = where
     if kind == SPHERE:
-        return sphere_integral(points[0], radius, x, n, r, exponent, sphere_s, sphere_w)
-    return polygon_integral(count, points, x, n, r, exponent, sector_s, sector_w)
+        return sphere_integral(points[0], radius, x, n, r, exponent, rule.sphere_s, rule.sphere_w)
+    return polygon_integral(count, points, x, n, r, exponent, rule.sector_s, rule.sector_w)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -468,9 +480,11 @@ def _culled(bound_centre, bound_radius, x, r, exponent):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _point_radiance(kinds, counts, points, radius, bound_centre, bound_radius, radiance, visibility, own, x, n, w, ks,
-                    exponent, sphere_s, sphere_w, sector_s, sector_w):
-    """E (3-tuple) at point x, unit normal n, unit view w, with visibility[i] of part i."""
+def _point_radiance(pk, visibility, own, where, ks, exponent, rule):
+    """E (3-tuple) at where = (point x, unit normal n, unit view w), with visibility[i]
+    of part i; pk : ``PackedParts.arrays()``."""
+    kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
+    x, n, w = where
     wn = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
     rx, ry, rz = 2.0 * wn * n[0] - w[0], 2.0 * wn * n[1] - w[1], 2.0 * wn * n[2] - w[2]
     rl = math.sqrt(rx * rx + ry * ry + rz * rz)
@@ -483,48 +497,65 @@ def _point_radiance(kinds, counts, points, radius, bound_centre, bound_radius, r
         v = visibility[i]
         if own[i] or not v > 0.0 or _culled(bound_centre[i], bound_radius[i], x, r, exponent):
             continue
-        j = highlight_integral(
-            kinds[i], counts[i], points[i], radius[i], x, n, r, exponent, sphere_s, sphere_w, sector_s, sector_w
-        ) * norm * v
+        j = highlight_integral(kinds[i], counts[i], points[i], radius[i], (x, n, r), exponent, rule) * norm * v
         e0 += j * ks[0] * radiance[i, 0]
         e1 += j * ks[1] * radiance[i, 1]
         e2 += j * ks[2] * radiance[i, 2]
     return e0, e1, e2
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def _radiance_many(pk, visibility, own, positions, normals, views, ks, exponent, sphere_s, sphere_w, sector_s, sector_w,
-                   out):
-    """out[q] = E at query q (``emitter_radiance``)."""
-    kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
-    for q in numba.prange(positions.shape[0]):
+ROWS = 256  # queries of one task of ``_radiance_many``
+
+
+@numba.njit(cache=True, nogil=True)
+def _radiance_rows(pk, visibility, own, queries, material, rule, out, rows):
+    """out[q] = E at queries q = rows[0] .. rows[1] - 1 (``emitter_radiance``): queries
+    = (positions, normals, views), material = (ks, exponent)."""
+    positions, normals, views = queries
+    ks, exponent = material
+    for q in range(rows[0], rows[1]):
         x = (positions[q, 0], positions[q, 1], positions[q, 2])
         n = (normals[q, 0], normals[q, 1], normals[q, 2])
         w = (views[q, 0], views[q, 1], views[q, 2])
-        out[q, 0], out[q, 1], out[q, 2] = _point_radiance(
-            kinds, counts, points, radius, bound_centre, bound_radius, radiance, visibility[q], own, x, n, w, ks,
-            exponent, sphere_s, sphere_w, sector_s, sector_w,
-        )  # fmt: skip
+        out[q, 0], out[q, 1], out[q, 2] = _point_radiance(pk, visibility[q], own, (x, n, w), ks, exponent, rule)
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _radiance_grid(pk, visibility, own, positions, normals, tangents, directions, ks, exponent, sphere_s, sphere_w,
-                   sector_s, sector_w, out):
-    """out[v, d] = E at vertex v seen from its local direction d (``emitter_grid``)."""
-    kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
+def _radiance_many(pk, visibility, own, queries, material, rule, out):
+    """``_radiance_rows`` of every query, ROWS at a time in parallel."""
+    count = out.shape[0]
+    for task in numba.prange((count + ROWS - 1) // ROWS):
+        _radiance_rows(pk, visibility, own, queries, material, rule, out, (task * ROWS, min(count, (task + 1) * ROWS)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_grid(pk, visibility, own, frame, directions, material, rule, out):
+    """out[d] = E at one vertex, frame = (position, unit normal, unit tangent) as
+    3-tuples, seen from each local direction d (x tangent, y bitangent, z normal)."""
+    x, (nx, ny, nz), (tx, ty, tz) = frame
+    ks, exponent = material
+    bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    for d in range(directions.shape[0]):
+        a, b, c = directions[d, 0], directions[d, 1], directions[d, 2]
+        wx, wy, wz = a * tx + b * bx + c * nx, a * ty + b * by + c * ny, a * tz + b * bz + c * nz
+        wl = math.sqrt(wx * wx + wy * wy + wz * wz)
+        out[d, 0], out[d, 1], out[d, 2] = _point_radiance(
+            pk, visibility, own, (x, (nx, ny, nz), (wx / wl, wy / wl, wz / wl)), ks, exponent, rule
+        )
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _radiance_grid(pk, visibility, own, frames, directions, material, rule, out):
+    """out[v, d] = E at vertex v seen from its local direction d (``emitter_grid``):
+    frames = (positions, normals, tangents), material = (ks, exponent)."""
+    positions, normals, tangents = frames
     for v in numba.prange(positions.shape[0]):
-        x = (positions[v, 0], positions[v, 1], positions[v, 2])
-        nx, ny, nz = normals[v, 0], normals[v, 1], normals[v, 2]
-        tx, ty, tz = tangents[v, 0], tangents[v, 1], tangents[v, 2]
-        bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
-        for d in range(directions.shape[0]):
-            a, b, c = directions[d, 0], directions[d, 1], directions[d, 2]
-            wx, wy, wz = a * tx + b * bx + c * nx, a * ty + b * by + c * ny, a * tz + b * bz + c * nz
-            wl = math.sqrt(wx * wx + wy * wy + wz * wz)
-            out[v, d, 0], out[v, d, 1], out[v, d, 2] = _point_radiance(
-                kinds, counts, points, radius, bound_centre, bound_radius, radiance, visibility[v], own, x,
-                (nx, ny, nz), (wx / wl, wy / wl, wz / wl), ks, exponent, sphere_s, sphere_w, sector_s, sector_w,
-            )  # fmt: skip
+        frame = (
+            (positions[v, 0], positions[v, 1], positions[v, 2]),
+            (normals[v, 0], normals[v, 1], normals[v, 2]),
+            (tangents[v, 0], tangents[v, 1], tangents[v, 2]),
+        )
+        _vertex_grid(pk, visibility[v], own, frame, directions, material, rule, out[v])
 
 
 def _prepare(parts, source, count, visibility):
@@ -536,7 +567,7 @@ def _prepare(parts, source, count, visibility):
     return packed, own, visibility
 
 
-def emitter_radiance(parts, positions, normals, views, ks, exponent, visibility=None, nodes=DEFAULT_NODES, source=None):
+def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES, source=None):
     """E (Q, 3) float64: the glossy reflection of the emitter ``parts`` (a sequence of
     ``EmitterPart`` or a ``PackedParts``) at Q points.
 
@@ -550,15 +581,17 @@ def emitter_radiance(parts, positions, normals, views, ks, exponent, visibility=
     packed, own, visibility = _prepare(parts, source, q, visibility)
     out = np.zeros((q, 3))
     if len(packed) and q and np.any(np.asarray(ks) > 0):
-        _radiance_many(
-            packed.arrays(), visibility, own, positions, np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
-            np.ascontiguousarray(views, np.float64).reshape(-1, 3), np.asarray(ks, np.float64).reshape(3),
-            float(exponent), *rules(nodes), out,
-        )  # fmt: skip
+        queries = (
+            positions,
+            np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
+            np.ascontiguousarray(views, np.float64).reshape(-1, 3),
+        )
+        material = (np.asarray(ks, np.float64).reshape(3), float(exponent))
+        _radiance_many(packed.arrays(), visibility, own, queries, material, rules(nodes), out)
     return out
 
 
-def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, visibility=None, nodes=DEFAULT_NODES,
+def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES,
                  source=None):
     """E (V, D, 3) float64 at every vertex (positions, unit normals, unit tangents (V, 3))
     seen from every local direction (D, 3) of the solution's grid (x tangent, y
@@ -569,9 +602,11 @@ def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, 
     packed, own, visibility = _prepare(parts, source, v, visibility)
     out = np.zeros((v, len(directions), 3))
     if len(packed) and v and np.any(np.asarray(ks) > 0):
-        _radiance_grid(
-            packed.arrays(), visibility, own, positions, np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
-            np.ascontiguousarray(tangents, np.float64).reshape(-1, 3), directions,
-            np.asarray(ks, np.float64).reshape(3), float(exponent), *rules(nodes), out,
-        )  # fmt: skip
+        frames = (
+            positions,
+            np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
+            np.ascontiguousarray(tangents, np.float64).reshape(-1, 3),
+        )
+        material = (np.asarray(ks, np.float64).reshape(3), float(exponent))
+        _radiance_grid(packed.arrays(), visibility, own, frames, directions, material, rules(nodes), out)
     return out

@@ -142,7 +142,7 @@ def test_the_reference_display_adds_the_highlights_back_to_the_rest(gl_context, 
     pp = parts()
     vis = rng.uniform(0.3, 1.0, (len(positions), len(pp))).astype(np.float32)
     material = {"diffuse": [0.1, 0.1, 0.1], "specular": KS.tolist(), "exponent": EXPONENT, "emission": [0, 0, 0]}
-    highlight = emitter_grid(pp, positions, normals, tangents, dirs, KS, EXPONENT, vis, 8, "ball")
+    highlight = emitter_grid(pp, positions, normals, tangents, dirs, KS, EXPONENT, visibility=vis, nodes=8, source="ball")
     rest = np.array([0.05, 0.1, 0.15])
     ball = ObjectSolution("ball", positions, normals, tangents, np.asarray(s.faces, np.int32), dirs,
                           (rest + highlight).astype(np.float32), material, visibility=vis)

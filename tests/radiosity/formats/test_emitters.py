@@ -22,8 +22,8 @@ from radiosity.formats.errors import InputError
 
 def integral(part, x, n, r, p, nodes=16):
     pk = PackedParts([part])
-    return highlight_integral(pk.kinds[0], pk.counts[0], pk.points[0], pk.radius[0], np.asarray(x, float),
-                              np.asarray(n, float), np.asarray(r, float), float(p), *rules(nodes))
+    where = (np.asarray(x, float), np.asarray(n, float), np.asarray(r, float))
+    return highlight_integral(pk.kinds[0], pk.counts[0], pk.points[0], pk.radius[0], where, float(p), rules(nodes))
 
 
 def unit(v):
