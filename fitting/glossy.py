@@ -151,7 +151,7 @@ def _light_caps(data, lights):
     return np.minimum(cap, 1e200)
 
 
-def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, fixed=None, rounds=probe.ALTERNATIONS,
+def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fixed=None, rounds=probe.ALTERNATIONS,
                    start=None):
     """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
     ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares;
@@ -215,7 +215,7 @@ def _model(highlights, emitted, probe_term, light_term):
     return out
 
 
-def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights, probe_sizes=PROBE_SIZES):
+def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights, *, probe_sizes=PROBE_SIZES):
     """The ``Components`` of one glossy ``ObjectSolution`` ``obj``.
 
     highlights (V, D, 3): the emitter term on its grid (zeros without emitters); parts:
@@ -232,7 +232,8 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     albedo = probe.albedo_table(obj.material["exponent"])
     tried, fits = [], []
 
-    def record(model, size, emitters, emitted, light_fit, probe_fit, weight, probe_term, light_term):
+    def record(model, size, emitters, emitted, *, light_fit=None, probe_fit=None, weight=None, probe_term=None,
+               light_term=None):
         n_lights = 0 if light_fit is None else len(light_fit[0])
         floats = _floats(v, parts, size, n_lights, emitters)
         approximation = _model(highlights if emitters else 0.0, emitted, probe_term, light_term)
@@ -255,7 +256,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     for model, with_e in (("diffuse", False), ("emitters", True)):
         if automatic or wanted == model:
             e, _, _ = _joint(data, rest if with_e else full.radiance, lw, None, no_columns, None)
-            record(model, 0, with_e, e, None, None, None, None, None)
+            record(model, 0, with_e, e)
     if automatic or wanted in ("probe", "probe+lights"):
         if options.probe_size != "auto":
             sizes = [options.probe_size]
@@ -268,15 +269,15 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
                                      rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS)
             start = (e, s)
             term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
-            c = record("probe", size, True, e, None, p, s, term, None)
+            c = record("probe", size, True, e, probe_fit=p, weight=s, probe_term=term)
             if best is None or c.perceptual < best[0].perceptual * (1 - WITHIN):
                 best = (c, term)
         chosen, probe_term = best
         left = rest - probe_term - chosen.emitted[:, None, :]
         highlight = _shows_highlight(left, full)
         if wanted == "probe+lights" or (automatic and highlight):
-            _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, box, albedo, exponent,
-                              fit_lights, wanted == "probe+lights")
+            _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, place=(centre, box, albedo),
+                              exponent=exponent, fit_lights=fit_lights, required=wanted == "probe+lights")
         if automatic and highlight and fits[-1].n_lights:
             # a highlight neither the emitters nor the probe draw: the object keeps lights
             return _choose([f for f in fits if f.n_lights], options.model_target, tried, full)
@@ -287,17 +288,17 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)
 
 
-def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, box, albedo, exponent, fit_lights,
-                      required):
+def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place, exponent, fit_lights, required):
     """Lights for what the probe leaves, then the probe again with them held, then every
-    per-vertex coefficient together."""
+    per-vertex coefficient together; place = the probe's (centre, box, albedo table)."""
+    centre, box, albedo = place
     lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
                           weights=full.weights, positions=full.positions)
     fitted = fit_lights(lights_data, lw, exponent)
     if not fitted.n_lights:
         if required:  # nothing left for a light to explain
-            record("probe+lights", chosen.probe.size, True, chosen.emitted, None, chosen.probe, chosen.probe_weight,
-                   probe_term, None)
+            record("probe+lights", chosen.probe.size, True, chosen.emitted, probe_fit=chosen.probe,
+                   weight=chosen.probe_weight, probe_term=probe_term)
         return
     lights = (fitted.pos, fitted.rgb, fitted.shininess)
     lobes = _lobe_columns(full, lights)
@@ -309,8 +310,8 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, centre, 
                               rounds=WARM_ROUNDS)
     values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
-    record("probe+lights", p2.size, True, e, (*lights, c), p2, s, s[:, None, :] * values,
-           np.einsum("vdk,vkc->vdc", lobes, c))
+    record("probe+lights", p2.size, True, e, light_fit=(*lights, c), probe_fit=p2, weight=s,
+           probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c))
 
 
 def _with_tried(c, tried, full):

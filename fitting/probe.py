@@ -219,9 +219,12 @@ def _pattern(m):
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _accumulate(idx, wts, cells, weight, target, scale, positions, data, rhs):
-    """The normal equations of ``solve_texels`` into CSR ``data`` (nnz, 3) and ``rhs`` (n, 3),
-    a channel per thread."""
+def _accumulate(lookups, samples, positions, out):
+    """The normal equations of ``solve_texels`` into out = (CSR data (nnz, 3), rhs (n, 3)),
+    a channel per thread; lookups = (idx, wts, cells), samples = (weight, target, scale)."""
+    idx, wts, cells = lookups
+    weight, target, scale = samples
+    data, rhs = out
     for c in numba.prange(3):
         for s in range(idx.shape[0]):
             w = weight[s, c]
@@ -249,9 +252,13 @@ def solve_texels(idx, wts, cells, weight, target, scale, m):
     indptr, indices, positions = _pattern(m)
     data = np.zeros((len(indices), 3))
     rhs = np.zeros((n, 3))
-    _accumulate(np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(wts, np.float64),
-                np.ascontiguousarray(cells, np.int64), weight, np.ascontiguousarray(target, np.float64),
-                np.ascontiguousarray(scale, np.float64), positions, data, rhs)
+    lookups = (
+        np.ascontiguousarray(idx, np.int64),
+        np.ascontiguousarray(wts, np.float64),
+        np.ascontiguousarray(cells, np.int64),
+    )
+    samples = (weight, np.ascontiguousarray(target, np.float64), np.ascontiguousarray(scale, np.float64))
+    _accumulate(lookups, samples, positions, (data, rhs))
     lap = _laplacian(m)
     out = np.zeros((n, 3))
     for c in range(3):

@@ -97,14 +97,17 @@ def widen(positions, normals, tangents, faces, moments, rings=1, pairs=None):
     if pairs is None:
         pairs = widening_pairs(positions, normals, tangents, faces)
     for _ in range(rings):
-        moments = _widen_once(*pairs, *(np.ascontiguousarray(m, dtype=np.float64) for m in moments))
+        moments = _widen_once(tuple(pairs), tuple(np.ascontiguousarray(m, dtype=np.float64) for m in moments))
     return moments
 
 
 @numba.njit(cache=True, nogil=True)
-def _widen_once(target, source, rotate, delta, s0, s1, k0, k1, k2):
+def _widen_once(pairs, moments):
     """One ring of ``widen``: every moment of i gains those of each of its ``pairs``'
-    sources j, moved into i's frame (in the order of the pairs, as np.add.at adds)."""
+    sources j, moved into i's frame (in the order of the pairs, as np.add.at adds).
+    pairs = (target, source, rotate, delta); moments = (s0, s1, k0, k1, k2)."""
+    target, source, rotate, delta = pairs
+    s0, s1, k0, k1, k2 = moments
     n_vertices, n_channels = s0.shape
     out_s0 = np.zeros((n_vertices, n_channels))
     out_s1 = np.zeros((n_vertices, n_channels, 2))
