@@ -18,7 +18,7 @@ import numpy as np
 
 from radiosity.formats.errors import InputError
 
-from . import glossy, mixed, paper, refine
+from . import glossy, loss, mixed, paper
 from .data import fit_data, relative_error
 from .model import FittedModel, FittedObject, Highlight, directional
 
@@ -41,7 +41,7 @@ class FitOptions:
                       require), "directional", "positional" (refined methods)
     coefficients    : "per-light" (a specular coefficient per light at each vertex) or
                       "shared" (one per vertex, the paper's model) (refined methods)
-    loss            : "linear", "relative" (see ``refine.loss_weights``), or "auto": relative
+    loss            : "linear", "relative" (see ``loss.loss_weights``), or "auto": relative
                       for the models with a probe (the teapot's reflections won in pictures:
                       glossy FLIP against the truth 0.171 / 0.172 / 0.162 in three views,
                       linear 0.185 / 0.187 / 0.179), linear for virtual lights alone
@@ -85,8 +85,8 @@ class FitOptions:
             raise InputError(f"unknown light kind {self.light_kind!r}; choose one of {', '.join(LIGHT_KINDS)}")
         if self.coefficients not in COEFFICIENTS:
             raise InputError(f"unknown coefficients {self.coefficients!r}; choose one of {', '.join(COEFFICIENTS)}")
-        if self.loss not in (*refine.LOSSES, "auto"):
-            raise InputError(f"unknown loss {self.loss!r}; choose one of auto, {', '.join(refine.LOSSES)}")
+        if self.loss not in (*loss.LOSSES, "auto"):
+            raise InputError(f"unknown loss {self.loss!r}; choose one of auto, {', '.join(loss.LOSSES)}")
         lo, hi = self.exponent_bounds
         if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi <= 1e6):
             raise InputError(f"exponent bounds must satisfy 0 < low <= high <= 1e6, got {lo:g} {hi:g}")
@@ -140,7 +140,7 @@ def start_exponent(obj, options):
 
 
 def problem_for(data, options, scene):
-    lw = refine.loss_weights(data, options.loss_for("lights"))
+    lw = loss.loss_weights(data, options.loss_for("lights"))
     per_light = options.coefficients == "per-light" and options.method != "paper"
     return mixed.Problem.make(data, lw, per_light, scene, options.exponent_bounds)
 
@@ -148,7 +148,7 @@ def problem_for(data, options, scene):
 def fit_lights(problem, n_lights, options, exponent, previous=None, log=None):
     """One object's fit (a ``mixed.MixedFit``) with at most ``n_lights`` lights."""
     if options.method == "paper":
-        lw = refine.loss_weights(problem.data, options.loss_for("lights"))
+        lw = loss.loss_weights(problem.data, options.loss_for("lights"))
         return _from_paper(paper.fit_paper(problem.data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw))
     return mixed.fit_mixed(
         problem, n_lights, exponent, light_kind=options.light_kind, per_light_exponents=options.method == "per-light",

@@ -31,7 +31,7 @@ import numpy as np
 from . import mixed, probe
 from .data import FitData, fit_data, perceptual_error, relative_error
 from .lobes import MixedLights
-from .refine import loss_weights as make_loss_weights
+from .loss import loss_weights as make_loss_weights
 
 __all__ = ["MODELS", "Components", "fit_components"]
 

@@ -23,9 +23,8 @@ Contents:
   3-tuples of floats), the one definition of the formula;
 - ``lobe_vectorised``: the same as a numpy ufunc, ``(nx, ny, nz, hx, hy, hz, p)``,
   broadcasting, for the numpy reference ``fitting.model.shade_arrays``;
-- the kernels of the fit: ``one_light`` (the paper's fit), ``light_sum`` and
-  ``loss_and_gradient`` (the refinement), taking plain arrays and the ``Lights`` /
-  ``Residual`` named tuples.
+- the kernels of the fit: ``one_light`` and ``light_sum`` (the paper's fit), taking
+  plain arrays and the ``Lights`` named tuple; the mixed fitter's kernels below.
 
 Every kernel that calls ``lobe`` lives in this module on purpose: numba's on-disk cache
 (``cache=True``) checks only the file a kernel is defined in, so a kernel elsewhere that
@@ -43,12 +42,10 @@ import numpy as np
 __all__ = [
     "NEGLIGIBLE",
     "Lights",
-    "Residual",
     "light_sum",
     "lobe",
     "lobe_gradient",
     "lobe_vectorised",
-    "loss_and_gradient",
     "one_light",
 ]
 
@@ -66,23 +63,6 @@ class Lights(NamedTuple):
     dirs: np.ndarray
     rgb: np.ndarray
     shininess: np.ndarray
-
-
-class Residual(NamedTuple):
-    """What the weighted residual w (L - e - s B) of the refinement needs (float64).
-
-    radiance     : (V, D, 3) the data L
-    weights      : (V, D) sample weights (area x solid angle)
-    loss_weights : (V, D, 3) loss weights, or (1, 1, 1) ones for the linear loss
-    emitted      : (V, 3) e
-    specular     : (V, 3) s
-    """
-
-    radiance: np.ndarray
-    weights: np.ndarray
-    loss_weights: np.ndarray
-    emitted: np.ndarray
-    specular: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
@@ -166,58 +146,6 @@ def light_sum(normals, views, lights, out):
                     b2 += rgb[k, 2] * value
             out[v, d, 0], out[v, d, 1], out[v, d, 2] = b0, b1, b2
     return out
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def loss_and_gradient(normals, views, lights, residual, partial):
-    """The weighted squared residual sum_{v,d,c} w (L - e - s B)^2 at fixed (e, s), and
-    its gradient with respect to the lights.
-
-    B[v, d, c] = sum_k rgb[k, c] lobe(n_v, l_k + w_vd, p_k); w = weights[v, d] times
-    loss_weights[v, d, c] (or 1 when loss_weights is (1, 1, 1)). ``partial`` (V, K, 7),
-    zeroed by the caller, receives vertex v's part of light k's gradient:
-    [d/d rgb (3), d/d log p (1), d/d light direction (3)]. Returns the loss.
-    """
-    dirs, rgb, shininess = lights.dirs, lights.rgb, lights.shininess
-    radiance, weights, lw = residual.radiance, residual.weights, residual.loss_weights
-    emitted, specular = residual.emitted, residual.specular
-    n_v, n_d, n_k = views.shape[0], views.shape[1], dirs.shape[0]
-    full = lw.shape[0] > 1
-    losses = np.zeros(n_v)
-    for v in numba.prange(n_v):
-        n = (normals[v, 0], normals[v, 1], normals[v, 2])
-        values = np.empty(n_k)
-        grads = np.empty((n_k, 4))  # d/dl (3), d/d log p
-        coef = np.empty(3)
-        for d in range(n_d):
-            b0, b1, b2 = 0.0, 0.0, 0.0
-            for k in range(n_k):
-                h = (views[v, d, 0] + dirs[k, 0], views[v, d, 1] + dirs[k, 1], views[v, d, 2] + dirs[k, 2])
-                value, dl, dlogp = lobe_gradient(n, h, shininess[k])
-                values[k] = value
-                grads[k, 0], grads[k, 1], grads[k, 2], grads[k, 3] = dl[0], dl[1], dl[2], dlogp
-                b0 += rgb[k, 0] * value
-                b1 += rgb[k, 1] * value
-                b2 += rgb[k, 2] * value
-            for c in range(3):
-                b = b0 if c == 0 else (b1 if c == 1 else b2)
-                w = weights[v, d] * (lw[v, d, c] if full else 1.0)
-                r = radiance[v, d, c] - emitted[v, c] - specular[v, c] * b
-                losses[v] += w * r * r
-                coef[c] = -2.0 * w * r * specular[v, c]  # d loss / d B[v, d, c]
-            for k in range(n_k):
-                value = values[k]
-                if value <= 0.0:
-                    continue
-                common = coef[0] * rgb[k, 0] + coef[1] * rgb[k, 1] + coef[2] * rgb[k, 2]  # d loss / d lobe
-                partial[v, k, 0] += coef[0] * value
-                partial[v, k, 1] += coef[1] * value
-                partial[v, k, 2] += coef[2] * value
-                partial[v, k, 3] += common * grads[k, 3]
-                partial[v, k, 4] += common * grads[k, 0]
-                partial[v, k, 5] += common * grads[k, 1]
-                partial[v, k, 6] += common * grads[k, 2]
-    return losses.sum()
 
 
 # ---------------------------------------------------------------------------------------

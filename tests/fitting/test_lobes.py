@@ -11,7 +11,6 @@ from fitting import FittedModel, FittedObject, LightSet, shade
 from fitting.data import fit_data
 from fitting.lobes import NEGLIGIBLE, light_sum, lobe, lobe_gradient, one_light
 from fitting.model import directional, shade_arrays
-from fitting.refine import Parameters, loss_weights, objective
 
 UP = [0.0, 0.0, 1.0]
 
@@ -116,31 +115,3 @@ def test_lobe_gradient_against_central_differences(rng):
             assert dl[i] == pytest.approx(fd, rel=1e-5, abs=1e-7 * p)
         fd = (lobe(tuple(n), tuple(w + light), p * math.exp(step)) - lobe(tuple(n), tuple(w + light), p * math.exp(-step)))
         assert dlogp == pytest.approx(fd / (2 * step), rel=1e-5, abs=1e-9)
-
-
-@pytest.mark.parametrize("per_light", [False, True], ids=["one exponent", "per-light exponents"])
-@pytest.mark.parametrize("loss", ["linear", "relative"])
-def test_refinement_gradient_against_central_differences(per_light, loss):
-    """The reduced objective L-BFGS sees (coefficients solved inside) and its gradient,
-    with respect to raw directions (not unit), scaled colours and log exponents."""
-    rng = np.random.default_rng(7)
-    solution, truth = synthetic(rng, lights=2, shininess=25.0, grid=6, noise=0.05, subdivisions=1)
-    data = fit_data(solution.objects[0])
-    dirs = truth["light_dirs"] + rng.normal(scale=0.15, size=(2, 3))  # away from the optimum
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    start = LightSet(dirs, truth["light_rgb"] * 0.7, [20.0, 35.0] if per_light else [20.0, 20.0])
-    params = Parameters(2, per_light, scale=2.0)
-    x = params.pack(start)
-    x[:6] *= np.repeat([1.3, 0.8], 3)  # raw directions of other lengths than 1
-    lw = loss_weights(data, loss)
-    value, grad = objective(data, lw, params, x)
-    assert np.isfinite(value) and value > 0 and len(grad) == len(x) == (14 if per_light else 13)
-    fd = np.empty_like(x)
-    for i in range(len(x)):
-        step = 1e-6 * max(1.0, abs(x[i]))
-        up, down = x.copy(), x.copy()
-        up[i] += step
-        down[i] -= step
-        fd[i] = (objective(data, lw, params, up)[0] - objective(data, lw, params, down)[0]) / (2 * step)
-    assert np.abs(grad).max() > 0
-    assert np.allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max()), np.c_[grad, fd]
