@@ -38,6 +38,7 @@ from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
 from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
+from radiosity.transport.batches import scene_arrays
 from radiosity.transport.embree import (
     Hits,
     RayTracer,
@@ -56,7 +57,7 @@ from radiosity.transport.sampling import (
     shading_normal,
     toward_light_point,
 )
-from radiosity.transport.solve import _progress_factory, _run_ordered, _Workers, scene_arrays
+from radiosity.transport.threads import Workers, progress_bar, run_ordered
 
 STREAM_CAMERA, STREAM_PATH = 11, 12
 DIMS_PER_BOUNCE = 8  # light pick (1), point on the light (2), BRDF sample (3), roulette (1), spare (1)
@@ -520,13 +521,13 @@ class PathTracer:
         cam = camera_rays(camera)
         total = np.zeros((n_pixels, 3))
         squares = np.zeros((n_pixels, 3))
-        bar = _progress_factory(progress)(total=spp * n_pixels, desc="path tracing", unit="path")
+        bar = progress_bar(progress)(total=spp * n_pixels, desc="path tracing", unit="path")
         rays_before = (self.tracer.rays_cast, self.tracer.shadow_rays_cast)
         clock = [time.perf_counter(), 0.0]  # start, time spent in the callback
         done = 0
         try:
             with ThreadPoolExecutor(self.threads) as pool:
-                workers = _Workers(pool, self.threads, self.tracer, self.arrays, seed)
+                workers = Workers(pool, self.threads, self.tracer, self.arrays, seed)
                 for samples in pass_plan(spp):
                     jobs = tiles(seed, width, height, first_sample + done, samples)
 
@@ -536,7 +537,7 @@ class PathTracer:
                         total[sl] += tile_total
                         squares[sl] += tile_squares
 
-                    _run_ordered(
+                    run_ordered(
                         workers,
                         lambda tile: trace_tile(self.tracer, self.arrays, cam, tile),
                         jobs,

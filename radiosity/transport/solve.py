@@ -30,9 +30,7 @@ import math
 import time
 import warnings
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
@@ -62,9 +60,10 @@ from radiosity.transport.records import (
     T_INCIDENT,
     T_TERMINATED,
     GatherBlock,
-    SceneArrays,
     empty_tally,
 )
+from radiosity.transport.threads import ThreadRunner
+from radiosity.transport.threads import progress_bar as _progress_factory
 
 MAX_PHOTONS = 1 << 40  # ~1e12: days of tracing on any machine this runs on
 GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
@@ -210,7 +209,7 @@ def memory_estimate(settings, n_vertices, glossy):
     buffers`` (the blocks in flight: light samples, gather rays and paths, outputs)
     and ``gather output`` (every glossy object's radiance, V x D x 3).
     """
-    in_flight = 2 * settings["threads"] + 1  # ``_run_ordered`` keeps at most this many jobs
+    in_flight = 2 * settings["threads"] + 1  # ``threads.run_ordered`` keeps at most this many jobs
     photons = settings["photons"]
     batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
     per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # the waves' ray buffers are small (PHOTON_WAVE rows)
@@ -263,107 +262,11 @@ def _bytes(n):
     return f"{n / 1e3:.3g} kB"
 
 
-class _NullProgress:
-    def __init__(self, *args, **kwargs):
-        pass
-
-    def update(self, n=1):
-        pass
-
-    def close(self):
-        pass
-
-
-def _progress_factory(enabled):
-    if not enabled:
-        return _NullProgress
-    from tqdm import tqdm
-
-    return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, disable=None, **kw)
-
-
-def _run_ordered(workers, fn, jobs, combine, progress, weights):
-    """Run ``fn(job)`` for every job on ``workers.pool``, a few at a time (jobs and
-    weights may be lazy iterables), and ``combine`` the results in job order
-    (deterministic sums); stops early and cleanly on KeyboardInterrupt."""
-    pending = []
-    try:
-        for job, weight in zip(jobs, weights):
-            pending.append((workers.pool.submit(fn, job), weight))
-            if len(pending) > 2 * workers.threads:
-                future, w = pending.pop(0)
-                combine(future.result())
-                progress.update(w)
-        for future, w in pending:
-            combine(future.result())
-            progress.update(w)
-    except BaseException:
-        for future, _ in pending:
-            future.cancel()
-        raise
-
-
-class _Workers(NamedTuple):
-    """What every parallel phase of a solve uses: the pool, its size, the tracer, the
-    merged scene and the seed."""
-
-    pool: ThreadPoolExecutor
-    threads: int
-    tracer: RayTracer
-    sa: SceneArrays
-    seed: int
-
-
-class _ThreadRunner:
-    """Runs a solve's photon batches and gather blocks on a pool of threads of this
-    process, sharing one Embree scene (the counterpart of ``distributed.DaskRunner``)."""
-
-    def __init__(self, threads):
-        self.threads = threads
-        self.description = "threads"
-        self.workers = None
-
-    def start(self, merged, sa, seed):
-        tracer = RayTracer(merged.positions, merged.faces, threads=1)
-        self.workers = _Workers(ThreadPoolExecutor(self.threads), self.threads, tracer, sa, seed)
-
-    @property
-    def rays_cast(self):
-        return self.workers.tracer.rays_cast
-
-    def photon_batches(self, total, combine, bar):
-        tracer, sa, seed = self.workers.tracer, self.workers.sa, self.workers.seed
-        starts = range(0, total, PHOTON_BATCH)  # lazily: 2^40 photons are 2^24 batches
-        counts = (min(PHOTON_BATCH, total - s) for s in starts)
-        _run_ordered(
-            self.workers,
-            lambda job: trace_photon_batch(tracer, sa, seed, job, min(PHOTON_BATCH, total - job), total),
-            starts,
-            combine,
-            bar,
-            counts,
-        )
-
-    def gather_blocks(self, irradiance, jobs, combine, bar):
-        tracer, sa = self.workers.tracer, self.workers.sa
-
-        def run(job):
-            block, material, dirs = job
-            return block.vertices, gather_block(tracer, sa, irradiance, block, material, dirs)
-
-        _run_ordered(self.workers, run, jobs, combine, bar, [len(block.vertices) for block, _, _ in jobs])
-
-    def close(self):
-        if self.workers is not None:
-            self.workers.pool.shutdown()
-            self.workers.tracer.close()
-
-
 def _runner(opts, settings, client):
     """Where the batches run: the given Dask client, a Dask cluster (``opts.scheduler``,
     connected now: a bad address fails before any work) or this process's threads."""
     if client is None and opts.scheduler == "threads":
-        return _ThreadRunner(settings["threads"])
+        return ThreadRunner(settings["threads"])
     from radiosity.transport.distributed import DaskRunner, connect
 
     if client is not None:
