@@ -27,9 +27,9 @@ Contents:
   ``loss_and_gradient`` (the refinement), taking plain arrays and the ``Lights`` /
   ``Residual`` named tuples.
 
-Every kernel that calls ``lobe`` lives in this module on purpose: numba's on-disk cache
-(``cache=True``) checks only the file a kernel is defined in, so a kernel elsewhere that
-inlined ``lobe`` would keep the old formula after this file changed.
+numba's on-disk cache (``cache=True``) of every kernel of the project is keyed on all the
+source files of its package and of the packages it may import (radiosity/jit_cache.py),
+so an edit here recompiles every cached kernel that inlines ``lobe``, wherever it lives.
 """
 
 from __future__ import annotations
