@@ -9,6 +9,10 @@ Modules: ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels), ``p
 (Contract 2 and ``shade``), ``results``, ``data``, ``baselines``, ``cli``.
 """
 
+# first, so that radiosity/__init__.py has keyed numba's cache on every source file a
+# kernel may inline (radiosity/jit_cache.py) before fitting's kernels are decorated
+import radiosity.formats  # noqa: F401
+
 from .fit import FitOptions, fit
 from .model import FittedModel, FittedObject, load_fit, shade, shade_arrays
 from .results import FitResult, LightSet

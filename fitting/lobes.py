@@ -26,9 +26,9 @@ Contents:
 - the kernels of the fit: ``one_light`` and ``light_sum`` (the paper's fit), taking
   plain arrays and the ``Lights`` named tuple; the mixed fitter's kernels below.
 
-Every kernel that calls ``lobe`` lives in this module on purpose: numba's on-disk cache
-(``cache=True``) checks only the file a kernel is defined in, so a kernel elsewhere that
-inlined ``lobe`` would keep the old formula after this file changed.
+numba's on-disk cache (``cache=True``) of every kernel of the project is keyed on all the
+source files of its package and of the packages it may import (radiosity/jit_cache.py),
+so an edit here recompiles every cached kernel that inlines ``lobe``, wherever it lives.
 """
 
 from __future__ import annotations
