@@ -121,14 +121,14 @@ def _occlude_prange(rt, origins, directions, distances, chunks, blocked):
 
 
 def _oracle():
-    """The tests' wavefront oracle module (tests/wavefront.py), imported from the tree."""
+    """The tests' wavefront oracle module (tests/oracles/wavefront.py), imported from the tree."""
     import sys
     from pathlib import Path
 
     tests = str(Path(__file__).resolve().parent.parent / "tests")
     if tests not in sys.path:
         sys.path.insert(0, tests)
-    import wavefront
+    from oracles import wavefront
 
     return wavefront
 
@@ -137,7 +137,7 @@ def photon_rays(tracer, sa, photons, seed=1):
     """(origins, directions) float32 (R, 3): every ray a photon pass of ``photons``
     photons traces in the scene of ``tracer`` (a ``RayTracer``) and ``sa`` (its
     ``records.SceneArrays``), photon by photon, each from its emission to its end.
-    Recorded with the tests' readable wavefront oracle (tests/wavefront.py:
+    Recorded with the tests' readable wavefront oracle (tests/oracles/wavefront.py:
     ``emit_photons``, ``bounce_photons``), which tests hold to the solver's rays bit
     for bit."""
     from radiosity.transport import records

@@ -6,7 +6,7 @@ summed over each sample's Phong lobe by ``gather_outputs``.
 A gather block goes wavefront-style inside ``trace_gather``: its rays are made
 (``make_gather_rays``), its light samples' shadow rays traced, then per depth every
 path in flight is traced and its hit shaded. The readable form of the shading, on
-records (``shade_paths``), is the tests' oracle (tests/wavefront.py), which the kernel
+records (``shade_paths``), is the tests' oracle (tests/oracles/wavefront.py), which the kernel
 matches bit for bit.
 """
 

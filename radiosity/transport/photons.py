@@ -9,7 +9,7 @@ So Embree runs with its own data in cache, and the shading does not wait for mem
 every hit (on a large mesh the hits' data is not in cache).
 
 The readable wavefront form of the same physics (emit every photon, then per depth
-trace them all and bounce them) is the tests' oracle (tests/wavefront.py): each
+trace them all and bounce them) is the tests' oracle (tests/oracles/wavefront.py): each
 photon's rays and deposits are the same bit for bit, and only the order in which a
 batch's deposits are summed depends on the wave size (tests check both).
 """

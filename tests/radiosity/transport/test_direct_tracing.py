@@ -1,7 +1,7 @@
 """Kernels that call Embree directly (``embree.intersect1`` / ``occluded1`` from numba)
 against the way rays were traced before: embreex's batched ``EmbreeScene.run``, with
 Python between wavefronts. Hits must be bit-identical to embreex's on random rays, and
-a gather block must give the same bits as the readable oracle (tests/wavefront.py)
+a gather block must give the same bits as the readable oracle (tests/oracles/wavefront.py)
 driven wavefront by wavefront through embreex, a path-traced tile as its own kernels
 driven so; a photon batch (traced in waves) the
 same bits photon by photon and as one wave, and the same sums up to the order of their
@@ -9,7 +9,7 @@ terms in waves of any size."""
 
 import numpy as np
 import pytest
-import wavefront
+from oracles import wavefront
 
 from radiosity.formats import directions
 from radiosity.scene.loaders import load_scene

@@ -9,14 +9,18 @@ likewise one depth of gather paths (``shade_paths``). The tests hold the product
 kernels to these bit for bit (tests/radiosity/transport/test_direct_tracing.py), and
 the benchmarks replay the photons' rays through bare Embree with them.
 
-Not cached (``cache=False``): an oracle must compile from the helpers as they are now.
+Cached like the product kernels, and as safely: ``radiosity.jit_cache`` stamps these
+kernels with the sources of this directory and of radiosity/, every file they inline.
 """
 
 import math
+from pathlib import Path
 
 import numba
 import numpy as np
 
+import radiosity
+from radiosity import jit_cache
 from radiosity.scene.materials import EMISSION, EXPONENT, KD, KS, brdf_eval, brdf_sample, onb, phong_lobe
 from radiosity.transport.embree import occluded1
 from radiosity.transport.records import (
@@ -40,10 +44,13 @@ from radiosity.transport.sampling import (
     toward_light_point,
 )
 
+# this file's kernels are stamped with this directory's sources and radiosity's
+jit_cache.cover(Path(__file__).parent, inlines_from=(Path(radiosity.__file__).parent,))
+
 # -- photons ------------------------------------------------------------------------------
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _albedo(sa, m, cos_theta, c):
     """The true directional albedo of material m at cos_theta, channel c (its table, linearly)."""
     table = sa.albedo_table[m]
@@ -53,7 +60,7 @@ def _albedo(sa, m, cos_theta, c):
     return (1.0 - f) * table[k, c] + f * table[k + 1, c]
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _scatter(sa, t, uv, d, rnd):
     """Sample the BRDF at a hit on triangle t (barycentrics uv) reached along d, in the
     shading frame there, with the uniform numbers rnd = (u1, u2, u3) of ``brdf_sample``.
@@ -78,7 +85,7 @@ def _scatter(sa, t, uv, d, rnd):
     return (wox, woy, woz), (wix, wiy, wiz), pdf, (ox, oy, oz), ok
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _push_ray(out, i, item, origin, direction, value):
     """Write ray i of ``out`` (``Rays``): id ``item``, its origin, direction and RGB value."""
     out.ids[i] = item
@@ -88,7 +95,7 @@ def _push_ray(out, i, item, origin, direction, value):
         out.values[i, c] = value[c]
 
 
-@numba.njit
+@numba.njit(cache=True)
 def emit_photons(sa, seed, first_id, total, out):
     """Emit photons first_id .. first_id + len(out.ids) - 1 of ``total`` into ``out``
     (``Rays``): a triangle in proportion to its power, a uniform point on it, a
@@ -115,7 +122,7 @@ def emit_photons(sa, seed, first_id, total, out):
         _push_ray(out, i, pid, off_surface(point, g, sa.epsilon), direction, power)
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _deposit(sa, t, point, lam, power, acc):
     """Add a photon's incident power to the density moments of triangle t's vertices."""
     x, y, z = point
@@ -138,7 +145,7 @@ def _deposit(sa, t, point, lam, power, acc):
             acc.moment1[vert, c, 1] += w * along_b
 
 
-@numba.njit
+@numba.njit(cache=True)
 def bounce_photons(sa, batch, depth, photons, hits, acc, out):
     """Deposit each photon of ``batch`` (``PhotonBatch``: its seed and max_depth) at
     ``depth`` where it landed and scatter it on; returns the survivors' count.
@@ -202,7 +209,7 @@ def bounce_photons(sa, batch, depth, photons, hits, acc, out):
 # -- gather -------------------------------------------------------------------------------
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _emission_weight(sa, block, depth, d, point, t, before):
     """The balance-heuristic weight of the emission a gather path finds at triangle t:
     against the vertex's light samples on the first segment, the previous glossy
@@ -227,7 +234,7 @@ def _emission_weight(sa, block, depth, d, point, t, before):
     return 1.0
 
 
-@numba.njit
+@numba.njit(cache=True)
 def shade_paths(tracing, sa, irradiance, block, depth, wave, samples, out):
     """Radiance arriving along one depth of a gather block's paths; returns (the number
     of paths that go on, the shadow rays traced).
@@ -305,7 +312,7 @@ def shade_paths(tracing, sa, irradiance, block, depth, wave, samples, out):
     return n_out, shadow
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _light_numbers(seed, item):
     """The three numbers of the light sample at a glossy hit."""
     return (
@@ -315,7 +322,7 @@ def _light_numbers(seed, item):
     )
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, inline="always")
 def _glossy_light_sample(tracing, sa, where, lobe, rnd, throughput, incoming):
     """The light sample at a glossy hit where = (point, g, shading normal n, arrival
     direction d), for lobe = (exponent, ks): adds its balance-heuristic-weighted
