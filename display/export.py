@@ -195,8 +195,7 @@ def shading_module(nodes=None):
     """``shading.js``: display.renderer's ``shade_glsl(nodes)`` (the shading formula the
     page and ``vlights render`` share; ``nodes``: the emitter quadrature's, None the
     default) and the constants the page lays its textures out with, as JavaScript."""
-    from display.glsl import TABLE_WIDTH
-    from display.renderer import FLOAT_TEXTURE_WIDTH, shade_glsl
+    from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, shade_glsl
     from fitting.probe import ALBEDO_POINTS
     from radiosity.formats.emitters import DEFAULT_NODES
 
