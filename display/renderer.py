@@ -226,7 +226,7 @@ class Renderer:
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
-        self._box = None  # the vertex array of the supersampling average (no attributes)
+        self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
     def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks):
         """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) appended to
@@ -455,16 +455,31 @@ class Renderer:
         program = self._program("box")
         fbs.output.use()
         self.ctx.viewport = (0, 0, *fbs.output.size)
-        self.ctx.disable(moderngl.DEPTH_TEST)
         fbs.single.color_attachments[0].use(location=0)
         program["image"].value = 0
         program["factor"].value = fbs.plan.factor
-        if self._box is None:
-            self._box = self.ctx.vertex_array(program, [])
-        self._box.render(moderngl.TRIANGLES, vertices=3)
+        self._full_screen(program)
         return fbs.output
 
-    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None,
+    def _full_screen(self, program):
+        """One triangle over the viewport with ``program`` (full_screen_vertex.glsl), no depth test."""
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        if program not in self._full_screens:
+            self._full_screens[program] = self.ctx.vertex_array(program, [])
+        self._full_screens[program].render(moderngl.TRIANGLES, vertices=3)
+
+    def show(self, fbo, exposure=1.0):
+        """Draw the image of ``fbo`` (``draw``'s: colour attachment 0) tone-mapped into the
+        framebuffer in use, of the same size: exposure, clip, sRGB (tonemap.glsl: the
+        formula of ``tonemap``, the rounding to 8 bits left to the target)."""
+        program = self._program("tonemap")
+        self.ctx.viewport = (0, 0, *self.ctx.fbo.size)
+        fbo.color_attachments[0].use(location=0)
+        program["hdr"].value = 0
+        program["exposure"].value = float(exposure)
+        self._full_screen(program)
+
+    def draw(self, view, mode="fitted", shading="pixel", lights=None, *, targets=1, program_key=None, mask=None,
              samples=None, parts=PARTS):
         """Draw, average the samples, and return the float framebuffer holding the image
         (colour attachment 0, a texture of the view's size; reused between calls, released
@@ -529,7 +544,7 @@ class Renderer:
             vao.release()
         return self._average(fbs)
 
-    def render(self, view, mode="fitted", shading="pixel", lights=None, samples=None, parts=PARTS):
+    def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS):
         """Linear radiance (H, W, 3) float32, row 0 at the top, background 0: each pixel
         the mean of its ``samples`` (None: the renderer's).
 
@@ -629,7 +644,7 @@ class Renderer:
         for texture in (self.radiance, self.coefficients, self.probes, self.visibility, *self.emitter_tables.values()):
             if texture is not None:
                 texture.release()
-        for resource in (self._scratch, self._box):
+        for resource in (self._scratch, *self._full_screens.values()):
             if resource is not None:
                 resource.release()
         for fbs in self._framebuffers.values():
