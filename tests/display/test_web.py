@@ -339,7 +339,9 @@ def test_mouse_look_and_orbit(browser, site):
         page.mouse.click(60, 45)
         page.wait_for_function("window.vlights.walkthrough.walk.isLocked", timeout=10_000)
         page.mouse.move(100, 45, steps=4)
-        page.wait_for_timeout(200)
+        page.wait_for_function(f"""(d) => {{ const v = {camera}.getWorldDirection(new {camera}.position.constructor());
+                                         return Math.abs(v.x - d[0]) + Math.abs(v.z - d[2]) > 1e-3; }}""",
+                               arg=before.tolist(), timeout=10_000)  # the view has turned
         after = np.array(page.evaluate(f"{camera}.getWorldDirection(new {camera}.position.constructor()).toArray()"))
         assert np.allclose(page.evaluate("window.vlights.state().eye"), eye)
         assert np.degrees(np.arccos(np.clip(before @ after, -1, 1))) > 1.0
@@ -351,7 +353,9 @@ def test_mouse_look_and_orbit(browser, site):
         page.mouse.down()
         page.mouse.move(90, 50, steps=5)
         page.mouse.up()
-        page.wait_for_timeout(200)
+        page.wait_for_function("""(e) => { const p = window.vlights.state().eye;
+                                           return Math.hypot(p[0] - e[0], p[1] - e[1], p[2] - e[2]) > 0.05; }""",
+                               arg=eye.tolist(), timeout=10_000)  # the eye has moved
         orbited = np.array(page.evaluate("window.vlights.state().eye"))
     finally:
         page.close()
