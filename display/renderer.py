@@ -2,7 +2,10 @@
 
 It knows nothing of windows: give it a moderngl context (``display.gl``) and it draws
 into its own float framebuffer and reads back linear radiance, (H, W, 3) float32, row 0
-at the top, background 0. Exposure and sRGB come last, in ``tonemap``.
+at the top, background 0. Exposure and sRGB come last: ``tonemap`` (numpy, to 8 bits),
+or ``Renderer.show`` into a framebuffer (display/shaders/tonemap.glsl, the same formula,
+which the window and the web page use too). The GLSL is in display/shaders, one file a
+stage or a part of the formula (``display.glsl``); ``PROGRAMS`` names each program's files.
 
 Modes
     fitted     the fitted model's shading formula (``fitting.model.shade_arrays``): any number
@@ -76,7 +79,8 @@ STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
 
 
 def tonemap(hdr, exposure=1.0):
-    """Linear radiance (H, W, 3) -> 8-bit sRGB (H, W, 3) uint8: exposure, clip, sRGB."""
+    """Linear radiance (H, W, 3) -> 8-bit sRGB (H, W, 3) uint8: exposure, clip, sRGB
+    (tonemap.glsl's formula, tested against it)."""
     x = np.clip(np.asarray(hdr, np.float64) * exposure, 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
