@@ -1,7 +1,9 @@
 """``vlights export``: a fitted model (fit.npz, Contract 2 version 3) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
-three.js modules it needs, copied from ``display/web``: the directory works offline,
-served by ``vlights serve DIR`` or any static server).
+three.js modules it needs, copied from ``display/web``, the renderer's shader files from
+``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
+fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
+or any static server).
 
 Schema (format ``vlights.fit.gltf``, version 2; the README's "Export" section). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
@@ -61,8 +63,8 @@ import numpy as np
 
 from radiosity.formats import InputError
 
-__all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADING", "VERSION", "add_export_command", "export_glb", "load_export",
-           "page_files", "write_export", "write_files"]
+__all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
+           "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
 VERSION = 2
@@ -70,12 +72,26 @@ READS = (1, 2)
 FILE = "scene.glb"
 PAGE = "index.html"
 WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
+SHADERS = "shaders"  # the renderer's shader files (display/shaders), which the page fetches
 PARTS_PER_ATTRIBUTE = 3  # emitter parts' visibility per VEC3 attribute
 
 
 def page_files():
-    """The walkthrough page's files, as paths relative to ``display/web`` (sorted)."""
-    return sorted(p.relative_to(WEB) for p in WEB.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+    """The walkthrough page's files as paths relative to the exported directory (sorted):
+    those of ``display/web``, and ``shaders/NAME.glsl`` for each of the renderer's shader
+    files. ``shading.js``, written for each fit, is not among them."""
+    from display.glsl import shader_files
+
+    web = [p.relative_to(WEB) for p in WEB.rglob("*") if p.is_file() and "__pycache__" not in p.parts]
+    return sorted(web + [Path(SHADERS) / name for name in shader_files()])
+
+
+def page_source(name):
+    """Where the page's file ``name`` (one of ``page_files``) comes from in the package."""
+    from display.glsl import SHADERS as SHADER_DIR
+
+    name = Path(name)
+    return SHADER_DIR / name.name if name.parts[0] == SHADERS else WEB / name
 
 
 def visibility_attributes(visibility):
@@ -188,21 +204,21 @@ def export_glb(model):
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False)
 
 
-SHADING = "shading.js"  # written with the page: the renderer's shading GLSL as an ES module
+SHADING = "shading.js"  # written with the page: the shaders' #define lines and constants, an ES module
 
 
 def shading_module(nodes=None):
-    """``shading.js``: display.renderer's ``shade_glsl(nodes)`` (the shading formula the
-    page and ``vlights render`` share; ``nodes``: the emitter quadrature's, None the
-    default) and the constants the page lays its textures out with, as JavaScript."""
-    from display.glsl import TABLE_WIDTH
-    from display.renderer import FLOAT_TEXTURE_WIDTH, shade_glsl
+    """``shading.js``: the ``#define`` lines the renderer prepends to its shaders
+    (``display.glsl.defines(nodes)``, every part of the model compiled in; ``nodes``: the
+    emitter quadrature's, None the default) and the constants the page lays its textures
+    out with, as JavaScript. The page puts DEFINES after its header, before each shader file."""
+    from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, defines
     from fitting.probe import ALBEDO_POINTS
     from radiosity.formats.emitters import DEFAULT_NODES
 
     nodes = DEFAULT_NODES if nodes is None else int(nodes)
-    return ("// Written by `vlights export` from display/renderer.py: the renderer's shading code.\n"
-            f"export const SHADE_GLSL = {json.dumps(shade_glsl(nodes))};\n"
+    return ("// Written by `vlights export` (display/export.py): the #define lines of display/glsl.py.\n"
+            f"export const DEFINES = {json.dumps(defines(nodes))};\n"
             f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n"
             f"export const EMITTER_NODES = {nodes};\n"
             f"export const TABLE_WIDTH = {TABLE_WIDTH};\n"
@@ -219,7 +235,7 @@ def write_files(model, directory, page=True):
     (directory / FILE).write_bytes(export_glb(model))
     for name in page_files() if page else ():
         (directory / name).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(WEB / name, directory / name)
+        shutil.copyfile(page_source(name), directory / name)
     if page:
         (directory / SHADING).write_text(shading_module(model.emitter_nodes))
     return directory / FILE
@@ -373,7 +389,7 @@ def add_export_command(subparsers):
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
                    help=f"output directory, created if missing (not its parents); {FILE}, {PAGE} (the WebGL "
-                   "walkthrough) and the three.js modules it loads are written into it")
+                   "walkthrough), the three.js modules and the shader files it loads are written into it")
     p.add_argument("--no-page", dest="page", action="store_false", help=f"write {FILE} alone")
     p.add_argument("--serve", action="store_true",
                    help="then serve DIR on 127.0.0.1 (as 'vlights serve DIR') and print the walkthrough's URL")

@@ -1,45 +1,104 @@
-"""GLSL of the parts of the shading that issue 22 added (the emitters' highlights, the
-reflection probe), shared by the renderer and the
-web page (``vlights export`` writes it into shading.js): GLSL 3.30 and GLSL ES 3.00 alike.
+"""The shaders' files (``display/shaders/*.glsl``), shared by the renderer, the window
+and the web page, and what is prepended to them at compile time.
 
-``emitter_glsl(nodes)``: the emitters' glossy highlights, the same arithmetic as
-``radiosity.formats.emitters`` (``highlight_integral``, ``_culled``, the visibility of
-each part blended from the triangle's vertices); tested against it.
+Every GLSL function is defined once, in one file; a file names the files it needs with
+``#include "name.glsl"`` lines, which ``resolve`` (here) and ``walkthrough.js`` (on the
+page, from the copies ``vlights export`` writes) replace by the file's text, each file
+once. A stage is compiled as a header (``DESKTOP``: ``#version 330``; on the page
+``es_header.glsl`` after three.js's ``#version 300 es``), then ``defines``, then the
+stage's file resolved. What varies with the model or a switch is a ``#define`` there,
+never code written from Python:
 
-``PROBE_GLSL``: the reflection probe's look-up, the same arithmetic as ``fitting.probe``
-(``box_directions``, ``texels``, ``look_up``); tested against it. Uniforms: ``probe_size``
-(M; 0: no probe), ``probe_row`` (the object's first row in ``probes``, an RGB32F atlas of
-M x M blocks stacked in rows), ``probe_centre``, ``probe_lo``, ``probe_hi`` (the box).
+    VL_TEXTURE_WIDTH          the width of the renderer's float textures (value i at texel
+                              (i % width, i / width))
+    VL_ALBEDO_POINTS          fitting.probe.ALBEDO_POINTS
+    VL_CULL, VL_MAX_POLYGON_VERTICES    radiosity.formats.emitters' constants
+    VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W, VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W
+                              the emitter quadrature of N nodes (``rules(N)``)
+    VL_NO_LIGHTS, VL_NO_PROBE, VL_NO_EMITTERS    the parts of the model left out
+    VL_TRIANGLE, VL_GOURAUD, VL_OUT    variants of a stage (the files say which)
 
-Each part compiles to nothing under ``#define VL_NO_EMITTERS`` / ``VL_NO_PROBE`` (the
-renderer's programs for objects and modes without it: Mesa's llvmpipe pays for the code
-of a shader even where a uniform skips it, measured 6-8 times a diffuse frame's time).
-
-Uniforms the emitter term reads (set by the caller; textures as in ``emitter_table``):
-
-    emitter_table     RGBA32F, row i = part i: texel 0 (kind, vertex count, radius, 0),
-                      1 (radiance, 0), 2 (bounding centre, bounding radius), 3 + k (vertex k)
-    n_parts           the parts drawn (0: none)
-    own_parts         bit i set: part i belongs to the object (it does not see itself)
-    emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
-    emitter_exponent  its modified-Phong exponent
-    visibility        RGB32F texture FLOAT_TEXTURE_WIDTH wide, the value in red: vertex v's
-                      fraction of part i at texel visibility_base + v * n_parts + i
-    visibility_base
+The emitters' table (``emitter_table``) is laid out here too, for the renderer and the
+glTF export.
 """
 
 from __future__ import annotations
 
+import re
+from functools import cache
+from pathlib import Path
+
 import numpy as np
 
+from fitting.model import PARTS
 from fitting.probe import ALBEDO_POINTS
-from radiosity.formats.emitters import CULL, MAX_POLYGON_VERTICES, PackedParts, rules
+from radiosity.formats.emitters import CULL, DEFAULT_NODES, MAX_POLYGON_VERTICES, PackedParts, rules
 
+SHADERS = Path(__file__).with_name("shaders")
+DESKTOP = "#version 330\n"  # the header of the renderer's and the window's stages
+ES_HEADER = "es_header.glsl"  # the page's, after three.js's "#version 300 es"
+FLOAT_TEXTURE_WIDTH = 4096
 TABLE_WIDTH = 3 + MAX_POLYGON_VERTICES
+INCLUDE = re.compile(r'^#include "([^"]+)"[ \t]*$', re.M)
+
+
+def shader_files():
+    """The shaders' file names (sorted): what ``vlights export`` copies beside the page."""
+    return sorted(p.name for p in SHADERS.glob("*.glsl"))
+
+
+@cache
+def read(name):
+    """The text of ``display/shaders/name``."""
+    return (SHADERS / name).read_text()
+
+
+def resolve(name, seen=None):
+    """``name``'s text with each ``#include "file"`` line replaced by that file's text,
+    resolved in turn; a file already included gives nothing (as walkthrough.js does)."""
+    seen = set() if seen is None else seen
+    if name in seen:
+        return ""
+    seen.add(name)
+    return INCLUDE.sub(lambda m: resolve(m.group(1), seen), read(name))
 
 
 def _floats(values):
     return ", ".join(repr(float(v)) for v in values)
+
+
+def defines(nodes=DEFAULT_NODES, parts=PARTS, extra=()):
+    """The ``#define`` lines prepended to every stage: the constants, the emitter
+    quadrature of ``nodes``, ``VL_NO_*`` for each part of PARTS not in ``parts``, and
+    the names in ``extra`` (``VL_TRIANGLE``, ...)."""
+    sphere_s, sphere_w, sector_s, sector_w = rules(nodes)
+    values = {
+        "VL_TEXTURE_WIDTH": FLOAT_TEXTURE_WIDTH,
+        "VL_ALBEDO_POINTS": ALBEDO_POINTS,
+        "VL_CULL": repr(float(CULL)),
+        "VL_MAX_POLYGON_VERTICES": MAX_POLYGON_VERTICES,
+        "VL_SPHERE_NODES": len(sphere_s),
+        "VL_SPHERE_S": _floats(sphere_s),
+        "VL_SPHERE_W": _floats(sphere_w),
+        "VL_SECTOR_NODES": len(sector_s),
+        "VL_SECTOR_S": _floats(sector_s),
+        "VL_SECTOR_W": _floats(sector_w),
+    }
+    lines = [f"#define {k} {v}\n" for k, v in values.items()]
+    lines += [f"#define VL_NO_{p.upper()}\n" for p in PARTS if p not in parts]
+    lines += [f"#define {name}\n" for name in extra]
+    return "".join(lines)
+
+
+def stage(name, nodes=DEFAULT_NODES, parts=PARTS, extra=()):
+    """The desktop source (GLSL 3.30) of the stage in file ``name``."""
+    return DESKTOP + defines(nodes, parts, extra) + resolve(name)
+
+
+def shade_glsl(nodes=DEFAULT_NODES, parts=PARTS):
+    """The whole shading formula (``shade.glsl`` resolved, after its ``defines``) with
+    no header: GLSL 3.30 and GLSL ES 3.00 alike."""
+    return defines(nodes, parts) + resolve("shade.glsl")
 
 
 def emitter_table(parts):
@@ -57,269 +116,3 @@ def emitter_table(parts):
     return table
 
 
-def emitter_glsl(nodes, texture_width):
-    """The emitter-highlight functions for ``nodes`` = N (``radiosity.formats.emitters.rules``)."""
-    sphere_s, sphere_w, sector_s, sector_w = rules(nodes)
-    n, g = len(sphere_s), len(sector_s)
-    return f"""
-#ifdef VL_NO_EMITTERS
-vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {{ return vec3(0.0); }}
-#else
-uniform sampler2D emitter_table;
-uniform int n_parts;
-uniform int own_parts;
-uniform vec3 emitter_ks;
-uniform float emitter_exponent;
-uniform sampler2D visibility;
-uniform int visibility_base;
-const int VISIBILITY_WIDTH = {texture_width};
-const float HALF_PI = 1.5707963267948966;
-const float TWO_PI = 6.283185307179586;
-const float CULL = {CULL!r};
-const float U_NODE = 0.28867513459481287;
-const int SPHERE_NODES = {n};
-const float SPHERE_S[{n}] = float[{n}]({_floats(sphere_s)});
-const float SPHERE_W[{n}] = float[{n}]({_floats(sphere_w)});
-const int SECTOR_NODES = {g};
-const float SECTOR_S[{g}] = float[{g}]({_floats(sector_s)});
-const float SECTOR_W[{g}] = float[{g}]({_floats(sector_w)});
-float atan2_(float y, float x) {{   // numba's atan2: 0 at (0, 0), where GLSL's atan is undefined
-    return (x == 0.0 && y == 0.0) ? 0.0 : atan(y, x);
-}}
-float log1m(float v) {{   // log(1 - v), exact for small v
-    if (v < 0.01) return -v * (1.0 + v * (0.5 + v * (1.0 / 3.0 + v * 0.25)));
-    return log(1.0 - v);
-}}
-float lobe_cdf(float theta, float p1) {{   // cos^p1 theta through the versine
-    if (theta >= HALF_PI) return 0.0;
-    if (theta <= 0.0) return 1.0;
-    float h = sin(0.5 * theta);
-    return exp(p1 * log1m(2.0 * h * h));
-}}
-float lobe_slice(float lo, float hi, float p1, float rn, float dn) {{
-    float u1 = lobe_cdf(lo, p1);
-    float u2 = lobe_cdf(hi, p1);
-    float du = u1 - u2;
-    if (!(du > 0.0)) return 0.0;
-    float mean = 0.0;
-    for (int k = 0; k < 2; ++k) {{
-        float u = 0.5 * (u1 + u2) + (k == 0 ? U_NODE : -U_NODE) * du;
-        float c = u > 0.0 ? exp(log(u) / p1) : 0.0;
-        float g = c * rn + sqrt(max(0.0, 1.0 - c * c)) * dn;
-        if (g > 0.0) mean += 0.5 * g;
-    }}
-    return du * mean;
-}}
-void lobe_frame(vec3 r, out vec3 t, out vec3 b) {{   // Duff et al. 2017
-    float s = r.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + r.z);
-    float c = r.x * r.y * a;
-    t = vec3(1.0 + s * r.x * r.x * a, s * c, -s * r.x);
-    b = vec3(c, s + r.y * r.y * a, -r.y);
-}}
-float sphere_integral(vec3 centre, float radius, vec3 x, vec3 n, vec3 r, float p) {{
-    vec3 t, b;
-    lobe_frame(r, t, b);
-    float rn = dot(r, n), tn = dot(t, n), bn = dot(b, n);
-    float p1 = p + 1.0;
-    vec3 c = centre - x;
-    float dist = length(c);
-    if (!(dist > radius)) return 0.0;
-    c /= dist;
-    float sin_beta = radius / dist;
-    float gamma = atan2_(length(cross(r, c)), dot(r, c));
-    float beta = asin(sin_beta);
-    if (gamma - beta >= HALF_PI) return 0.0;
-    bool full = gamma <= beta;
-    float half_ = full ? 0.0 : asin(min(sin_beta / sin(gamma), 1.0));
-    float mid = atan2_(dot(c, b), dot(c, t));
-    float total = 0.0;
-    for (int k = 0; k < SPHERE_NODES; ++k) {{
-        float phi, weight;
-        if (full) {{
-            phi = TWO_PI * (float(k) + 0.5) / float(SPHERE_NODES);
-            weight = TWO_PI / float(SPHERE_NODES);
-        }} else {{
-            phi = mid + half_ * sin(HALF_PI * SPHERE_S[k]);
-            weight = SPHERE_W[k] * half_ * HALF_PI * cos(HALF_PI * SPHERE_S[k]);
-        }}
-        float cp = cos(phi), sp = sin(phi);
-        vec3 d = cp * t + sp * b;
-        float a_ = dot(r, c);
-        float b_ = dot(d, c);
-        float off = dot(cross(r, d), c);
-        float inside = sin_beta * sin_beta - off * off;
-        float rho = sqrt(a_ * a_ + b_ * b_);
-        if (!(inside > 0.0 && rho > 0.0)) continue;
-        float kappa = asin(min(sqrt(inside) / rho, 1.0));
-        float delta = atan2_(b_, a_);
-        float lo = max(0.0, delta - kappa);
-        float hi = min(HALF_PI, delta + kappa);
-        if (hi > lo) total += weight * lobe_slice(lo, hi, p1, rn, cp * tn + sp * bn);
-    }}
-    return total / p1;
-}}
-vec3 emitter_point(int part, int k) {{ return texelFetch(emitter_table, ivec2(3 + k, part), 0).xyz; }}
-float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {{
-    vec3 t, b;
-    lobe_frame(r, t, b);
-    float rn = dot(r, n), tn = dot(t, n), bn = dot(b, n);
-    float p1 = p + 1.0;
-    vec3 q0 = emitter_point(part, 0);
-    if (dot(x - q0, cross(emitter_point(part, 1) - q0, emitter_point(part, 2) - q0)) <= 0.0) return 0.0;
-    vec3 m[{MAX_POLYGON_VERTICES}];
-    float pm[{MAX_POLYGON_VERTICES}];
-    float azimuth[{MAX_POLYGON_VERTICES + 1}];
-    bool ahead = false, pos = true, neg = true;
-    vec3 ac = vec3(0.0);
-    for (int i = 0; i < count; ++i) {{
-        vec3 a = emitter_point(part, i) - x;
-        vec3 g = emitter_point(part, i + 1 < count ? i + 1 : 0) - x;
-        ahead = ahead || dot(a, r) > 0.0;
-        ac += a;
-        vec3 mi = cross(g, a);
-        float ml = length(mi);
-        m[i] = ml > 0.0 ? mi / ml : mi;
-        pm[i] = dot(m[i], r);
-        pos = pos && pm[i] >= 0.0;
-        neg = neg && pm[i] <= 0.0;
-    }}
-    if (!ahead) return 0.0;
-    float ref = atan2_(dot(ac, b), dot(ac, t));
-    for (int i = 0; i < count; ++i) {{
-        vec3 a = emitter_point(part, i) - x;
-        float d = atan2_(dot(a, b), dot(a, t)) - ref;
-        azimuth[i] = d - TWO_PI * floor((d + 3.141592653589793) / TWO_PI);
-    }}
-    for (int i = 1; i < count; ++i) {{
-        float v = azimuth[i];
-        int j = i - 1;
-        while (j >= 0 && azimuth[j] > v) {{ azimuth[j + 1] = azimuth[j]; --j; }}
-        azimuth[j + 1] = v;
-    }}
-    int sectors = count - 1;
-    if (pos || neg) {{ azimuth[count] = azimuth[0] + TWO_PI; sectors = count; }}
-    float total = 0.0;
-    for (int sector = 0; sector < sectors; ++sector) {{
-        float half_ = 0.5 * (azimuth[sector + 1] - azimuth[sector]);
-        if (!(half_ > 0.0)) continue;
-        float mid = ref + 0.5 * (azimuth[sector + 1] + azimuth[sector]);
-        for (int k = 0; k < SECTOR_NODES; ++k) {{
-            float phi = mid + half_ * SECTOR_S[k];
-            float cp = cos(phi), sp = sin(phi);
-            vec3 d = cp * t + sp * b;
-            float lo = 0.0, hi = HALF_PI;
-            for (int i = 0; i < count; ++i) {{
-                float p_ = pm[i], q_ = dot(d, m[i]);
-                if (p_ >= 0.0 && q_ >= 0.0) continue;
-                if (p_ < 0.0 && q_ < 0.0) {{ hi = -1.0; break; }}
-                if (p_ >= 0.0) hi = min(hi, atan2_(p_, -q_));
-                else lo = max(lo, atan2_(-p_, q_));
-            }}
-            if (hi > lo) total += SECTOR_W[k] * half_ * lobe_slice(lo, hi, p1, rn, cp * tn + sp * bn);
-        }}
-    }}
-    return total / p1;
-}}
-bool emitter_culled(vec4 bound, vec3 x, vec3 r, float p) {{
-    vec3 c = bound.xyz - x;
-    float dist = length(c);
-    if (!(dist > bound.w)) return false;
-    float nearest = atan2_(length(cross(r, c)), dot(r, c)) - asin(bound.w / dist);
-    return nearest > 0.0 && lobe_cdf(nearest, p) < CULL;
-}}
-float visibility_at(int vertex, int part) {{
-    int i = visibility_base + vertex * n_parts + part;
-    return texelFetch(visibility, ivec2(i % VISIBILITY_WIDTH, i / VISIBILITY_WIDTH), 0).r;
-}}
-// the emitters' highlights at x (unit normal n, unit w towards the eye), each part's
-// visibility blended from the vertices by weights (per pixel: barycentrics; at a vertex:
-// (v, v, v), (1, 0, 0))
-vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {{
-    vec3 colour = vec3(0.0);
-    if (n_parts == 0 || all(equal(emitter_ks, vec3(0.0)))) return colour;
-    vec3 r = 2.0 * dot(n, w) * n - w;
-    float rl = length(r);
-    if (!(rl > 0.0)) return colour;
-    r /= rl;
-    float p = emitter_exponent;
-    float norm = (p + 2.0) / TWO_PI;
-    for (int i = 0; i < n_parts; ++i) {{
-        if (((own_parts >> i) & 1) == 1) continue;
-        float v = weights.x * visibility_at(vertices.x, i);
-        if (weights.y != 0.0) v += weights.y * visibility_at(vertices.y, i);
-        if (weights.z != 0.0) v += weights.z * visibility_at(vertices.z, i);
-        if (!(v > 0.0)) continue;
-        vec4 head = texelFetch(emitter_table, ivec2(0, i), 0);
-        vec4 bound = texelFetch(emitter_table, ivec2(2, i), 0);
-        if (emitter_culled(bound, x, r, p)) continue;
-        float j = head.x < 0.5 ? sphere_integral(emitter_point(i, 0), head.z, x, n, r, p)
-                               : polygon_integral(i, int(head.y + 0.5), x, n, r, p);
-        colour += (j * norm * v) * emitter_ks * texelFetch(emitter_table, ivec2(1, i), 0).rgb;
-    }}
-    return colour;
-}}
-#endif
-"""
-
-
-PROBE_GLSL = """
-#ifdef VL_NO_PROBE
-vec3 probe_term(vec3 x, vec3 n, vec3 w, vec3 weight) { return vec3(0.0); }
-#else
-uniform sampler2D probes;
-uniform int probe_size;
-uniform int probe_row;
-uniform vec3 probe_centre;
-uniform vec3 probe_lo;
-uniform vec3 probe_hi;
-uniform float probe_albedo[ALBEDO_POINTS];   // S at n . w = 0, 1 / (ALBEDO_POINTS - 1), ..., 1
-const float PROBE_INSET = 1e-6;
-vec2 octahedral(vec3 u) {   // fitting.probe.encode
-    vec2 p = u.xy / (abs(u.x) + abs(u.y) + abs(u.z));
-    if (u.z < 0.0) p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
-    return 0.5 * (p + 1.0);
-}
-vec3 probe_texel(int i, int j) {   // fitting.probe._wrap: the octahedron's continuity across the border
-    int m = probe_size;
-    if (i < 0 || i >= m) j = m - 1 - j;
-    i = clamp(i, 0, m - 1);
-    if (j < 0 || j >= m) i = m - 1 - i;
-    j = clamp(j, 0, m - 1);
-    return texelFetch(probes, ivec2(i, probe_row + j), 0).rgb;
-}
-vec3 probe_direction(vec3 x, vec3 n, vec3 w) {   // fitting.probe.box_directions
-    float inset = PROBE_INSET * length(probe_hi - probe_lo);
-    x = clamp(x, probe_lo + inset, probe_hi - inset);
-    vec3 r = 2.0 * dot(n, w) * n - w;
-    float rl = length(r);
-    if (rl > 0.0) r /= rl;
-    float t = 1e38;
-    for (int k = 0; k < 3; ++k) {
-        if (r[k] != 0.0) t = min(t, ((r[k] > 0.0 ? probe_hi[k] : probe_lo[k]) - x[k]) / r[k]);
-    }
-    t = t < 1e38 ? max(t, 0.0) : 0.0;
-    vec3 d = x + t * r - probe_centre;
-    float dl = length(d);
-    return dl > 0.0 ? d / dl : r;
-}
-vec3 probe_lookup(vec3 u) {   // fitting.probe.look_up: bilinear, texel centres at (i + 0.5) / M
-    vec2 f = octahedral(u) * float(probe_size) - 0.5;
-    vec2 f0 = floor(f);
-    vec2 t = f - f0;
-    int i0 = int(f0.x), j0 = int(f0.y);
-    return (1.0 - t.x) * (1.0 - t.y) * probe_texel(i0, j0) + t.x * (1.0 - t.y) * probe_texel(i0 + 1, j0)
-         + (1.0 - t.x) * t.y * probe_texel(i0, j0 + 1) + t.x * t.y * probe_texel(i0 + 1, j0 + 1);
-}
-float probe_albedo_at(vec3 n, vec3 w) {   // fitting.probe.albedo_factor
-    float x = clamp(dot(n, w), 0.0, 1.0) * float(ALBEDO_POINTS - 1);
-    int i = min(int(floor(x)), ALBEDO_POINTS - 2);
-    float f = x - float(i);
-    return (1.0 - f) * probe_albedo[i] + f * probe_albedo[i + 1];
-}
-vec3 probe_term(vec3 x, vec3 n, vec3 w, vec3 weight) {
-    if (probe_size == 0) return vec3(0.0);
-    return weight * probe_albedo_at(n, w) * probe_lookup(probe_direction(x, n, w));
-}
-#endif
-""".replace("ALBEDO_POINTS", str(ALBEDO_POINTS))

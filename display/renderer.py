@@ -2,7 +2,10 @@
 
 It knows nothing of windows: give it a moderngl context (``display.gl``) and it draws
 into its own float framebuffer and reads back linear radiance, (H, W, 3) float32, row 0
-at the top, background 0. Exposure and sRGB come last, in ``tonemap``.
+at the top, background 0. Exposure and sRGB come last: ``tonemap`` (numpy, to 8 bits),
+or ``Renderer.show`` into a framebuffer (display/shaders/tonemap.glsl, the same formula,
+which the window and the web page use too). The GLSL is in display/shaders, one file a
+stage or a part of the formula (``display.glsl``); ``PROGRAMS`` names each program's files.
 
 Modes
     fitted     the fitted model's shading formula (``fitting.model.shade_arrays``): any number
@@ -45,435 +48,39 @@ from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, sample_plan
-from .glsl import PROBE_GLSL, emitter_glsl, emitter_table
+from .glsl import FLOAT_TEXTURE_WIDTH, emitter_table, stage
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
-FLOAT_TEXTURE_WIDTH = 4096
 RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
 
-LIGHTS_GLSL = """
-#ifdef VL_NO_LIGHTS
-vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) { return emitted; }
-#else
-uniform int n_lights;          // lights drawn: the object's first n_lights (--lights)
-uniform int light_stride;      // the object's K: per-light coefficients per vertex
-uniform int per_light;         // 1: light k's coefficient of vertex v is texel coefficient_base + v * K + k
-uniform int coefficient_base;
-uniform sampler2D lights;      // row k: (light_pos xyzw as GL_POSITION), (rgb, shininess)
-uniform sampler2D coefficients;
-const int COEFFICIENT_WIDTH = FLOAT_TEXTURE_WIDTH;
-const float NEGLIGIBLE = 30.0;  // fitting.lobes.NEGLIGIBLE: the lobe is 0 where (1 - c) p > 30
-vec3 coefficient_at(int vertex, int k) {
-    int i = coefficient_base + vertex * light_stride + k;
-    return texelFetch(coefficients, ivec2(i % COEFFICIENT_WIDTH, i / COEFFICIENT_WIDTH), 0).rgb;
+# The programs: a shader file per stage (display/shaders), compiled with ``display.glsl``'s
+# defines for the object's parts and emitter nodes, and the variants named in "defines".
+PROGRAMS = {
+    # per pixel, the shared coefficients interpolated (the Gouraud colour where gouraud == 1)
+    "fitted": dict(vertex_shader="fitted_vertex.glsl", fragment_shader="fitted_fragment.glsl"),
+    # per pixel with per-vertex textures: a geometry shader hands the fragments the triangle
+    "fitted-pixel": dict(vertex_shader="pixel_vertex.glsl", geometry_shader="pixel_geometry.glsl",
+                         fragment_shader="fitted_fragment.glsl", defines=("VL_TRIANGLE",)),
+    "gouraud": dict(vertex_shader="fitted_vertex.glsl", fragment_shader="colour_fragment.glsl",
+                    defines=("VL_GOURAUD",)),
+    "fitted-feedback": dict(vertex_shader="fitted_vertex.glsl", varyings=["v_colour"], defines=("VL_GOURAUD",)),
+    "attributes": dict(vertex_shader="fitted_vertex.glsl", fragment_shader="attributes_fragment.glsl"),
+    "attributes-pixel": dict(vertex_shader="pixel_vertex.glsl", geometry_shader="pixel_geometry.glsl",
+                             fragment_shader="attributes_fragment.glsl", defines=("VL_TRIANGLE",)),
+    "reference-gouraud": dict(vertex_shader="reference_vertex.glsl", fragment_shader="colour_fragment.glsl"),
+    "reference-pixel": dict(vertex_shader="reference_pixel_vertex.glsl", geometry_shader="reference_pixel_geometry.glsl",
+                            fragment_shader="reference_pixel_fragment.glsl"),
+    "reference-feedback": dict(vertex_shader="reference_vertex.glsl", varyings=["v_colour"]),
+    "box": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="box_fragment.glsl"),
+    "tonemap": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="tonemap_fragment.glsl"),
 }
-// light k's lobe times its colour at point x, unit normal n, unit w towards the eye
-vec3 light_term(int k, vec3 n, vec3 x, vec3 w) {
-    vec4 p = texelFetch(lights, ivec2(0, k), 0);
-    vec4 rgb_p = texelFetch(lights, ivec2(1, k), 0);
-    vec3 l = p.xyz - p.w * x;      // l_k(x) = normalize(xyz - w x)
-    float l_len = length(l);
-    if (!(l_len > 0.0)) return vec3(0.0);   // a point light at x: no light
-    vec3 h = l / l_len + w;
-    float h_len = length(h);
-    if (!(h_len > 0.0)) return vec3(0.0);
-    float c = dot(n, h) / h_len;
-    if (!(c > 0.0) || (1.0 - c) * rgb_p.a > NEGLIGIBLE) return vec3(0.0);
-    return pow(c, rgb_p.a) * rgb_p.rgb;
-}
-// emitted + the virtual lights; per-light coefficients are the three vertices' blended by
-// weights (per pixel: barycentrics; at a vertex: (v, v, v), (1, 0, 0))
-vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) {
-    vec3 colour = emitted;
-    for (int k = 0; k < n_lights; ++k) {
-        vec3 term = light_term(k, n, x, w);
-        if (all(equal(term, vec3(0.0)))) continue;
-        vec3 c = specular;
-        if (per_light == 1) {
-            c = weights.x * coefficient_at(vertices.x, k);
-            if (weights.y != 0.0) c += weights.y * coefficient_at(vertices.y, k);
-            if (weights.z != 0.0) c += weights.z * coefficient_at(vertices.z, k);
-        }
-        colour += term * c;
-    }
-    return colour;
-}
-#endif
-""".replace("FLOAT_TEXTURE_WIDTH", str(FLOAT_TEXTURE_WIDTH))
-
-SHADE_MAIN_GLSL = """
-// Contract 2's shading formula (version 3): emitted + lights + probe + the emitters' highlights
-vec3 shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, vec3 probe_weight, ivec3 vertices, vec3 weights) {
-    return lights_shade(n, x, w, emitted, specular, vertices, weights) + probe_term(x, n, w, probe_weight)
-         + emitter_term(x, n, w, vertices, weights);
-}
-"""
-
-
-def shade_glsl(nodes=DEFAULT_NODES, parts=PARTS):
-    """The whole shading formula's GLSL (the fitted programs' and the web page's), for the
-    emitter quadrature's ``nodes``, with the code of the ``parts`` only (the others
-    compile to nothing: ``display.glsl``)."""
-    return features(parts) + LIGHTS_GLSL + PROBE_GLSL + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH) + SHADE_MAIN_GLSL
-
-
-def features(parts):
-    """The ``#define`` lines that leave out the parts of PARTS not in ``parts``."""
-    return "".join(f"#define VL_NO_{p.upper()}\n" for p in PARTS if p not in parts)
-
-
-SHADE_GLSL = shade_glsl()
-SHADE = "//@SHADE\n"  # where a program's source gets shade_glsl(nodes)
-EMITTERS = "//@EMITTERS\n"  # ... the emitter term alone (the reference programs)
-
-FITTED_VS = """
-#version 330
-uniform mat4 mvp;
-uniform vec3 eye;
-uniform int gouraud;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_emitted;
-in vec3 in_specular;
-in vec3 in_probe;
-centroid out vec3 v_position;
-centroid out vec3 v_normal;
-centroid out vec3 v_emitted;
-centroid out vec3 v_specular;
-centroid out vec3 v_probe;
-centroid out vec3 v_colour;
-""" + SHADE + """
-void main() {
-    gl_Position = mvp * vec4(in_position, 1.0);
-    v_position = in_position;
-    v_normal = in_normal;
-    v_emitted = in_emitted;
-    v_specular = in_specular;
-    v_probe = in_probe;
-    v_colour = gouraud == 1 ? shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted,
-                                    in_specular, in_probe, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0))
-                            : vec3(0.0);
-}
-"""
-
-GOURAUD_VS = """
-#version 330
-uniform mat4 mvp;
-uniform vec3 eye;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_emitted;
-in vec3 in_specular;
-in vec3 in_probe;
-centroid out vec3 v_colour;
-""" + SHADE + """
-void main() {
-    gl_Position = mvp * vec4(in_position, 1.0);
-    v_colour = shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted, in_specular,
-                     in_probe, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
-}
-"""
-
-FITTED_FS = """
-#version 330
-uniform vec3 eye;
-uniform int gouraud;
-uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
-centroid in vec3 v_position;
-centroid in vec3 v_normal;
-centroid in vec3 v_emitted;
-centroid in vec3 v_specular;
-centroid in vec3 v_probe;
-centroid in vec3 v_colour;
-out vec4 f_colour;
-""" + SHADE + """
-void main() {
-    // (an object with emitter highlights is drawn per pixel by the geometry shader's program)
-    vec3 c = gouraud == 1 ? v_colour : shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted,
-                                             v_specular, v_probe, ivec3(0), vec3(1.0, 0.0, 0.0));
-    f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
-}
-"""
-
-# Per pixel with per-light coefficients: a geometry shader hands each fragment its
-# triangle's three vertex ids (flat) and barycentrics (interpolated like any varying),
-# and the fragment blends the three vertices' coefficients of each light from the texture.
-FITTED_PIXEL_VS = """
-#version 330
-uniform mat4 mvp;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_emitted;
-in vec3 in_specular;
-in vec3 in_probe;
-out vec3 g_position;
-out vec3 g_normal;
-out vec3 g_emitted;
-out vec3 g_specular;
-out vec3 g_probe;
-flat out int g_vertex;
-void main() {
-    gl_Position = mvp * vec4(in_position, 1.0);
-    g_position = in_position;
-    g_normal = in_normal;
-    g_emitted = in_emitted;
-    g_specular = in_specular;
-    g_probe = in_probe;
-    g_vertex = gl_VertexID;
-}
-"""
-
-FITTED_PIXEL_GS = """
-#version 330
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-in vec3 g_position[];
-in vec3 g_normal[];
-in vec3 g_emitted[];
-in vec3 g_specular[];
-in vec3 g_probe[];
-flat in int g_vertex[];
-centroid out vec3 v_position;
-centroid out vec3 v_normal;
-centroid out vec3 v_emitted;
-centroid out vec3 v_specular;
-centroid out vec3 v_probe;
-centroid out vec3 v_bary;
-flat out ivec3 v_vertices;
-void main() {
-    for (int i = 0; i < 3; ++i) {
-        gl_Position = gl_in[i].gl_Position;
-        v_position = g_position[i];
-        v_normal = g_normal[i];
-        v_emitted = g_emitted[i];
-        v_specular = g_specular[i];
-        v_probe = g_probe[i];
-        v_bary = vec3(i == 0, i == 1, i == 2);
-        v_vertices = ivec3(g_vertex[0], g_vertex[1], g_vertex[2]);
-        EmitVertex();
-    }
-    EndPrimitive();
-}
-"""
-
-FITTED_PIXEL_FS = """
-#version 330
-uniform vec3 eye;
-uniform vec4 flat_colour;   // w > 0: draw this colour instead (object masks)
-centroid in vec3 v_position;
-centroid in vec3 v_normal;
-centroid in vec3 v_emitted;
-centroid in vec3 v_specular;
-centroid in vec3 v_probe;
-centroid in vec3 v_bary;
-flat in ivec3 v_vertices;
-out vec4 f_colour;
-""" + SHADE + """
-void main() {
-    vec3 c = shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_probe,
-                   v_vertices, v_bary);
-    f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
-}
-"""
-
-# What the per-pixel programs interpolate, for tests: each object through the program
-# that draws it (rasterisation with and without a geometry shader may differ by an ulp),
-# the vertex ids and barycentrics only through the geometry shader's (-1 and 0 without).
-ATTRIBUTES_FS = """
-#version 330
-uniform int object_index;
-centroid in vec3 v_position;
-centroid in vec3 v_normal;
-centroid in vec3 v_emitted;
-centroid in vec3 v_specular;
-TRIANGLE_INPUTS
-layout(location = 0) out vec4 f_position;
-layout(location = 1) out vec4 f_normal;
-layout(location = 2) out vec4 f_emitted;
-layout(location = 3) out vec4 f_specular;
-layout(location = 4) out vec4 f_bary;
-layout(location = 5) out vec4 f_vertices;
-void main() {
-    f_position = vec4(v_position, 1.0);
-    f_normal = vec4(v_normal, 0.0);
-    f_emitted = vec4(v_emitted, 0.0);
-    f_specular = vec4(v_specular, 0.0);
-    f_bary = vec4(v_bary, 0.0);
-    f_vertices = vec4(vec3(v_vertices), float(object_index));
-}
-"""
-ATTRIBUTES_PIXEL_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "centroid in vec3 v_bary;\nflat in ivec3 v_vertices;")
-ATTRIBUTES_FS = ATTRIBUTES_FS.replace("TRIANGLE_INPUTS", "const vec3 v_bary = vec3(0.0);\nconst ivec3 v_vertices = ivec3(-1);")
-
-LOOKUP_GLSL = """
-uniform sampler2D radiance;  // every object's radiance, texel base + vertex * D + d
-uniform int base;
-uniform int grid_n;          // 0 for a diffuse object (D = 1)
-const int TEXTURE_WIDTH = RADIANCE_TEXTURE_WIDTH;
-const float FOUR_OVER_PI = 1.2732395447351628;
-vec3 fetch(int index) {
-    return texelFetch(radiance, ivec2(index % TEXTURE_WIDTH, index / TEXTURE_WIDTH), 0).rgb;
-}
-vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere_to_square
-    w = normalize(w);
-    float z = clamp(w.z, 0.0, 1.0);
-    float radius = z > 0.5 ? length(w.xy) / sqrt(1.0 + z) : sqrt(1.0 - z);
-    float t = (w.x == 0.0 && w.y == 0.0) ? 0.0 : atan(w.y, w.x) * FOUR_OVER_PI;
-    float a;
-    float b;
-    if (abs(t) < 1.0) { a = radius; b = radius * t; }
-    else if (t >= 1.0 && t <= 3.0) { a = radius * (2.0 - t); b = radius; }
-    else if (t <= -1.0 && t >= -3.0) { a = radius * (2.0 + t); b = -radius; }
-    else { a = -radius; b = t > 0.0 ? radius * (4.0 - t) : -radius * (4.0 + t); }
-    return clamp(vec2(a, b), -1.0, 1.0);
-}
-vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directions.grid_lookup_weights
-    if (grid_n == 0) return fetch(base + vertex);
-    int D = grid_n * grid_n;
-    vec3 bt = cross(n, t);
-    vec2 ab = hemisphere_to_square(vec3(dot(w, t), dot(w, bt), dot(w, n)));
-    vec2 xy = (ab + 1.0) * 0.5 * float(grid_n) - 0.5;
-    vec2 f0 = floor(xy);
-    vec2 f = xy - f0;
-    int i0 = clamp(int(f0.x), 0, grid_n - 1);
-    int i1 = clamp(int(f0.x) + 1, 0, grid_n - 1);
-    int j0 = clamp(int(f0.y), 0, grid_n - 1);
-    int j1 = clamp(int(f0.y) + 1, 0, grid_n - 1);
-    int row = base + vertex * D;
-    vec3 low = mix(fetch(row + j0 * grid_n + i0), fetch(row + j0 * grid_n + i1), f.x);
-    vec3 high = mix(fetch(row + j1 * grid_n + i0), fetch(row + j1 * grid_n + i1), f.x);
-    return mix(low, high, f.y);
-}
-""".replace("RADIANCE_TEXTURE_WIDTH", str(RADIANCE_TEXTURE_WIDTH))
-
-REFERENCE_GOURAUD_VS = """
-#version 330
-uniform mat4 mvp;
-uniform vec3 eye;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_tangent;
-centroid out vec3 v_colour;
-""" + LOOKUP_GLSL + EMITTERS + """
-void main() {
-    gl_Position = mvp * vec4(in_position, 1.0);
-    vec3 w = normalize(eye - in_position);
-    v_colour = lookup(gl_VertexID, in_normal, in_tangent, w)
-             + emitter_term(in_position, normalize(in_normal), w, ivec3(gl_VertexID), vec3(1.0, 0.0, 0.0));
-}
-"""
-
-COLOUR_FS = """
-#version 330
-centroid in vec3 v_colour;
-out vec4 f_colour;
-void main() { f_colour = vec4(v_colour, 1.0); }
-"""
-
-REFERENCE_PIXEL_VS = """
-#version 330
-uniform mat4 mvp;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_tangent;
-out vec3 g_position;
-out vec3 g_normal;
-out vec3 g_tangent;
-flat out int g_vertex;
-void main() {
-    gl_Position = mvp * vec4(in_position, 1.0);
-    g_position = in_position;
-    g_normal = in_normal;
-    g_tangent = in_tangent;
-    g_vertex = gl_VertexID;
-}
-"""
-
-REFERENCE_PIXEL_GS = """
-#version 330
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-in vec3 g_position[];
-in vec3 g_normal[];
-in vec3 g_tangent[];
-flat in int g_vertex[];
-centroid out vec3 f_position;
-centroid out vec3 f_bary;
-flat out ivec3 f_vertices;
-flat out vec3 f_n0;
-flat out vec3 f_n1;
-flat out vec3 f_n2;
-flat out vec3 f_t0;
-flat out vec3 f_t1;
-flat out vec3 f_t2;
-void main() {
-    for (int i = 0; i < 3; ++i) {
-        gl_Position = gl_in[i].gl_Position;
-        f_position = g_position[i];
-        f_bary = vec3(i == 0, i == 1, i == 2);
-        f_vertices = ivec3(g_vertex[0], g_vertex[1], g_vertex[2]);
-        f_n0 = g_normal[0]; f_n1 = g_normal[1]; f_n2 = g_normal[2];
-        f_t0 = g_tangent[0]; f_t1 = g_tangent[1]; f_t2 = g_tangent[2];
-        EmitVertex();
-    }
-    EndPrimitive();
-}
-"""
-
-REFERENCE_PIXEL_FS = """
-#version 330
-uniform vec3 eye;
-centroid in vec3 f_position;
-centroid in vec3 f_bary;
-flat in ivec3 f_vertices;
-flat in vec3 f_n0;
-flat in vec3 f_n1;
-flat in vec3 f_n2;
-flat in vec3 f_t0;
-flat in vec3 f_t1;
-flat in vec3 f_t2;
-out vec4 f_colour;
-""" + LOOKUP_GLSL + EMITTERS + """
-void main() {
-    vec3 w = normalize(eye - f_position);
-    vec3 c = f_bary.x * lookup(f_vertices.x, f_n0, f_t0, w)
-           + f_bary.y * lookup(f_vertices.y, f_n1, f_t1, w)
-           + f_bary.z * lookup(f_vertices.z, f_n2, f_t2, w);
-    // the emitters' highlights at the pixel (the grid holds the rest: the solution minus them)
-    vec3 n = normalize(f_bary.x * f_n0 + f_bary.y * f_n1 + f_bary.z * f_n2);
-    c += emitter_term(f_position, n, w, f_vertices, f_bary);
-    f_colour = vec4(c, 1.0);
-}
-"""
-
-
-# Supersampling's last step: pixel (x, y) of the image is the mean of the factor x factor
-# block of the larger (already MSAA-resolved) image it covers.
-FULL_SCREEN_VS = """
-#version 330
-void main() {   // one triangle covering the viewport
-    gl_Position = vec4(vec2((gl_VertexID << 1) & 2, gl_VertexID & 2) * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
-BOX_FS = """
-#version 330
-uniform sampler2D image;
-uniform int factor;
-out vec4 f_colour;
-void main() {
-    ivec2 corner = ivec2(gl_FragCoord.xy) * factor;
-    vec4 sum = vec4(0.0);
-    for (int j = 0; j < factor; ++j)
-        for (int i = 0; i < factor; ++i)
-            sum += texelFetch(image, corner + ivec2(i, j), 0);
-    f_colour = sum / float(factor * factor);
-}
-"""
+STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
 
 
 def tonemap(hdr, exposure=1.0):
-    """Linear radiance (H, W, 3) -> 8-bit sRGB (H, W, 3) uint8: exposure, clip, sRGB."""
+    """Linear radiance (H, W, 3) -> 8-bit sRGB (H, W, 3) uint8: exposure, clip, sRGB
+    (tonemap.glsl's formula, tested against it)."""
     x = np.clip(np.asarray(hdr, np.float64) * exposure, 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
@@ -623,7 +230,7 @@ class Renderer:
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
-        self._box = None  # the vertex array of the supersampling average (no attributes)
+        self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
     def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks):
         """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) appended to
@@ -736,31 +343,16 @@ class Renderer:
         return total
 
     def _program(self, key, parts=PARTS):
-        """The program ``key`` with the shading code of ``parts`` alone (``shade_glsl``)."""
+        """The program ``key`` (``PROGRAMS``) with the shading code of ``parts`` alone."""
         parts = tuple(p for p in PARTS if p in parts)
         if (key, parts) not in self._programs:
-            pixel = dict(vertex_shader=FITTED_PIXEL_VS, geometry_shader=FITTED_PIXEL_GS)
-            sources = {
-                "fitted": dict(vertex_shader=FITTED_VS, fragment_shader=FITTED_FS),
-                "fitted-pixel": dict(pixel, fragment_shader=FITTED_PIXEL_FS),
-                "attributes": dict(vertex_shader=FITTED_VS, fragment_shader=ATTRIBUTES_FS),
-                "attributes-pixel": dict(pixel, fragment_shader=ATTRIBUTES_PIXEL_FS),
-                "reference-gouraud": dict(vertex_shader=REFERENCE_GOURAUD_VS, fragment_shader=COLOUR_FS),
-                "reference-pixel": dict(
-                    vertex_shader=REFERENCE_PIXEL_VS, geometry_shader=REFERENCE_PIXEL_GS, fragment_shader=REFERENCE_PIXEL_FS
-                ),
-                "gouraud": dict(vertex_shader=GOURAUD_VS, fragment_shader=COLOUR_FS),
-                "fitted-feedback": dict(vertex_shader=GOURAUD_VS, varyings=["v_colour"]),
-                "reference-feedback": dict(vertex_shader=REFERENCE_GOURAUD_VS, varyings=["v_colour"]),
-                "box": dict(vertex_shader=FULL_SCREEN_VS, fragment_shader=BOX_FS),
-            }[key]
+            spec = dict(PROGRAMS[key])
+            extra = spec.pop("defines", ())
             nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
-            emitters = features(parts) + emitter_glsl(nodes, FLOAT_TEXTURE_WIDTH)
-            sources = {
-                k: v.replace(SHADE, shade_glsl(nodes, parts)).replace(EMITTERS, emitters) if isinstance(v, str) else v
-                for k, v in sources.items()
-            }
-            self._programs[(key, parts)] = self.ctx.program(**sources)
+            for name in STAGES:
+                if name in spec:
+                    spec[name] = stage(spec[name], nodes, parts, extra)
+            self._programs[(key, parts)] = self.ctx.program(**spec)
         return self._programs[(key, parts)]
 
     def _drawn_parts(self, obj, mode, parts, n_lights):
@@ -867,16 +459,31 @@ class Renderer:
         program = self._program("box")
         fbs.output.use()
         self.ctx.viewport = (0, 0, *fbs.output.size)
-        self.ctx.disable(moderngl.DEPTH_TEST)
         fbs.single.color_attachments[0].use(location=0)
         program["image"].value = 0
         program["factor"].value = fbs.plan.factor
-        if self._box is None:
-            self._box = self.ctx.vertex_array(program, [])
-        self._box.render(moderngl.TRIANGLES, vertices=3)
+        self._full_screen(program)
         return fbs.output
 
-    def draw(self, view, mode="fitted", shading="pixel", lights=None, targets=1, program_key=None, mask=None,
+    def _full_screen(self, program):
+        """One triangle over the viewport with ``program`` (full_screen_vertex.glsl), no depth test."""
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        if program not in self._full_screens:
+            self._full_screens[program] = self.ctx.vertex_array(program, [])
+        self._full_screens[program].render(moderngl.TRIANGLES, vertices=3)
+
+    def show(self, fbo, exposure=1.0):
+        """Draw the image of ``fbo`` (``draw``'s: colour attachment 0) tone-mapped into the
+        framebuffer in use, of the same size: exposure, clip, sRGB (tonemap.glsl: the
+        formula of ``tonemap``, the rounding to 8 bits left to the target)."""
+        program = self._program("tonemap")
+        self.ctx.viewport = (0, 0, *self.ctx.fbo.size)
+        fbo.color_attachments[0].use(location=0)
+        program["hdr"].value = 0
+        program["exposure"].value = float(exposure)
+        self._full_screen(program)
+
+    def draw(self, view, mode="fitted", shading="pixel", lights=None, *, targets=1, program_key=None, mask=None,
              samples=None, parts=PARTS):
         """Draw, average the samples, and return the float framebuffer holding the image
         (colour attachment 0, a texture of the view's size; reused between calls, released
@@ -941,7 +548,7 @@ class Renderer:
             vao.release()
         return self._average(fbs)
 
-    def render(self, view, mode="fitted", shading="pixel", lights=None, samples=None, parts=PARTS):
+    def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS):
         """Linear radiance (H, W, 3) float32, row 0 at the top, background 0: each pixel
         the mean of its ``samples`` (None: the renderer's).
 
@@ -1041,7 +648,7 @@ class Renderer:
         for texture in (self.radiance, self.coefficients, self.probes, self.visibility, *self.emitter_tables.values()):
             if texture is not None:
                 texture.release()
-        for resource in (self._scratch, self._box):
+        for resource in (self._scratch, *self._full_screens.values()):
             if resource is not None:
                 resource.release()
         for fbs in self._framebuffers.values():

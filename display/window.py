@@ -2,7 +2,8 @@
 
 The renderer draws the HDR image into its float framebuffers, antialiased as every
 picture is (``--samples``: MSAA, then supersampling, averaged in linear radiance); a
-full-screen pass applies exposure and sRGB into the window. moderngl-window's
+full-screen pass applies exposure and sRGB into the window (the renderer's ``show``:
+display/shaders/tonemap.glsl, the tone map the web page uses too). moderngl-window's
 KeyboardCamera does the walking (WASD, Q/E down/up, mouse-look while the left button
 is held). Keys:
 
@@ -30,7 +31,6 @@ import sys
 import time
 import warnings
 
-import moderngl
 import numpy as np
 
 from radiosity.formats import Camera, InputError, atomic_output
@@ -51,25 +51,6 @@ def quiet_window_library():
     """moderngl-window logs INFO lines ("Context Version", ...) to stderr: keep its warnings only."""
     logging.getLogger("moderngl_window").setLevel(logging.WARNING)
 
-TONEMAP_VS = """
-#version 330
-in vec2 in_position;
-out vec2 uv;
-void main() { uv = 0.5 * in_position + 0.5; gl_Position = vec4(in_position, 0.0, 1.0); }
-"""
-TONEMAP_FS = """
-#version 330
-uniform sampler2D hdr;
-uniform float exposure;
-in vec2 uv;
-out vec4 colour;
-void main() {
-    vec3 x = clamp(texture(hdr, uv).rgb * exposure, 0.0, 1.0);
-    vec3 srgb = mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
-    colour = vec4(srgb, 1.0);
-}
-"""
-
 
 class Walkthrough(mglw.WindowConfig):
     """Settings come from ``configure`` (the renderer knows nothing of windows)."""
@@ -85,10 +66,18 @@ class Walkthrough(mglw.WindowConfig):
     failure = None  # an InputError met while the window ran (--screenshot could not be written)
 
     @classmethod
-    def configure(cls, fit, solution, view, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
+    def configure(cls, fit, solution, view, *legacy, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
                   samples=DEFAULT_SAMPLES):
-        cls.setup = dict(fit=fit, solution=solution, view=view, exposure=exposure, frames=frames,
-                         screenshot=screenshot, mode=mode, press=press, samples=samples)
+        """The window's settings: the model (``fit`` and/or ``solution``), the start
+        ``view`` (its size the window's), and by keyword the rest. ``legacy``: the same
+        settings by position, in the order exposure, frames, screenshot, mode, press,
+        samples (what display/cli.py passes today; to go once it names them)."""
+        names = ("exposure", "frames", "screenshot", "mode", "press", "samples")
+        if len(legacy) > len(names):
+            raise TypeError(f"configure takes at most {3 + len(names)} positional arguments")
+        settings = dict(exposure=exposure, frames=frames, screenshot=screenshot, mode=mode, press=press, samples=samples)
+        settings.update(zip(names, legacy))
+        cls.setup = dict(fit=fit, solution=solution, view=view, **settings)
         cls.window_size = (view.width, view.height)
         cls.failure = None
         quiet_window_library()
@@ -118,9 +107,6 @@ class Walkthrough(mglw.WindowConfig):
         forward /= np.linalg.norm(forward)
         self.camera.set_position(*eye)
         self.camera.set_rotation(math.degrees(math.atan2(forward[2], forward[0])), math.degrees(math.asin(forward[1])))
-        self.quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
-        self.tonemap = self.ctx.program(vertex_shader=TONEMAP_VS, fragment_shader=TONEMAP_FS)
-        self.quad_vao = self.ctx.vertex_array(self.tonemap, [(self.quad, "2f", "in_position")])
         from moderngl_window.text.bitmapped import TextWriter2D
 
         self.text = TextWriter2D()
@@ -140,11 +126,7 @@ class Walkthrough(mglw.WindowConfig):
         lights = None if self.all_lights else 2
         fbo = self.renderer.draw(view, self.mode, self.shading, lights, parts=tuple(sorted(self.parts)))
         self.wnd.use()
-        self.ctx.disable(moderngl.DEPTH_TEST)
-        fbo.color_attachments[0].use(location=0)
-        self.tonemap["hdr"].value = 0
-        self.tonemap["exposure"].value = self.exposure
-        self.quad_vao.render(moderngl.TRIANGLE_STRIP)
+        self.renderer.show(fbo, self.exposure)  # exposure and sRGB: tonemap.glsl
         off = [p for p in PARTS if p not in self.parts]
         self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
                           + (f"off: {', '.join(off)} | " if off else "")

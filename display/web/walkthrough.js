@@ -2,8 +2,9 @@
 // v1; display/export.py and the README's "Export" hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
-// pixel` draws it, with the renderer's own GLSL (display/renderer.py shade_glsl(nodes),
-// written into shading.js by `vlights export`): the emitted colour, plus
+// pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
+// export` copies into shaders/ and this page fetches; the fit's emitter quadrature as
+// #define lines in shading.js): the emitted colour, plus
 //   - the virtual lights: for each light k, pow(dot(n, h), shininess_k) * rgb_k *
 //     coefficient_k, h the half vector of the light direction normalize(xyz - w x) and
 //     the eye direction, the lobe cut to 0 where (1 - dot(n, h)) * shininess > 30;
@@ -20,7 +21,7 @@
 // objects are drawn with one vertex per triangle corner carrying the triangle's vertex
 // ids and the corner's barycentrics. The scene is drawn in linear radiance into a float
 // framebuffer (MSAA, `samples` per pixel), then exposure, clipping and sRGB map it to
-// the screen exactly as display.renderer.tonemap.
+// the screen with tonemap.glsl, the renderer's and the window's (display.renderer.tonemap).
 //
 // URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
 // exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
@@ -37,8 +38,9 @@ import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { PointerLockControls } from 'three/addons/controls/PointerLockControls.js';
-// written by `vlights export` from display/renderer.py: the renderer's own shading code
-import { ALBEDO_POINTS, EMITTER_NODES, SHADE_GLSL, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
+// written by `vlights export`: the #define lines of display/glsl.py for this fit's
+// emitter nodes, and the constants of the textures' layout
+import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
 const VERSIONS = [1, 2]; // what this page reads (display.export.READS)
@@ -47,76 +49,46 @@ const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
 const DEFAULT_FOV = 39.3; // display.camera.framing_view
 
+// -------------------------------------------------------------------------------- shaders
 
-const FITTED_VS = `
-precision highp float;
-precision highp int;
-uniform mat4 modelViewMatrix;
-uniform mat4 projectionMatrix;
-in vec3 position;
-in vec3 normal;
-in vec3 emitted;
-in vec3 specular;
-in vec3 probe;      // the probe's weight (0 without a probe)
-in vec3 vertices;   // per light or highlight: the triangle's three vertex ids (else 0)
-in vec3 bary;       // per light or highlight: this corner's barycentrics (else 0)
-centroid out vec3 v_position;
-centroid out vec3 v_normal;
-centroid out vec3 v_emitted;
-centroid out vec3 v_specular;
-centroid out vec3 v_probe;
-centroid out vec3 v_bary;
-flat out ivec3 v_vertices;
-void main() {
-    gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
-    v_position = position;
-    v_normal = normal;
-    v_emitted = emitted;
-    v_specular = specular;
-    v_probe = probe;
-    v_bary = bary;
-    v_vertices = ivec3(vertices);
+// The renderer's own shader files (display/shaders, copied into shaders/ by `vlights
+// export`), fetched once each. A stage's source is es_header.glsl (precisions,
+// VL_TRIANGLE: this page's vertices carry the triangle's ids and barycentrics), then
+// DEFINES, then its file with each `#include "file"` line replaced by that file's text,
+// each file once (display.glsl.resolve does the same); three.js writes `#version 300 es`.
+const INCLUDE = /^#include "([^"]+)"[ \t]*$/m;
+const shaderFiles = new Map(); // name -> Promise of its text
+
+function shaderFile(name) {
+    if (!shaderFiles.has(name)) {
+        shaderFiles.set(name, fetch(new URL(`shaders/${name}`, import.meta.url)).then((response) => {
+            if (!response.ok) throw new Error(`shaders/${name}: ${response.status} ${response.statusText} (export the page again)`);
+            return response.text();
+        }));
+    }
+    return shaderFiles.get(name);
 }
-`;
 
-const FITTED_FS = `
-precision highp float;
-precision highp int;
-precision highp sampler2D;
-uniform vec3 eye;
-centroid in vec3 v_position;
-centroid in vec3 v_normal;
-centroid in vec3 v_emitted;
-centroid in vec3 v_specular;
-centroid in vec3 v_probe;
-centroid in vec3 v_bary;
-flat in ivec3 v_vertices;
-out vec4 f_colour;
-${SHADE_GLSL}
-void main() {
-    f_colour = vec4(shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular,
-                          v_probe, v_vertices, v_bary), 1.0);
+// `name` with its includes resolved (split on a capturing pattern: text, file, text, ...)
+export async function resolveShader(name, seen = new Set()) {
+    if (seen.has(name)) return '';
+    seen.add(name);
+    const pieces = (await shaderFile(name)).split(new RegExp(INCLUDE.source, 'gm'));
+    let text = '';
+    for (let i = 0; i < pieces.length; ++i) text += i % 2 ? await resolveShader(pieces[i], seen) : pieces[i];
+    return text;
 }
-`;
 
-const TONEMAP_VS = `
-precision highp float;
-in vec3 position;
-void main() { gl_Position = vec4(position.xy, 0.0, 1.0); }
-`;
-
-// display.renderer.tonemap: exposure, clip to [0, 1], sRGB; the 8-bit write rounds
-const TONEMAP_FS = `
-precision highp float;
-uniform highp sampler2D hdr;
-uniform float exposure;
-out vec4 f_colour;
-void main() {
-    vec3 x = clamp(texelFetch(hdr, ivec2(gl_FragCoord.xy), 0).rgb * exposure, 0.0, 1.0);
-    vec3 srgb = mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
-    f_colour = vec4(clamp(srgb, 0.0, 1.0), 1.0);
+export async function stageSource(name) {
+    return (await shaderFile('es_header.glsl')) + DEFINES + (await resolveShader(name));
 }
-`;
+
+// the fitted model per pixel (as `vlights render --shading pixel`) and the tone map
+async function loadShaders() {
+    const [fittedVertex, fittedFragment, screenVertex, tonemapFragment] = await Promise.all(
+        ['web_vertex.glsl', 'fitted_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'].map(stageSource));
+    return { fittedVertex, fittedFragment, screenVertex, tonemapFragment };
+}
 
 // ---------------------------------------------------------------------------------- query
 
@@ -313,11 +285,12 @@ function makeObject(source, info, fit) {
     fit.parts.forEach((part, i) => { if (part.source === info.name) own |= 1 << i; });
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3,
-        vertexShader: FITTED_VS,
-        fragmentShader: FITTED_FS,
+        vertexShader: fit.shaders.fittedVertex,
+        fragmentShader: fit.shaders.fittedFragment,
         side: THREE.DoubleSide, // one-sided surfaces are still seen from behind
         uniforms: {
             eye: { value: new THREE.Vector3() },
+            flat_colour: { value: new THREE.Vector4(0, 0, 0, 0) }, // w = 0: shaded (the renderer's masks set it)
             // the virtual lights
             n_lights: { value: info.lights },
             per_light: { value: info.per_light ? 1 : 0 },
@@ -363,7 +336,7 @@ export async function loadFit(url) {
     }
     // own_parts, an int, is a bit mask of the parts
     if (parts.length > 32) throw new Error(`${url}: ${parts.length} emitter parts; the shader draws at most 32`);
-    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []) };
+    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders() };
     const sources = new Map(); // object name -> its mesh (geometry, and the extras in userData)
     gltf.scene.traverse((node) => {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
@@ -377,7 +350,7 @@ export async function loadFit(url) {
         source.geometry.computeBoundingBox();
         bounds.union(source.geometry.boundingBox);
     }
-    return { scene, bounds, camera: extras.camera || null, extras };
+    return { scene, bounds, camera: extras.camera || null, extras, shaders: fit.shaders };
 }
 
 // ------------------------------------------------------------------------------ the page
@@ -417,10 +390,10 @@ class Walkthrough {
         this.camera = new THREE.PerspectiveCamera(this.start.fov, 1, 0.1, 10);
 
         this.tonemap = new THREE.RawShaderMaterial({
-            glslVersion: THREE.GLSL3, vertexShader: TONEMAP_VS, fragmentShader: TONEMAP_FS,
+            glslVersion: THREE.GLSL3, vertexShader: fit.shaders.screenVertex, fragmentShader: fit.shaders.tonemapFragment,
             uniforms: { hdr: { value: null }, exposure: { value: this.exposure } }, depthTest: false, depthWrite: false,
         });
-        const triangle = new THREE.BufferGeometry();
+        const triangle = new THREE.BufferGeometry(); // three vertices: the shader places them by gl_VertexID
         triangle.setAttribute('position', new THREE.BufferAttribute(new Float32Array([-1, -1, 0, 3, -1, 0, -1, 3, 0]), 3));
         const quad = new THREE.Mesh(triangle, this.tonemap);
         quad.frustumCulled = false;

@@ -403,3 +403,43 @@ def test_tonemap_exposure_and_srgb():
     assert out[0, 0, 0] == 0 and out[0, 0, 2] == 255 and out[0, 1, 1] == 255 and out[0, 1, 2] == 255
     assert out[0, 1, 0] == round(255 * (1.055 * 0.5 ** (1 / 2.4) - 0.055))
     assert tonemap(hdr, exposure=0.25)[0, 1, 1] == out[0, 1, 0]
+
+
+def test_the_glsl_tone_map_is_tonemap(gl_context, rng):
+    """tonemap.glsl, drawn by ``Renderer.show`` (the window's tone map, and the page's),
+    is ``tonemap``'s formula: into a float framebuffer within float32 rounding of it
+    (5e-7), into 8 bits within 1 of ``tonemap`` and equal to it at all but a few values
+    (the GPU rounds a float32 value to the nearest level, numpy its float64 value half up)."""
+    from display_fixtures import tiny_solution
+
+    width, height = 256, 64
+    values = np.concatenate([
+        np.linspace(0.0, 1.25, 9000), 0.0031308 * (1 + np.linspace(-1e-3, 1e-3, 200)),  # the sRGB threshold
+        rng.uniform(0, 0.01, 3000), [0.0, 1.0, 2.0, 1e8, 1e30], rng.uniform(0, 3, width * height * 3),
+    ])[: width * height * 3]
+    hdr = values.reshape(height, width, 3).astype(np.float32)
+    ctx = gl_context
+    r = Renderer(ctx, solution=tiny_solution(), samples=1)
+    rgba = np.concatenate([hdr, np.ones((height, width, 1), np.float32)], axis=2)
+    source = ctx.framebuffer(color_attachments=[ctx.texture((width, height), 4, rgba.tobytes(), dtype="f4")])
+    floats = ctx.framebuffer(color_attachments=[ctx.texture((width, height), 4, dtype="f4")])
+    bytes_ = ctx.framebuffer(color_attachments=[ctx.texture((width, height), 4)])
+    for exposure in (1.0, 0.37, 4.0):
+        x = np.clip(hdr.astype(np.float64) * np.float32(exposure), 0.0, 1.0)
+        want = np.where(x < 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+        floats.use()
+        r.show(source, exposure)
+        got = np.frombuffer(floats.color_attachments[0].read(), np.float32).reshape(height, width, 4)
+        assert np.abs(got[..., :3] - want).max() <= 5e-7
+        assert (got[..., 3] == 1).all()
+        bytes_.use()
+        r.show(source, exposure)
+        got8 = np.frombuffer(bytes_.color_attachments[0].read(), np.uint8).reshape(height, width, 4)[..., :3]
+        want8 = tonemap(hdr, exposure)
+        diff = np.abs(got8.astype(int) - want8)
+        assert diff.max() <= 1 and np.mean(diff > 0) < 1e-3, (diff.max(), np.mean(diff > 0))
+        assert len(np.unique(want8)) > 200  # not vacuous: most levels are met
+    for fbo in (source, floats, bytes_):
+        fbo.color_attachments[0].release()
+        fbo.release()
+    r.release()

@@ -29,7 +29,7 @@ from display_fixtures import lit_model
 from PIL import Image
 from test_export import glossy_model, rewrite_json
 
-from display.export import PAGE, SHADING, WEB, page_files, shading_module
+from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
 from display.serve import start
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -43,15 +43,22 @@ VIEW = {"eye": (0.3, 0.2, -1.9), "look": (0.0, 0.05, 0.0), "up": (0.0, 1.0, 0.0)
 IMPORT = re.compile(r"""^(?:import|export|\})[^'"\n;]*?\bfrom\s*['"]([^'"]+)['"]""", re.M)  # module specifiers
 EXPOSURE = 0.2  # the test scene's colours reach 3, and its highlights more: almost no pixel is white
 
-needs_browser = pytest.mark.skipif(
+_no_browser = pytest.mark.skipif(
     CHROMIUM is None or importlib.util.find_spec("playwright") is None,
     reason="needs chromium (apt-get install chromium) and playwright (pip install playwright)",
 )
 
 
+def needs_browser(test):
+    """A test in chromium: marked ``browser`` (``-m "not browser"`` leaves them out), and
+    skipped where chromium or Playwright is missing."""
+    return pytest.mark.browser(_no_browser(test))
+
+
 def test_page_files_resolve_every_import():
-    """Every module the page loads, through the import map or a relative path, is among
-    the files export copies: the exported directory works with no network."""
+    """Every module the page loads, through the import map or a relative path, and every
+    shader file it fetches are among the files export copies: the exported directory
+    works with no network."""
     files = {str(p) for p in page_files()} | {SHADING}  # shading.js is written by export itself
     assert {PAGE, "walkthrough.js", "three/LICENSE", "three/build/three.module.js", "three/build/three.core.js"} <= files
     html = (WEB / PAGE).read_text()
@@ -76,23 +83,51 @@ def test_page_files_resolve_every_import():
             pending.append(target)
     assert "three/examples/jsm/loaders/GLTFLoader.js" in seen and "three/build/three.core.js" in seen
     assert SHADING in seen
+    script = (WEB / "walkthrough.js").read_text()
+    fetched = set(re.findall(r"'(\w+\.glsl)'", script))
+    assert {"es_header.glsl", "web_vertex.glsl", "fitted_fragment.glsl", "tonemap_fragment.glsl"} <= fetched
+    pending = list(fetched)
+    while pending:  # and every file they include
+        name = pending.pop()
+        assert f"{SHADERS}/{name}" in files, f"{name} is fetched but not exported"
+        pending += re.findall(r'^#include "([^"]+)"', page_source(f"{SHADERS}/{name}").read_text(), re.M)
 
 
-def test_shading_module_is_the_renderers_glsl():
-    """The page shades with the renderer's own GLSL: shading.js holds shade_glsl(nodes)
-    verbatim, for the fit's emitter nodes, and the constants of the textures' layout."""
-    from display.glsl import TABLE_WIDTH
-    from display.renderer import FLOAT_TEXTURE_WIDTH, SHADE_GLSL, shade_glsl
+def test_every_glsl_function_is_defined_once():
+    """The shader files hold one definition of each function (the web page, the window
+    and the renderer all compile these files: no copy anywhere else)."""
+    from display.glsl import SHADERS as SHADER_DIR
+    from display.glsl import shader_files
+
+    definition = re.compile(r"^(?:vec[234]|ivec3|float|int|bool|void)\s+(\w+)\s*\(", re.M)
+    where = {}
+    for name in shader_files():
+        text = (SHADER_DIR / name).read_text()
+        # a part compiled out (#ifdef VL_NO_...) defines a stub of the same function: count the real one
+        text = re.sub(r"#ifdef VL_NO_\w+\n.*?#else\n", "", text, flags=re.S)
+        for function in definition.findall(text):
+            if function != "main":
+                where.setdefault(function, []).append(name)
+    assert {"shade", "lights_shade", "probe_term", "emitter_term", "tonemap", "lookup"} <= set(where)
+    assert {f: files for f, files in where.items() if len(files) > 1} == {}
+    for text in (WEB / "walkthrough.js").read_text(), (Path(__file__).parents[2] / "display" / "window.py").read_text():
+        assert "pow(x, vec3(1.0 / 2.4))" not in text and "void main()" not in text  # no GLSL of their own
+
+
+def test_shading_module_holds_the_renderers_defines():
+    """The page compiles the renderer's shader files after the renderer's own #define
+    lines: shading.js holds defines(nodes) verbatim, for the fit's emitter nodes, and the
+    constants of the textures' layout."""
+    from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, defines
     from fitting.probe import ALBEDO_POINTS
 
     for nodes, text in ((8, shading_module()), (8, shading_module(8)), (5, shading_module(5))):
-        literal = re.search(r"export const SHADE_GLSL = (.*);\n", text).group(1)
-        assert json.loads(literal) == shade_glsl(nodes)
+        literal = re.search(r"export const DEFINES = (.*);\n", text).group(1)
+        assert json.loads(literal) == defines(nodes)
         assert f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};" in text
         assert f"export const EMITTER_NODES = {nodes};" in text
         assert f"export const TABLE_WIDTH = {TABLE_WIDTH};" in text
         assert f"export const ALBEDO_POINTS = {ALBEDO_POINTS};" in text
-    assert json.loads(re.search(r"export const SHADE_GLSL = (.*);\n", shading_module()).group(1)) == SHADE_GLSL
     assert shading_module(5) != shading_module(8)
 
 
@@ -101,7 +136,8 @@ def test_exported_directory_has_the_page(tmp_path, cli, rng):
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")
     assert code == 0, err
     for name in page_files():
-        assert (tmp_path / "web" / name).read_bytes() == (WEB / name).read_bytes()
+        assert (tmp_path / "web" / name).read_bytes() == page_source(name).read_bytes()
+    assert (tmp_path / "web" / SHADERS / "shade.glsl").exists()
     assert (tmp_path / "web" / SHADING).read_text() == shading_module(6)  # the fit's emitter nodes
     assert f"wrote {tmp_path / 'web' / PAGE}" in out
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "glb", "--no-page")
@@ -303,7 +339,9 @@ def test_mouse_look_and_orbit(browser, site):
         page.mouse.click(60, 45)
         page.wait_for_function("window.vlights.walkthrough.walk.isLocked", timeout=10_000)
         page.mouse.move(100, 45, steps=4)
-        page.wait_for_timeout(200)
+        page.wait_for_function(f"""(d) => {{ const v = {camera}.getWorldDirection(new {camera}.position.constructor());
+                                         return Math.abs(v.x - d[0]) + Math.abs(v.z - d[2]) > 1e-3; }}""",
+                               arg=before.tolist(), timeout=10_000)  # the view has turned
         after = np.array(page.evaluate(f"{camera}.getWorldDirection(new {camera}.position.constructor()).toArray()"))
         assert np.allclose(page.evaluate("window.vlights.state().eye"), eye)
         assert np.degrees(np.arccos(np.clip(before @ after, -1, 1))) > 1.0
@@ -315,7 +353,9 @@ def test_mouse_look_and_orbit(browser, site):
         page.mouse.down()
         page.mouse.move(90, 50, steps=5)
         page.mouse.up()
-        page.wait_for_timeout(200)
+        page.wait_for_function("""(e) => { const p = window.vlights.state().eye;
+                                           return Math.hypot(p[0] - e[0], p[1] - e[1], p[2] - e[2]) > 0.05; }""",
+                               arg=eye.tolist(), timeout=10_000)  # the eye has moved
         orbited = np.array(page.evaluate("window.vlights.state().eye"))
     finally:
         page.close()
@@ -443,13 +483,32 @@ def test_page_reads_version_1_and_refuses_other_nodes(browser, site):
 
 
 @needs_browser
+@pytest.mark.gl
+def test_the_page_compiles_the_renderers_shader_files(browser, site, gl_context):
+    """Each stage the page compiles is the page's header, the renderer's #define lines and
+    the renderer's own file with its includes resolved as display.glsl.resolve does
+    (the fragment stage is the one of the renderer's per-pixel program, VL_TRIANGLE)."""
+    from display.glsl import ES_HEADER, defines, read, resolve
+
+    _, url = site
+    page = open_page(browser, url, view_query("fitted"), size=(64, 48))
+    try:
+        for name in ("web_vertex.glsl", "fitted_fragment.glsl", "full_screen_vertex.glsl", "tonemap_fragment.glsl"):
+            got = page.evaluate("async (name) => (await import('./walkthrough.js')).stageSource(name)", name)
+            assert got == read(ES_HEADER) + defines(8) + resolve(name), name
+    finally:
+        page.close()
+
+
+@needs_browser
 @pytest.mark.parametrize("nodes", [1, 8, 32])
 def test_the_shading_glsl_compiles_in_webgl2(browser, nodes):
-    """display.renderer.shade_glsl(nodes), every part of it, is GLSL ES 3.00 that
-    WebGL2 compiles and links (the fewest and the most emitter nodes)."""
-    from display.renderer import shade_glsl
+    """The shading formula (shade.glsl and its includes, display.glsl.shade_glsl(nodes)),
+    every part of it, after the page's header, is GLSL ES 3.00 that WebGL2 compiles and
+    links (the fewest and the most emitter nodes)."""
+    from display.glsl import ES_HEADER, read, shade_glsl
 
-    fragment = ("#version 300 es\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
+    fragment = ("#version 300 es\n" + read(ES_HEADER)
                 + shade_glsl(nodes) + "\nin vec3 v;\nout vec4 f_colour;\n"
                 "void main() { f_colour = vec4(shade(normalize(v), v, normalize(-v), v, v, v, ivec3(v), v), 1.0); }\n")
     vertex = "#version 300 es\nin vec3 p;\nout vec3 v;\nvoid main() { v = p; gl_Position = vec4(p, 1.0); }\n"

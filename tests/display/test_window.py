@@ -3,7 +3,6 @@
 import os
 import shutil
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -14,14 +13,18 @@ pytestmark = [pytest.mark.gl, pytest.mark.skipif(shutil.which("Xvfb") is None, r
 
 @pytest.fixture(scope="module")
 def x_display():
-    for number in range(91, 120):
-        if not os.path.exists(f"/tmp/.X11-unix/X{number}") and not os.path.exists(f"/tmp/.X{number}-lock"):
-            break
-    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    for _ in range(50):
-        if os.path.exists(f"/tmp/.X11-unix/X{number}"):
-            break
-        time.sleep(0.1)
+    """A virtual X server, ready when it says so: Xvfb -displayfd writes the display
+    number it chose (a free one) to the pipe once it accepts connections."""
+    read, write = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1024x768x24"], pass_fds=(write,),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    with os.fdopen(read) as ready:
+        number = ready.readline().strip()  # "" if Xvfb ended without starting
+    if not number.isdigit():
+        proc.kill()
+        proc.wait(timeout=10)
+        pytest.fail(f"Xvfb did not start (exit status {proc.poll()})")
     yield f":{number}"
     proc.terminate()
     proc.wait(timeout=10)

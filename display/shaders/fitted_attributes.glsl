@@ -1,0 +1,6 @@
+// A fitted object's vertex attributes (display.renderer._Object's buffers).
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_emitted;
+in vec3 in_specular;
+in vec3 in_probe;

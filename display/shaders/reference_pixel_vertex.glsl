@@ -1,0 +1,17 @@
+// The reference display per pixel (with reference_pixel_geometry.glsl): the attributes
+// and the vertex's id, handed on.
+uniform mat4 mvp;
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_tangent;
+out vec3 g_position;
+out vec3 g_normal;
+out vec3 g_tangent;
+flat out int g_vertex;
+void main() {
+    gl_Position = mvp * vec4(in_position, 1.0);
+    g_position = in_position;
+    g_normal = in_normal;
+    g_tangent = in_tangent;
+    g_vertex = gl_VertexID;
+}
