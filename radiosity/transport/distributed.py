@@ -253,6 +253,7 @@ def _local_cluster():
     """(client, cluster) of a new LocalCluster sized to this machine, its workers'
     scratch space in a private temporary directory removed when it closes (or at once
     if starting it fails or is interrupted)."""
+    import dask
     from distributed import Client, LocalCluster
 
     directory = tempfile.mkdtemp(prefix="vlights-dask-")
@@ -264,7 +265,8 @@ def _local_cluster():
     try:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
         try:
-            cluster = LocalCluster(dashboard_address=None, silence_logs=logging.ERROR, local_directory=directory)
+            with dask.config.set({"temporary-directory": directory}):  # the scheduler's scratch space too
+                cluster = LocalCluster(dashboard_address=None, silence_logs=logging.ERROR, local_directory=directory)
         finally:
             if main:
                 signal.signal(signal.SIGINT, previous)
