@@ -17,6 +17,14 @@ What goes where
   - a worker lost mid-run: Dask reruns its tasks elsewhere; being pure functions of
     their inputs they return the same bits. Ctrl-C cancels the outstanding futures.
 
+Where it runs
+  - ``dask``: a LocalCluster whose scheduler and workers keep their scratch space in a
+    private temporary directory, removed when the run ends, however it ends;
+  - ``tcp://HOST:PORT`` (HOST a name, an IPv4 address or ``[IPv6]``): checked before any
+    work (``address_problem``; tls, ucx, inproc and ws need a ``Client`` configured in
+    Python), then reached within CONNECT_TIMEOUT or refused in one line, a server that
+    is not a Dask scheduler included (``_identify``).
+
 Dask is optional (``pip install ".[dask]"``); this module imports it only when used.
 """
 
