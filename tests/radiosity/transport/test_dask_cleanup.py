@@ -103,7 +103,7 @@ def test_a_clean_run_leaves_nothing_in_the_temporary_directory(tmp_path):
             proc.kill()
             proc.wait()
     assert proc.returncode == 0, err
-    assert "Traceback" not in err
+    assert "Traceback" not in err, err  # the whole stderr: a rare shutdown traceback under load was seen once
     assert out.exists()
     _assert_all_gone(children, temp)
 
@@ -125,6 +125,6 @@ def test_an_interrupted_run_leaves_nothing_in_the_temporary_directory(tmp_path, 
     expected = 130 if signum == signal.SIGINT else 128 + signum
     assert proc.returncode == expected, err
     assert err.strip().splitlines()[-1] in ("vlights solve: interrupted", "vlights solve: stopped by SIGTERM")
-    assert "Traceback" not in err
+    assert "Traceback" not in err, err  # the whole stderr: a rare shutdown traceback under load was seen once
     assert not out.exists() and list(tmp_path.iterdir()) == [temp]
     _assert_all_gone(children, temp)
