@@ -1,14 +1,14 @@
 """The solver's batches on Dask (``SolveOptions(scheduler="dask" | "tcp://HOST:PORT")``
-or ``solve(..., client=...)``): the same tasks as the threads, the same bits.
+or ``solve(..., client=...)``): the same tasks as the threads (``batches``), the same bits.
 
 What goes where
-  - the merged scene (positions, faces and ``kernels.SceneArrays``) is scattered to
+  - the merged scene (positions, faces and ``records.SceneArrays``) is scattered to
     every worker once per solve, and after the density phase the irradiance (N, 3)
     float64 and each glossy object's directions: tasks get futures, never arrays;
   - each worker builds the Embree scene once per scattered scene (``_worker_scene``, a
     cache keyed by the scattered data's key), shared by its threads;
   - a task is a pure function of (scattered inputs, seed, job): a photon batch returns
-    its additive ``kernels.PhotonTally`` (9 float64 per vertex + the tally), a gather
+    its additive ``records.PhotonTally`` (9 float64 per vertex + the tally), a gather
     block its radiance (B, D, 3) float64, each with the rays it cast;
   - the client keeps a window of a few tasks in flight, feeds the progress bar as tasks
     complete, and combines results strictly in job order (the float sums are those of
@@ -332,7 +332,7 @@ async def _drop_scene(key):
 
 
 def _photon_task(key, scene, seed, first_id, count, total):
-    from radiosity.transport.solve import trace_photon_batch
+    from radiosity.transport.batches import trace_photon_batch
 
     tracer, sa = _worker_scene(key, scene)
     counting = _CountingTracer(tracer)
@@ -340,7 +340,7 @@ def _photon_task(key, scene, seed, first_id, count, total):
 
 
 def _gather_task(key, scene, irradiance, block, material, dirs):
-    from radiosity.transport.solve import gather_block
+    from radiosity.transport.batches import gather_block
 
     tracer, sa = _worker_scene(key, scene)
     counting = _CountingTracer(tracer)
@@ -352,7 +352,7 @@ def _gather_task(key, scene, irradiance, block, material, dirs):
 
 class DaskRunner:
     """Runs a solve's photon batches and gather blocks on a Dask cluster (the
-    counterpart of ``solve._ThreadRunner``): ``start``, ``photon_batches``,
+    counterpart of ``threads.ThreadRunner``): ``start``, ``photon_batches``,
     ``gather_blocks``, ``close``; ``rays_cast`` counts the rays of every task."""
 
     def __init__(self, client, cluster=None, own_client=False):
@@ -381,7 +381,7 @@ class DaskRunner:
         self._scene = self._scatter((merged.positions, merged.faces, sa))
 
     def photon_batches(self, total, combine, bar):
-        from radiosity.transport.solve import PHOTON_BATCH
+        from radiosity.transport.batches import PHOTON_BATCH
 
         starts = range(0, total, PHOTON_BATCH)  # lazily: 2^40 photons are 2^24 batches
         counts = (min(PHOTON_BATCH, total - s) for s in starts)
