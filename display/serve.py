@@ -4,7 +4,7 @@ Browsers load ES modules (three.js) only over HTTP, not from ``file://``, so a p
 next to ``scene.glb`` needs a server. This one is Python's own ``http.server``, bound
 to 127.0.0.1 (nothing outside this machine reaches it), serving ``DIR`` and nothing
 above it, with the MIME types a page of modules and a binary glTF need. It prints the
-URL and runs until Ctrl-C.
+URL and runs until Ctrl-C. The command itself is ``display.commands.serve``.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import threading
 
 from radiosity.formats import InputError
 
-__all__ = ["Server", "add_serve_command", "serve_until_interrupted", "start"]
+__all__ = ["Server", "serve_until_interrupted", "start"]
 
 HOST = "127.0.0.1"
 TYPES = {".js": "text/javascript", ".mjs": "text/javascript", ".glb": "model/gltf-binary",
@@ -70,27 +70,7 @@ def start(directory, port=0, must_exist=True):
     return Server(httpd)
 
 
-def add_serve_command(subparsers):
-    p = subparsers.add_parser(
-        "serve",
-        help="serve a directory (an export) to a browser on this machine",
-        description="A static web server on 127.0.0.1 for a directory such as 'vlights export' writes: browsers load "
-        "ES modules only over HTTP. Prints the URL; Ctrl-C stops it.",
-    )
-    p.add_argument("directory", help="the directory to serve (nothing above it is reachable)")
-    p.add_argument("--port", type=int, default=8000, help="TCP port on 127.0.0.1, 0 for any free one (default: %(default)s)")
-    p.set_defaults(func=_serve)
-
-
 def serve_until_interrupted(server, directory):
     """Print the URL and serve until Ctrl-C (KeyboardInterrupt reaches the caller)."""
     print(f"serving {os.path.abspath(directory)} at {server.url} (Ctrl-C stops)", flush=True)
     threading.Event().wait()
-
-
-def _serve(args):
-    server = start(args.directory, args.port)
-    try:
-        serve_until_interrupted(server, args.directory)
-    finally:
-        server.close()

@@ -272,7 +272,7 @@ def test_compare_writes_the_figures_and_numbers(small_solution, small_fit, tmp_p
 def test_compare_metrics_know_the_answer():
     import numpy as np
 
-    from display.compare import metrics
+    from display.metrics import metrics
 
     rng = np.random.default_rng(1)
     reference = rng.uniform(0, 1, (32, 32, 3)).astype(np.float32)

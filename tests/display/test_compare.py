@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from display_fixtures import assert_refused, listing, tiny_fit, tiny_solution
 
-from display.compare import json_text, metrics
+from display.compare import json_text
+from display.metrics import metrics
 from radiosity.formats import InputError
 
 
@@ -56,7 +57,7 @@ def test_a_dim_reference_is_measured_like_a_bright_one():
     # user's): metrics scale both pictures so that the reference peaks at 1
     run = run_isolated(
         "import numpy as np\n"
-        "from display.compare import metrics\n"
+        "from display.metrics import metrics\n"
         "rng = np.random.default_rng(3)\n"
         "ref = rng.uniform(0, 2, (24, 24, 3)).astype(np.float32)\n"
         "test = (ref * rng.uniform(0.7, 1.3, ref.shape)).astype(np.float32)\n"
