@@ -3,7 +3,8 @@
 Browsers load ES modules (three.js) only over HTTP, not from ``file://``, so a page
 next to ``scene.glb`` needs a server. This one is Python's own ``http.server``, bound
 to 127.0.0.1 (nothing outside this machine reaches it), serving ``DIR`` and nothing
-above it, with the MIME types a page of modules and a binary glTF need. It prints the
+above it (no ``..``, and no symlink inside ``DIR`` to anything outside it: 404), with
+the MIME types a page of modules and a binary glTF need. It prints the
 URL and runs until Ctrl-C. The command itself is ``display.commands.serve``.
 """
 
@@ -23,8 +24,24 @@ TYPES = {".js": "text/javascript", ".mjs": "text/javascript", ".glb": "model/glt
          ".gltf": "model/gltf+json", ".json": "application/json", ".html": "text/html"}
 
 
+def inside(path, root):
+    """True if ``path``, every link in it followed, is ``root`` or lies under it (both
+    resolved: a symlink inside ``root`` to a file outside it is outside)."""
+    target, top = os.path.realpath(path), os.path.realpath(root)
+    return target == top or target.startswith(top.rstrip(os.sep) + os.sep)
+
+
 class _Handler(http.server.SimpleHTTPRequestHandler):
     extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map, **TYPES}
+
+    def send_head(self):
+        """404 for any path whose resolved target leaves the served directory (a symlink
+        out of it); ``..`` and absolute paths never leave it (``translate_path`` drops
+        them)."""
+        if not inside(self.translate_path(self.path), self.directory):
+            self.send_error(404, "File not found")
+            return None
+        return super().send_head()
 
     def log_message(self, format, *args):  # noqa: A002 - the base class's name
         pass  # quiet: a walkthrough page fetches many files
