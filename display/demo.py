@@ -51,10 +51,12 @@ def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_S
     when all of it is done (``display.outputs.staged_directory``). The OpenGL context
     is made first, so a machine without one is told so before the solve.
     """
+    from .gl import framebuffer_refusals
+
     out = Path(out)
     ctx = _context(size, samples)
     try:
-        with staged_directory(out) as stage:
+        with framebuffer_refusals(size, samples), staged_directory(out) as stage:
             return _run(stage, ctx, quality, size, log, samples, truth_spp, scenes)
     finally:
         ctx.release()

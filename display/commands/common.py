@@ -113,14 +113,16 @@ def resolve_view(args, bounds, fit=None, solution=None):
 @contextlib.contextmanager
 def headless(size, samples, bytes_per_pixel=gl.RENDER_BYTES_PER_PIXEL):
     """A headless GL context for images of ``size`` with ``samples`` per pixel, after
-    the checks of their size, samples and memory (InputError, one line, before any
-    work); released on the way out."""
+    the checks of their size, samples, buffers and memory (InputError, one line, before
+    any work); released on the way out. A framebuffer the driver still refuses is an
+    InputError too (``display.gl.framebuffer_refusals``)."""
     ctx = gl.headless_context()
     try:
         gl.check_image_size(ctx, *size)
         gl.check_samples(ctx, samples, *size)
         gl.check_image_memory(*size, bytes_per_pixel, samples=samples)
-        yield ctx
+        with gl.framebuffer_refusals(size, samples):
+            yield ctx
     finally:
         ctx.release()
 
