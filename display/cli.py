@@ -9,6 +9,7 @@ exits with 130; anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
@@ -97,6 +98,8 @@ def main(argv=None):
     previous = _install_signal_handlers()
     try:
         return _run(argv)
+    except KeyboardInterrupt as exc:  # before the command runs: while the parser is built or reads the arguments
+        return _interrupted(None, exc)
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
@@ -108,6 +111,7 @@ def _run(argv):
     try:
         return args.func(args)
     except InputError as exc:
+        _close_progress_bars()
         print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
@@ -119,12 +123,26 @@ def _run(argv):
         return _interrupted(args.command, interrupt)
 
 
+def _close_progress_bars():
+    """End every progress bar a stopped stage left open (tqdm's live bars), so that the
+    one line that follows starts a line of its own in a terminal, and no bar is drawn
+    again after it when the interpreter exits."""
+    tqdm = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", ())):
+        with contextlib.suppress(Exception):
+            bar.close()
+
+
 def _interrupted(command, exc):
+    """The one line and the exit status of a run stopped by ``exc`` (``command`` None:
+    before the command was known)."""
+    _close_progress_bars()
+    who = PROG if command is None else f"{PROG} {command}"
     if isinstance(exc, Terminated):
         name = signal.Signals(exc.signum).name
-        print(f"{PROG} {command}: stopped by {name}", file=sys.stderr)
+        print(f"{who}: stopped by {name}", file=sys.stderr)
         return 128 + exc.signum
-    print(f"{PROG} {command}: interrupted", file=sys.stderr)
+    print(f"{who}: interrupted", file=sys.stderr)
     return 130
 
 

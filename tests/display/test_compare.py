@@ -71,6 +71,7 @@ def test_a_dim_reference_is_measured_like_a_bright_one():
 
 
 @pytest.mark.gl
+@pytest.mark.subprocess
 def test_compare_of_a_scene_with_no_light_says_the_reference_is_black(black_pair, tmp_path, gl_context):
     # a separate process: the exit status is the point (FLIP's own failure exits 255)
     fit, solution = black_pair
