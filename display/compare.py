@@ -6,7 +6,7 @@
                averaged over directions at each vertex)
 
 Every panel pair gets an error image (NVIDIA FLIP, HDR mode, on linear radiance) and
-three numbers in ``compare.json``: FLIP mean, PSNR (dB) of the tone-mapped 8-bit
+three numbers (``display.metrics``) in ``compare.json``: FLIP mean, PSNR (dB) of the tone-mapped 8-bit
 pictures, and relative MSE of the linear radiance, mean over pixels and channels of
 (test - ref)^2 / (ref^2 + 0.01), which weighs an error against the light it sits in.
 Each is given over the whole image and over the glossy objects' pixels alone
@@ -46,67 +46,15 @@ from PIL import Image, ImageDraw
 from radiosity.formats import Camera, InputError
 from radiosity.formats.atomic import atomic_output
 
+from .images import write_png
+from .metrics import BLACK, against_truth, is_black, magma, metrics
 from .outputs import staged_directory
 from .renderer import tonemap
-from .truth import against_truth
 
 FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
-BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
 FIGURE7_TARGET = 0.5  # issue 22: FLIP on the glossy objects of the fitted display <= 0.5 x diffuse-only
 CAPTION = 22  # height of the caption strip above each panel, pixels
 BAR_WIDTH = 44  # the colour bar column beside each FLIP error image, pixels
-
-
-def is_black(image):
-    """True if ``image`` has no positive value: errors relative to it are undefined."""
-    return not np.nanmax(image, initial=0.0) > 0
-
-
-def metrics(reference, test, exposure=1.0, mask=None):
-    """FLIP mean, PSNR and relative MSE of ``test`` against ``reference`` ((H, W, 3) linear),
-    over the whole image and, with ``mask`` ((H, W) bool), over the masked pixels alone
-    (keys suffixed "_glossy"); and the FLIP error image ((H, W, 3) uint8, magma).
-
-    A black reference is refused (InputError): FLIP's exposure range comes from the
-    reference and does not exist for a black one (FLIP would end the process). FLIP
-    sees both images scaled so the reference's brightest value is 1: its HDR mode
-    is scale-invariant, and so very dim references (units of 1e-9) work too."""
-    import flip_evaluator
-
-    ref = np.ascontiguousarray(np.maximum(reference, 0), np.float32)
-    tst = np.ascontiguousarray(np.maximum(test, 0), np.float32)
-    if is_black(ref):
-        raise InputError(f"the reference image {BLACK}")
-    peak = ref.max()
-    scaled_test = np.minimum(tst / peak, np.finfo(np.float32).max / 4)  # a dim reference must not overflow the test
-    error_map, _, _ = flip_evaluator.evaluate(ref / peak, scaled_test, "HDR", applyMagma=False)
-    flip_values = np.asarray(error_map, np.float64).reshape(ref.shape[:2] + (-1,))[..., 0]
-    a = tonemap(ref, exposure).astype(np.float64) / 255
-    b = tonemap(tst, exposure).astype(np.float64) / 255
-    squared = np.mean((a - b) ** 2, axis=2)
-    relative = np.mean((tst.astype(np.float64) - ref) ** 2 / (ref.astype(np.float64) ** 2 + 0.01), axis=2)
-
-    def numbers(select):
-        mse = float(np.mean(squared[select]))
-        return {
-            "flip_mean": float(np.mean(flip_values[select])),
-            "psnr_db": float("inf") if mse == 0 else float(10 * np.log10(1.0 / mse)),
-            "relative_mse": float(np.mean(relative[select])),
-        }
-
-    out = numbers(np.ones(squared.shape, bool))
-    if mask is not None and mask.any():
-        out |= {f"{k}_glossy": v for k, v in numbers(mask).items()}
-        out["glossy_pixels"] = int(mask.sum())
-    error_image = _magma(flip_values)
-    return out, error_image
-
-
-def _magma(values):
-    """(H, W) values in [0, 1] -> (H, W, 3) uint8 through matplotlib's magma colour map."""
-    from matplotlib import colormaps
-
-    return (colormaps["magma"](np.clip(values, 0, 1))[..., :3] * 255 + 0.5).astype(np.uint8)
 
 
 def orbit(view, degrees):
@@ -128,7 +76,7 @@ def colour_bar(height, width=BAR_WIDTH):
     pad = 6 if height >= 40 else 1
     span = max(height - 2 * pad, 2)
     values = np.linspace(1.0, 0.0, span)[:, None].repeat(10, axis=1)
-    column.paste(Image.fromarray(_magma(values)), (3, pad))
+    column.paste(Image.fromarray(magma(values)), (3, pad))
     draw = ImageDraw.Draw(column)
     for value, text in ((1.0, "1"), (0.5, "0.5"), (0.0, "0")):
         y = pad + round((1.0 - value) * (span - 1))
@@ -156,8 +104,7 @@ def _panel_row(images, labels, path, errors=()):
             canvas.paste(Image.fromarray(colour_bar(h)), (x, CAPTION))
             draw.text((x + 3, 5), "FLIP", fill=(0, 0, 0))
             x += BAR_WIDTH
-    with atomic_output(path) as f:
-        canvas.save(f, format="PNG")
+    write_png(path, canvas)
 
 
 def json_ready(value, notes, where=""):

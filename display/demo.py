@@ -11,6 +11,10 @@ for every model the fitter tried), ``report.md`` (a verdict per scene, what each
 means, the pictures and tables of times and errors) and ``summary.json`` (the same
 numbers). The files appear together at the end: a failure or Ctrl-C on the way leaves
 none of them.
+
+The demo runs the earlier stages itself (scene loading, the solve, the path tracer) and
+reaches them through ``display.pipeline`` alone, as the truth command does; the fit
+through ``fitting``'s public ``fit``.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from radiosity.formats.atomic import atomic_output
 from . import compare as _compare
 from . import export as _export
 from .gl import DEFAULT_SAMPLES
+from .images import write_figure
 from .outputs import staged_directory
 
 SCENES = ("cornell-teapot", "plates")
@@ -46,10 +51,12 @@ def run_demo(out, quality="draft", size=(512, 512), log=print, samples=DEFAULT_S
     when all of it is done (``display.outputs.staged_directory``). The OpenGL context
     is made first, so a machine without one is told so before the solve.
     """
+    from .gl import framebuffer_refusals
+
     out = Path(out)
     ctx = _context(size, samples)
     try:
-        with staged_directory(out) as stage:
+        with framebuffer_refusals(size, samples), staged_directory(out) as stage:
             return _run(stage, ctx, quality, size, log, samples, truth_spp, scenes)
     finally:
         ctx.release()
@@ -136,22 +143,19 @@ def _scene_size(name, size):
 def _scene(out, name, ctx, quality, size, samples, truth_spp, say):
     """One scene's solve, fit, export, truth and figures into ``out``; its summary."""
     from fitting import fit
-    from fitting.cli import fit_options_for_quality
-    from radiosity.scene.loaders import load_scene
-    from radiosity.transport.adaptive import solve_adaptive
-    from radiosity.transport.solve import SolveOptions
 
+    from . import pipeline
     from .renderer import Renderer
 
     times = {}
-    scene = load_scene(name)
+    scene = pipeline.load_scene(name)
     say(f"{name}: solving ({quality})")
     t = time.perf_counter()
-    solution = solve_adaptive(scene, SolveOptions(quality=quality, seed=1), progress=True)
+    solution = pipeline.solve(scene, quality, seed=1, progress=True)
     solution.save(out / "solution.npz")
     times["solve_s"] = time.perf_counter() - t
 
-    options = fit_options_for_quality(quality)
+    options = pipeline.fit_options(quality)
     say(f"{name}: fitting each glossy object's model (--model {options.model})")
     t = time.perf_counter()
     model = fit(solution, options, progress=True)
@@ -223,8 +227,7 @@ def _plot_models(scenes, path):
         ax.set_title(f"{scene}: {name}", fontsize=9)
     fig.suptitle("each glossy object's models: error against what they store (orange: kept)", fontsize=10)
     fig.tight_layout()
-    with atomic_output(path) as f:
-        fig.savefig(f, format="png", dpi=110)
+    write_figure(path, fig, dpi=110)
     plt.close(fig)
 
 

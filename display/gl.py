@@ -14,11 +14,17 @@ over the pixel has. ``sample_plan`` says how: up to the context's multisampling
 (``ctx.max_samples``; 4 for float colour on llvmpipe) by MSAA alone; beyond it, the
 image is also drawn ``factor`` times larger on each side and each factor x factor
 block averaged (supersampling). ``check_samples`` refuses a count outside 1 to
-``MAX_SAMPLES``, or one whose larger image the context cannot draw.
+``MAX_SAMPLES``, one whose larger image the context cannot draw, and one whose largest
+buffer (the multisampled float colour buffer of the larger image) reaches
+``MAX_BUFFER_BYTES``, which the driver refuses however much memory is free: on
+llvmpipe 2048x2048 with 32 samples is a 6144x6144 image of 4 samples a pixel, 2.4 GB
+in one buffer ("framebuffer incomplete"). ``framebuffer_refusals`` turns a framebuffer
+a driver still refuses into the same one line.
 """
 
 from __future__ import annotations
 
+import contextlib
 from typing import NamedTuple
 
 import moderngl
@@ -38,6 +44,14 @@ REQUIRED_VERSION = 330
 # a picture of 16 samples is estimated at 544, of 64 at 1696 (430 and 1590 measured).
 RENDER_BYTES_PER_PIXEL = 240
 COMPARE_BYTES_PER_PIXEL = 480
+
+# The largest single texture or renderbuffer, in bytes: llvmpipe makes none of 2 GiB or
+# more (LP_MAX_TEXTURE_SIZE; offsets are signed 32-bit), after rounding each side up to
+# BUFFER_ALIGN texels; measured: 5792x5792 of 4 samples (RGBA float32) is made, 5792x5793
+# and 5793x5793 are not; an 11584-square float texture is, 11585 is not.
+MAX_BUFFER_BYTES = 1 << 31
+BUFFER_ALIGN = 32
+COLOUR_BYTES = 16  # an RGBA float32 colour sample
 
 DEFAULT_SAMPLES = 4  # samples per pixel unless told otherwise: 4x MSAA
 MAX_SAMPLES = 64     # a ceiling: 64 samples' colour and depth are ~1.5 kB a pixel, 1.4 GB at 1280 x 720
@@ -138,9 +152,39 @@ def check_image_size(ctx, width, height, flag="--size"):
         raise InputError(f"{flag} {width}x{height}: this OpenGL draws images {beyond}")
 
 
+def held_samples(ctx, msaa):
+    """The samples a pixel of a buffer asked for ``msaa`` samples really holds: llvmpipe
+    multisamples with 4 alone (a request for 2 gets 4); other drivers as asked."""
+    if msaa <= 1:
+        return 1
+    return max(msaa, 4) if "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")) else msaa
+
+
+def largest_buffer_bytes(plan, width, height, held=None):
+    """Bytes of the largest buffer ``plan`` draws a ``width`` x ``height`` image through:
+    the float colour buffer of the (factor times larger) image, ``held`` samples a pixel
+    (default: the plan's MSAA), each side rounded up to BUFFER_ALIGN."""
+    held = plan.msaa if held is None else held
+    w, h = (-(-side * plan.factor // BUFFER_ALIGN) * BUFFER_ALIGN for side in (width, height))
+    return w * h * COLOUR_BYTES * max(held, 1)
+
+
+def _fits(ctx, samples, width, height):
+    plan = sample_plan(samples, ctx.max_samples)
+    return (_beyond_limits(ctx, width * plan.factor, height * plan.factor) is None
+            and largest_buffer_bytes(plan, width, height, held_samples(ctx, plan.msaa)) < MAX_BUFFER_BYTES)
+
+
+def most_samples(ctx, width, height):
+    """The most samples per pixel (up to MAX_SAMPLES) ``ctx`` draws a ``width`` x
+    ``height`` image with; 0 if none."""
+    return max((n for n in range(1, MAX_SAMPLES + 1) if _fits(ctx, n, width, height)), default=0)
+
+
 def check_samples(ctx, samples, width, height, flag="--samples"):
-    """Refuse ``samples`` per pixel outside 1 to MAX_SAMPLES, or whose supersampled image
-    (``width`` x ``height`` times the plan's factor) ``ctx`` cannot draw; returns the plan."""
+    """Refuse ``samples`` per pixel outside 1 to MAX_SAMPLES, whose supersampled image
+    (``width`` x ``height`` times the plan's factor) ``ctx`` cannot draw, or whose
+    largest buffer reaches MAX_BUFFER_BYTES; returns the plan."""
     check_sample_count(samples, flag)
     plan = sample_plan(samples, ctx.max_samples)
     w, h = width * plan.factor, height * plan.factor
@@ -150,7 +194,31 @@ def check_samples(ctx, samples, width, height, flag="--samples"):
             f"{flag} {samples} draws the {width}x{height} image {plan.factor} times larger on each side "
             f"({w}x{h}, {plan.msaa}x MSAA), and this OpenGL draws images {beyond}; use fewer samples or a smaller size"
         )
+    held = held_samples(ctx, plan.msaa)
+    need = largest_buffer_bytes(plan, width, height, held)
+    if need >= MAX_BUFFER_BYTES:
+        most = most_samples(ctx, width, height)
+        advice = f"use {flag} {most} or fewer at this size, or a smaller size" if most else "choose a smaller size"
+        drawn = f"a {w}x{h} image of {held} sample{'s' if held > 1 else ''} a pixel" + (f" ({plan.factor} times larger on each side)"
+                                                                 if plan.factor > 1 else "")
+        raise InputError(
+            f"{flag} {samples} at {width}x{height} draws {drawn}: one float colour buffer of {_size(need)}, "
+            f"and OpenGL here makes none of {_size(MAX_BUFFER_BYTES)} or more; {advice}"
+        )
     return plan
+
+
+@contextlib.contextmanager
+def framebuffer_refusals(size, samples):
+    """Inside: a framebuffer the driver refuses ("not complete", which a limit no query
+    tells may cause) is an InputError naming the image, not a traceback."""
+    try:
+        yield
+    except moderngl.Error as exc:
+        if "framebuffer is not complete" not in str(exc):
+            raise
+        raise InputError(f"OpenGL here cannot make the framebuffers of a {size[0]}x{size[1]} image with {samples} "
+                         f"samples per pixel ({' '.join(str(exc).split())}); use fewer samples or a smaller size") from None
 
 
 def _size(n):

@@ -3,8 +3,9 @@
 Browsers load ES modules (three.js) only over HTTP, not from ``file://``, so a page
 next to ``scene.glb`` needs a server. This one is Python's own ``http.server``, bound
 to 127.0.0.1 (nothing outside this machine reaches it), serving ``DIR`` and nothing
-above it, with the MIME types a page of modules and a binary glTF need. It prints the
-URL and runs until Ctrl-C.
+above it (no ``..``, and no symlink inside ``DIR`` to anything outside it: 404), with
+the MIME types a page of modules and a binary glTF need. It prints the
+URL and runs until Ctrl-C. The command itself is ``display.commands.serve``.
 """
 
 from __future__ import annotations
@@ -16,15 +17,31 @@ import threading
 
 from radiosity.formats import InputError
 
-__all__ = ["Server", "add_serve_command", "serve_until_interrupted", "start"]
+__all__ = ["Server", "serve_until_interrupted", "start"]
 
 HOST = "127.0.0.1"
 TYPES = {".js": "text/javascript", ".mjs": "text/javascript", ".glb": "model/gltf-binary",
          ".gltf": "model/gltf+json", ".json": "application/json", ".html": "text/html"}
 
 
+def inside(path, root):
+    """True if ``path``, every link in it followed, is ``root`` or lies under it (both
+    resolved: a symlink inside ``root`` to a file outside it is outside)."""
+    target, top = os.path.realpath(path), os.path.realpath(root)
+    return target == top or target.startswith(top.rstrip(os.sep) + os.sep)
+
+
 class _Handler(http.server.SimpleHTTPRequestHandler):
     extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map, **TYPES}
+
+    def send_head(self):
+        """404 for any path whose resolved target leaves the served directory (a symlink
+        out of it); ``..`` and absolute paths never leave it (``translate_path`` drops
+        them)."""
+        if not inside(self.translate_path(self.path), self.directory):
+            self.send_error(404, "File not found")
+            return None
+        return super().send_head()
 
     def log_message(self, format, *args):  # noqa: A002 - the base class's name
         pass  # quiet: a walkthrough page fetches many files
@@ -70,27 +87,7 @@ def start(directory, port=0, must_exist=True):
     return Server(httpd)
 
 
-def add_serve_command(subparsers):
-    p = subparsers.add_parser(
-        "serve",
-        help="serve a directory (an export) to a browser on this machine",
-        description="A static web server on 127.0.0.1 for a directory such as 'vlights export' writes: browsers load "
-        "ES modules only over HTTP. Prints the URL; Ctrl-C stops it.",
-    )
-    p.add_argument("directory", help="the directory to serve (nothing above it is reachable)")
-    p.add_argument("--port", type=int, default=8000, help="TCP port on 127.0.0.1, 0 for any free one (default: %(default)s)")
-    p.set_defaults(func=_serve)
-
-
 def serve_until_interrupted(server, directory):
     """Print the URL and serve until Ctrl-C (KeyboardInterrupt reaches the caller)."""
     print(f"serving {os.path.abspath(directory)} at {server.url} (Ctrl-C stops)", flush=True)
     threading.Event().wait()
-
-
-def _serve(args):
-    server = start(args.directory, args.port)
-    try:
-        serve_until_interrupted(server, args.directory)
-    finally:
-        server.close()

@@ -77,6 +77,7 @@ def test_degenerate_triangles_warn_in_one_line(tmp_path, capsys):
     assert err.strip() == "vlights: warning: object 'a' (%s): dropped 1 degenerate triangle(s)" % (tmp_path / "m.obj")
 
 
+@pytest.mark.subprocess
 @pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
 def test_installed_entry_point(tmp_path):
     ok = subprocess.run(["vlights", "scene-info", "cornell"], capture_output=True, text=True)
@@ -88,23 +89,18 @@ def test_installed_entry_point(tmp_path):
     assert fail.stderr.count("\n") == 1 and "line 1" in fail.stderr and "Traceback" not in fail.stderr
 
 
-@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+@pytest.mark.subprocess
 def test_ctrl_c_during_solve_leaves_no_file(tmp_path):
     import signal
-    import time
+
+    from child_process import Child, vlights
 
     out = tmp_path / "solution.npz"
-    proc = subprocess.Popen(
-        ["vlights", "solve", "cornell-teapot", "--photons", "400000000", "-o", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        # a child of a background job inherits SIGINT ignored; a user's terminal does not
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-    time.sleep(6)  # imports, numba cache load, and well into the photon pass
-    assert proc.poll() is None, proc.communicate()
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130
+    child = Child(vlights("solve", "cornell-teapot", "--photons", "400000000", "-o", out))
+    child.wait_for(r"photons:\s+\d+%\|[^\r\n]*\| *[1-9][\d.]*[kMG]?/")  # the photon pass, some photons traced
+    child.send(signal.SIGINT)
+    code, _, err = child.finish()
+    assert code == 130, err
     assert err.strip().splitlines()[-1] == "vlights solve: interrupted" and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []  # no solution, no temporary file
 
@@ -272,7 +268,7 @@ def test_compare_writes_the_figures_and_numbers(small_solution, small_fit, tmp_p
 def test_compare_metrics_know_the_answer():
     import numpy as np
 
-    from display.compare import metrics
+    from display.metrics import metrics
 
     rng = np.random.default_rng(1)
     reference = rng.uniform(0, 1, (32, 32, 3)).astype(np.float32)

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from display_fixtures import assert_refused, listing, tiny_fit, tiny_solution
 
-from display.compare import json_text, metrics
+from display.compare import json_text
+from display.metrics import metrics
 from radiosity.formats import InputError
 
 
@@ -56,7 +57,7 @@ def test_a_dim_reference_is_measured_like_a_bright_one():
     # user's): metrics scale both pictures so that the reference peaks at 1
     run = run_isolated(
         "import numpy as np\n"
-        "from display.compare import metrics\n"
+        "from display.metrics import metrics\n"
         "rng = np.random.default_rng(3)\n"
         "ref = rng.uniform(0, 2, (24, 24, 3)).astype(np.float32)\n"
         "test = (ref * rng.uniform(0.7, 1.3, ref.shape)).astype(np.float32)\n"
@@ -70,6 +71,7 @@ def test_a_dim_reference_is_measured_like_a_bright_one():
 
 
 @pytest.mark.gl
+@pytest.mark.subprocess
 def test_compare_of_a_scene_with_no_light_says_the_reference_is_black(black_pair, tmp_path, gl_context):
     # a separate process: the exit status is the point (FLIP's own failure exits 255)
     fit, solution = black_pair

@@ -94,3 +94,31 @@ def test_help_names_the_files_and_no_design_document(command, cli):
         assert word not in out
     if command != "demo":
         assert "fit.npz" in out and "solution.npz" in out
+
+
+EXPOSURE_COMMANDS = {  # every display command with --exposure: the command line before the value
+    "render": lambda fit, solution, tmp: ["render", fit, "--size", "8x8", "-o", tmp / "x.png"],
+    "video": lambda fit, solution, tmp: ["render", fit, "--size", "8x8", "--frames", "2", "--video", tmp / "x.mp4"],
+    "compare": lambda fit, solution, tmp: ["compare", fit, solution, "--size", "8x8", "--out", tmp / "cmp"],
+    "view": lambda fit, solution, tmp: ["view", fit, "--frames", "1"],
+    "truth": lambda fit, solution, tmp: ["truth", solution, "--size", "8x8", "--spp", "2", "--hdr", tmp / "x.npy"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(EXPOSURE_COMMANDS))
+@pytest.mark.parametrize("value", ["inf", "-inf", "nan", "0", "-1"])
+def test_an_exposure_that_is_not_a_positive_finite_number_is_refused(command, value, tiny_pair, tmp_path, cli, no_gl,
+                                                                       some_display):
+    fit, solution = tiny_pair
+    argv = EXPOSURE_COMMANDS[command](fit, solution, tmp_path)
+    assert_refused(cli(*argv, f"--exposure={value}"), "--exposure must be a positive finite number", f"got {value}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_every_display_command_with_an_exposure_is_tested():
+    from display.cli import build_parser
+
+    subparsers = next(a for a in build_parser()._actions if a.dest == "command")
+    with_exposure = {name for name, parser in subparsers.choices.items()
+                     if any("--exposure" in action.option_strings for action in parser._actions)}
+    assert with_exposure == set(EXPOSURE_COMMANDS) - {"video"}

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_dilation
 
+from display.metrics import against_truth
 from display.renderer import Renderer
-from display.truth import against_truth, ground_truth, load_truth, scene_for_truth
+from display.truth import ground_truth, load_truth, scene_for_truth
 from radiosity.formats import Camera, InputError
 from radiosity.scene.loaders import load_scene
 from radiosity.transport.pathtrace import PathTracer, scene_of_solution

@@ -1,0 +1,144 @@
+"""What several display commands share: the camera and sample flags, the checks of
+their input files (which must be a fit.npz or a solution.npz, named plainly when not),
+and a headless renderer for the files."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+
+from display import gl
+from radiosity.formats import InputError
+
+__all__ = [
+    "FIT", "SOLUTION", "add_camera_flags", "add_samples_flag", "check_model_files", "input_format",
+    "read_model_files", "rendering", "resolve_view", "size",
+]
+
+FIT, SOLUTION = "vlights.fit", "vlights.solution"
+_FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
+
+
+def size(text):
+    """The argparse type of --size: "WIDTHxHEIGHT" -> (width, height), at least 1x1."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes WIDTHxHEIGHT, e.g. 800x600, got {text!r}") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"takes WIDTHxHEIGHT of at least 1x1, got {text!r}")
+    return w, h
+
+
+def add_camera_flags(parser, default_size):
+    """The camera flags (eye, look-at, up, field of view, size, named views); the
+    default camera is the scene's."""
+    parser.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
+    parser.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view")
+    parser.add_argument("--size", type=size, default=default_size, metavar="WxH",
+                        help=f"image size (default: {default_size[0]}x{default_size[1]})")
+    parser.add_argument("--view", metavar="NAME", help="a named view from --views")
+    parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
+
+
+def add_samples_flag(parser):
+    """--samples N: antialiasing, samples per pixel averaged with equal weights."""
+    parser.add_argument("--samples", type=int, default=gl.DEFAULT_SAMPLES, metavar="N",
+                        help="samples per pixel, averaged with equal weights (a box filter over the pixel: "
+                        "antialiasing); MSAA up to what the OpenGL offers, then also supersampled; 1 samples the "
+                        f"pixel centre alone; 1 to {gl.MAX_SAMPLES} (default: %(default)s)")
+
+
+def input_format(path, accepted, label):
+    """The format of the input file ``path`` (FIT or SOLUTION), which must be one of
+    ``accepted``; InputError naming ``label`` (the argument) and what is wrong otherwise.
+    What a file is comes from ``radiosity.formats.file_format``."""
+    from radiosity.formats import file_format
+
+    shown = str(path)
+    want = " or a ".join(_FILE_NAMES[f] for f in accepted)
+    if not os.path.exists(path):
+        raise InputError(f"{label} {shown!r} not found")
+    if os.path.isdir(path):
+        raise InputError(f"{label} {shown!r} is a directory, not a {want}")
+    fmt = file_format(path)
+    if fmt in accepted:
+        return fmt
+    if fmt in _FILE_NAMES:
+        raise InputError(f"{label} {shown!r} is a {_FILE_NAMES[fmt]}, not a {want}")
+    found = f"an .npz file of format {fmt!r}" if fmt is not None else "not one of this program's .npz files"
+    raise InputError(f"{label} {shown!r} is not a {want}: it is {found}")
+
+
+def check_model_files(path, extra_solution=None):
+    """The format of ``path`` (a fit or a solution), and ``extra_solution`` (--solution)
+    checked to be a solution next to a fit; cheap: reads no arrays."""
+    fmt = input_format(path, (FIT, SOLUTION), "input")
+    if extra_solution is not None:
+        input_format(extra_solution, (SOLUTION,), "--solution")
+        if fmt == SOLUTION:
+            raise InputError(f"--solution goes next to a fit.npz; {str(path)!r} is already a solution.npz")
+    return fmt
+
+
+def read_model_files(path, extra_solution=None):
+    """(fit or None, solution or None) from a file that is either, plus an optional solution."""
+    from fitting import load_fit
+    from radiosity.formats import load_solution
+
+    if check_model_files(path, extra_solution) == FIT:
+        fit, solution = load_fit(path), None
+    else:
+        fit, solution = None, load_solution(path)
+    if extra_solution is not None:
+        solution = load_solution(extra_solution)
+    return fit, solution
+
+
+def resolve_view(args, bounds, fit=None, solution=None):
+    """The camera from flags, a named view, or the files' scene camera (else a framing view)."""
+    from display.camera import resolve_camera
+
+    default = None
+    for model in (solution, fit):
+        if model is not None and getattr(model, "camera", None) is not None:
+            default = model.camera
+            break
+    return resolve_camera(args, bounds, default)
+
+
+@contextlib.contextmanager
+def headless(size, samples, bytes_per_pixel=gl.RENDER_BYTES_PER_PIXEL):
+    """A headless GL context for images of ``size`` with ``samples`` per pixel, after
+    the checks of their size, samples, buffers and memory (InputError, one line, before
+    any work); released on the way out. A framebuffer the driver still refuses is an
+    InputError too (``display.gl.framebuffer_refusals``)."""
+    ctx = gl.headless_context()
+    try:
+        gl.check_image_size(ctx, *size)
+        gl.check_samples(ctx, samples, *size)
+        gl.check_image_memory(*size, bytes_per_pixel, samples=samples)
+        with gl.framebuffer_refusals(size, samples):
+            yield ctx
+    finally:
+        ctx.release()
+
+
+@contextlib.contextmanager
+def rendering(args):
+    """(renderer, camera, mode) for the input files of ``args``, after their size and
+    memory checks; the GL context is released on the way out."""
+    from display.renderer import Renderer
+
+    check_model_files(args.file, args.solution)
+    with headless(args.size, args.samples) as ctx:
+        fit, solution = read_model_files(args.file, args.solution)
+        mode = args.mode or ("fitted" if fit is not None else "reference")
+        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
+        try:
+            yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
+        finally:
+            renderer.release()

@@ -1,0 +1,138 @@
+"""``vlights compare``: the paper's figures 5-7 as PNG files with FLIP error images, and
+their numbers in compare.json (``display.compare``), optionally against path-traced
+truths of figure 5's views."""
+
+from __future__ import annotations
+
+import os
+
+from display.gl import check_sample_count
+from radiosity.formats import InputError
+from radiosity.formats.limits import check_exposure, check_seed
+
+from .common import FIT, SOLUTION, add_camera_flags, add_samples_flag, headless, input_format, resolve_view
+
+__all__ = ["add_command", "run"]
+
+
+def add_command(subparsers):
+    p = subparsers.add_parser(
+        "compare",
+        help="the paper's comparison figures with error images and numbers",
+        description="Figures 5 (reference against fitted, three viewpoints), 6 (2 against 8 lights) and 7 "
+        "(with and without virtual lights) as PNG files, each with a FLIP error image, and FLIP mean, PSNR "
+        "and relative MSE in compare.json.",
+    )
+    p.add_argument("fit", help="fit.npz")
+    p.add_argument("solution", help="the solution.npz it was fitted to")
+    p.add_argument("--out", default="compare", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
+    add_camera_flags(p, (512, 512))
+    p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
+    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    add_samples_flag(p)
+    p.add_argument("--truth", nargs="+", metavar="FILE.npy",
+                   help="path-traced images of figure 5's views, in order (from 'vlights truth --hdr' with the same "
+                   "camera and size): every display is also measured against them")
+    p.add_argument("--truth-spp", type=int, default=0, metavar="N",
+                   help="path-trace the truth of every view without a --truth file, N samples per pixel (default: none)")
+    p.add_argument("--seed", type=int, default=1, help="the path tracer's seed, with --truth-spp (default: %(default)s)")
+    p.set_defaults(func=run)
+
+
+def check_inputs(fit_path, solution_path):
+    """compare takes a fit.npz, then a solution.npz: say so plainly when they are swapped."""
+    fmt_fit = input_format(fit_path, (FIT, SOLUTION), "the fit")
+    fmt_solution = input_format(solution_path, (FIT, SOLUTION), "the solution")
+    if fmt_fit == SOLUTION and fmt_solution == FIT:
+        raise InputError(f"the files are the wrong way round: {str(fit_path)!r} is a solution.npz and "
+                         f"{str(solution_path)!r} a fit.npz; give the fit.npz first")
+    if fmt_fit != FIT:
+        raise InputError(f"the fit {str(fit_path)!r} is a solution.npz, not a fit.npz (compare takes a fit.npz, then "
+                         "the solution.npz it was fitted to)")
+    if fmt_solution != SOLUTION:
+        raise InputError(f"the solution {str(solution_path)!r} is a fit.npz, not a solution.npz (compare takes a "
+                         "fit.npz, then the solution.npz it was fitted to)")
+
+
+def check_truth_flags(args):
+    """--truth files (at most one per view, .npy, existing) and --truth-spp, before any work."""
+    from display.pipeline import check_spp
+
+    files = args.truth or []
+    if len(files) > 3:
+        raise InputError(f"--truth takes at most 3 files (one per view of figure 5), got {len(files)}")
+    for path in files:
+        if not str(path).endswith(".npy"):
+            raise InputError(f"--truth {path!r} must be an .npy file (from 'vlights truth --hdr')")
+        if not os.path.isfile(path):
+            raise InputError(f"--truth {path!r} not found")
+    check_spp(args.truth_spp, "--truth-spp", low=0)
+    check_seed(args.seed)
+
+
+def truths_for(args, solution, views):
+    """Per view: the --truth file's image, else (with --truth-spp) a path-traced one, else None."""
+    from display.truth import GroundTruth, ground_truth, load_truth
+
+    files = args.truth or []
+    truths = []
+    for i, view in enumerate(views):
+        if i < len(files):
+            truths.append(GroundTruth(load_truth(files[i], view), 0, None, {"file": files[i]}))
+        elif args.truth_spp:
+            print(f"path-tracing the truth of view {i + 1} ({args.truth_spp} samples per pixel)")
+            truths.append(ground_truth(solution, view, args.truth_spp, args.seed, progress=True))
+        else:
+            truths.append(None)
+    return truths
+
+
+def run(args):
+    from display.compare import FILES, compare, figure5_views
+    from display.gl import COMPARE_BYTES_PER_PIXEL
+    from display.outputs import check_output_dir
+    from display.renderer import Renderer
+    from fitting import load_fit
+    from radiosity.formats import load_solution
+
+    check_exposure(args.exposure)
+    check_sample_count(args.samples)
+    check_truth_flags(args)
+    check_inputs(args.fit, args.solution)
+    out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
+    with headless(args.size, args.samples, COMPARE_BYTES_PER_PIXEL) as ctx:
+        fit, solution = load_fit(args.fit), load_solution(args.solution)
+        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
+        view = resolve_view(args, renderer.bounds, fit, solution)
+        views = figure5_views(view)
+        truths = truths_for(args, solution, views)
+        results = compare(renderer, out, view, args.exposure, args.shading, views=views, truths=truths)
+        renderer.release()
+    print_results(results, args.samples, out)
+    return 0
+
+
+def _row(m):
+    glossy = (f"{m['flip_mean_glossy']:>8.4f} {m['psnr_db_glossy']:>8.2f} {m['relative_mse_glossy']:>10.4g}"
+              if "flip_mean_glossy" in m else "")
+    return f"{m['flip_mean']:>8.4f} {m['psnr_db']:>8.2f} {m['relative_mse']:>10.4g} {glossy}"
+
+
+def print_results(results, samples, out):
+    """The table of compare.json's numbers, on stdout."""
+    print(f"wrote figures 5, 6, 7 and compare.json to {out}/ ({samples} samples per pixel)")
+    print(f"  {'':<32} {'whole image':^28} {'glossy objects only':^28}")
+    print(f"  {'':<32} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10}")
+    rows = [(f"figure 5, view {i}", results["figure5"][f"view{i}"]) for i in range(1, 4)]
+    rows += [(f"figure 6, {k.replace('_', ' ')}", m) for k, m in results["figure6"].items()]
+    rows += [(f"figure 7, {k.replace('_', ' ')}", m) for k, m in results["figure7"].items() if isinstance(m, dict)]
+    for label, m in rows:
+        print(f"  {label:<32} {_row(m)}")
+    if any(m[k] == float("inf") for _, m in rows for k in ("psnr_db", "psnr_db_glossy") if k in m):
+        print("  (PSNR inf: the pictures are identical; compare.json has null there, explained in its notes)")
+    for name, t in results.get("truth", {}).items():
+        noise = "" if t["noise_flip"] is None else f", noise floor FLIP {t['noise_flip']:.4f}"
+        source = f"{t['spp']} spp" if t["spp"] else "from a file"
+        print(f"  against the path-traced truth, {name.replace('view', 'view ')} ({source}{noise}):")
+        for mode in ("reference", "fitted", "diffuse"):
+            print(f"    {mode + ' display':<30} {_row(t[mode])}")
