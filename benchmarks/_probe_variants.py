@@ -17,8 +17,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from display.compare import metrics
 from display.gl import headless_context
+from display.metrics import metrics
 from display.renderer import Renderer
 from fitting import FitOptions, fit, glossy, probe
 from fitting.data import FitData, fit_data, relative_error

@@ -97,8 +97,8 @@ def solve_and_fit(name, quality, cache):
 
 
 def look(record, args, pictures):
-    from display.compare import metrics
     from display.gl import headless_context
+    from display.metrics import metrics
     from display.renderer import Renderer
 
     ctx = headless_context()
@@ -253,7 +253,7 @@ def variants(record, args):
 def save_pictures(pictures):
     import imageio.v3 as iio
 
-    from display.compare import metrics
+    from display.metrics import metrics
     from display.renderer import tonemap
 
     for (name, view), (truth, images) in pictures.items():

@@ -75,7 +75,7 @@ def speed(record, scene, tracer, camera, threads, args):
 
 def convergence(tracer, camera, reference, spp, seed):
     """[(spp, seconds, flip, relative MSE)] after each progressive pass."""
-    from display.compare import metrics
+    from display.metrics import metrics
 
     rows = []
 

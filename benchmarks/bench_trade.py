@@ -200,8 +200,8 @@ def truth_trade(record, args):
     """Question 6: presets end to end against a path-traced truth (see the module text)."""
     from bench_pathtrace import convergence, time_to
 
-    from display.compare import metrics
     from display.gl import headless_context
+    from display.metrics import metrics
     from display.renderer import Renderer
     from display.truth import ground_truth
     from fitting import FitOptions, fit

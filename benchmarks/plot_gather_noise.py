@@ -43,8 +43,8 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from display.compare import metrics
     from display.gl import headless_context
+    from display.metrics import metrics
     from display.renderer import Renderer, tonemap
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.adaptive import AdaptiveOptions, solve_adaptive

@@ -33,7 +33,7 @@ import warnings
 
 import numpy as np
 
-from radiosity.formats import Camera, InputError, atomic_output
+from radiosity.formats import Camera, InputError
 
 from .gl import DEFAULT_SAMPLES
 from .renderer import PARTS, Renderer
@@ -66,17 +66,11 @@ class Walkthrough(mglw.WindowConfig):
     failure = None  # an InputError met while the window ran (--screenshot could not be written)
 
     @classmethod
-    def configure(cls, fit, solution, view, *legacy, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
+    def configure(cls, fit, solution, view, *, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
                   samples=DEFAULT_SAMPLES):
         """The window's settings: the model (``fit`` and/or ``solution``), the start
-        ``view`` (its size the window's), and by keyword the rest. ``legacy``: the same
-        settings by position, in the order exposure, frames, screenshot, mode, press,
-        samples (what display/cli.py passes today; to go once it names them)."""
-        names = ("exposure", "frames", "screenshot", "mode", "press", "samples")
-        if len(legacy) > len(names):
-            raise TypeError(f"configure takes at most {3 + len(names)} positional arguments")
+        ``view`` (its size the window's), and by keyword the rest."""
         settings = dict(exposure=exposure, frames=frames, screenshot=screenshot, mode=mode, press=press, samples=samples)
-        settings.update(zip(names, legacy))
         cls.setup = dict(fit=fit, solution=solution, view=view, **settings)
         cls.window_size = (view.width, view.height)
         cls.failure = None
@@ -152,14 +146,13 @@ class Walkthrough(mglw.WindowConfig):
         """The window's picture as a PNG, written atomically. A failure to write (a full
         disk, ...) is one line on stderr, and the walkthrough goes on; for --screenshot,
         it is kept in ``failure`` for the command to report after the window closes."""
-        from PIL import Image
+        from display.images import write_png
 
         w, h = self.wnd.buffer_size
         data = np.frombuffer(self.wnd.fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1]
         path = path or os.path.abspath(f"vlights-{time.strftime('%Y%m%d-%H%M%S')}.png")
         try:
-            with atomic_output(path) as f:
-                Image.fromarray(data).save(f, format="PNG")
+            write_png(path, data)
         except InputError as exc:
             if path == self.screenshot_path:  # --screenshot: the run's output; its failure is the run's
                 type(self).failure = exc

@@ -9,11 +9,6 @@ display/pipeline.py alone)."""
 
 from source_imports import PACKAGES, cycles, import_graph, module_name
 
-# KNOWN CIRCLE, the lead's to remove (issue 23, "no import circles"):
-# radiosity/transport/solve.py <-> radiosity/transport/distributed.py. main's e58db93 breaks
-# it: once that is merged here, delete this exception (the list must end up empty).
-KNOWN_CIRCLES = [["radiosity.transport.distributed", "radiosity.transport.solve"]]
-
 # which stages each stage may import: data flows one way
 MAY_IMPORT = {"radiosity": {"radiosity"}, "fitting": {"radiosity", "fitting"}, "display": set(PACKAGES)}
 
@@ -29,7 +24,7 @@ def test_the_graph_sees_every_module():
 
 
 def test_no_import_circle():
-    assert [c for c in cycles(import_graph()) if c not in KNOWN_CIRCLES] == []
+    assert cycles(import_graph()) == []
 
 
 def test_a_circle_is_found(tmp_path):

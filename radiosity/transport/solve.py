@@ -326,8 +326,10 @@ def _solve(scene, settings, runner, progress):
 
     if refined.emitters:
         bar = make_bar(total=total, desc="photons", unit="photon")
-        runner.photon_batches(total, combine_photons, bar)
-        bar.close()
+        try:
+            runner.photon_batches(total, combine_photons, bar)
+        finally:
+            bar.close()
     moment0, moment1, tally = photon_sums
     photon_rays = runner.rays_cast - rays_before
     times["photons"] = time.perf_counter() - t0
@@ -355,10 +357,12 @@ def _solve(scene, settings, runner, progress):
         for i, o in enumerate(refined.objects)
         if o.material.is_glossy
     ]
-    gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
+    try:
+        gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
+    finally:
+        if bar is not None:
+            bar.close()
     glossy_dirs = {o.name: dirs for o, _, dirs in glossy}
-    if bar is not None:
-        bar.close()
     gather_rays = runner.rays_cast - rays_before
     times["gather"] = time.perf_counter() - t0
 
