@@ -1,0 +1,418 @@
+"""Write benchmarks/RESULTS.md from the JSON lines the benchmarks recorded.
+
+Usage:
+    python benchmarks/report.py            # rewrite benchmarks/RESULTS.md from benchmarks/results/*.jsonl
+    python benchmarks/report.py --check    # exit 1 if RESULTS.md is not what the results files give
+
+Every number in RESULTS.md comes from a row of a results file; nothing is typed by hand,
+so the tables cannot drift from what the benchmarks measured. A benchmark run rewrites
+its own results file (``_common.Recorder.save``); run this script afterwards and commit
+both. Only the standard library is used, so it runs without the project installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+OUTPUT = HERE / "RESULTS.md"
+
+
+def read_rows(path):
+    """The rows of one JSON-lines file, in order."""
+    with open(path, encoding="utf-8") as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+def num(x, digits=3):
+    """A number with ``digits`` decimals; '' for None."""
+    if x is None:
+        return ""
+    return f"{x:.{digits}f}"
+
+
+def mega(x):
+    return "" if x is None else f"{x / 1e6:.2f}"
+
+
+def table(head, rows):
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines
+
+
+def machine(rows):
+    """One line naming the machines the rows were measured on."""
+    seen = sorted({(r.get("cores"), r.get("machine"), r.get("python")) for r in rows}, key=str)
+    parts = [f"{c} cores, {m}, Python {p}" for c, m, p in seen]
+    return "Measured on " + "; ".join(parts) + "."
+
+
+def where(script, files):
+    names = ", ".join(f"`results/{f}`" for f in files)
+    return f"Produced by `python benchmarks/{script}` ({names})."
+
+
+def pick(rows, **match):
+    return [r for r in rows if all(r.get(k) == v for k, v in match.items())]
+
+
+# -- one function per results file ---------------------------------------------------------
+
+
+def solver(rows):
+    out = ["## Solver", "", where("bench_solver.py", ["solver.jsonl"]), machine(rows), ""]
+    rays = pick(rows, question="rays per second")
+    if rays:
+        out += ["Each preset's photon pass and gather against the limit: bare Embree on all cores "
+                "tracing the same rays (ratios of rays per second; medians of the repeats).", ""]
+        out += table(
+            ["preset", "triangles", "limit, photon / gather rays (M rays/s)", "photon pass", "gather",
+             "gather, its tracing alone", "solve (s)", "tracing floor (s)", "repeats"],
+            [[r["quality"], r["triangles"],
+              f"{mega(r['limit_rays_per_s']['photon'])} / {mega(r['limit_rays_per_s']['gather'])}",
+              f"{num(r['photon_ratio'], 2)}x", f"{num(r['gather_ratio'], 2)}x",
+              f"{num(r['gather_trace_ratio'], 2)}x", num(r["solve_s"], 2), num(r["tracing_floor_s"], 2),
+              r["repeats"]] for r in rays])
+        out += ["", "The gather's thread-seconds, tracing against the splat into the direction grid: "
+                + "; ".join(f"{r['quality']} {num(r['gather_split_thread_s']['trace'], 1)} / "
+                            f"{num(r['gather_split_thread_s']['splat'], 1)}" for r in rays) + ".", ""]
+    presets = pick(rows, question="solve time per preset") + pick(rows, question="solve time, refined mesh")
+    if presets:
+        out += ["Solve time per preset (warm numba cache, median):", ""]
+        out += table(["preset", "mesh", "solve (s)", "photons (s)", "gather (s)"],
+                     [[r["quality"], "refined" if "refined" in r["question"] else "uniform",
+                       num(r["solve_s_warm_median"], 2), num(r["phases_s"]["photons"], 2),
+                       num(r["phases_s"]["gather"], 2)] for r in presets])
+        out.append("")
+    for r in pick(rows, question="same answer at 1 and N threads"):
+        out.append(f"- Same radiance at 1 and {r['threads']} threads: {'yes' if r['identical'] else 'NO'}.")
+    for r in pick(rows, question="peak memory"):
+        counts = " and ".join(f"{p / 1e6:g} M" for p in r["photons"])
+        peaks = " and ".join(f"{m:.1f} MB" for m in r["peak_rss_mb"])
+        out.append(f"- Peak memory at {counts} photons: {peaks} (growth {r['growth'] * 100:.1f} %).")
+    for r in pick(rows, question="numba compile time"):
+        out.append(f"- numba compile: first solve from an empty cache {num(r['cold_first_solve_s'], 1)} s, "
+                   f"warm {num(r['warm_solve_s'], 1)} s (compile {num(r['compile_s'], 1)} s).")
+    return out + [""]
+
+
+def pathtrace(rows):
+    out = ["## Path tracer", "", where("bench_pathtrace.py", ["pathtrace.jsonl"]), machine(rows), ""]
+    for r in pick(rows, what="speed"):
+        out.append(f"- {r['scene']}, {r['size']} x {r['size']}, {r['spp']} spp, {r['threads']} threads: "
+                   f"{mega(r['rays_per_s'])} M rays/s against the limit's {mega(r['bare_rays_per_s'])} M: "
+                   f"**{num(r['ratio_to_bare'], 2)}x** (target {r['target_ratio']}x); "
+                   f"{mega(r['paths_per_s'])} M paths/s.")
+    for r in pick(rows, what="repeat")[:1]:
+        out.append(f"- {num(r['rays_per_path'], 2)} rays a path, {num(r['shadow_rays_per_path'], 2)} of them "
+                   "shadow rays.")
+    ref = pick(rows, what="reference")
+    for r in pick(rows, what="time to FLIP"):
+        if r["spp"] is None:
+            out.append(f"- FLIP {r['flip']}: not reached.")
+        else:
+            out.append(f"- FLIP {r['flip']} reached at {r['spp']} spp, {num(r['seconds'], 1)} s.")
+    conv = pick(rows, what="convergence")
+    if conv:
+        against = f" (against a {ref[0]['spp']}-spp image, another seed)" if ref else ""
+        out += ["", f"Convergence{against}:", ""]
+        out += table(["spp", "seconds", "FLIP", "relative MSE"],
+                     [[r["spp"], num(r["seconds"], 2), num(r["flip"]), num(r["relative_mse"], 4)] for r in conv])
+    return out + [""]
+
+
+FIT_MODELS = {
+    "paper": "directional, shared, the paper's method",
+    "directional": "directional, shared, refined (the paper's model)",
+    "auto/shared": "directional or positional, shared",
+    "auto/per-light": "directional or positional, per-light coefficients",
+}
+
+
+def fit(rows):
+    out = ["## Virtual lights against baselines", "", where("bench_fit.py", ["fit.jsonl"]), machine(rows), ""]
+    storage = pick(rows, question="error vs floats per vertex")
+    objects = list(dict.fromkeys(r["object"] for r in storage))
+    if storage:
+        out += ["Relative RMS error of each glossy object (lower is better) against the floats stored per "
+                "vertex; the teapot's fit time.", ""]
+        body = []
+        for model, words in FIT_MODELS.items():
+            for k in sorted({r["K"] for r in pick(storage, model=model)}):
+                per = {o: next(iter(pick(storage, model=model, object=o, K=k)), None) for o in objects}
+                floats = "/".join(str(f) for f in sorted({r["floats_per_vertex"] for r in per.values() if r}))
+                teapot = per.get("teapot")
+                body.append([words, k, floats] + [num(per[o]["relative_rms"]) if per[o] else "" for o in objects]
+                            + [num(teapot["seconds"], 1) if teapot else ""])
+        for model in dict.fromkeys(r["model"] for r in storage if r["baseline"]):
+            per = {o: next(iter(pick(storage, model=model, object=o)), None) for o in objects}
+            some = next(r for r in per.values() if r)
+            body.append([f"baseline: {model.replace('_', ' ')}", "", some["floats_per_vertex"]]
+                        + [num(per[o]["relative_rms"]) if per[o] else "" for o in objects] + [""])
+        out += table(["model", "K", "floats / vertex"] + [f"{o} relative RMS" for o in objects]
+                     + ["teapot fit (s)"], body)
+        out.append("")
+    verdicts = [v for v in pick(rows, question="virtual lights ahead at equal or fewer floats") if v["ahead"] is not None]
+    if verdicts:
+        ahead = sum(v["ahead"] for v in verdicts)
+        out.append(f"- Virtual lights ahead of a baseline at equal or fewer floats per vertex: {ahead} of "
+                   f"{len(verdicts)} comparisons.")
+    for r in pick(rows, question="paper method time"):
+        out.append(f"- The paper's method, teapot, K = {r['K']}: {num(r['seconds'], 1)} s, median of {r['repeats']} "
+                   f"(target {r['target_s']} s: {'met' if r['met'] else 'not met'}).")
+    for r in pick(rows, question="refined time vs V x D x K slope"):
+        out.append(f"- Refined fit time against V x D x K: log-log slope {num(r['log_log_slope'], 2)}, "
+                   f"{num(r['seconds_per_million_VDK'], 2)} s per million.")
+    sizes = pick(rows, question="file size")
+    if sizes:
+        out.append("- Files: " + "; ".join(
+            f"{r['file']}{' ' + r['model'] + ' K = ' + str(r['K']) if 'model' in r else ''} "
+            f"{r['bytes'] / 1e6:.3f} MB" for r in sizes) + ".")
+    return out + [""]
+
+
+def fit_speed(rows):
+    out = ["## Fit speed", "", where("bench_fit_speed.py", ["fit_speed.jsonl"]), machine(rows), ""]
+    first = rows[0]
+    out += [f"The demo teapot at {first['quality']} (V {first['vertices']}, D {first['directions']}), "
+            f"{first['lights']} lights:", ""]
+    out += table(["model", "median (s)", "runs (s)", "relative RMS"],
+                 [[r["model"], num(r["median_s"], 2), ", ".join(num(s, 2) for s in r["runs_s"]),
+                   num(r["relative_rms"])] for r in rows])
+    return out + [""]
+
+
+def glossy(rows_by_quality):
+    files = [f"glossy{'' if q == 'draft' else '_' + q}.jsonl" for q in rows_by_quality]
+    every = [r for rows in rows_by_quality.values() for r in rows]
+    out = ["## Glossy objects against the truth", "", where("bench_glossy.py", files), machine(every), ""]
+    for quality, rows in rows_by_quality.items():
+        look = pick(rows, question="look")
+        if look:
+            out += [f"FLIP on the glossy objects' pixels against a path-traced truth ({quality}; "
+                    f"truth {look[0]['truth_spp']} spp):", ""]
+            out += table(["scene", "view", "reference", "fitted", "diffuse", "fitted / diffuse", "fitted / reference"],
+                         [[r["scene"], r["view"], num(r["reference"]["flip_glossy"]), num(r["fitted"]["flip_glossy"]),
+                           num(r["diffuse"]["flip_glossy"]), num(r["ratio_fitted_diffuse"], 2),
+                           num(r["ratio_fitted_reference"], 2)] for r in look])
+            out.append("")
+        errors = pick(rows, question="fit error")
+        if errors:
+            out += [f"Each glossy object's model ({quality}):", ""]
+            out += table(["scene", "object", "model", "probe", "lights", "floats / vertex", "relative RMS",
+                          "diffuse alone"],
+                         [[r["scene"], r["object"], r["model"], r["probe"] or "", r["lights"], r["floats_per_vertex"],
+                           num(r["relative_rms"]), num(r["diffuse_only_relative_rms"])] for r in errors])
+            out.append("")
+        for r in pick(rows, question="highlights present"):
+            out.append(f"- {r['scene']}: of {r['highlights']} lamp highlights, the reference display shows "
+                       f"{r['reference']}, the fitted {r['fitted']}, the diffuse {r['diffuse']}.")
+        for r in pick(rows, question="fit time"):
+            out.append(f"- Fit of the whole {r['scene']} scene at {quality}: {num(r['fit_s'], 1)} s "
+                       f"(target {num(r['target'], 0)} s).")
+        for r in pick(rows, question="frame time"):
+            out.append(f"- Frame at {r['width']} x {r['height']}, {r['scene']}, {quality}: fitted per pixel "
+                       f"{num(r['fitted_pixel_ms'], 1)} ms, fitted Gouraud {num(r['fitted_gouraud_ms'], 1)} ms, "
+                       f"diffuse per pixel {num(r['diffuse_pixel_ms'], 1)} ms, reference per pixel "
+                       f"{num(r['reference_pixel_ms'], 1)} ms (fitted / diffuse "
+                       f"{num(r['ratio_fitted_diffuse'], 2)}, target {r['target']}).")
+        for r in pick(rows, question="files"):
+            out.append(f"- {r['scene']}: fit.npz {num(r['fit_mb'], 2)} MB against solution.npz "
+                       f"{num(r['solution_mb'], 2)} MB ({num(r['ratio'], 2)}; target {r['target']}).")
+        spots = pick(rows, question="highlight")
+        if spots:
+            out += ["", f"Peak radiance at each lamp's highlight on each plate ({quality}):", ""]
+            out += table(["plate", "lamp", "truth", "reference", "fitted", "diffuse"],
+                         [[r["plate"], r["lamp"], num(r["truth"], 3), num(r["reference"], 3), num(r["fitted"], 3),
+                           num(r["diffuse"], 3)] for r in spots])
+        out.append("")
+    return out
+
+
+def display(rows):
+    out = ["## Display", "", where("bench_display.py", ["display.jsonl"]), machine(rows)]
+    renderers = sorted({r["gl_renderer"] for r in rows})
+    out += [f"OpenGL: {', '.join(renderers)}.", ""]
+    frames = pick(rows, question="frame time")
+    if frames:
+        out += ["Frame time (ms, one sample per pixel, drawing only) and bytes on the GPU:", ""]
+        out += table(["scene", "triangles", "lights", "mode", "shading", "size", "frame (ms)", "MB"],
+                     [[r["scene"], r["triangles"], r["lights"], r["mode"], r["shading"],
+                       f"{r['width']} x {r['height']}", num(r["frame_ms"], 1), num(r["bytes"] / 1e6, 2)]
+                      for r in frames])
+        out.append("")
+    for r in pick(rows, question="targets"):
+        out.append(f"- {r['scene']}: fitted Gouraud / diffuse Gouraud {num(r['fitted_gouraud_over_diffuse'], 2)} "
+                   f"(target <= {r['target']}); the same image twice: {'yes' if r['same_image_twice'] else 'NO'}.")
+    for r in pick(rows, question="model size"):
+        out.append(f"- Fitted model against the solution: files {num(r['file_ratio'], 1)}x smaller "
+                   f"({num(r['fit_file'] / 1e6, 2)} MB against {num(r['solution_file'] / 1e6, 2)} MB), arrays "
+                   f"{num(r['array_ratio'], 1)}x (target >= {r['target_ratio']}x).")
+    aa = pick(rows, question="antialiasing")
+    if aa:
+        out += ["", "Antialiasing (fitted, demo scene):", ""]
+        out += table(["samples", "MSAA", "supersampling", "shading", "frame (ms)", "over one sample"],
+                     [[r["samples"], r["msaa"], f"{r['supersampling']} x {r['supersampling']}", r["shading"],
+                       num(r["frame_ms"], 1), num(r["over_one_sample"], 2)] for r in aa])
+    checks = pick(rows, question="antialiasing check")
+    if checks:
+        out += ["", f"Mean absolute difference to a {checks[0]['against_samples']}-sample image at "
+                + " / ".join(str(r["samples"]) for r in checks) + " samples per pixel: "
+                + " / ".join(num(r["mean_abs_difference"], 4) for r in checks) + "."]
+    return out + [""]
+
+
+def web(rows):
+    out = ["## WebGL walkthrough", "", where("bench_web.py", ["web.jsonl"]), machine(rows), ""]
+    for r in pick(rows, what="size"):
+        out.append(f"- scene.glb {num(r['scene_glb_bytes'] / 1e6, 2)} MB against fit.npz "
+                   f"{num(r['fit_npz_bytes'] / 1e6, 2)} MB ({num(r['glb_over_npz'], 2)}x); the page with "
+                   f"three.js {num(r['page_bytes'] / 1e6, 2)} MB.")
+    for r in pick(rows, what="load"):
+        out.append(f"- Load to the first complete frame: {num(r['seconds_median'], 2)} s, median of "
+                   f"{len(r['seconds'])}; against `vlights render --shading pixel`: mean absolute difference "
+                   f"{num(r['mean_abs_diff_to_render'], 3)} / 255, {num(r['pixels_off_by_more_than_16'] * 100, 3)} % "
+                   "of pixels off by more than 16.")
+    frames = pick(rows, what="frame")
+    if frames:
+        size = frames[0]["size"]
+        out += ["", f"Frame time in headless chromium (software WebGL2), {size[0]} x {size[1]}:", ""]
+        out += table(["mode", "samples", "median (ms)", "min (ms)", "frames"],
+                     [[r["mode"], r["samples"], num(r["ms_median"], 1), num(r["ms_min"], 1), r["frames"]]
+                      for r in frames])
+    return out + [""]
+
+
+def trade(rows):
+    out = ["## What more time buys", "", where("bench_trade.py", ["trade.jsonl"]), machine(rows), ""]
+    photons = pick(rows, question="photons")
+    if photons:
+        out += ["Photons against the diffuse surfaces' error (against 16x the photons):", ""]
+        out += table(["photons", "relative RMS", "solve (s)"],
+                     [[f"{r['photons'] / 1e6:g} M", f"{r['relative_rms'] * 100:.2f} %", num(r["seconds"], 2)]
+                      for r in photons])
+        for r in pick(rows, question="photons slope"):
+            out += ["", f"Log-log slope {num(r['log_log_slope'])} (Monte Carlo: {r['monte_carlo_is']})."]
+        out.append("")
+    gather = pick(rows, question="gather samples")
+    if gather:
+        out += ["Gather rays per glossy vertex against the glossy objects' error (against 4096 rays):", ""]
+        out += table(["gather rays", "relative RMS", "solve (s)", "file (MB)"],
+                     [[r["gather_samples"], f"{r['relative_rms'] * 100:.1f} %", num(r["seconds"], 2),
+                       num(r["file_mb"], 1)] for r in gather])
+        out.append("")
+    grid = pick(rows, question="grid")
+    if grid:
+        out += ["Direction grid of the glossy objects against their error (against a 32 x 32 grid):", ""]
+        out += table(["grid", "relative RMS", "solve (s)", "file (MB)"],
+                     [[f"{r['grid']} x {r['grid']}", f"{r['relative_rms'] * 100:.1f} %", num(r["seconds"], 2),
+                       num(r["file_mb"], 1)] for r in grid])
+        out.append("")
+    scaling = pick(rows, question="scaling")
+    if scaling:
+        out += ["Scaling with the mesh (peak memory of a fresh process; fit: the paper's method, K = 8):", ""]
+        out += table(["max edge", "triangles", "vertices", "solve (s)", "fit (s)", "peak memory (MB)"],
+                     [[num(r["max_edge"], 0), f"{r['triangles']:,}", f"{r['vertices']:,}", num(r["solve_s"], 1),
+                       num(r["fit_s"], 1), num(r["peak_rss_mb"], 0)] for r in scaling])
+        out.append("")
+    presets = pick(rows, question="presets")
+    if presets:
+        out += ["Presets on the uniform mesh, error of the per-object mean radiance against a 32 M-photon, "
+                "4096-ray solve:", ""]
+        out += table(["preset", "vertices", "solve (s)", "error", "file (MB)"],
+                     [[r["quality"], r["vertices"], num(r["seconds"], 1),
+                       f"{r['relative_error_of_object_means'] * 100:.2f} %", num(r["file_mb"], 1)] for r in presets])
+    return out + [""]
+
+
+def trade_truth(rows):
+    out = ["## The trade against the truth", "", where("bench_trade.py --only truth", ["trade_truth.jsonl"]),
+           machine(rows), ""]
+    for r in pick(rows, what="truth"):
+        out.append(f"The truth: {r['size']} x {r['size']}, {r['spp']} spp, noise floor (FLIP between its halves) "
+                   f"{r['noise_flip']}. Displays at 4 samples per pixel; FLIP (HDR) against it.")
+    walk = pick(rows, what="walkthrough")
+    if walk:
+        out += ["", "Each preset: solve and fit time, each display's FLIP over the image and over the glossy objects, "
+                "the frame time, and the path tracer's samples and seconds to reach the same FLIP:", ""]
+        out += table(["preset", "mesh", "vertices", "solve (s)", "fit (s)", "display", "FLIP", "FLIP glossy",
+                      "frame (s)", "path tracer spp", "path tracer (s)"],
+                     [[r["quality"], "refined" if r["adaptive"] else "uniform", r["vertices"], num(r["solve_s"], 1),
+                       num(r["fit_s"], 1) if r["adaptive"] else "", r["mode"], num(r["flip"], 4),
+                       num(r["flip_glossy"]), num(r["frame_s"], 3), r["path_tracer_spp_to_match"],
+                       num(r["path_tracer_seconds_to_match"], 1)] for r in walk])
+    progress = [r for r in pick(rows, what="path tracer") if r["spp"] & (r["spp"] - 1) == 0]
+    if progress:
+        out += ["", "The path tracer's own progress against the same truth (another seed; powers of two shown):", ""]
+        out += table(["spp", "seconds", "FLIP", "relative MSE"],
+                     [[r["spp"], num(r["seconds"], 2), num(r["flip"], 4), num(r["relative_mse"], 4)]
+                      for r in progress])
+    return out + [""]
+
+
+SECTIONS = (
+    ("solver.jsonl", solver),
+    ("pathtrace.jsonl", pathtrace),
+    ("fit.jsonl", fit),
+    ("fit_speed.jsonl", fit_speed),
+    ("display.jsonl", display),
+    ("web.jsonl", web),
+    ("trade.jsonl", trade),
+    ("trade_truth.jsonl", trade_truth),
+)
+
+
+def render(results=RESULTS):
+    """RESULTS.md's text from the results files in ``results``."""
+    results = Path(results)
+    out = ["# Benchmark results", "",
+           "Generated by `python benchmarks/report.py` from `benchmarks/results/*.jsonl`; do not edit by hand. "
+           "How to run each benchmark: [README.md](README.md); what each measures: "
+           "[docs/benchmarks.md](../docs/benchmarks.md). Timings are wall-clock on shared machines: "
+           "compare rows of the same run, not runs of different days.", ""]
+    used = set()
+    glossy_files = sorted(results.glob("glossy*.jsonl"), key=lambda p: (p.name != "glossy.jsonl", p.name))
+    by_quality = {}
+    for path in glossy_files:
+        rows = read_rows(path)
+        if rows:
+            by_quality[rows[0]["quality"]] = rows
+        used.add(path.name)
+    for name, section in SECTIONS:
+        path = results / name
+        used.add(name)
+        if not path.exists():
+            out += [f"## {section.__name__}", "", f"No `results/{name}`: the benchmark has not been run.", ""]
+            continue
+        out += section(read_rows(path))
+        if name == "fit_speed.jsonl" and by_quality:
+            out += glossy(by_quality)
+    others = sorted(p.name for p in results.glob("*.jsonl") if p.name not in used)
+    if others:
+        out += ["## Other results files", "", "Not summarised here: " + ", ".join(f"`{n}`" for n in others) + ".", ""]
+    return "\n".join(out).rstrip("\n") + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 if RESULTS.md differs from what the results give")
+    args = parser.parse_args(argv)
+    text = render()
+    if args.check:
+        current = OUTPUT.read_text(encoding="utf-8") if OUTPUT.exists() else ""
+        if current != text:
+            print(f"{OUTPUT} is out of date: run python benchmarks/report.py", file=sys.stderr)
+            return 1
+        return 0
+    OUTPUT.write_text(text, encoding="utf-8")
+    print(f"wrote {OUTPUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
