@@ -4,9 +4,11 @@
     shade(model, name, world_dirs)                    the one reference of the shading formula
     LightSet, FitResult                               what the steps of a fit pass between them
 
-Modules: ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels), ``paper``
-(section 3.2), ``refine`` (variable projection), ``fit`` (orchestration), ``model``
-(Contract 2 and ``shade``), ``results``, ``data``, ``baselines``, ``cli``.
+Modules: ``fit`` (orchestration), ``glossy`` (a glossy object part by part and
+``--model auto``), ``mixed`` (virtual lights by variable projection), ``probe``, ``paper``
+(section 3.2), ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels),
+``loss``, ``model`` (Contract 2 and ``shade``), ``results``, ``data``, ``baselines``,
+``cli``; docs/layout.md has the whole map.
 """
 
 # first, so that radiosity/__init__.py has keyed numba's cache on every source file a
