@@ -247,7 +247,7 @@ def ahead(rows):
 
 
 def table(rows):
-    """The markdown table of benchmarks/README.md's fitting section."""
+    """The markdown table of the fitting section (benchmarks/RESULTS.md is made by report.py)."""
     storage = [r for r in rows if r["question"] == "error vs floats per vertex"]
     names = list(dict.fromkeys(r["object"] for r in storage))
     head = "| model | K | floats / vertex | " + " | ".join(f"{n} relative RMS" for n in names) + " | teapot fit time (s) |"

@@ -5,7 +5,7 @@ three.js modules it needs, copied from ``display/web``, the renderer's shader fi
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 2; the README's "Export" section). V is an
+Schema (format ``vlights.fit.gltf``, version 2; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
 parts, M an object's probe size:
 

@@ -1,5 +1,5 @@
 // The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v2, or
-// v1; display/export.py and the README's "Export" hold the schema).
+// v1; display/export.py and docs/formats.md hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
