@@ -19,7 +19,8 @@ def add_command(subparsers):
         "view",
         help="walk through a scene in a window",
         description="The walkthrough window: WASD (Q/E down/up) and mouse-look with the left button held; "
-        "M mode, G Gouraud/per-pixel, L 2/all lights, +/- exposure, P screenshot, ESC quit.",
+        "M mode, G Gouraud/per-pixel, L 2/all lights, 1/2/3 the emitters' highlights/the probe/the "
+        "virtual lights off and on, +/- exposure, P screenshot, ESC quit.",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
     p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit.npz")
