@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 
 from radiosity.formats.errors import InputError
 
-__all__ = ["DEFAULT_QUALITY", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
+__all__ = ["DEFAULT_QUALITY", "MAX_KERNEL_RINGS", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,15 @@ PRESETS = {
     ),
 }
 QUALITIES = tuple(PRESETS)
+
+# The widest density kernel a solve may ask for (``--kernel-rings``). A ring widens each
+# vertex's kernel by one edge (``transport.density.widen``); the finest preset cuts
+# edges to the scene diagonal / 64, so 64 rings already reach across the whole scene,
+# and wider only blurs. Each ring also multiplies the kernel's moments by about the
+# vertex valence + 1 (about 7), and the fit takes products of them: 7^(2 x 64) = 1e108
+# is far below float64's 1.8e308, while 1000 rings overflow to inf and the solve's
+# radiance to NaN (measured), and 10^9 rings would run for days.
+MAX_KERNEL_RINGS = 64
 DEFAULT_QUALITY = "draft"
 
 
