@@ -13,6 +13,7 @@ display may import nothing else of the radiosity stage.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 from radiosity.formats.errors import InputError
@@ -123,8 +124,8 @@ def max_edge(scene, quality=DEFAULT_QUALITY, explicit=None):
     """The refinement edge length: ``explicit`` if given, else the preset's fraction
     of the scene diagonal. Returns (length, how it was chosen)."""
     if explicit is not None:
-        if not explicit > 0:
-            raise InputError(f"--max-edge must be positive, got {explicit:g}")
+        if not (explicit > 0 and math.isfinite(explicit)):
+            raise InputError(f"--max-edge must be a positive finite length, got {explicit:g}")
         return float(explicit), "--max-edge"
     divisor = preset(quality).max_edge_divisor
     return scene.diagonal / divisor, f"{quality} preset: diagonal / {divisor}"
