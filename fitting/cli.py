@@ -48,16 +48,6 @@ def _probe_size(text):
 MAX_ITERATIONS = 10_000
 
 
-def _iterations(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"takes a whole number, got {text!r}") from None
-    if not 0 <= value <= MAX_ITERATIONS:
-        raise argparse.ArgumentTypeError(f"takes a whole number from 0 to {MAX_ITERATIONS:,}, got {value}")
-    return value
-
-
 def register(subparsers, not_built):
     p = subparsers.add_parser(
         "fit",
@@ -106,7 +96,7 @@ def register(subparsers, not_built):
                    "for the models with a probe (it won in pictures), linear for lights alone (default: %(default)s)")
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
-    p.add_argument("--iterations", type=_iterations, default=None, metavar="N",
+    p.add_argument("--iterations", type=int, default=None, metavar="N",
                    help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality preset's)")
     p.set_defaults(func=_fit)
 
@@ -128,6 +118,8 @@ def fit_options(args, quality):
     lights = _lights(args.lights) if args.lights is not None else knobs.fit_lights
     probe_lights = _lights(args.lights) if args.lights is not None else knobs.probe_lights
     iterations = args.iterations if args.iterations is not None else knobs.fit_iterations
+    if iterations > MAX_ITERATIONS:
+        raise InputError(f"--iterations must be a whole number from 0 to {MAX_ITERATIONS:,}, got {iterations}")
     return FitOptions(
         lights=lights, target=args.target, max_lights=args.max_lights, method=args.method,
         light_kind=args.light_kind, coefficients=args.coefficients, loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,

@@ -124,8 +124,10 @@ def max_edge(scene, quality=DEFAULT_QUALITY, explicit=None):
     """The refinement edge length: ``explicit`` if given, else the preset's fraction
     of the scene diagonal. Returns (length, how it was chosen)."""
     if explicit is not None:
-        if not (explicit > 0 and math.isfinite(explicit)):
-            raise InputError(f"--max-edge must be a positive finite length, got {explicit:g}")
+        if not explicit > 0:
+            raise InputError(f"--max-edge must be positive, got {explicit:g}")
+        if not math.isfinite(explicit):
+            raise InputError(f"--max-edge must be a finite length, got {explicit:g}")
         return float(explicit), "--max-edge"
     divisor = preset(quality).max_edge_divisor
     return scene.diagonal / divisor, f"{quality} preset: diagonal / {divisor}"
