@@ -17,6 +17,7 @@ import numpy as np
 from radiosity.formats.atomic import check_output
 from radiosity.formats.errors import InputError
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
+from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import load_solution
 
 from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit
@@ -39,6 +40,12 @@ def _probe_size(text):
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"takes a whole number or 'auto', got {text!r}") from None
+
+
+# The most refinement iterations a fit may ask for: one costs up to 1.5 s a glossy object
+# at the high preset's grid (see radiosity.formats.presets), so 10,000 are hours per object,
+# far past where L-BFGS stops improving (the presets use 25 to 60).
+MAX_ITERATIONS = 10_000
 
 
 def register(subparsers, not_built):
@@ -90,7 +97,7 @@ def register(subparsers, not_built):
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",
-                   help="refinement iterations (default: the quality preset's)")
+                   help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality preset's)")
     p.set_defaults(func=_fit)
 
 
@@ -111,6 +118,8 @@ def fit_options(args, quality):
     lights = _lights(args.lights) if args.lights is not None else knobs.fit_lights
     probe_lights = _lights(args.lights) if args.lights is not None else knobs.probe_lights
     iterations = args.iterations if args.iterations is not None else knobs.fit_iterations
+    if iterations > MAX_ITERATIONS:
+        raise InputError(f"--iterations must be a whole number from 0 to {MAX_ITERATIONS:,}, got {iterations}")
     return FitOptions(
         lights=lights, target=args.target, max_lights=args.max_lights, method=args.method,
         light_kind=args.light_kind, coefficients=args.coefficients, loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
@@ -129,6 +138,7 @@ def fit_options_for_quality(quality):
 def _fit(args):
     out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
+    require_format(args.solution, (SOLUTION,), "solution")
     solution = load_solution(args.solution)
     quality, chosen_by = fit_quality(args.quality, solution)
     options = fit_options(args, quality)

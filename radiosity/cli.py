@@ -12,6 +12,23 @@ from radiosity.info import describe, format_description
 from radiosity.scene.loaders import load_scene
 
 
+def whole_number(low, high=None):
+    """An argparse type: a whole number in [low, high] (high None: no upper bound),
+    refused at parse time in one line otherwise."""
+
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"takes a whole number, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            shown = f"from {low} to {high}" if high is not None else f">= {low}"
+            raise argparse.ArgumentTypeError(f"takes a whole number {shown}, got {value}")
+        return value
+
+    return parse
+
+
 def add_quality_flag(parser):
     parser.add_argument(
         "--quality",
@@ -50,7 +67,13 @@ def register(subparsers, not_built):
     p.add_argument("--light-samples", type=int, metavar="N", help="light samples per glossy vertex")
     p.add_argument("--grid", type=int, metavar="N", help="n x n direction grid for every glossy object (default: from each exponent)")
     p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units): a uniform mesh, unless --adaptive")
-    p.add_argument("--kernel-rings", type=int, metavar="K", help="widen each vertex's density kernel by K rings of neighbours (less noise, more blur)")
+    p.add_argument(
+        "--kernel-rings",
+        type=whole_number(0, presets.MAX_KERNEL_RINGS),
+        metavar="K",
+        help=f"widen each vertex's density kernel by K rings of neighbours, 0 to {presets.MAX_KERNEL_RINGS} "
+        "(less noise, more blur)",
+    )
     p.add_argument(
         "--extra-gather",
         type=float,

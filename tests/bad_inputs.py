@@ -46,3 +46,52 @@ def bad_input_path(case, tmp_path):
         path.write_text("objects: []\n")
         return str(path)
     return str(write(tmp_path / "scene.toml", text))
+
+
+def tiny_solution(path, name="plate"):
+    """Write a valid solution.npz of one diffuse 2 x 2-quad object (V = 9) at ``path``;
+    enough for every check a command makes before it works on the data."""
+    import numpy as np
+
+    from radiosity.formats.directions import DIFFUSE_DIRECTIONS
+    from radiosity.formats.solution import ObjectSolution, Solution
+
+    u, v = np.meshgrid(np.arange(3.0), np.arange(3.0))
+    faces = [[3 * r + c, 3 * r + c + 1, 3 * r + c + 4] for r in range(2) for c in range(2)]
+    faces += [[3 * r + c, 3 * r + c + 4, 3 * r + c + 3] for r in range(2) for c in range(2)]
+    obj = ObjectSolution(
+        name=name,
+        positions=np.stack([u.ravel(), v.ravel(), np.zeros(9)], axis=1),
+        normals=np.tile([0.0, 0.0, 1.0], (9, 1)),
+        tangents=np.tile([1.0, 0.0, 0.0], (9, 1)),
+        faces=np.array(faces),
+        directions=DIFFUSE_DIRECTIONS,
+        radiance=np.full((9, len(DIFFUSE_DIRECTIONS), 3), 0.5),
+        material={"diffuse": [0.5] * 3, "specular": [0.0] * 3, "exponent": 0.0, "emission": [0.0] * 3},
+    )
+    Solution(objects=(obj,)).save(path)
+    return path
+
+
+def replace_member(path, member, data):
+    """Rewrite the zip at ``path`` with ``member`` (e.g. "meta.npy") holding ``data``."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as z:
+        members = {n: z.read(n) for n in z.namelist()}
+    members[member] = data
+    with zipfile.ZipFile(path, "w") as z:
+        for n, d in members.items():
+            z.writestr(n, d)
+    return path
+
+
+def npy_bytes(shape, dtype, payload=b""):
+    """An .npy file whose header claims ``shape`` of ``dtype`` followed by ``payload``."""
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": np.dtype(dtype).str, "fortran_order": False, "shape": shape})
+    return buf.getvalue() + payload

@@ -13,7 +13,10 @@ KeyboardInterrupt included, the temporary file is removed, ``path`` is left as i
 
 The new file gets the permissions a plain ``open(path, "wb")`` would give it (0o666
 minus the umask), unlike ``tempfile``'s private 0o600. Temporary files are named
-``.<name>.<random>.tmp``.
+``.<name>.<random>.tmp``, ``<name>`` shortened where the whole would pass the file
+system's limit on a name (NAME_MAX, 255 bytes), so any name the file system takes as
+an output gets a temporary name too. A symlink as ``path`` is followed: the file it
+names is replaced (as ``open(path, "wb")`` would write it), not the link.
 """
 
 from __future__ import annotations
@@ -45,17 +48,31 @@ def check_output(path, suffix=None, inputs=(), flag="output"):
     """
     out = Path(path)
     shown = str(path)
+    if "\0" in shown:
+        raise InputError(f"{flag} {shown!r} holds a NUL character, which no file name may")
+    for name, directory in ((out.name, os.path.dirname(os.path.abspath(out))),
+                            (os.path.basename(_target(path)), os.path.dirname(_target(path)))):
+        limit = _name_max(directory if os.path.isdir(directory) else ".")
+        if len(os.fsencode(name)) > limit:
+            raise InputError(
+                f"{flag} {shown!r}: the name is {len(os.fsencode(name))} bytes long, more than the {limit} "
+                "the file system allows"
+            )
     if out.is_dir():
         raise InputError(f"{flag} {shown!r} is a directory; give a file name")
-    parent = out.parent if str(out.parent) else Path(".")
+    real = Path(_target(path))  # where the data goes: a symlink's target
+    linked = "" if real == Path(os.path.abspath(path)) else f" (a symlink to {str(real)!r})"
+    if real.is_dir():
+        raise InputError(f"{flag} {shown!r}{linked} is a directory; give a file name")
+    parent = real.parent
     if parent.exists() and not parent.is_dir():
-        raise InputError(f"{flag} {shown!r}: {str(parent)!r} is a file, not a directory")
+        raise InputError(f"{flag} {shown!r}{linked}: {str(parent)!r} is a file, not a directory")
     if not parent.exists():
-        raise InputError(f"{flag} {shown!r}: directory {str(parent)!r} does not exist")
+        raise InputError(f"{flag} {shown!r}{linked}: directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {shown!r}: cannot write into directory {str(parent)!r} (permission denied)")
-    if out.exists() and not out.is_file():
-        raise InputError(f"{flag} {shown!r} exists and is not a regular file")
+    if real.exists() and not real.is_file():
+        raise InputError(f"{flag} {shown!r}{linked} exists and is not a regular file")
     if suffix is not None:
         suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
         if not shown.lower().endswith(tuple(x.lower() for x in suffixes)):
@@ -66,18 +83,55 @@ def check_output(path, suffix=None, inputs=(), flag="output"):
         same = False
         try:
             same = out.exists() and os.path.samefile(out, given)
-        except OSError:
+        except (OSError, ValueError):
             same = False
         if same or os.path.realpath(out) == os.path.realpath(given):
             raise InputError(f"{flag} {shown!r} is the input file {str(given)!r}; writing it would destroy the input")
+    _probe(str(parent), real.name, shown, flag)
     return out
+
+
+def _target(path) -> str:
+    """The absolute path the data of ``path`` goes to: through every symlink, a
+    dangling one included (its target is created)."""
+    return os.path.realpath(os.path.abspath(os.fspath(path)))
+
+
+def _name_max(directory: str) -> int:
+    try:
+        return int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):
+        return 255
+
+
+def _temporary_name(directory: str, name: str) -> str:
+    """``.<name>.<12 hex>.tmp``, ``name`` cut (by whole characters) so the whole fits
+    the directory's NAME_MAX."""
+    room = _name_max(directory) - len(".") - len(".0123456789ab.tmp")
+    while len(os.fsencode(name)) > room:
+        name = name[:-1]
+    return f".{name}.{secrets.token_hex(6)}.tmp"
+
+
+def _probe(directory: str, name: str, shown: str, flag: str) -> None:
+    """Create and remove the temporary file the write will use: the one test of
+    writability that knows what the file system will say (read-only mounts, ACLs,
+    quotas on inodes, names too long), before any work is done."""
+    try:
+        tmp, fd = _create_temporary(directory, name)
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise InputError(f"{flag} {shown!r}: cannot create a file in directory {directory!r} ({reason})") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)
 
 
 def _create_temporary(directory: str, name: str) -> tuple[str, int]:
     """Create a new, empty file beside the target; returns (path, descriptor)."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
     for _ in range(100):
-        tmp = os.path.join(directory, f".{name}.{secrets.token_hex(6)}.tmp")
+        tmp = os.path.join(directory, _temporary_name(directory, name))
         try:
             return tmp, os.open(tmp, flags, 0o666)
         except FileExistsError:
@@ -107,7 +161,7 @@ def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
     directory, no permission, ...) becomes ``OutputError`` (an ``InputError``: one
     line naming the file and the reason), after the temporary file is removed.
     """
-    target = os.path.abspath(os.fspath(path))
+    target = _target(path)
     directory, name = os.path.split(target)
     if os.path.exists(target) and not os.path.isfile(target):
         # a rename would replace a directory's entry, a device (/dev/null) or a pipe

@@ -13,11 +13,11 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.inputs import TEXT_BYTES, loads_json, read_input_bytes
 
 __all__ = ["DEFAULT_FOV_Y_DEG", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "camera_from_meta", "load_views"]
 
@@ -152,11 +152,10 @@ def camera_from_meta(meta, fail):
 def load_views(path):
     """Named views from a JSON file: {"name": {"eye": [...], "look_at": [...], "up": [...], "fov_y_deg": d}}.
     Returns {name: dict}; ``camera_from_dict`` makes each a Camera."""
+    where = f"views file {str(path)!r}"
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"views file {str(path)!r} not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = loads_json(read_input_bytes(path, "views file", TEXT_BYTES).decode("utf-8"), where)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"views file {str(path)!r} is not JSON: {' '.join(str(exc).split())}") from None
     if not isinstance(data, dict) or not data:
         raise InputError(f"views file {str(path)!r} must map view names to cameras")

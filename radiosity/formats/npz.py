@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import unicodedata
 import zipfile
 import zlib
 from typing import Any
@@ -21,8 +22,19 @@ import numpy as np
 
 from radiosity.formats.atomic import atomic_output
 from radiosity.formats.errors import InputError
+from radiosity.formats.inputs import NPZ_BYTES, check_input_file, loads_json
+from radiosity.formats.limits import available_memory
 
-__all__ = ["KNOWN_FORMATS", "Archive", "file_format", "json_default", "one_line", "open_archive", "write_archive"]
+__all__ = [
+    "KNOWN_FORMATS",
+    "Archive",
+    "check_member_name",
+    "file_format",
+    "json_default",
+    "one_line",
+    "open_archive",
+    "write_archive",
+]
 
 KNOWN_FORMATS = {"vlights.solution": "solution file", "vlights.fit": "fit file"}
 
@@ -45,13 +57,33 @@ def json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
+def check_member_name(key: str) -> str:
+    """``key`` if it survives a round trip as the name of an npz member; ValueError
+    otherwise. A zip member's name ends at a NUL (zipfile cuts it there on reading),
+    must be UTF-8 (no lone surrogates) and should hold no other control character (a
+    name that cannot be shown on one line, nor typed)."""
+    if not isinstance(key, str) or not key:
+        raise ValueError(f"array name must be a non-empty string, got {key!r}")
+    bad = next((c for c in key if unicodedata.category(c) in ("Cc", "Cs")), None)
+    if bad is not None:
+        raise ValueError(f"array name {key!r} holds the control character U+{ord(bad):04X}, which an .npz member name cannot keep")
+    if zipfile.ZipInfo(key + ".npy").filename != key + ".npy":
+        raise ValueError(f"array name {key!r} does not survive as an .npz member name")
+    return key
+
+
 def write_archive(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndarray]) -> None:
     """Write ``meta`` (JSON, strict: no NaN or infinity) and ``arrays`` atomically.
 
     Raises TypeError or ValueError before anything is written if meta cannot be
-    represented, OSError if the file cannot be written; ``path`` keeps its previous
-    content and no temporary file is left behind in every case.
+    represented or an array's name would not read back the same (``check_member_name``),
+    OSError if the file cannot be written; ``path`` keeps its previous content and no
+    temporary file is left behind in every case.
     """
+    for key in arrays:
+        check_member_name(key)
+    if "meta" in arrays:
+        raise ValueError("'meta' is the archive's own entry, not an array name")
     text = json.dumps(meta, default=json_default, allow_nan=False)
     payload = {"meta": np.array(text)}
     payload.update(arrays)
@@ -59,37 +91,78 @@ def write_archive(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndar
         np.savez_compressed(f, **payload)
 
 
-def _sniff(path: str) -> tuple[str | None, str]:
-    """(problem, '') if ``path`` cannot be an npz archive, else (None, '')."""
-    if not os.path.exists(path):
-        return "not found", ""
-    if os.path.isdir(path):
-        return "is a directory", ""
+NPZ_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")  # a zip archive's first record (an empty one's end record)
+NPY_MAGIC = b"\x93NUMPY"
+
+
+def _sniff(path: str, what: str) -> tuple[str | None, str]:
+    """(problem, '') if ``path`` cannot be an npz archive, else (None, ''). InputError
+    (naming ``what``) if it is missing or not a regular file of a sane size."""
+    check_input_file(path, what, NPZ_BYTES)
     try:
         with open(path, "rb") as f:
             magic = f.read(6)
     except OSError as exc:
         return f"cannot be read ({exc.strerror or exc})", ""
-    if magic.startswith(b"\x93NUMPY"):
+    if magic.startswith(NPY_MAGIC):
         return "is a single .npy array, not an .npz archive", ""
-    if not magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+    if not magic.startswith(NPZ_MAGIC):
         return ("is an empty file" if not magic else "is not a zip archive") + "; expected an .npz archive", ""
     return None, ""
+
+
+def _size(n: int) -> str:
+    return f"{n / 2**30:.3g} GiB" if n >= 2**30 else f"{n / 2**20:.3g} MiB" if n >= 2**20 else f"{n} bytes"
+
+
+def _member(npz, key: str, fail) -> np.ndarray:
+    """The array ``key`` of ``npz``, its header checked before any memory is given to
+    it: the bytes its shape and dtype claim must be stored in the member (a header
+    claiming 10^12 rows in a small file is refused) and fit in the free memory."""
+    name = key + ".npy"
+    try:
+        info = npz.zip.getinfo(name)
+        with npz.zip.open(name) as f:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+            else:
+                raise ValueError(f"unsupported .npy format version {version[0]}.{version[1]}")
+            header = f.tell()
+    except READ_ERRORS as exc:
+        raise fail(f"cannot read '{key}': {type(exc).__name__}: {exc}") from None
+    if dtype.hasobject:
+        raise fail(f"cannot read '{key}': it holds Python objects, and this program reads no pickles")
+    count = 1
+    for n in shape:
+        count *= int(n)
+    needed = count * dtype.itemsize
+    stored = info.file_size - header
+    if needed > stored:
+        raise fail(f"'{key}' claims shape {tuple(shape)} of {dtype} ({_size(needed)}) but stores {_size(max(stored, 0))}")
+    free = available_memory()
+    if free is not None and needed > free:
+        raise fail(f"'{key}' needs {_size(needed)} of memory, more than the {_size(free)} available")
+    try:
+        return npz[key]
+    except READ_ERRORS as exc:
+        raise fail(f"cannot read '{key}': {type(exc).__name__}: {exc}") from None
 
 
 def _read_meta(npz, fail) -> dict:
     if "meta" not in npz.files:
         raise fail("no 'meta' entry")
-    try:
-        raw = npz["meta"]
-    except READ_ERRORS as exc:
-        raise fail(f"cannot read 'meta': {type(exc).__name__}: {exc}") from None
+    raw = _member(npz, "meta", fail)
     if raw.ndim != 0 or raw.dtype.kind != "U":
         raise fail(f"'meta' is a {raw.dtype} array of shape {tuple(raw.shape)}, not a string")
     try:
-        meta = json.loads(str(raw))
+        meta = loads_json(str(raw), "'meta'")
     except json.JSONDecodeError as exc:
         raise fail(f"'meta' is not JSON: {exc}") from None
+    except InputError as exc:
+        raise fail(str(exc)) from None
     if not isinstance(meta, dict):
         raise fail(f"'meta' is a JSON {type(meta).__name__}, not an object")
     return meta
@@ -99,15 +172,13 @@ def file_format(path: str | os.PathLike) -> str | None:
     """The ``meta.format`` of an npz file of ours ("vlights.solution", "vlights.fit"),
     or None if it is not one. Raises InputError if the file is missing or unreadable."""
     path = os.fspath(path)
-    problem, _ = _sniff(path)
-    if problem == "not found":
-        raise InputError(f"file {path!r} not found")
+    problem, _ = _sniff(path, "file")
     if problem is not None:
         return None
     try:
         with np.load(path, allow_pickle=False) as npz:
             meta = _read_meta(npz, lambda why: ValueError(why))
-    except (*READ_ERRORS, ValueError):
+    except (*READ_ERRORS, ValueError, InputError):
         return None
     fmt = meta.get("format")
     return fmt if isinstance(fmt, str) else None
@@ -141,12 +212,7 @@ class Archive:
         ``shape`` its shape with None for any length. InputError naming the key."""
         if key not in self.npz.files:
             raise self.fail(f"no '{key}' array")
-        try:
-            a = self.npz[key]
-        except READ_ERRORS as exc:
-            raise InputError(one_line(
-                f"'{self.path}' is not a {self.what} (cannot read '{key}': {type(exc).__name__}: {exc})"
-            )) from None
+        a = _member(self.npz, key, lambda why: InputError(one_line(f"'{self.path}' is not a {self.what} ({why})")))
         if kinds is not None and a.dtype.kind not in kinds:
             expected = "integers" if kinds == "iu" else "numbers"
             raise self.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
@@ -161,9 +227,7 @@ def open_archive(path: str | os.PathLike, fmt: str, versions: tuple[int, ...]) -
     (one line naming the file and the problem) otherwise."""
     path = os.fspath(path)
     what = KNOWN_FORMATS.get(fmt, "file")
-    problem, _ = _sniff(path)
-    if problem == "not found":
-        raise InputError(f"{what} '{path}' not found")
+    problem, _ = _sniff(path, what)
 
     def not_ours(why):
         return InputError(one_line(f"'{path}' is not a {what} ({why})"))

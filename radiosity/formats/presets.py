@@ -13,11 +13,12 @@ display may import nothing else of the radiosity stage.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 from radiosity.formats.errors import InputError
 
-__all__ = ["DEFAULT_QUALITY", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
+__all__ = ["DEFAULT_QUALITY", "MAX_KERNEL_RINGS", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,15 @@ PRESETS = {
     ),
 }
 QUALITIES = tuple(PRESETS)
+
+# The widest density kernel a solve may ask for (``--kernel-rings``). A ring widens each
+# vertex's kernel by one edge (``transport.density.widen``); the finest preset cuts
+# edges to the scene diagonal / 64, so 64 rings already reach across the whole scene,
+# and wider only blurs. Each ring also multiplies the kernel's moments by about the
+# vertex valence + 1 (about 7), and the fit takes products of them: 7^(2 x 64) = 1e108
+# is far below float64's 1.8e308, while 1000 rings overflow to inf and the solve's
+# radiance to NaN (measured), and 10^9 rings would run for days.
+MAX_KERNEL_RINGS = 64
 DEFAULT_QUALITY = "draft"
 
 
@@ -116,6 +126,8 @@ def max_edge(scene, quality=DEFAULT_QUALITY, explicit=None):
     if explicit is not None:
         if not explicit > 0:
             raise InputError(f"--max-edge must be positive, got {explicit:g}")
+        if not math.isfinite(explicit):
+            raise InputError(f"--max-edge must be a finite length, got {explicit:g}")
         return float(explicit), "--max-edge"
     divisor = preset(quality).max_edge_divisor
     return scene.diagonal / divisor, f"{quality} preset: diagonal / {divisor}"

@@ -36,7 +36,7 @@ from radiosity.formats.directions import grid_directions
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_grid, parts_from_meta
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
-from radiosity.formats.npz import open_archive, write_archive
+from radiosity.formats.npz import check_member_name, open_archive, write_archive
 
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
@@ -76,6 +76,10 @@ def _check_name(name: Any) -> str:
         raise _Invalid(f"object name must be a non-empty string, got {name!r}")
     if "/" in name:
         raise _Invalid(f"object name {name!r} contains '/', which the file's keys use as separator")
+    try:
+        check_member_name(name)
+    except ValueError as exc:
+        raise _Invalid(f"object name {name!r}: {exc}") from None
     return name
 
 

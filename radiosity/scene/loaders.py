@@ -32,8 +32,10 @@ from __future__ import annotations
 import codecs
 import io
 import json
+import os
 import struct
 import tomllib
+import unicodedata
 import warnings
 from pathlib import Path
 
@@ -42,12 +44,15 @@ import trimesh
 
 from radiosity.formats.camera import camera_from_dict
 from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.formats.inputs import MESH_BYTES, TEXT_BYTES, check_input_file, loads_json, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX
+from radiosity.formats.sniff import FILE_NAMES, input_kind
+from radiosity.formats.sniff import MESH_SUFFIXES as _MESH_SUFFIXES
 from radiosity.scene import builtins, geometry
 from radiosity.scene.materials import Material
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object
 
-MESH_SUFFIXES = {".obj", ".gltf", ".glb", ".ply", ".stl", ".off"}
+MESH_SUFFIXES = set(_MESH_SUFFIXES)
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
 _OBJECT_KEYS = {
     "name", "mesh", "builtin", "material", "scale", "rotate_deg", "translate",
@@ -64,20 +69,21 @@ def load_scene(source):
         path = builtins.scene_path(source)
         return _load_toml(path.read_text(), Path(str(path)).parent, name=source, where=source)
     path = Path(source)
-    if not path.exists():
+    if not os.path.lexists(source):
         hint = f"; built-in scenes: {', '.join(builtins.SCENES)}" if not path.suffix else ""
         raise InputError(f"scene {source!r} not found{hint}")
-    if path.is_dir():
-        raise InputError(f"scene {source!r} is a directory, not a file")
-    suffix = path.suffix.lower()
-    if suffix == ".toml":
+    kind = input_kind(source, "scene")  # a regular file of a sane size, or one line saying what it is
+    if kind == "scene":
         try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
+            text = read_input_bytes(path, "scene", TEXT_BYTES).decode("utf-8")
+        except UnicodeDecodeError as exc:
             raise InputError(f"cannot read {source}: {exc}") from None
         return _load_toml(text, path.parent, name=path.stem, where=str(path))
-    if suffix in MESH_SUFFIXES:
+    if kind == "mesh":
         return _load_mesh_scene(path)
+    if kind in FILE_NAMES:
+        raise InputError(f"scene {source!r} is a {FILE_NAMES[kind]}, not a scene")
+    suffix = path.suffix.lower()
     raise InputError(
         f"{source}: unknown scene format {suffix or '(no extension)'!r}; "
         f"give a .toml scene, a mesh file ({', '.join(sorted(MESH_SUFFIXES))}) "
@@ -90,7 +96,7 @@ def load_scene(source):
 
 def _load_toml(text, base_dir, *, name, where):
     try:
-        data = tomllib.loads(text)
+        data = loads_toml(text, where)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{where}: malformed TOML: {exc}") from None
     _check_keys(data, _TOP_KEYS, where)
@@ -174,6 +180,12 @@ def _parse_object(entry, index, materials, base_dir, where):
     here = f"{where}: object {name!r}"
     if "/" in name:
         raise InputError(f"{here}: names may not contain '/' (the solution file uses it as a separator)")
+    control = _control_character(name)
+    if control is not None:
+        raise InputError(
+            f"{here}: names may not contain control characters (U+{ord(control):04X}): the solution file "
+            "could not keep them"
+        )
     _check_keys(entry, _OBJECT_KEYS, here)
     mname = entry.get("material")
     if mname is None:
@@ -243,6 +255,19 @@ def _parse_object(entry, index, materials, base_dir, where):
     )
 
 
+def _control_character(name):
+    """The first character of ``name`` that an npz member name cannot keep or a line
+    cannot show (a control character: NUL, newline, escape, DEL, ...), or None."""
+    return next((c for c in name if unicodedata.category(c) in ("Cc", "Cs")), None)
+
+
+def safe_object_name(name):
+    """A mesh file's node name as an object name: '/' (the solution file's separator)
+    and control characters (which no npz member name keeps) become '_'."""
+    name = name.replace("/", "_")
+    return "".join("_" if _control_character(c) else c for c in name) or "_"
+
+
 # -- mesh files -----------------------------------------------------------------------
 
 
@@ -268,13 +293,52 @@ def _is_binary_stl(data):
 class _Resolver(trimesh.resolvers.FilePathResolver):
     """The files a mesh file refers to, beside it; material libraries decoded as
     ``decode_text`` (trimesh would need charset_normalizer for Latin-1, and silently
-    drops the materials without it)."""
+    drops the materials without it).
+
+    Each file is read as an input (``read_input_bytes``: a regular file, of at most a
+    mesh's size, never a FIFO or a device); trimesh swallows what its loaders raise,
+    so a refusal is kept in ``problems`` and raised by ``_trimesh_load`` after the
+    load. Each MTL's ``map_Kd`` textures that do not exist are kept in ``missing``
+    (MTL, texture) for a SceneWarning: trimesh drops them without a word."""
+
+    def __init__(self, source):
+        super().__init__(source)
+        self.problems, self.missing = [], []
 
     def get(self, name):
-        data = super().get(name)
-        if str(name).lower().endswith(".mtl"):
-            return decode_text(data).encode("utf-8")
-        return data
+        candidates = (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1])
+        for candidate in candidates:
+            try:
+                path = self.absolute(candidate)
+            except ValueError:
+                continue
+            if os.path.lexists(path):
+                try:
+                    data = read_input_bytes(path, "file named by the mesh", MESH_BYTES)
+                except InputError as exc:
+                    self.problems.append(exc)
+                    raise
+                if str(name).lower().endswith(".mtl"):
+                    text = decode_text(data)
+                    self._note_missing_textures(name, text)
+                    return text.encode("utf-8")
+                return data
+        self.absolute(name)  # raises if the name escapes the mesh's directory
+        raise FileNotFoundError(name)
+
+    def _note_missing_textures(self, mtl, text):
+        for line in text.splitlines():
+            words = line.split(None, 1)
+            if len(words) == 2 and words[0].lower() == "map_kd":
+                texture = words[1].strip()
+                found = False
+                for candidate in (texture, texture.lstrip("/"), os.path.split(texture)[-1]):
+                    try:
+                        found = found or self.absolute(candidate).is_file()
+                    except (ValueError, OSError):
+                        continue
+                if not found:
+                    self.missing.append((mtl, texture))
 
 
 def _mesh_bytes(path, where):
@@ -285,9 +349,9 @@ def _mesh_bytes(path, where):
     if suffix not in _TEXT_MESH_SUFFIXES | {".gltf", ".glb"}:
         return None
     try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read mesh {str(path)!r}: {exc.strerror or exc}") from None
+        data = read_input_bytes(path, "mesh", MESH_BYTES)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
     if suffix in (".gltf", ".glb"):
         return _gltf_emissive(data, suffix == ".glb", where)
     if suffix == ".stl" and _is_binary_stl(data):
@@ -302,24 +366,40 @@ def _trimesh_load(path, where, **kwargs):
         raise InputError(
             f"{where}: {str(path)!r}: unsupported mesh format (use {', '.join(sorted(MESH_SUFFIXES))})"
         )
-    if path.is_dir():
-        raise InputError(f"{where}: mesh {str(path)!r} is a directory, not a file")
+    try:
+        check_input_file(path, "mesh", MESH_BYTES)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
     data = _mesh_bytes(path, where)
+    resolver = _Resolver(str(path))
     try:
         if data is None:
-            return trimesh.load(str(path), process=False, resolver=_Resolver(str(path)), **kwargs)
-        # file_type as the whole name: trimesh takes the format from it and names objects as for the file
-        return trimesh.load(
-            io.BytesIO(data), file_type=str(path), resolver=_Resolver(str(path)), process=False, **kwargs
-        )
+            loaded = trimesh.load(str(path), process=False, resolver=resolver, **kwargs)
+        else:
+            # file_type as the whole name: trimesh takes the format from it and names objects as for the file
+            loaded = trimesh.load(io.BytesIO(data), file_type=str(path), resolver=resolver, process=False, **kwargs)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{where}: mesh {str(path)!r} is nested too deep") from None
     except Exception as exc:  # trimesh raises many types for a bad file
         raise InputError(f"{where}: cannot read mesh {str(path)!r}: {exc}") from None
+    if resolver.problems:
+        raise InputError(f"{where}: {resolver.problems[0]}")
+    for mtl, texture in dict.fromkeys(resolver.missing):
+        warnings.warn(
+            f"{where}: material library {mtl!r} names the texture {texture!r}, which is not found; "
+            "its diffuse colour is taken without it",
+            SceneWarning,
+            stacklevel=3,
+        )
+    return loaded
 
 
 def _missing_material_libraries(path):
     """The ``mtllib`` files an OBJ names that do not exist beside it."""
     missing = []
-    for line in decode_text(path.read_bytes()).splitlines():
+    for line in decode_text(read_input_bytes(path, "mesh", MESH_BYTES)).splitlines():
         words = line.split(None, 1)
         if len(words) == 2 and words[0] == "mtllib":
             name = words[1].strip()
@@ -347,7 +427,7 @@ def _gltf_emissive(data, binary, where):
     else:
         text, rest = data, b""
     try:
-        tree = json.loads(decode_text(text))
+        tree = loads_json(decode_text(text), where)  # InputError if nested too deep
         materials = tree.get("materials", [])
     except (ValueError, AttributeError):
         return None
@@ -416,7 +496,7 @@ def _load_mesh_scene(path):
             np.asarray(mesh.vertices, dtype=np.float64),
             np.asarray(mesh.faces, dtype=np.int64),
         )
-        name = str(node).replace("/", "_")  # '/' separates keys in the solution file
+        name = safe_object_name(str(node))  # '/' separates keys in the solution file; no control characters
         if name in {o.name for o in objects}:
             name = f"{name}#{len(objects)}"
         objects.append(build_object(name, materials[material.name], positions, faces, source=where))

@@ -19,6 +19,7 @@ import numpy as np
 
 from radiosity.formats.camera import Camera
 from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
 from radiosity.scene.materials import Material
 
@@ -127,6 +128,11 @@ class Scene:
         duplicate = sorted({n for n in names if names.count(n) > 1})
         if duplicate:
             raise InputError(f"scene {self.name!r}: object names must be unique: {duplicate[0]!r} repeats")
+        for name in names:  # each becomes the prefix of npz member names in the solution file
+            try:
+                check_member_name(name)
+            except ValueError as exc:
+                raise InputError(f"scene {self.name!r}: object {name!r}: {exc}") from None
         self._check_precision()
 
     def _check_precision(self):

@@ -82,3 +82,49 @@ def test_an_interrupt_while_writing_keeps_the_old_file(tmp_path):
             f.write(b"new, partial")
             raise KeyboardInterrupt
     assert target.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["a.bin"]
+
+
+def test_the_longest_name_the_file_system_takes_is_written(tmp_path):
+    # the temporary name used to be 18 characters longer than the name: a valid
+    # 249-character output was refused only after the whole solve
+    for length in (237, 238, 249, 255):
+        name = "s" * (length - 4) + ".npz"
+        check_output(tmp_path / name, ".npz")
+        with atomic_output(tmp_path / name) as f:
+            f.write(b"x")
+        assert (tmp_path / name).read_bytes() == b"x"
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_a_name_longer_than_the_file_system_takes_is_refused_up_front(tmp_path):
+    with pytest.raises(InputError, match="256 bytes long, more than the 255"):
+        check_output(tmp_path / ("s" * 252 + ".npz"), ".npz", flag="-o")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_probe_leaves_nothing_and_a_nul_is_refused(tmp_path):
+    check_output(tmp_path / "a.npz", ".npz")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError, match="NUL"):
+        check_output(str(tmp_path / "a\0b.npz"), ".npz")
+
+
+def test_a_symlink_output_writes_its_target(tmp_path):
+    target = tmp_path / "real.npz"
+    target.write_bytes(b"old")
+    link = tmp_path / "link.npz"
+    link.symlink_to(target)
+    check_output(link, ".npz")
+    with atomic_output(link) as f:
+        f.write(b"new")
+    assert link.is_symlink() and target.read_bytes() == b"new"
+    dangling = tmp_path / "dangling.npz"
+    dangling.symlink_to(tmp_path / "made.npz")
+    check_output(dangling, ".npz")
+    with atomic_output(dangling) as f:
+        f.write(b"made")
+    assert dangling.is_symlink() and (tmp_path / "made.npz").read_bytes() == b"made"
+    nowhere = tmp_path / "nowhere.npz"
+    nowhere.symlink_to(tmp_path / "missing" / "x.npz")
+    with pytest.raises(InputError, match="a symlink to .*does not exist"):
+        check_output(nowhere, ".npz")

@@ -333,7 +333,7 @@ def test_corrupted_member(tmp_path, saved):
 
 
 def test_directory_and_npy_are_refused(tmp_path):
-    refused(tmp_path, "is not a solution file", "directory")
+    refused(tmp_path, "solution file", "is a directory")
     np.save(tmp_path / "a.npy", np.zeros(3))
     refused(tmp_path / "a.npy", "is not a solution file", ".npy")
 
