@@ -159,6 +159,10 @@ class SolveOptions:
         for key in ("extra_gather", "gather_tolerance"):
             if not (math.isfinite(out[key]) and out[key] >= 0):
                 raise InputError(f"--{key.replace('_', '-')} must be a number >= 0, got {out[key]:g}")
+        if out["kernel_rings"] > presets.MAX_KERNEL_RINGS:
+            raise InputError(
+                f"--kernel-rings must be a whole number from 0 to {presets.MAX_KERNEL_RINGS}, got {out['kernel_rings']}"
+            )
         if out["emitter_nodes"] > MAX_NODES:
             raise InputError(f"--emitter-nodes must be a whole number from 1 to {MAX_NODES}, got {out['emitter_nodes']}")
         if out["visibility_samples"] > MAX_VISIBILITY_SAMPLES:

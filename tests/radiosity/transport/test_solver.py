@@ -382,6 +382,15 @@ def test_photon_counts_beyond_2_40_are_refused():
     assert SolveOptions(photons=2**40).resolved(scene)["photons"] == 2**40  # counting is lazy: no list of batches
 
 
+@pytest.mark.parametrize("rings", [65, 1000, 10**9])
+def test_kernel_rings_beyond_the_scene_are_refused_from_python_too(rings):
+    # 64 rings of the finest preset's edges already cross the whole scene; 1000 made NaN
+    scene = load_scene("cornell")
+    with pytest.raises(InputError, match=f"--kernel-rings must be a whole number from 0 to 64, got {rings}"):
+        SolveOptions(kernel_rings=rings).resolved(scene)
+    assert SolveOptions(kernel_rings=64).resolved(scene)["kernel_rings"] == 64
+
+
 def test_max_edge_must_be_finite():
     with pytest.raises(InputError, match="--max-edge must be a finite length, got inf"):
         SolveOptions(max_edge=float("inf")).resolved(load_scene("cornell"))
