@@ -74,8 +74,7 @@ def truth_of(solution, view, spp, cache, key):
 
 def solve_and_fit(name, quality, cache):
     """(solution, fit, fit seconds), cached by scene and quality."""
-    from fitting import fit, load_fit
-    from fitting.cli import fit_options_for_quality
+    from fitting import FitOptions, fit, load_fit
     from radiosity.formats import load_solution
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.adaptive import solve_adaptive
@@ -90,7 +89,7 @@ def solve_and_fit(name, quality, cache):
         sol_path.parent.mkdir(parents=True, exist_ok=True)
         solution.save(sol_path)
     t = time.perf_counter()
-    model = fit(solution, fit_options_for_quality(quality))
+    model = fit(solution, FitOptions.for_quality(quality))
     seconds = time.perf_counter() - t
     model.save(fit_path)
     return solution, load_fit(fit_path), seconds, sol_path, fit_path

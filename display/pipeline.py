@@ -36,9 +36,9 @@ def solve(scene, quality, seed=1, progress=False):
 
 def fit_options(quality):
     """The ``fitting.FitOptions`` ``vlights fit`` uses at ``quality`` with no other flag."""
-    from fitting.cli import fit_options_for_quality  # fitting has no public name for it yet
+    from fitting import FitOptions
 
-    return fit_options_for_quality(quality)
+    return FitOptions.for_quality(quality)
 
 
 def scene_of(source):

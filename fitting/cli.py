@@ -130,9 +130,7 @@ def fit_options(args, quality):
 
 def fit_options_for_quality(quality):
     """The ``FitOptions`` ``vlights fit`` uses at ``quality`` with no other flag."""
-    knobs = preset(quality)
-    return FitOptions(lights=knobs.fit_lights, iterations=knobs.fit_iterations, probe_sizes=tuple(knobs.probe_sizes),
-                      probe_lights=knobs.probe_lights).check()
+    return FitOptions.for_quality(quality)
 
 
 def _fit(args):

@@ -73,6 +73,16 @@ class FitOptions:
     probe_lights: int | str = 4
     model_target: float = glossy.MODEL_TARGET
 
+    @classmethod
+    def for_quality(cls, quality):
+        """The options ``vlights fit`` uses at ``quality`` (a preset name) with no other
+        flag: the preset's lights, iterations, probe sizes and probe lights."""
+        from radiosity.formats.presets import preset
+
+        knobs = preset(quality)
+        return cls(lights=knobs.fit_lights, iterations=knobs.fit_iterations, probe_sizes=tuple(knobs.probe_sizes),
+                   probe_lights=knobs.probe_lights).check()
+
     def check(self):
         for lights in (self.lights, self.probe_lights):
             if lights != "auto" and not (isinstance(lights, int) and 0 <= lights <= 64):

@@ -25,8 +25,8 @@ def allowed(path, module):
         if part in ("scene", "transport"):
             return path == PIPELINE
         return path == DISPATCHER and module == "radiosity.cli"
-    if module == "fitting.cli":  # a stage's commands: the dispatcher's; the fit options (pipeline) until fitting exports them
-        return path in (DISPATCHER, PIPELINE)
+    if module == "fitting.cli":  # a stage's commands: the dispatcher's alone
+        return path == DISPATCHER
     return True
 
 

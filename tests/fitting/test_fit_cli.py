@@ -138,3 +138,13 @@ def test_bad_model_flags_are_one_line_and_no_file(flags, message, solution_file,
     code, _, err = run(["fit", str(solution_file), "-o", str(out), *flags], capsys)
     assert code == 2 and message in err and err.count("\n") == 1 and "Traceback" not in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("quality", ["draft", "medium", "high"])
+def test_fit_options_for_a_quality_follow_its_preset(quality):
+    from fitting import FitOptions
+    from radiosity.formats.presets import preset
+
+    options, knobs = FitOptions.for_quality(quality), preset(quality)
+    assert (options.lights, options.iterations, options.probe_sizes, options.probe_lights) == (
+        knobs.fit_lights, knobs.fit_iterations, tuple(knobs.probe_sizes), knobs.probe_lights)
