@@ -40,10 +40,10 @@ import signal
 import tempfile
 import threading
 import time
-from collections import deque
 
 from radiosity.formats.errors import InputError
 from radiosity.transport.embree import RayTracer
+from radiosity.transport.threads import in_order
 
 CONNECT_TIMEOUT = 20.0  # seconds to reach a scheduler and see at least one worker
 SCHEDULERS = ("threads", "dask")
@@ -121,12 +121,31 @@ def check_scheduler(scheduler):
         )
 
 
+class _SyncCancelRace(logging.Filter):
+    """Drops one record: Dask's ``distributed.utils.sync`` schedules a ``cancel``
+    callback when Ctrl-C or SIGTERM interrupts its wait, and if that happens before its
+    future exists the callback raises NameError in the event loop (a race inside Dask,
+    harmless: there is nothing to cancel yet), which tornado logs with a traceback
+    after our one line."""
+
+    def filter(self, record):
+        exc = record.exc_info[1] if record.exc_info else None
+        return not (isinstance(exc, NameError) and "'future'" in str(exc))
+
+
+def _quiet_sync_race():
+    logger = logging.getLogger("tornado.application")
+    if not any(isinstance(f, _SyncCancelRace) for f in logger.filters):
+        logger.addFilter(_SyncCancelRace())
+
+
 def connect(scheduler):
     """(client, cluster): a new LocalCluster sized to the machine for ``dask`` (cluster
     to close at the end), or a client of the scheduler at an address (cluster None).
     InputError (one line) if it cannot be reached, is not a Dask scheduler, or has no
     worker, within CONNECT_TIMEOUT in all."""
     check_scheduler(scheduler)
+    _quiet_sync_race()
     if scheduler == "dask":
         return _local_cluster()
     from distributed import Client
@@ -350,6 +369,32 @@ def _gather_task(key, scene, irradiance, block, material, dirs):
 # -- on the client ---------------------------------------------------------------------------
 
 
+class _DaskPool:
+    """``threads.in_order``'s view of a Dask client running ``task(job)`` (a function
+    and its arguments); each result is (what to combine, the rays it cast)."""
+
+    def __init__(self, runner, task):
+        self.runner, self.task, self.window = runner, task, 2 * runner.threads + 1
+
+    def submit(self, job):
+        fn, *args = self.task(job)
+        return self.runner.client.submit(fn, *args, pure=False)
+
+    def wait_first(self, futures):
+        from distributed import wait
+
+        wait(futures, return_when="FIRST_COMPLETED")
+
+    def result(self, future):
+        result, rays = future.result()
+        future.release()
+        self.runner.rays_cast += rays
+        return result
+
+    def cancel(self, futures):
+        self.runner.client.cancel(futures, force=True)
+
+
 class DaskRunner:
     """Runs a solve's photon batches and gather blocks on a Dask cluster (the
     counterpart of ``threads.ThreadRunner``): ``start``, ``photon_batches``,
@@ -412,41 +457,10 @@ class DaskRunner:
         )
 
     def _run_ordered(self, task, jobs, combine, progress, weights):
-        """Submit ``task(job)`` (a function and its arguments) for every job, a window
-        of a few at a time, feed ``progress`` as tasks complete and ``combine`` the
-        results in job order; on any exception (Ctrl-C too) cancel what is pending."""
-        from distributed import wait
-
-        window = 2 * self.threads + 1
-        pending = deque()  # [future, weight, counted in progress]
-        jobs = iter(zip(jobs, weights))
-        more = True
-        try:
-            while True:
-                while more and len(pending) < window:
-                    item = next(jobs, None)
-                    if item is None:
-                        more = False
-                        break
-                    fn, *args = task(item[0])
-                    pending.append([self.client.submit(fn, *args, pure=False), item[1], False])
-                if not pending:
-                    return
-                if not pending[0][0].done():
-                    wait([p[0] for p in pending if not p[0].done()], return_when="FIRST_COMPLETED")
-                for p in pending:
-                    if not p[2] and p[0].done():
-                        progress.update(p[1])
-                        p[2] = True
-                while pending and pending[0][0].done():
-                    future = pending.popleft()[0]
-                    result, rays = future.result()
-                    future.release()
-                    self.rays_cast += rays
-                    combine(result)
-        except BaseException:
-            self.client.cancel([p[0] for p in pending], force=True)
-            raise
+        """Submit ``task(job)`` (a function and its arguments) for every job and
+        ``combine`` the results in job order (``threads.in_order``, the one ordered
+        reduction); on any exception (Ctrl-C too) cancel what is pending."""
+        in_order(_DaskPool(self, task), jobs, combine, progress, weights)
 
     def close(self):
         """Release the scattered data and the workers' Embree scenes; close the client

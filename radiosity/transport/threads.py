@@ -6,7 +6,8 @@ the same way. The counterpart on a cluster is ``distributed.DaskRunner``.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from typing import NamedTuple
 
 from radiosity.transport.batches import PHOTON_BATCH, gather_block, trace_photon_batch
@@ -36,25 +37,67 @@ def progress_bar(enabled):
     return lambda **kw: tqdm(unit_scale=True, dynamic_ncols=True, leave=True, disable=None, **kw)
 
 
-def run_ordered(workers, fn, jobs, combine, progress, weights):
-    """Run ``fn(job)`` for every job on ``workers.pool``, a few at a time (jobs and
-    weights may be lazy iterables), and ``combine`` the results in job order
-    (deterministic sums); stops early and cleanly on KeyboardInterrupt."""
-    pending = []
+def in_order(pool, jobs, combine, progress, weights):
+    """The one ordered reduction of every runner: submit ``pool.submit(job)`` for every
+    job, at most ``pool.window`` in flight (jobs and weights may be lazy iterables),
+    feed ``progress`` each job's weight as it completes, and ``combine`` the results
+    (``pool.result(future)``) strictly in job order, so the sums are the same whatever
+    finishes first; on any exception (Ctrl-C too) ``pool.cancel`` what is pending.
+
+    ``pool``: ``submit(job)`` -> a future (``done()``), ``wait_first(futures)`` (until
+    one is done), ``result(future)``, ``cancel(futures)``, ``window``: the threads'
+    ``_ThreadPool`` or the Dask runner's."""
+    pending = deque()  # [future, weight, counted in progress]
+    items = iter(zip(jobs, weights))
+    more = True
     try:
-        for job, weight in zip(jobs, weights):
-            pending.append((workers.pool.submit(fn, job), weight))
-            if len(pending) > 2 * workers.threads:
-                future, w = pending.pop(0)
-                combine(future.result())
-                progress.update(w)
-        for future, w in pending:
-            combine(future.result())
-            progress.update(w)
+        while True:
+            while more and len(pending) < pool.window:
+                item = next(items, None)
+                if item is None:
+                    more = False
+                    break
+                pending.append([pool.submit(item[0]), item[1], False])
+            if not pending:
+                return
+            if not pending[0][0].done():
+                pool.wait_first([p[0] for p in pending if not p[0].done()])
+            for p in pending:
+                if not p[2] and p[0].done():
+                    progress.update(p[1])
+                    p[2] = True
+            while pending and pending[0][0].done():
+                combine(pool.result(pending.popleft()[0]))
     except BaseException:
-        for future, _ in pending:
-            future.cancel()
+        pool.cancel([p[0] for p in pending])
         raise
+
+
+class _ThreadPool:
+    """``in_order``'s view of a ``ThreadPoolExecutor`` running ``fn(job)``."""
+
+    def __init__(self, executor, fn, threads):
+        self.executor, self.fn, self.window = executor, fn, 2 * threads + 1
+
+    def submit(self, job):
+        return self.executor.submit(self.fn, job)
+
+    def wait_first(self, futures):
+        wait(futures, return_when=FIRST_COMPLETED)
+
+    def result(self, future):
+        return future.result()
+
+    def cancel(self, futures):
+        for future in futures:
+            future.cancel()
+
+
+def run_ordered(workers, fn, jobs, combine, progress, weights):
+    """Run ``fn(job)`` for every job on ``workers.pool`` (``in_order``), and ``combine``
+    the results in job order (deterministic sums); stops early and cleanly on
+    KeyboardInterrupt."""
+    in_order(_ThreadPool(workers.pool, fn, workers.threads), jobs, combine, progress, weights)
 
 
 class Workers(NamedTuple):
