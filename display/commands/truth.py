@@ -16,6 +16,7 @@ from .common import add_camera_flags, check_drawable, check_output_file, sniff
 __all__ = ["TRUTH_BYTES_PER_PIXEL", "add_command", "run", "truth_camera"]
 
 TRUTH_BYTES_PER_PIXEL = 4 * 3 * 8 + 3 * 4  # the running sums of both halves (float64) and the image
+MAX_THREADS = 1024  # a thread pool of more would be reported, not run (the path tracer's tiles are fewer)
 
 
 def add_command(subparsers):
@@ -57,8 +58,8 @@ def run(args):
 
     spp = args.spp if args.spp is not None else presets.preset(args.quality).truth_spp
     check_spp(spp)
-    if args.threads is not None and args.threads < 1:
-        raise InputError(f"--threads must be a whole number >= 1, got {args.threads}")
+    if args.threads is not None and not 1 <= args.threads <= MAX_THREADS:
+        raise InputError(f"--threads must be a whole number from 1 to {MAX_THREADS}, got {args.threads}")
     check_seed(args.seed)
     check_exposure(args.exposure)
     inputs = (args.input,) if os.path.exists(args.input) else ()
