@@ -24,6 +24,7 @@ def framing_view(lo, hi, width, height, fov_y_deg=39.3):
     return Camera(tuple(eye), tuple(centre), (0.0, 1.0, 0.0), fov_y_deg, width, height)
 
 
+MIN_FOV_DEG = 1e-3  # 1 / tan(fov / 2) in float32 stays far from overflow (radiosity's Camera takes any fov > 0)
 VIEWS_BYTES = 16 * 2**20  # a views file is a few named cameras: far below this
 
 
@@ -67,7 +68,7 @@ def resolve_camera(args, bounds, default=None):
         base = default.sized(width, height)
     else:
         base = framing_view(bounds[0], bounds[1], width, height)
-    return Camera(
+    camera = Camera(
         tuple(args.eye) if args.eye else base.eye,
         tuple(args.look_at) if args.look_at else base.look_at,
         tuple(args.up) if args.up else base.up,
@@ -75,3 +76,7 @@ def resolve_camera(args, bounds, default=None):
         width,
         height,
     )
+    if camera.fov_y_deg < MIN_FOV_DEG:
+        raise InputError(f"the field of view must be at least {MIN_FOV_DEG:g} degrees for the display, got "
+                         f"{camera.fov_y_deg:g} (a narrower one overflows its float32 projection)")
+    return camera

@@ -383,7 +383,7 @@ FLAG_CASES = (
      for v in ("0x0", "-1x8", "8x0", "100000x1", "1x100000", "99999999999999999999x1", "nanxnan", "8", "8x8x8", "", "x")]
     + [(c, ["--samples", v]) for c in ("render", "video", "compare", "demo", "view") for v in NUMBERS]
     + [(c, ["--fov", v]) for c in ("render", "video", "compare", "truth", "view")
-       for v in ("0", "-1", "180", "1e9", "nan", "inf", "x")]
+       for v in ("0", "-1", "1e-300", "1e-4", "180", "1e9", "nan", "inf", "x")]
     + [(c, [flag, *v]) for c in ("render", "video", "compare", "truth", "view") for flag in ("--eye", "--look-at", "--up")
        for v in (["nan", "0", "0"], ["inf", "0", "0"], ["1e308", "1e308", "1e308"], ["x", "0", "0"], ["0", "0"])]
     + [(c, ["--eye", "0", "0", "0", "--look-at", "0", "0", "0"]) for c in ("render", "video", "compare", "truth", "view")]
@@ -582,7 +582,6 @@ def test_stopping_export_leaves_the_old_directory(signum, status, said, sound_pa
 
 
 @pytest.mark.subprocess
-@pytest.mark.slow
 @pytest.mark.parametrize("signum, status, said", STOPS)
 def test_stopping_the_demo_leaves_nothing(signum, status, said, tmp_path):
     temporary, out = _env(tmp_path), tmp_path / "demo"
@@ -594,3 +593,66 @@ def test_stopping_the_demo_leaves_nothing(signum, status, said, tmp_path):
     _stopped(child, signum, status, said, "demo")
     assert listing(out) == ["report.md"] and (out / "report.md").read_bytes() == b"OLD"
     assert listing(temporary) == []
+
+
+# -- the window, headless under Xvfb ---------------------------------------------------------
+
+VIEW_CASES = {  # name -> (the extra command line, what the refusal says, or None: a screenshot is written)
+    "an object with no faces": (["{no_faces}", "--frames", "2", "--screenshot", "{out}/old.png"], "has no faces"),
+    "meta nested too deep": (["{nested}", "--frames", "2", "--screenshot", "{out}/old.png"], "nested too deep"),
+    "a screenshot name of 256 bytes": (["{fit}", "--frames", "2", "--screenshot", "{out}/" + "y" * 252 + ".png"],
+                                       "too long"),
+    "an empty screenshot": (["{fit}", "--frames", "2", "--screenshot", ""], "is empty"),
+    "a screenshot in a missing directory": (["{fit}", "--frames", "2", "--screenshot", "{out}/no/x.png"],
+                                            "does not exist"),
+    "a views file that is a FIFO": (["{fit}", "--frames", "2", "--views", "{fifo}", "--view", "a"],
+                                    "not a regular file"),
+    "--fov 1e-300": (["{fit}", "--frames", "2", "--fov", "1e-300"], "at least 0.001 degrees"),
+    "--size beyond the memory": (["{fit}", "--frames", "2", "--size", "16384x16384", "--samples", "64"], "--size"),
+    "odd object names": (["{odd}", "--frames", "2", "--screenshot", "{out}/shot.png"], None),
+}
+
+
+@pytest.fixture(scope="module")
+def x_server():
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed")
+    from test_window import x_display
+
+    generator = x_display.__wrapped__()
+    yield next(generator)
+    next(generator, None)
+
+
+@pytest.mark.gl
+@pytest.mark.subprocess
+@pytest.mark.parametrize("case", sorted(VIEW_CASES))
+def test_view_under_xvfb(case, x_server, sound_pair, tmp_path):
+    out, inputs = tmp_path / "out", tmp_path / "in"
+    out.mkdir()
+    inputs.mkdir()
+    (out / "old.png").write_bytes(b"OLD")
+    os.mkfifo(inputs / "fifo")
+    files = {"fit": sound_pair[0], "out": out, "fifo": inputs / "fifo",
+             "no_faces": hostile("solution", "an object with no faces", sound_pair[1], inputs),
+             "nested": hostile("fit", "meta nested 100,000 deep", sound_pair[0], inputs),
+             "odd": hostile("fit", "a name with control characters", sound_pair[0], inputs)}
+    extra, said = VIEW_CASES[case]
+    run = subprocess.run(vlights("view", "--size", "64x48", *[a.format(**files) for a in extra]),
+                         capture_output=True, text=True, timeout=300,
+                         env=dict(os.environ, DISPLAY=x_server, TMPDIR=str(inputs)))
+    if said is None:
+        assert run.returncode == 0, run.stderr[-800:]
+        assert listing(out) == ["old.png", "shot.png"]
+    else:
+        assert_refused((run.returncode, run.stdout, run.stderr), said, command="view")
+        assert listing(out) == ["old.png"] and (out / "old.png").read_bytes() == b"OLD"
+    assert sorted(p.name for p in inputs.iterdir() if not p.name.endswith(".npz")) == ["fifo"]
+
+
+@pytest.mark.parametrize("screenshot, said", [("", "is empty"), ("a\0b.png", "NUL"), ("y" * 252 + ".png", "too long")])
+def test_view_screenshot_names_in_process(screenshot, said, sound_pair, tmp_path, cli, some_display, monkeypatch):
+    """Names no command line can carry (a NUL) reach the check through the API."""
+    monkeypatch.chdir(tmp_path)
+    assert_refused(cli("view", sound_pair[0], "--frames", "2", "--screenshot", screenshot), said, command="view")
+    assert listing(tmp_path) == []
