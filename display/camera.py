@@ -5,6 +5,8 @@ that frames a box, and the camera the command-line flags ask for.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from radiosity.formats import Camera, InputError, camera_from_dict, load_views
@@ -22,6 +24,34 @@ def framing_view(lo, hi, width, height, fov_y_deg=39.3):
     return Camera(tuple(eye), tuple(centre), (0.0, 1.0, 0.0), fov_y_deg, width, height)
 
 
+MIN_FOV_DEG = 1e-3  # 1 / tan(fov / 2) in float32 stays far from overflow (radiosity's Camera takes any fov > 0)
+VIEWS_BYTES = 16 * 2**20  # a views file is a few named cameras: far below this
+
+
+def _read_views(path):
+    """``radiosity.formats.load_views(path)`` after the checks that keep it from
+    blocking or growing without end (a FIFO, /dev/zero, a directory, a file of
+    gigabytes), and with a document nested too deep as one line, not a RecursionError."""
+    import stat
+
+    shown = str(path)
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"views file {shown!r} not found") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"views file {shown!r} cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        kind = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file (a device, a FIFO or a socket)"
+        raise InputError(f"views file {shown!r} is {kind}")
+    if info.st_size > VIEWS_BYTES:
+        raise InputError(f"views file {shown!r} is {info.st_size:,} bytes; a views file is at most {VIEWS_BYTES:,}")
+    try:
+        return load_views(path)
+    except RecursionError:
+        raise InputError(f"views file {shown!r} is JSON nested too deep to read") from None
+
+
 def resolve_camera(args, bounds, default=None):
     """The camera from the flags (``--eye --look-at --up --fov --size``), a named view
     (``--view NAME --views FILE``), or ``default`` (a Camera, the scene's), else a view
@@ -30,7 +60,7 @@ def resolve_camera(args, bounds, default=None):
     if args.view is not None:
         if args.views is None:
             raise InputError("--view needs --views FILE")
-        views = load_views(args.views)
+        views = _read_views(args.views)
         if args.view not in views:
             raise InputError(f"no view {args.view!r} in {args.views} (views: {', '.join(views)})")
         base = camera_from_dict(views[args.view], width, height, where=f"view {args.view!r} in {args.views}")
@@ -38,7 +68,7 @@ def resolve_camera(args, bounds, default=None):
         base = default.sized(width, height)
     else:
         base = framing_view(bounds[0], bounds[1], width, height)
-    return Camera(
+    camera = Camera(
         tuple(args.eye) if args.eye else base.eye,
         tuple(args.look_at) if args.look_at else base.look_at,
         tuple(args.up) if args.up else base.up,
@@ -46,3 +76,7 @@ def resolve_camera(args, bounds, default=None):
         width,
         height,
     )
+    if camera.fov_y_deg < MIN_FOV_DEG:
+        raise InputError(f"the field of view must be at least {MIN_FOV_DEG:g} degrees for the display, got "
+                         f"{camera.fov_y_deg:g} (a narrower one overflows its float32 projection)")
+    return camera

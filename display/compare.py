@@ -47,7 +47,7 @@ from radiosity.formats import Camera, InputError
 from radiosity.formats.atomic import atomic_output
 
 from .images import write_png
-from .metrics import BLACK, against_truth, is_black, magma, metrics
+from .metrics import BLACK, NOT_FINITE, against_truth, is_black, magma, metrics
 from .outputs import staged_directory
 from .renderer import tonemap
 
@@ -210,6 +210,9 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
     references = []  # all three first: a black one is refused before any work or file
     for i, view in enumerate(views):
         references.append(shot(view, "reference"))
+        if not np.isfinite(references[-1]).all():
+            count = int(np.sum(~np.isfinite(references[-1])))
+            raise InputError(f"the reference image (the solution seen from view {i + 1}) {NOT_FINITE.format(count=count)}")
         if is_black(references[-1]):
             raise InputError(f"the reference image (the solution seen from view {i + 1}) {BLACK}; is the scene lit, "
                              "and does the camera see it?")

@@ -408,7 +408,10 @@ def _check_fit_file(path):
         raise InputError(f"input {shown!r} not found")
     if os.path.isdir(path):
         raise InputError(f"input {shown!r} is a directory, not a fit.npz")
-    fmt = file_format(path)
+    try:
+        fmt = file_format(path)
+    except RecursionError:
+        raise InputError(f"input {shown!r}: its meta is JSON nested too deep to read") from None
     if fmt == "vlights.solution":
         raise InputError(f"input {shown!r} is a solution.npz, not a fit.npz (run 'vlights fit' on it first)")
     if fmt != "vlights.fit":

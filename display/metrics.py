@@ -22,9 +22,11 @@ from radiosity.formats import InputError
 
 from .renderer import tonemap
 
-__all__ = ["BLACK", "against_truth", "is_black", "magma", "metrics"]
+__all__ = ["BLACK", "NOT_FINITE", "against_truth", "is_black", "magma", "metrics"]
 
 BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
+NOT_FINITE = ("has {count} values beyond float32 (infinite or NaN: radiance that overflows when a pixel's samples "
+              "are added), so errors relative to it are undefined")
 
 
 def is_black(image):
@@ -44,12 +46,16 @@ def metrics(reference, test, exposure=1.0, mask=None):
     over the whole image and, with ``mask`` ((H, W) bool), over the masked pixels alone
     (keys suffixed "_glossy"); and the FLIP error image ((H, W, 3) uint8, magma).
 
-    A black reference is refused (InputError): FLIP's exposure range comes from the
-    reference and does not exist for a black one (FLIP would end the process). FLIP
+    A black reference, and an image with an infinite or NaN value, are refused
+    (InputError): FLIP's exposure range comes from the reference and does not exist
+    for a black or infinite one (FLIP would end the process). FLIP
     sees both images scaled so the reference's brightest value is 1: its HDR mode
     is scale-invariant, and so very dim references (units of 1e-9) work too."""
     import flip_evaluator
 
+    for label, image in (("reference", reference), ("test", test)):
+        if not np.isfinite(image).all():  # FLIP would end the process ("Start exposure must be smaller than stop")
+            raise InputError(f"the {label} image {NOT_FINITE.format(count=int(np.sum(~np.isfinite(image))))}")
     ref = np.ascontiguousarray(np.maximum(reference, 0), np.float32)
     tst = np.ascontiguousarray(np.maximum(test, 0), np.float32)
     if is_black(ref):

@@ -32,22 +32,36 @@ def _same_file(a, b):
 def check_output_dir(path, flag="--out", files=(), inputs=()):
     """Refuse an output directory before any work goes into it; returns it as a Path.
 
-    Refused: a path that exists and is not a directory, a missing parent (the
-    directory itself is created, its parents are not: a mistyped path should not grow
-    a tree), a parent that is a file, a directory we may not write into; and for each
+    Refused: an empty path, one with a NUL or a name too long, a path that exists and
+    is not a directory, a symlink to nothing, a missing parent (the directory itself
+    is created, its parents are not: a mistyped path should not grow a tree), a parent
+    that is a file, a directory we may not write into (by its permissions, then by
+    the file system's own answer: a directory is made there and removed); and for each
     of ``files`` (paths relative to the directory, e.g. "compare/figure6.png") a
     directory in its way, a subdirectory that is a file or unwritable, or one of
     ``inputs``.
     """
-    out = Path(path)
     shown = str(path)
-    if out.exists() and not out.is_dir():
+    if not shown:
+        raise InputError(f"{flag} is empty; give a directory ('.' for the current one)")
+    if "\0" in shown:
+        raise InputError(f"{flag} {shown!r} holds a NUL character, which no file name may")
+    out = Path(path)
+    try:
+        exists = out.exists()
+    except OSError as exc:  # os.stat's own refusal, e.g. ENAMETOOLONG
+        raise InputError(f"{flag} {shown!r}: {exc.strerror or exc}") from None
+    if exists and not out.is_dir():
         raise InputError(f"{flag} {shown!r} exists and is not a directory")
-    if not out.exists():
+    if not exists:
+        if out.is_symlink():
+            raise InputError(f"{flag} {shown!r} is a symlink to {os.readlink(out)!r}, which does not exist")
         check_output(out, flag=flag)  # its parent: exists, is a directory, writable
+        _probe(out, shown, flag, new=True)
         return out
     if not os.access(out, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {shown!r}: cannot write into directory {shown!r} (permission denied)")
+    _probe(out, shown, flag, new=False)
     for name in files:
         target = out / name
         parts = Path(name).parts
@@ -63,6 +77,22 @@ def check_output_dir(path, flag="--out", files=(), inputs=()):
             if given is not None and target.exists() and _same_file(target, given):
                 raise InputError(f"{flag} {shown!r}: writing {str(target)!r} would destroy the input {str(given)!r}")
     return out
+
+
+def _probe(out, shown, flag, new):
+    """Ask the file system itself whether the run's directory can be made: create it
+    (``new``) or the hidden directory a run stages its files in, and remove it again.
+    The permission bits do not tell everything (a read-only mount, an immutable
+    directory, /proc, a name too long): what would fail at the end fails now."""
+    try:
+        if new:
+            out.mkdir()
+            out.rmdir()
+        else:
+            os.rmdir(tempfile.mkdtemp(prefix=".vlights-", suffix=".probe", dir=out))
+    except OSError as exc:
+        what = "the directory" if new else "a directory inside it"
+        raise InputError(f"{flag} {shown!r}: cannot create {what} ({exc.strerror or exc})") from None
 
 
 def _move_into(stage: Path, out: Path) -> None:

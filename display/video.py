@@ -68,6 +68,20 @@ def _ffmpeg_reason(log):
     return re.sub(r"^\[[^]]*\]\s*", "", lines[-1])
 
 
+def _temporary_name(directory, name):
+    """``.<name>.<12 hex>.partial.mp4``, ``name`` cut (by whole characters) so that the
+    whole fits the directory's limit on a name (NAME_MAX): any name the file system
+    takes for the video gets a temporary name too."""
+    try:
+        limit = int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):
+        limit = 255
+    room = limit - len("..0123456789ab.partial.mp4")
+    while len(os.fsencode(name)) > room:
+        name = name[:-1]
+    return f".{name}.{secrets.token_hex(6)}.partial.mp4"
+
+
 def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0, progress=False):
     """Render the walkthrough and encode it; returns the number of frames written.
 
@@ -84,7 +98,7 @@ def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", sh
         views = tqdm(views, desc="video", unit="frame", disable=None, dynamic_ncols=True)
     target = os.path.abspath(path)
     directory, name = os.path.split(target)
-    temporary = os.path.join(directory, f".{name}.{secrets.token_hex(6)}.partial.mp4")
+    temporary = os.path.join(directory, _temporary_name(directory, name))
     shown = os.fspath(path)
     process = None
     with tempfile.TemporaryFile() as log:
@@ -109,7 +123,7 @@ def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", sh
             if process is not None and process.poll() is None:
                 process.kill()
                 process.wait()
-            with contextlib.suppress(FileNotFoundError):
+            with contextlib.suppress(OSError):
                 os.remove(temporary)
             if isinstance(exc, OSError) and not isinstance(exc, InputError):
                 raise OutputError(f"cannot write {shown!r}: {exc.strerror or exc}") from None

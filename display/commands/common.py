@@ -12,8 +12,8 @@ from display import gl
 from radiosity.formats import InputError
 
 __all__ = [
-    "FIT", "SOLUTION", "add_camera_flags", "add_samples_flag", "check_model_files", "input_format",
-    "read_model_files", "rendering", "resolve_view", "size",
+    "FIT", "SOLUTION", "add_camera_flags", "add_samples_flag", "check_drawable", "check_model_files", "check_output_file",
+    "input_format", "read_model_files", "rendering", "resolve_view", "size", "sniff",
 ]
 
 FIT, SOLUTION = "vlights.fit", "vlights.solution"
@@ -52,19 +52,29 @@ def add_samples_flag(parser):
                         f"pixel centre alone; 1 to {gl.MAX_SAMPLES} (default: %(default)s)")
 
 
+def sniff(path, label="input"):
+    """What the file ``path`` is (``radiosity.formats.file_format``: its meta's format,
+    or None), with a meta nested too deep to parse an InputError naming ``label``
+    rather than Python's RecursionError."""
+    from radiosity.formats import file_format
+
+    try:
+        return file_format(path)
+    except RecursionError:
+        raise InputError(f"{label} {str(path)!r}: its meta is JSON nested too deep to read") from None
+
+
 def input_format(path, accepted, label):
     """The format of the input file ``path`` (FIT or SOLUTION), which must be one of
     ``accepted``; InputError naming ``label`` (the argument) and what is wrong otherwise.
     What a file is comes from ``radiosity.formats.file_format``."""
-    from radiosity.formats import file_format
-
     shown = str(path)
     want = " or a ".join(_FILE_NAMES[f] for f in accepted)
     if not os.path.exists(path):
         raise InputError(f"{label} {shown!r} not found")
     if os.path.isdir(path):
         raise InputError(f"{label} {shown!r} is a directory, not a {want}")
-    fmt = file_format(path)
+    fmt = sniff(path, label)
     if fmt in accepted:
         return fmt
     if fmt in _FILE_NAMES:
@@ -92,10 +102,42 @@ def read_model_files(path, extra_solution=None):
     if check_model_files(path, extra_solution) == FIT:
         fit, solution = load_fit(path), None
     else:
-        fit, solution = None, load_solution(path)
+        fit, solution = None, check_drawable(load_solution(path), path)
     if extra_solution is not None:
-        solution = load_solution(extra_solution)
+        solution = check_drawable(load_solution(extra_solution), extra_solution)
     return fit, solution
+
+
+def check_drawable(model, path):
+    """``model`` (a solution or a fit read from ``path``) if every object has vertices
+    and faces; InputError naming the first that has none (the reader of fit files
+    refuses such an object, the reader of solutions lets it through, and it has
+    nothing to draw or path-trace)."""
+    for o in model.objects:
+        if len(o.positions) == 0 or len(o.faces) == 0:
+            what = "vertices" if len(o.positions) == 0 else "faces"
+            raise InputError(f"{str(path)!r}: object {o.name!r} has no {what}, so nothing to draw")
+    return model
+
+
+def check_output_file(path, suffix, inputs=(), flag="-o"):
+    """``radiosity.formats.check_output`` for an output file of a display command, and
+    two refusals more, in one line before any work: an empty name (an unset variable in
+    a script, which would otherwise mean the default name or the current directory), and
+    a name the system refuses to look at (too long for the file system, a NUL)."""
+    from radiosity.formats import check_output
+
+    shown = str(path)
+    if not shown:
+        raise InputError(f"{flag} is empty; give a file name")
+    if "\0" in shown:
+        raise InputError(f"{flag} {shown!r} holds a NUL character, which no file name may")
+    try:
+        return check_output(path, suffix, inputs, flag=flag)
+    except InputError:
+        raise
+    except OSError as exc:  # os.stat's own refusal, e.g. ENAMETOOLONG
+        raise InputError(f"{flag} {shown!r}: {exc.strerror or exc}") from None
 
 
 def resolve_view(args, bounds, fit=None, solution=None):

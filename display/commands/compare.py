@@ -10,7 +10,16 @@ from display.gl import check_sample_count
 from radiosity.formats import InputError
 from radiosity.formats.limits import check_exposure, check_seed
 
-from .common import FIT, SOLUTION, add_camera_flags, add_samples_flag, headless, input_format, resolve_view
+from .common import (
+    FIT,
+    SOLUTION,
+    add_camera_flags,
+    add_samples_flag,
+    check_drawable,
+    headless,
+    input_format,
+    resolve_view,
+)
 
 __all__ = ["add_command", "run"]
 
@@ -101,7 +110,7 @@ def run(args):
     check_inputs(args.fit, args.solution)
     out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
     with headless(args.size, args.samples, COMPARE_BYTES_PER_PIXEL) as ctx:
-        fit, solution = load_fit(args.fit), load_solution(args.solution)
+        fit, solution = load_fit(args.fit), check_drawable(load_solution(args.solution), args.solution)
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         view = resolve_view(args, renderer.bounds, fit, solution)
         views = figure5_views(view)

@@ -3,12 +3,14 @@ with --video, a walkthrough video instead."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from display.gl import check_sample_count
 from fitting.model import PARTS
-from radiosity.formats import InputError, check_output
+from radiosity.formats import InputError
 from radiosity.formats.limits import check_exposure
 
-from .common import add_camera_flags, add_samples_flag, rendering
+from .common import add_camera_flags, add_samples_flag, check_output_file, rendering
 
 __all__ = ["add_command", "run"]
 
@@ -52,14 +54,17 @@ def run(args):
     check_exposure(args.exposure)
     check_sample_count(args.samples)
     inputs = (args.file, args.solution)
-    png = args.output or (None if args.hdr else "render.png")
+    png = args.output if args.output is not None else (None if args.hdr is not None else "render.png")
     # every output refused before any work: no file half written, no context made for nothing
     if png is not None:
-        check_output(png, ".png", inputs, flag="-o")
+        check_output_file(png, ".png", inputs, flag="-o")
     if args.hdr is not None:
-        check_output(args.hdr, ".npy", inputs, flag="--hdr")
+        check_output_file(args.hdr, ".npy", inputs, flag="--hdr")
     with rendering(args) as (renderer, view, mode):
         hdr = renderer.render(view, mode, args.shading, args.lights, parts=tuple(p for p in PARTS if p not in args.off))
+    if not np.isfinite(hdr).all():  # finite float32 radiance whose samples overflow when summed
+        raise InputError(f"the picture of {str(args.file)!r} has {int(np.sum(~np.isfinite(hdr)))} values beyond "
+                         "float32 (its radiance overflows when the samples of a pixel are added); nothing written")
     write_pictures(hdr, hdr=args.hdr, png=png, exposure=args.exposure)
     if args.hdr:
         print(f"wrote {args.hdr} (linear radiance {hdr.shape[1]}x{hdr.shape[0]}, max {hdr.max():.4g}, "
@@ -72,11 +77,13 @@ def run(args):
 def run_video(args):
     from display.video import write_video
 
-    if not 2 <= args.frames <= 100_000 or not 1 <= args.fps <= 240:
-        raise InputError("--frames must be 2 to 100000 and --fps 1 to 240")
+    if not 2 <= args.frames <= 100_000:
+        raise InputError(f"--frames must be 2 to 100000 for a video, got {args.frames}")
+    if not 1 <= args.fps <= 240:
+        raise InputError(f"--fps must be 1 to 240, got {args.fps}")
     check_exposure(args.exposure)
     check_sample_count(args.samples)
-    check_output(args.video, ".mp4", (args.file, args.solution), flag="--video")
+    check_output_file(args.video, ".mp4", (args.file, args.solution), flag="--video")
     with rendering(args) as (renderer, view, mode):
         if mode not in renderer.modes:
             raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")

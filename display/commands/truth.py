@@ -8,14 +8,15 @@ import os
 
 import numpy as np
 
-from radiosity.formats import InputError, check_output, presets
+from radiosity.formats import InputError, presets
 from radiosity.formats.limits import available_memory, check_exposure, check_seed
 
-from .common import add_camera_flags
+from .common import add_camera_flags, check_drawable, check_output_file, sniff
 
 __all__ = ["TRUTH_BYTES_PER_PIXEL", "add_command", "run", "truth_camera"]
 
 TRUTH_BYTES_PER_PIXEL = 4 * 3 * 8 + 3 * 4  # the running sums of both halves (float64) and the image
+MAX_THREADS = 1024  # a thread pool of more would be reported, not run (the path tracer's tiles are fewer)
 
 
 def add_command(subparsers):
@@ -57,17 +58,19 @@ def run(args):
 
     spp = args.spp if args.spp is not None else presets.preset(args.quality).truth_spp
     check_spp(spp)
-    if args.threads is not None and args.threads < 1:
-        raise InputError(f"--threads must be a whole number >= 1, got {args.threads}")
+    if args.threads is not None and not 1 <= args.threads <= MAX_THREADS:
+        raise InputError(f"--threads must be a whole number from 1 to {MAX_THREADS}, got {args.threads}")
     check_seed(args.seed)
     check_exposure(args.exposure)
     inputs = (args.input,) if os.path.exists(args.input) else ()
-    png = args.output or (None if args.hdr else "truth.png")
+    png = args.output if args.output is not None else (None if args.hdr is not None else "truth.png")
     if png is not None:
-        check_output(png, ".png", inputs, flag="-o")
+        check_output_file(png, ".png", inputs, flag="-o")
     if args.hdr is not None:
-        check_output(args.hdr, ".npy", inputs, flag="--hdr")
-    source = scene_for_truth(args.input)
+        check_output_file(args.hdr, ".npy", inputs, flag="--hdr")
+    if os.path.isfile(args.input):
+        sniff(args.input)  # a meta nested too deep is one line here, not a RecursionError in the reader
+    source = check_drawable(scene_for_truth(args.input), args.input)
     camera = truth_camera(args, source)
     need, free = camera.width * camera.height * TRUTH_BYTES_PER_PIXEL, available_memory()
     if free is not None and need > free:

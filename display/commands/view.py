@@ -6,10 +6,17 @@ from __future__ import annotations
 import numpy as np
 
 from display.gl import check_image_memory, check_sample_count
-from radiosity.formats import InputError, check_output
+from radiosity.formats import InputError
 from radiosity.formats.limits import check_exposure
 
-from .common import add_camera_flags, add_samples_flag, check_model_files, read_model_files, resolve_view
+from .common import (
+    add_camera_flags,
+    add_samples_flag,
+    check_model_files,
+    check_output_file,
+    read_model_files,
+    resolve_view,
+)
 
 __all__ = ["add_command", "open_window", "run"]
 
@@ -49,7 +56,7 @@ def run(args):
     if args.screenshot is not None:
         if args.frames is None:
             raise InputError("--screenshot saves the last of --frames N: give --frames too")
-        check_output(args.screenshot, ".png", (args.file, args.solution), flag="--screenshot")
+        check_output_file(args.screenshot, ".png", (args.file, args.solution), flag="--screenshot")
     check_model_files(args.file, args.solution)
     check_image_memory(*args.size, samples=args.samples)
     fit, solution = read_model_files(args.file, args.solution)
