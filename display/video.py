@@ -82,7 +82,8 @@ def _temporary_name(directory, name):
     return f".{name}.{secrets.token_hex(6)}.partial.mp4"
 
 
-def write_video(renderer, path, base_view, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0, progress=False):
+def write_video(renderer, path, base_view, *, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0,
+                progress=False):
     """Render the walkthrough and encode it; returns the number of frames written.
 
     ffmpeg (imageio-ffmpeg's executable) writes to a temporary name beside ``path``,

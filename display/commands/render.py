@@ -87,8 +87,8 @@ def run_video(args):
     with rendering(args) as (renderer, view, mode):
         if mode not in renderer.modes:
             raise InputError(f"mode {mode!r} is not available for this input ({', '.join(renderer.modes)})")
-        frames = write_video(renderer, args.video, view, args.frames, args.fps, mode, args.shading, args.exposure,
-                             progress=True)
+        frames = write_video(renderer, args.video, view, frames=args.frames, fps=args.fps, mode=mode,
+                             shading=args.shading, exposure=args.exposure, progress=True)
     print(f"wrote {args.video} ({frames} frames at {args.fps} fps, {view.width}x{view.height}, {mode}, "
           f"{args.samples} samples per pixel)")
     return 0

@@ -144,6 +144,7 @@ class ObjectSolution:
         floats, ints = "fiu", "iu"
         for key in ("positions", "normals", "tangents"):
             put(self, key, _as_array(name, key, getattr(self, key), np.float32, floats))
+        given_faces = np.asarray(self.faces)  # its range is checked before the int32 cast could wrap it
         put(self, "faces", _as_array(name, "faces", self.faces, np.int32, ints))
         put(self, "directions", _as_array(name, "directions", self.directions, np.float32, floats))
         put(self, "radiance", _as_array(name, "radiance", self.radiance, np.float32, floats))
@@ -174,10 +175,11 @@ class ObjectSolution:
         for key in ("positions", "normals", "tangents"):
             if not np.isfinite(getattr(self, key)).all():
                 raise _Invalid(f"'{name}/{key}' contains NaN or infinite values")
-        if f.size and (f.min() < 0 or f.max() >= v):
-            raise _Invalid(
-                f"'{name}/faces' has vertex indices from {f.min()} to {f.max()}, outside [0, {v})"
-            )
+        if f.shape[0] == 0:
+            raise _Invalid(f"'{name}/faces' is empty: object '{name}' has no faces")
+        low, high = int(given_faces.min()), int(given_faces.max())
+        if low < 0 or high >= v:
+            raise _Invalid(f"'{name}/faces' has vertex indices from {low} to {high}, outside [0, {v})")
         length = np.linalg.norm(d.astype(np.float64), axis=1)
         if not (np.abs(length - 1.0) <= _UNIT_TOLERANCE).all():
             off = np.abs(length - 1.0)

@@ -185,6 +185,10 @@ def test_duplicate_names_are_refused():
         ({"radiance": np.zeros((9, 2, 3))}, "radiance"),
         ({"faces": np.array([[0, 1, 9]])}, "faces"),
         ({"faces": np.zeros((1, 3), dtype=np.float32)}, "integers"),
+        # indices that an int32 cast would wrap back into range, and an object with no faces
+        ({"faces": np.array([[0, 1, 2]], np.int64) + 2**40}, r"from 1099511627776 to 1099511627778, outside \[0, 9\)"),
+        ({"faces": np.array([[0, 1, 2]], np.uint64) + np.uint64(2**63)}, "outside"),
+        ({"faces": np.zeros((0, 3), np.int64)}, "'x/faces' is empty: object 'x' has no faces"),
         ({"directions": DIFFUSE_DIRECTIONS * 2.0}, "unit"),
         ({"directions": grid_directions(2)[::-1].copy(), "radiance": np.zeros((9, 4, 3))}, "grid"),
         ({"radiance": np.full((9, 1, 3), np.inf)}, "infinite"),
