@@ -398,25 +398,15 @@ def add_export_command(subparsers):
 
 
 def _check_fit_file(path):
-    """A fit.npz, or InputError in one line (missing, a directory, a solution.npz, another file)."""
+    """A fit.npz, or InputError in one line (missing, a directory, a solution.npz, another
+    file): the one sniffer, ``radiosity.formats.sniff.require_format``."""
     import os
 
-    from radiosity.formats import file_format
+    from radiosity.formats.sniff import FIT, SOLUTION, input_kind, require_format
 
-    shown = str(path)
-    if not os.path.exists(path):
-        raise InputError(f"input {shown!r} not found")
-    if os.path.isdir(path):
-        raise InputError(f"input {shown!r} is a directory, not a fit.npz")
-    try:
-        fmt = file_format(path)
-    except RecursionError:
-        raise InputError(f"input {shown!r}: its meta is JSON nested too deep to read") from None
-    if fmt == "vlights.solution":
-        raise InputError(f"input {shown!r} is a solution.npz, not a fit.npz (run 'vlights fit' on it first)")
-    if fmt != "vlights.fit":
-        found = f"an .npz file of format {fmt!r}" if fmt is not None else "not one of this program's .npz files"
-        raise InputError(f"input {shown!r} is not a fit.npz: it is {found}")
+    if not os.path.isdir(path) and os.path.exists(path) and input_kind(path) == SOLUTION:
+        raise InputError(f"input {str(path)!r} is a solution.npz, not a fit.npz (run 'vlights fit' on it first)")
+    require_format(path, (FIT,), "input")
 
 
 def run_export_command(args):

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 
 from display import gl
 from radiosity.formats import InputError
@@ -66,21 +65,14 @@ def sniff(path, label="input"):
 
 def input_format(path, accepted, label):
     """The format of the input file ``path`` (FIT or SOLUTION), which must be one of
-    ``accepted``; InputError naming ``label`` (the argument) and what is wrong otherwise.
-    What a file is comes from ``radiosity.formats.file_format``."""
-    shown = str(path)
-    want = " or a ".join(_FILE_NAMES[f] for f in accepted)
-    if not os.path.exists(path):
-        raise InputError(f"{label} {shown!r} not found")
-    if os.path.isdir(path):
-        raise InputError(f"{label} {shown!r} is a directory, not a {want}")
-    fmt = sniff(path, label)
-    if fmt in accepted:
-        return fmt
-    if fmt in _FILE_NAMES:
-        raise InputError(f"{label} {shown!r} is a {_FILE_NAMES[fmt]}, not a {want}")
-    found = f"an .npz file of format {fmt!r}" if fmt is not None else "not one of this program's .npz files"
-    raise InputError(f"{label} {shown!r} is not a {want}: it is {found}")
+    ``accepted``; InputError naming ``label`` (the argument) and what the file is
+    otherwise: the one sniffer, ``radiosity.formats.sniff.require_format``."""
+    from radiosity.formats.sniff import require_format
+
+    try:
+        return require_format(path, accepted, label)
+    except RecursionError:
+        raise InputError(f"{label} {str(path)!r}: its meta is JSON nested too deep to read") from None
 
 
 def check_model_files(path, extra_solution=None):
