@@ -28,18 +28,22 @@ def scene_for_truth(path):
     """The source to path-trace: a solution.npz (its meshes and materials, what its
     displays show), or a scene (TOML, OBJ, glTF or a built-in name). A fit.npz holds no
     materials and is refused (InputError)."""
-    from radiosity.formats import file_format, load_solution
+    from radiosity.formats import load_solution
+    from radiosity.formats.sniff import FIT, SOLUTION, input_kind
 
     from . import pipeline
 
     text = str(path)
-    if not (text.endswith(".npz") or (os.path.isfile(text) and file_format(text) is not None)):
+    kind = input_kind(text) if os.path.lexists(text) and not os.path.isdir(text) else None
+    npz = text.endswith(".npz")
+    if kind in ("scene", "mesh") or (kind in (None, "unknown") and not npz):
         return pipeline.load_scene(text)  # a scene file or a built-in; the loader names what is wrong
-    fmt = file_format(text)  # InputError if missing
-    if fmt == "vlights.fit":
+    if kind is None:
+        raise InputError(f"{text!r} not found")
+    if kind == FIT:
         raise InputError(f"{text!r} is a fit.npz, which holds no materials to path-trace; give the "
                          "solution.npz it was fitted to, or the scene")
-    if fmt != "vlights.solution":
+    if kind != SOLUTION:
         raise InputError(f"{text!r} is not a solution.npz (nor a scene)")
     return load_solution(text)
 
