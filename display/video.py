@@ -6,14 +6,13 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import secrets
 import subprocess
 import tempfile
 
 import numpy as np
 
 from radiosity.formats import Camera, InputError
-from radiosity.formats.atomic import OutputError
+from radiosity.formats.atomic import OutputError, temporary_name
 
 from .renderer import tonemap
 
@@ -68,20 +67,6 @@ def _ffmpeg_reason(log):
     return re.sub(r"^\[[^]]*\]\s*", "", lines[-1])
 
 
-def _temporary_name(directory, name):
-    """``.<name>.<12 hex>.partial.mp4``, ``name`` cut (by whole characters) so that the
-    whole fits the directory's limit on a name (NAME_MAX): any name the file system
-    takes for the video gets a temporary name too."""
-    try:
-        limit = int(os.pathconf(directory, "PC_NAME_MAX"))
-    except (OSError, ValueError, AttributeError):
-        limit = 255
-    room = limit - len("..0123456789ab.partial.mp4")
-    while len(os.fsencode(name)) > room:
-        name = name[:-1]
-    return f".{name}.{secrets.token_hex(6)}.partial.mp4"
-
-
 def write_video(renderer, path, base_view, *, frames=120, fps=30, mode="fitted", shading="pixel", exposure=1.0,
                 progress=False):
     """Render the walkthrough and encode it; returns the number of frames written.
@@ -99,7 +84,7 @@ def write_video(renderer, path, base_view, *, frames=120, fps=30, mode="fitted",
         views = tqdm(views, desc="video", unit="frame", disable=None, dynamic_ncols=True)
     target = os.path.abspath(path)
     directory, name = os.path.split(target)
-    temporary = os.path.join(directory, _temporary_name(directory, name))
+    temporary = os.path.join(directory, temporary_name(directory, name, ".partial.mp4"))
     shown = os.fspath(path)
     process = None
     with tempfile.TemporaryFile() as log:

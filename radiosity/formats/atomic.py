@@ -104,13 +104,13 @@ def _name_max(directory: str) -> int:
         return 255
 
 
-def _temporary_name(directory: str, name: str) -> str:
-    """``.<name>.<12 hex>.tmp``, ``name`` cut (by whole characters) so the whole fits
-    the directory's NAME_MAX."""
-    room = _name_max(directory) - len(".") - len(".0123456789ab.tmp")
+def temporary_name(directory: str, name: str, suffix: str = ".tmp") -> str:
+    """``.<name>.<12 hex><suffix>``, ``name`` cut (by whole characters) so the whole fits
+    the directory's NAME_MAX: any name the file system takes gets a temporary name too."""
+    room = _name_max(directory) - len(".") - len(".0123456789ab") - len(os.fsencode(suffix))
     while len(os.fsencode(name)) > room:
         name = name[:-1]
-    return f".{name}.{secrets.token_hex(6)}.tmp"
+    return f".{name}.{secrets.token_hex(6)}{suffix}"
 
 
 def _probe(directory: str, name: str, shown: str, flag: str) -> None:
@@ -131,7 +131,7 @@ def _create_temporary(directory: str, name: str) -> tuple[str, int]:
     """Create a new, empty file beside the target; returns (path, descriptor)."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
     for _ in range(100):
-        tmp = os.path.join(directory, _temporary_name(directory, name))
+        tmp = os.path.join(directory, temporary_name(directory, name))
         try:
             return tmp, os.open(tmp, flags, 0o666)
         except FileExistsError:
