@@ -33,6 +33,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from radiosity.transport.signals import HeldSignals
+
 MISS = -1
 RELATIVE_EPSILON = 1e-5  # ray-origin offset, as a fraction of the scene's bounding-box diagonal
 OFFSET_ULPS = 8  # ... and at least this many float32 spacings of the largest coordinate
@@ -344,8 +346,9 @@ class RayTracer:
         chunks = list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
         if k == 1:
             fn(*chunks[0])
-        else:
-            list(self._pool.map(lambda c: fn(*c), chunks))
+        else:  # a Ctrl-C or SIGTERM held until the chunks are done (signals.py says why)
+            with HeldSignals():
+                list(self._pool.map(lambda c: fn(*c), chunks))
 
     def intersect(self, origins, directions):
         """Closest hits of rays (origins, directions: (N, 3) float32; directions unit).

@@ -7,12 +7,14 @@ the same way. The counterpart on a cluster is ``distributed.DaskRunner``.
 from __future__ import annotations
 
 from collections import deque
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from concurrent.futures import ThreadPoolExecutor
+from queue import SimpleQueue
 from typing import NamedTuple
 
 from radiosity.transport.batches import PHOTON_BATCH, gather_block, trace_photon_batch
 from radiosity.transport.embree import RayTracer
 from radiosity.transport.records import SceneArrays
+from radiosity.transport.signals import HeldSignals
 
 
 class _NullProgress:
@@ -74,16 +76,32 @@ def in_order(pool, jobs, combine, progress, weights):
 
 
 class _ThreadPool:
-    """``in_order``'s view of a ``ThreadPoolExecutor`` running ``fn(job)``."""
+    """``in_order``'s view of a ``ThreadPoolExecutor`` running ``fn(job)``.
+
+    Its ``held`` signals (``signals.HeldSignals``) raise only in ``wait_first``: a Ctrl-C
+    or SIGTERM landing while the main thread holds one of ``concurrent.futures``' locks
+    would leave it held, and the pool's shutdown would wait forever for the worker
+    blocked on it. It waits on a queue that its futures' done-callbacks feed (and the
+    held signal's handler too, so that a signal ends the wait at once)."""
 
     def __init__(self, executor, fn, threads):
         self.executor, self.fn, self.window = executor, fn, 2 * threads + 1
+        self.finished = SimpleQueue()  # a None per future done (put once its state is set), or per signal
+        self.held = HeldSignals(wake=lambda: self.finished.put(None))
 
     def submit(self, job):
-        return self.executor.submit(self.fn, job)
+        future = self.executor.submit(self.fn, job)
+        future.add_done_callback(self._done)
+        return future
+
+    def _done(self, _future):  # in the worker thread; not the future itself: the queue would keep its result
+        self.finished.put(None)
 
     def wait_first(self, futures):
-        wait(futures, return_when=FIRST_COMPLETED)
+        self.held.check()
+        while not any(f.done() for f in futures):
+            self.finished.get()
+            self.held.check()
 
     def result(self, future):
         return future.result()
@@ -96,8 +114,10 @@ class _ThreadPool:
 def run_ordered(workers, fn, jobs, combine, progress, weights):
     """Run ``fn(job)`` for every job on ``workers.pool`` (``in_order``), and ``combine``
     the results in job order (deterministic sums); stops early and cleanly on
-    KeyboardInterrupt."""
-    in_order(_ThreadPool(workers.pool, fn, workers.threads), jobs, combine, progress, weights)
+    KeyboardInterrupt or SIGTERM (held until the main thread holds no pool lock)."""
+    pool = _ThreadPool(workers.pool, fn, workers.threads)
+    with pool.held:
+        in_order(pool, jobs, combine, progress, weights)
 
 
 class Workers(NamedTuple):

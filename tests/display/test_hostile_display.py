@@ -550,14 +550,8 @@ def test_stopping_compare_leaves_the_old_directory(signum, status, said, sound_p
     assert listing(temporary) == []
 
 
-# SIGTERM to truth hung once (no exit in 120 s) in a cold-cache run of the whole suite on
-# 2 loaded cores, and passed in every run alone, cold or warm: not understood yet, so
-# that case runs with the slow tests (``pytest -m slow``) until it is
-TRUTH_STOPS = [STOPS[0], pytest.param(*STOPS[1], marks=pytest.mark.slow)]
-
-
 @pytest.mark.subprocess
-@pytest.mark.parametrize("signum, status, said", TRUTH_STOPS)
+@pytest.mark.parametrize("signum, status, said", STOPS)
 def test_stopping_truth_leaves_the_old_files(signum, status, said, sound_pair, tmp_path):
     temporary, out = _env(tmp_path), tmp_path / "out"
     out.mkdir()
