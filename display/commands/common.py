@@ -30,9 +30,15 @@ def size(text):
     return w, h
 
 
+class DefaultSize(tuple):
+    """``--size``'s default: a (width, height) that says it was not given
+    (``isinstance(args.size, DefaultSize)``), so a scene's film size can stand in."""
+
+
 def add_camera_flags(parser, default_size):
     """The camera flags (eye, look-at, up, field of view, size, named views); the
     default camera is the scene's."""
+    default_size = DefaultSize(default_size)
     parser.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))

@@ -11,7 +11,7 @@ import numpy as np
 from radiosity.formats import InputError, presets
 from radiosity.formats.limits import available_memory, check_exposure, check_seed
 
-from .common import add_camera_flags, check_drawable, check_output_file, sniff
+from .common import DefaultSize, add_camera_flags, check_drawable, check_output_file, sniff
 
 __all__ = ["TRUTH_BYTES_PER_PIXEL", "add_command", "run", "truth_camera"]
 
@@ -44,9 +44,13 @@ def add_command(subparsers):
 
 def truth_camera(args, source):
     """The camera of ``vlights truth``: from the flags, else the source's own camera
-    (a solution's or a scene's), else a view framing it."""
+    (a solution's or a scene's), else a view framing it; without --size, at the size of
+    the scene's film if it gives one (a Mitsuba sensor's)."""
     from display.camera import resolve_camera
 
+    film = getattr(source, "film", None)
+    if film is not None and isinstance(args.size, DefaultSize):
+        args.size = DefaultSize(film)
     positions = np.concatenate([o.positions for o in source.objects])
     return resolve_camera(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), source.camera)
 

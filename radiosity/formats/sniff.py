@@ -22,7 +22,7 @@ __all__ = ["FILE_NAMES", "FIT", "MESH_SUFFIXES", "SCENE_SUFFIXES", "SOLUTION", "
 
 SOLUTION, FIT = "vlights.solution", "vlights.fit"
 FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
-SCENE_SUFFIXES = (".toml",)
+SCENE_SUFFIXES = (".toml", ".xml")
 MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".ply", ".stl", ".off")
 _LIMITS = {"scene": TEXT_BYTES, "mesh": MESH_BYTES}
 

@@ -120,6 +120,7 @@ class Scene:
     objects: tuple[SceneObject, ...]
     camera: Camera | None = None
     source: str = ""
+    film: tuple[int, int] | None = None  # the image size the scene asks for (a Mitsuba sensor's film), if any
 
     def __post_init__(self):
         if not self.objects:
@@ -225,11 +226,16 @@ def build_object(
     crease_angle_deg=DEFAULT_CREASE_ANGLE_DEG,
     source="",
     warn_degenerate=True,
+    normals=None,
 ):
     """A SceneObject from a raw triangle soup in world space.
 
     Checks coordinates, welds coincident vertices, drops degenerate triangles (with a
     SceneWarning counting them), and computes crease-split normals and tangents.
+    ``normals`` (V, 3), a mesh file's own per-vertex normals, are kept instead (the
+    vertices are then not welded: a seam's copies keep their own normals); where one
+    is zero or not finite, or points away from every triangle using the vertex, the
+    computed one is used.
     """
     where = f"object {name!r}" + (f" ({source})" if source else "")
     positions = np.asarray(positions, dtype=np.float64)
@@ -251,6 +257,9 @@ def build_object(
     faces = faces.astype(np.int64)
     if faces.min() < 0 or faces.max() >= len(positions):
         raise InputError(f"{where}: a triangle refers to a vertex that does not exist")
+    if normals is not None:
+        return _with_normals(name, material, positions, faces, normals, where=where, source=source,
+                             warn_degenerate=warn_degenerate)
     extent = float(np.ptp(positions[faces.ravel()], axis=0).max())
     positions, faces = geometry.weld(positions, faces, 1e-9 * max(extent, np.finfo(float).tiny))
     positions, faces, dropped = geometry.remove_degenerate(positions, faces)
@@ -268,3 +277,32 @@ def build_object(
         faces=faces,
         source=source,
     )
+
+
+def _with_normals(name, material, positions, faces, normals, *, where, source, warn_degenerate):
+    """``build_object``'s path for a mesh with its own per-vertex normals."""
+    normals = np.asarray(normals, dtype=np.float64)
+    if normals.shape != positions.shape:
+        raise InputError(f"{where}: {len(normals)} normals for {len(positions)} vertices")
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    diag2 = float(np.sum(np.ptp(positions[faces.ravel()], axis=0) ** 2))
+    _, area = geometry.face_normals(positions, faces)
+    keep = ~repeated & (area > 1e-14 * diag2)  # as geometry.remove_degenerate
+    dropped = int(len(faces) - keep.sum())
+    if dropped and warn_degenerate:
+        warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=3)
+    if not keep.any():
+        raise InputError(f"{where}: every triangle is degenerate (zero area)")
+    positions, faces, normals = geometry.compact(positions, faces[keep], normals)
+    face_n, area = geometry.face_normals(positions, faces)
+    length = np.linalg.norm(normals, axis=1)
+    unit = normals / np.where(length > 0, length, 1.0)[:, None]
+    average = np.zeros_like(positions)
+    agrees = np.full(len(positions), -np.inf)
+    for corner in range(3):
+        np.add.at(average, faces[:, corner], face_n * area[:, None])
+        np.maximum.at(agrees, faces[:, corner], np.einsum("ij,ij->i", unit[faces[:, corner]], face_n))
+    bad = ~np.isfinite(length) | (length < 1e-12) | ~(agrees > 0)  # none given, or facing away from its triangles
+    unit[bad] = average[bad] / np.linalg.norm(average[bad], axis=1, keepdims=True)
+    return SceneObject(name=name, material=material, positions=positions, normals=unit,
+                       tangents=geometry.tangents(unit), faces=faces, source=source)

@@ -15,8 +15,9 @@ import pytest
 
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.scene import geometry
-from radiosity.scene.loaders import decode_text, load_scene
+from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import Material
+from radiosity.scene.meshfiles import decode_text
 from radiosity.scene.model import MAX_COORDINATE, Scene, build_object
 
 BOM = b"\xef\xbb\xbf"
