@@ -19,7 +19,10 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import TEXT_BYTES, loads_json, read_input_bytes
 
-__all__ = ["DEFAULT_FOV_Y_DEG", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "camera_from_meta", "load_views"]
+__all__ = [
+    "DEFAULT_FOV_Y_DEG", "FOV_AXES", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "camera_from_meta", "fov_y_deg",
+    "load_views", "pose_from_matrix",
+]
 
 DEFAULT_FOV_Y_DEG = 39.3
 MAX_IMAGE_SIDE = 16384
@@ -136,6 +139,41 @@ def camera_from_dict(data, width=512, height=512, where="camera"):
                       data.get("fov_y_deg", DEFAULT_FOV_Y_DEG), width, height)
     except InputError as exc:
         raise InputError(f"{where}: {str(exc).removeprefix('camera: ')}") from None
+
+
+FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
+
+
+def fov_y_deg(fov_deg, axis, width, height):
+    """The vertical field of view of an image ``width`` x ``height`` whose field of
+    view along ``axis`` (FOV_AXES: the image's width, height, diagonal, or its smaller
+    or larger side, as Mitsuba's ``fov_axis``) is ``fov_deg``."""
+    if axis not in FOV_AXES:
+        raise InputError(f"camera: the fov axis must be one of {', '.join(FOV_AXES)}, got {axis!r}")
+    if not (isinstance(fov_deg, int | float) and math.isfinite(fov_deg) and 0 < fov_deg < 180):
+        raise InputError(f"camera: the field of view must be between 0 and 180 degrees, got {fov_deg!r}")
+    if axis == "smaller":
+        axis = "x" if width < height else "y"
+    elif axis == "larger":
+        axis = "x" if width > height else "y"
+    ratio = {"x": height / width, "y": 1.0, "diagonal": height / math.hypot(width, height)}[axis]
+    return math.degrees(2 * math.atan(math.tan(math.radians(fov_deg) / 2) * ratio))
+
+
+def pose_from_matrix(matrix):
+    """(eye, look_at, up) of a camera-to-world 4x4 matrix in Mitsuba's convention: the
+    camera at the origin of its frame, looking along +z, +y up (and +x to the left);
+    and whether the matrix mirrors the image (a negative determinant), which a
+    ``Camera`` cannot: the caller says so."""
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4) or not np.isfinite(m).all():
+        raise InputError(f"camera: the matrix must be 4x4 finite numbers, got shape {m.shape}")
+    linear = m[:3, :3]
+    eye, forward, up = m[:3, 3], linear @ [0.0, 0.0, 1.0], linear @ [0.0, 1.0, 0.0]
+    if np.linalg.norm(forward) == 0:
+        raise InputError("camera: the matrix maps the viewing direction to zero")
+    look_at = eye + forward / np.linalg.norm(forward)
+    return tuple(eye), tuple(look_at), tuple(up), bool(np.linalg.det(linear) < 0)
 
 
 def camera_from_meta(meta, fail):

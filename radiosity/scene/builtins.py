@@ -27,7 +27,7 @@ from radiosity.formats.errors import InputError
 from radiosity.scene import teapot
 
 SCENES = ("cornell", "cornell-teapot", "plates")
-MESHES = ("teapot", "sphere", "quad", "cube", "cornell:<part>")
+MESHES = ("teapot", "sphere", "quad", "cube", "disk", "cylinder", "cornell:<part>")
 LIGHT_DROP_MM = 0.1  # the measured light lies in the ceiling plane; lower it this much
 
 
@@ -47,12 +47,21 @@ def scene_path(name):
     return resources.files("radiosity.scene").joinpath(f"data/{name}.toml")
 
 
-def mesh(spec, *, resolution=None, subdivisions=None):
+def mesh(spec, *, resolution=None, subdivisions=None, segments=None):
     """Positions and faces of the built-in mesh named ``spec``.
 
     ``resolution`` applies to the teapot (segments per patch side, default 8),
-    ``subdivisions`` to the sphere (icosphere levels, default 3).
+    ``subdivisions`` to the sphere (icosphere levels, default 3), ``segments`` to the
+    disk (the unit disk in z = 0, facing +z) and the cylinder (radius 1, z from 0 to 1,
+    open, facing out), around their circle (default 64).
     """
+    if segments is not None and spec not in ("disk", "cylinder"):
+        raise InputError(f"'segments' applies to builtin 'disk' and 'cylinder' only, not {spec!r}")
+    if spec in ("disk", "cylinder"):
+        n = 64 if segments is None else segments
+        if not isinstance(n, int) or isinstance(n, bool) or not 3 <= n <= 4096:
+            raise InputError(f"{spec} segments must be a whole number from 3 to 4096, got {n!r}")
+        return disk(n) if spec == "disk" else cylinder(n)
     if resolution is not None and spec != "teapot":
         raise InputError(f"'resolution' applies to builtin 'teapot' only, not {spec!r}")
     if subdivisions is not None and spec != "sphere":
@@ -107,3 +116,23 @@ def _cornell_part(part):
         positions.append(q)
         faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
     return np.concatenate(positions), np.asarray(faces, dtype=np.int64)
+
+
+def disk(segments):
+    """The unit disk in z = 0, facing +z: a fan of ``segments`` triangles."""
+    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    positions = np.concatenate([[[0.0, 0.0, 0.0]], np.stack([np.cos(angles), np.sin(angles), 0 * angles], 1)])
+    ring = np.arange(segments)
+    faces = np.stack([np.zeros(segments, dtype=np.int64), 1 + ring, 1 + (ring + 1) % segments], 1)
+    return positions, faces
+
+
+def cylinder(segments):
+    """The open cylinder of radius 1 from z = 0 to z = 1, facing outwards."""
+    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    circle = np.stack([np.cos(angles), np.sin(angles)], 1)
+    positions = np.concatenate([np.c_[circle, np.zeros(segments)], np.c_[circle, np.ones(segments)]])
+    ring = np.arange(segments)
+    nxt = (ring + 1) % segments
+    faces = np.concatenate([np.stack([ring, nxt, segments + nxt], 1), np.stack([ring, segments + nxt, segments + ring], 1)])
+    return positions, faces.astype(np.int64)

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from radiosity.formats.camera import camera_from_dict
+from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX
@@ -53,14 +53,14 @@ from radiosity.scene.meshfiles import (
     trimesh_load,
 )
 from radiosity.scene.mitsuba import load_mitsuba
-from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object
+from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object, with_backs
 
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
 _OBJECT_KEYS = {
     "name", "mesh", "builtin", "material", "scale", "rotate_deg", "translate",
-    "resolution", "subdivisions", "crease_angle_deg", "flip",
+    "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
 }
-_CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg"}
+_CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg", "matrix", "fov_deg", "fov_axis", "width", "height"}
 _TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units"}
 
 
@@ -111,8 +111,17 @@ def _load_toml(text, base_dir, *, name, where):
     objects = [
         _parse_object(entry, i, materials, base_dir, where) for i, entry in enumerate(objects_data)
     ]
-    camera = _parse_camera(data["camera"], where) if "camera" in data else None
-    return Scene(name=str(data.get("name", name)), objects=tuple(objects), camera=camera, source=where)
+    two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
+    camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
+    return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
+                 source=where, film=film)
+
+
+def _two_sided(entry, name, where):
+    value = entry.get("twosided", False)
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: object {name!r}: 'twosided' must be true or false, got {value!r}")
+    return value
 
 
 def _check_keys(table, allowed, where):
@@ -170,9 +179,53 @@ def _material(name, *, diffuse, specular, exponent, emission, where=""):
 
 
 def _parse_camera(table, where):
+    """(Camera, film (width, height) or None) of a scene's [camera]: a pose (eye or
+    position, look_at, up) or a camera-to-world ``matrix`` (Mitsuba's convention:
+    looking along +z, +y up); ``fov_y_deg``, or ``fov_deg`` along ``fov_axis`` (x, y,
+    diagonal, smaller, larger); optionally the film's ``width`` and ``height``."""
     here = f"{where}: [camera]"
     _check_keys(table, _CAMERA_KEYS, here)
-    return camera_from_dict(table, where=here)
+    film = None
+    if "width" in table or "height" in table:
+        w, h = table.get("width"), table.get("height")
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_IMAGE_SIDE for v in (w, h)):
+            raise InputError(f"{here}: 'width' and 'height' must both be whole numbers from 1 to {MAX_IMAGE_SIDE}")
+        film = (w, h)
+    width, height = film or (512, 512)
+    pose = {k: table[k] for k in ("position", "eye", "look_at", "up") if k in table}
+    if "fov_deg" in table or "fov_axis" in table:
+        if "fov_y_deg" in table:
+            raise InputError(f"{here}: give 'fov_y_deg' or 'fov_deg' (with 'fov_axis'), not both")
+        fov = _number(table.get("fov_deg", DEFAULT_FOV_Y_DEG), here, "fov_deg")
+        axis = table.get("fov_axis", "y")
+        try:
+            pose["fov_y_deg"] = fov_y_deg(fov, axis, width, height)
+        except InputError as exc:
+            raise InputError(f"{here}: {str(exc).removeprefix('camera: ')}") from None
+    elif "fov_y_deg" in table:
+        pose["fov_y_deg"] = table["fov_y_deg"]
+    if "matrix" in table:
+        if {"position", "eye", "look_at", "up"} & set(table):
+            raise InputError(f"{here}: give a 'matrix' or eye, look_at and up, not both")
+        matrix = _matrix(table["matrix"], here, "matrix")
+        try:
+            eye, look_at, up, mirrored = pose_from_matrix(matrix)
+        except InputError as exc:
+            raise InputError(f"{here}: {str(exc).removeprefix('camera: ')}") from None
+        if mirrored:
+            warnings.warn(f"{here}: the matrix mirrors the image: drawn unmirrored", SceneWarning, stacklevel=3)
+        pose |= {"eye": eye, "look_at": look_at, "up": up}
+    return camera_from_dict(pose, width, height, where=here), film
+
+
+def _matrix(value, where, key):
+    """A 4x4 matrix from 4 rows of 4 numbers or 16 numbers, row-major."""
+    rows = value
+    if isinstance(value, list) and len(value) == 16 and all(not isinstance(v, list) for v in value):
+        rows = [value[i:i + 4] for i in range(0, 16, 4)]
+    if not (isinstance(rows, list) and len(rows) == 4 and all(isinstance(r, list) and len(r) == 4 for r in rows)):
+        raise InputError(f"{where}: '{key}' must be 4 rows of 4 numbers (or 16 numbers, row by row)")
+    return np.array([[_number(v, where, key) for v in row] for row in rows])
 
 
 def _parse_object(entry, index, materials, base_dir, where):
@@ -206,13 +259,14 @@ def _parse_object(entry, index, materials, base_dir, where):
             raise InputError(f"{here}: 'builtin' must be a string, got {spec!r}")
         try:
             positions, faces = builtins.mesh(
-                spec, resolution=entry.get("resolution"), subdivisions=entry.get("subdivisions")
+                spec, resolution=entry.get("resolution"), subdivisions=entry.get("subdivisions"),
+                segments=entry.get("segments"),
             )
         except InputError as exc:
             raise InputError(f"{here}: {exc}") from None
         source = f"builtin {spec}"
     else:
-        for key in ("resolution", "subdivisions"):
+        for key in ("resolution", "subdivisions", "segments"):
             if key in entry:
                 raise InputError(f"{here}: '{key}' applies to built-in meshes only")
         mesh_file = entry["mesh"]
@@ -231,11 +285,16 @@ def _parse_object(entry, index, materials, base_dir, where):
         rotate_deg=_vec3(entry.get("rotate_deg", [0, 0, 0]), here, "rotate_deg"),
         translate=_vec3(entry.get("translate", [0, 0, 0]), here, "translate"),
     )
+    if "transform" in entry:  # a 4x4 matrix, applied after scale, rotate_deg and translate
+        transform = _matrix(entry["transform"], here, "transform")
+        if not np.allclose(transform[3], [0, 0, 0, 1]) or abs(np.linalg.det(transform[:3, :3])) < 1e-300:
+            raise InputError(f"{here}: 'transform' must be affine (last row 0 0 0 1) and not singular")
+        matrix = transform @ matrix
     within = np.abs(positions).max() <= MAX_COORDINATE  # False for NaN: build_object names that
     positions, faces, _ = geometry.apply_transform(matrix, positions, faces)
     reach = np.abs(positions).max()
     if within and not reach <= MAX_COORDINATE:
-        keys = " and ".join(f"'{k}'" for k in ("scale", "rotate_deg", "translate") if k in entry)
+        keys = " and ".join(f"'{k}'" for k in ("scale", "rotate_deg", "translate", "transform") if k in entry)
         raise InputError(
             f"{here}: {keys} put its coordinates at {reach:.3g}, beyond the +-{MAX_COORDINATE:g} "
             "the single-precision ray tracer handles"

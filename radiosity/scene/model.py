@@ -306,3 +306,42 @@ def _with_normals(name, material, positions, faces, normals, *, where, source, w
     unit[bad] = average[bad] / np.linalg.norm(average[bad], axis=1, keepdims=True)
     return SceneObject(name=name, material=material, positions=positions, normals=unit,
                        tangents=geometry.tangents(unit), faces=faces, source=source)
+
+
+BACK_OFFSET = 1e-4  # a two-sided surface's back lies behind its front by this fraction of the scene's diagonal
+
+
+def is_closed(obj):
+    """Whether a surface is closed (every edge shared by exactly two triangles): its
+    back faces inwards and is never seen, so a two-sided material needs no back."""
+    faces = geometry.position_labels(obj.positions)[obj.faces]  # the copies split at a crease are one point
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return bool(np.all(counts == 2))
+
+
+def back_of(front, name, offset):
+    """The back of a two-sided surface (surfaces are one-sided: the back absorbs): a
+    reversed copy ``offset`` behind the front, along its normals, so that light from
+    behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below."""
+    return SceneObject(name=name, material=front.material, positions=front.positions - offset * front.normals,
+                       normals=-front.normals, tangents=-front.tangents, faces=front.faces[:, ::-1].copy(),
+                       source=front.source)
+
+
+def with_backs(objects, two_sided):
+    """``objects`` with a back (``back_of``) after each open surface whose name is in
+    ``two_sided``, named "<name> (back)"."""
+    everything = np.concatenate([o.positions for o in objects])
+    offset = BACK_OFFSET * float(np.linalg.norm(np.ptp(everything, axis=0)))
+    names = {o.name for o in objects}
+    out = []
+    for obj in objects:
+        out.append(obj)
+        if obj.name in two_sided and not is_closed(obj):
+            name = f"{obj.name} (back)"
+            while name in names:
+                name += "'"
+            names.add(name)
+            out.append(back_of(obj, name, offset))
+    return tuple(out)
