@@ -355,6 +355,21 @@ def trade_truth(rows):
     return out + [""]
 
 
+def mitsuba(rows):
+    out = ["## Against Mitsuba 3 on the same XML", "", where("validate_mitsuba.py", ["mitsuba_validation.jsonl"]),
+           machine(rows), ""]
+    if rows:
+        r0 = rows[0]
+        out += [f"Mitsuba {r0['mitsuba']} ({r0['variant']}) at {4 * r0['spp']} spp is the reference; ours and "
+                f"Mitsuba's own image at {r0['spp']} spp against it (targets: mean within 2 %, our FLIP at or below "
+                "Mitsuba's own).", ""]
+    out += table(["scene", "size", "mean ratio", "FLIP", "relative MSE", "Mitsuba's mean ratio", "Mitsuba's FLIP"],
+                 [[r["scene"], "x".join(map(str, r["size"][::-1])), num(r["ours"]["mean_ratio"], 4),
+                   num(r["ours"]["flip"], 4), num(r["ours"]["relative_mse"], 4),
+                   num(r["mitsuba_noise"]["mean_ratio"], 4), num(r["mitsuba_noise"]["flip"], 4)] for r in rows])
+    return out + [""]
+
+
 SECTIONS = (
     ("solver.jsonl", solver),
     ("pathtrace.jsonl", pathtrace),
@@ -364,6 +379,7 @@ SECTIONS = (
     ("web.jsonl", web),
     ("trade.jsonl", trade),
     ("trade_truth.jsonl", trade_truth),
+    ("mitsuba_validation.jsonl", mitsuba),
 )
 
 
