@@ -370,6 +370,16 @@ def mitsuba(rows):
     return out + [""]
 
 
+def load(rows):
+    out = ["## Loading scenes", "", where("bench_load.py", ["load.jsonl"]), machine(rows), "",
+           "A generated Mitsuba XML scene (OBJ, PLY and serialized meshes, tessellated spheres, transforms, bsdfs) "
+           "through `load_scene`, median of fresh processes; target: 100,000 triangles in under 10 s.", ""]
+    out += table(["triangles", "objects", "load (s)", "imports (s)"],
+                 [[f"{r['triangles']:,}", r["objects"], num(r["load_s_median"], 2), num(r["import_s_median"], 2)]
+                  for r in rows])
+    return out + [""]
+
+
 SECTIONS = (
     ("solver.jsonl", solver),
     ("pathtrace.jsonl", pathtrace),
@@ -380,6 +390,7 @@ SECTIONS = (
     ("trade.jsonl", trade),
     ("trade_truth.jsonl", trade_truth),
     ("mitsuba_validation.jsonl", mitsuba),
+    ("load.jsonl", load),
 )
 
 
