@@ -175,11 +175,12 @@ def _checked_radiance(image, where):
 
 
 @contextlib.contextmanager
-def _quiet_descriptors():
-    """Silence file descriptors 1 and 2 (the OpenEXR library prints its own reasons
-    there, beside the exception it raises); yields a list that receives what was
-    printed, as one line."""
+def _quiet_output():
+    """Silence standard output and error, both Python's streams and file descriptors
+    1 and 2 (the OpenEXR library prints its own reasons, through either, beside the
+    exception it raises); yields a list that receives what was printed, as one line."""
     import ctypes
+    import io
     import sys
     import tempfile
 
@@ -188,7 +189,8 @@ def _quiet_descriptors():
         with contextlib.suppress(Exception):
             stream.flush()
     saved = [os.dup(1), os.dup(2)]
-    with tempfile.TemporaryFile() as sink:
+    text = io.StringIO()
+    with tempfile.TemporaryFile() as sink, contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
         try:
             os.dup2(sink.fileno(), 1)
             os.dup2(sink.fileno(), 2)
@@ -201,7 +203,8 @@ def _quiet_descriptors():
             for fd in saved:
                 os.close(fd)
             sink.seek(0)
-            said.append(" ".join(sink.read(4096).decode("utf-8", "replace").split()))
+            printed = sink.read(4096).decode("utf-8", "replace") + " " + text.getvalue()[:4096]
+            said.append(" ".join(printed.split()))
 
 
 def _read_exr(data):
@@ -211,7 +214,7 @@ def _read_exr(data):
     import OpenEXR
 
     def open_file(header_only):
-        with _quiet_descriptors() as said:
+        with _quiet_output() as said:
             try:
                 with OpenEXR.File(io.BytesIO(data), separate_channels=True, header_only=header_only) as f:
                     channels = None if header_only else {k: np.array(v.pixels) for k, v in f.channels().items()}
