@@ -260,7 +260,7 @@ def _against_reference(reference, images, exposure, mask, stage):
         write_png(folder / f"{REFERENCE_STEMS[mode]}_flip.png", error)
         _panel_row([shown, tonemap(image, exposure), error],
                    ["reference image", _REFERENCE_LABELS[mode],
-                    f"FLIP {measured['flip_mean']:.3f}, mean ratio {measured['mean_ratio']:.3f}"],
+                    f"FLIP {measured['flip_mean']:.3f}, ratio {measured['mean_ratio']:.3f}"],
                    stem.with_suffix(".png"), errors=(2,))
     return numbers
 
