@@ -29,6 +29,14 @@ starts with the truth and ends with the fitted display's FLIP against it, and
 and diffuse-only displays against the truth (whole image and glossy objects), with the
 truth's samples and noise floor (FLIP between its two halves).
 
+With an external reference image (``ReferenceImage``: another renderer's picture of
+the scene from its camera, ``vlights compare --reference``), ``compare.json``'s
+"reference_image" holds, for the reference, fitted and diffuse displays and (when it
+was traced) the path tracer, each against that image at its size: FLIP, PSNR and
+relative MSE (whole image and glossy objects) and the mean ratio (mean of the display
+over mean of the image: 1 is as much light, 0.5 half); ``reference/`` holds the
+renders (.npy, linear), their FLIP error images and a panel row per display.
+
 Figure 7 is what the model buys over a diffuse walkthrough: ``compare.json``'s
 "glossy_flip" holds FLIP on the glossy objects of the fitted display and of the
 diffuse one, their ratio, and whether it meets the target (at most ``FIGURE7_TARGET``
@@ -39,6 +47,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -46,8 +55,8 @@ from PIL import Image, ImageDraw
 from radiosity.formats import Camera, InputError
 from radiosity.formats.atomic import atomic_output
 
-from .images import write_png
-from .metrics import BLACK, NOT_FINITE, against_truth, is_black, magma, metrics
+from .images import write_npy, write_png
+from .metrics import BLACK, NOT_FINITE, against_truth, is_black, magma, mean_ratio, metrics
 from .outputs import staged_directory
 from .renderer import tonemap
 
@@ -181,7 +190,83 @@ def truth_numbers(truth, images, exposure, mask):
             **numbers}, errors
 
 
-def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None, truths=None):
+REFERENCE_DIR = "reference"  # compare --reference's files, inside --out
+REFERENCE_STEMS = {"reference": "reference_display", "fitted": "fitted_display", "diffuse": "diffuse_display",
+                   "path_tracer": "path_tracer"}
+_REFERENCE_LABELS = {"reference": "reference display (solution)", "fitted": "fitted display",
+                     "diffuse": "diffuse display", "path_tracer": "path tracer"}
+
+
+@dataclass(frozen=True)
+class ReferenceImage:
+    """An external picture of the scene to measure every display against.
+
+    radiance : (H, W, 3) float32 linear radiance, row 0 at the top (``display.images.read_hdr_image``)
+    camera   : the ``Camera`` it was taken with, at its size (W x H)
+    file     : where it was read from, as given
+    factor   : the whole factor it was box-averaged down by to that size (1: as read)
+    """
+
+    radiance: np.ndarray
+    camera: Camera
+    file: str
+    factor: int = 1
+
+
+def reference_files(path_traced):
+    """The files ``compare`` writes for a ``ReferenceImage``, relative to its output
+    directory; with ``path_traced``, the path tracer's too."""
+    modes = [m for m in REFERENCE_STEMS if path_traced or m != "path_tracer"]
+    return (f"{REFERENCE_DIR}/image.png",) + tuple(
+        f"{REFERENCE_DIR}/{REFERENCE_STEMS[m]}{ext}" for m in modes for ext in (".png", "_flip.png", ".npy"))
+
+
+def reference_at(image, size, where):
+    """(``image`` at ``size``, the factor): as read when ``size`` is None or its own,
+    box-averaged by a whole factor when ``size`` ((width, height)) divides it so (what a
+    display pixel's samples average); InputError naming ``where`` otherwise (another
+    aspect ratio, or a size no whole factor reaches)."""
+    h, w = image.shape[:2]
+    if size is None or tuple(size) == (w, h):
+        return image, 1
+    width, height = size
+    if w * height != h * width:
+        raise InputError(f"{where} is {w}x{h} (aspect ratio {w / h:.4g}), but --size {width}x{height} has aspect "
+                         f"ratio {width / height:.4g}: the renders must frame what the image frames; leave --size out "
+                         "to render at the image's size")
+    factor = w // width
+    if w % width or h % height or factor < 2:
+        raise InputError(f"{where} is {w}x{h}; --size {width}x{height} is not it shrunk by a whole factor (a box "
+                         "average of whole pixels); leave --size out to render at the image's size")
+    shrunk = image.astype(np.float64).reshape(height, factor, width, factor, 3).mean(axis=(1, 3))
+    return shrunk.astype(np.float32), factor
+
+
+def _against_reference(reference, images, exposure, mask, stage):
+    """Each of ``images`` ({mode: (H, W, 3) linear}) against ``reference`` (a
+    ``ReferenceImage``): its numbers, and its render, FLIP error image and panel row
+    written into ``stage``/reference/."""
+    folder = stage / REFERENCE_DIR
+    folder.mkdir(exist_ok=True)
+    shown = tonemap(reference.radiance, exposure)
+    write_png(folder / "image.png", shown)
+    numbers = {}
+    for mode, image in images.items():
+        measured, error = metrics(reference.radiance, image, exposure, mask)
+        measured["mean_ratio"] = mean_ratio(reference.radiance, image)
+        numbers[mode] = measured
+        stem = folder / REFERENCE_STEMS[mode]
+        write_npy(stem.with_suffix(".npy"), np.asarray(image, np.float32))
+        write_png(folder / f"{REFERENCE_STEMS[mode]}_flip.png", error)
+        _panel_row([shown, tonemap(image, exposure), error],
+                   ["reference image", _REFERENCE_LABELS[mode],
+                    f"FLIP {measured['flip_mean']:.3f}, ratio {measured['mean_ratio']:.3f}"],
+                   stem.with_suffix(".png"), errors=(2,))
+    return numbers
+
+
+def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=None, truths=None, *,
+            reference_image=None):
     """Write figures 5 to 7 and compare.json into ``out_dir``; returns the numbers.
 
     ``renderer`` must hold both a fitted model and a solution. ``views``: the three
@@ -190,7 +275,10 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
     the end (``display.outputs.staged_directory``): a failure or Ctrl-C leaves none.
     The returned numbers keep infinities (the PSNR of identical pictures); compare.json
     has null there, explained in its "notes". ``truths``: per view, a
-    ``display.truth.GroundTruth`` (or None where there is none).
+    ``display.truth.GroundTruth`` (or None where there is none). ``reference_image``: a
+    ``ReferenceImage`` (at ``base_view``, which is figure 5's first view) to measure
+    the displays and the truth of the first view, if there is one, against; its numbers
+    are compare.json's "reference_image", its files in reference/.
     """
     views = views or figure5_views(base_view)
     truths = list(truths or []) + [None] * (len(views) - len(truths or []))
@@ -264,6 +352,29 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
                     f"FLIP fitted: glossy {_glossy(with_lights):.3f}, image {with_lights['flip_mean']:.3f}",
                     f"FLIP diffuse: glossy {_glossy(without):.3f}, image {without['flip_mean']:.3f}"],
                    stage / "figure7.png", errors=(2, 3))
+
+        if reference_image is not None:
+            camera = reference_image.camera
+            if truths[0] is not None and truths[0].radiance.shape != reference_image.radiance.shape:
+                raise ValueError("the truth of view 1 is not at the reference image's size")
+            mask = renderer.object_mask(camera, glossy)
+            images = {"reference": shot(camera, "reference"), "fitted": shot(camera, "fitted"),
+                      "diffuse": shot(camera, "diffuse")}
+            if truths[0] is not None:
+                images["path_tracer"] = truths[0].radiance
+            displays = _against_reference(reference_image, images, exposure, mask, stage)
+            if truths[0] is not None:
+                displays["path_tracer"] |= {"spp": truths[0].spp, "seed": truths[0].stats.get("seed"),
+                                            "noise_flip": truths[0].noise_flip}
+            results["reference_image"] = {
+                "file": reference_image.file, "width": camera.width, "height": camera.height,
+                "downsampled_by": reference_image.factor, "camera": camera.to_dict(),
+                "mean": float(np.mean(reference_image.radiance, dtype=np.float64)),
+                "means": "each display (and the path tracer, when traced) against the image at its camera and size: "
+                         "FLIP (0 identical, 1 as different as can be), PSNR of the tone-mapped pictures, relative "
+                         "MSE, and mean_ratio = mean of the display / mean of the image (1: as much light)",
+                "displays": displays,
+            }
 
         with atomic_output(stage / "compare.json") as f:
             f.write(json_text(results).encode())

@@ -4,6 +4,8 @@
                                                whole image and the masked ("_glossy")
                                                pixels, and the FLIP error image
     against_truth(truth, images, ...)          every image against a path-traced truth
+    mean_ratio(reference, test)                mean of the test over mean of the reference:
+                                               how much of the reference's light it has
     is_black(image)                            no positive value: errors relative to it
                                                are undefined
     magma(values)                              [0, 1] -> the error images' colours
@@ -22,7 +24,7 @@ from radiosity.formats import InputError
 
 from .renderer import tonemap
 
-__all__ = ["BLACK", "NOT_FINITE", "against_truth", "is_black", "magma", "metrics"]
+__all__ = ["BLACK", "NOT_FINITE", "against_truth", "is_black", "magma", "mean_ratio", "metrics"]
 
 BLACK = "is black, so errors relative to it (FLIP, relative MSE) are undefined"
 NOT_FINITE = ("has {count} values beyond float32 (infinite or NaN: radiance that overflows when a pixel's samples "
@@ -83,6 +85,17 @@ def metrics(reference, test, exposure=1.0, mask=None):
         out["glossy_pixels"] = int(mask.sum())
     error_image = magma(flip_values)
     return out, error_image
+
+
+def mean_ratio(reference, test):
+    """mean(``test``) / mean(``reference``), over every pixel and channel of both
+    (H, W, 3) linear images, in float64: 1 when the test holds as much light as the
+    reference overall, 0.5 when half (FLIP and relative MSE say where, this how much).
+    A black reference is refused (InputError): the ratio has no meaning."""
+    ref = float(np.mean(reference, dtype=np.float64))
+    if not ref > 0:
+        raise InputError(f"the reference image {BLACK}")
+    return float(np.mean(test, dtype=np.float64)) / ref
 
 
 def against_truth(truth, images, exposure=1.0, mask=None):

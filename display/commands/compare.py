@@ -1,6 +1,7 @@
 """``vlights compare``: the paper's figures 5-7 as PNG files with FLIP error images, and
 their numbers in compare.json (``display.compare``), optionally against path-traced
-truths of figure 5's views."""
+truths of figure 5's views, or against an external reference image (``--reference``:
+another renderer's HDR picture at the scene's camera)."""
 
 from __future__ import annotations
 
@@ -45,7 +46,13 @@ def add_command(subparsers):
     p.add_argument("--truth-spp", type=int, default=0, metavar="N",
                    help="path-trace the truth of every view without a --truth file, N samples per pixel (default: none)")
     p.add_argument("--seed", type=int, default=1, help="the path tracer's seed, with --truth-spp (default: %(default)s)")
-    p.set_defaults(func=run)
+    p.add_argument("--reference", metavar="IMAGE",
+                   help="an image of the scene from its camera (or the camera flags'), linear radiance as OpenEXR "
+                   ".exr, Radiance .hdr, .pfm or .npy, e.g. another renderer's: the reference, fitted and diffuse "
+                   "displays and, with --truth-spp (which then traces this view alone), the path tracer are measured "
+                   "against it at its own size (FLIP, relative MSE, mean ratio), into compare.json and reference/; "
+                   "--size may only shrink it by a whole factor; not with --truth")
+    p.set_defaults(func=run, size=None)  # None: 512x512, or the --reference image's own size
 
 
 def check_inputs(fit_path, solution_path):
@@ -79,6 +86,32 @@ def check_truth_flags(args):
     check_seed(args.seed)
 
 
+def read_reference(args):
+    """The --reference image at the size the renders take (``args.size`` or its own), and
+    the factor it was shrunk by; every refusal before any work."""
+    from display.compare import reference_at
+    from display.images import read_hdr_image
+    from display.metrics import BLACK, is_black
+
+    if args.truth:
+        raise InputError("--reference and --truth exclude each other: --truth gives path-traced images of figure 5's "
+                         "views, --reference one image of the scene's view; add --truth-spp N to path-trace that view")
+    image = read_hdr_image(args.reference, "--reference")
+    if is_black(image):
+        raise InputError(f"--reference {str(args.reference)!r} {BLACK}")
+    return reference_at(image, args.size, f"--reference {str(args.reference)!r}")
+
+
+def check_reference_camera(args, fit, solution):
+    """--reference's image is taken with the scene's camera (the solution's meta.camera)
+    or the one the flags give: refuse a framing view, which no outside image was taken with."""
+    scene_camera = any(getattr(m, "camera", None) is not None for m in (solution, fit))
+    if not scene_camera and args.view is None and not (args.eye and args.look_at):
+        raise InputError(f"--reference {str(args.reference)!r}: the solution has no camera (meta.camera) to render the "
+                         "image's view with; give the camera it was taken with: --eye, --look-at (--up, --fov), "
+                         "or --view NAME --views FILE")
+
+
 def truths_for(args, solution, views):
     """Per view: the --truth file's image, else (with --truth-spp) a path-traced one, else None."""
     from display.truth import GroundTruth, ground_truth, load_truth
@@ -97,7 +130,7 @@ def truths_for(args, solution, views):
 
 
 def run(args):
-    from display.compare import FILES, compare, figure5_views
+    from display.compare import FILES, ReferenceImage, compare, figure5_views, reference_files
     from display.gl import COMPARE_BYTES_PER_PIXEL
     from display.outputs import check_output_dir
     from display.renderer import Renderer
@@ -108,14 +141,25 @@ def run(args):
     check_sample_count(args.samples)
     check_truth_flags(args)
     check_inputs(args.fit, args.solution)
-    out = check_output_dir(args.out, "--out", files=FILES, inputs=(args.fit, args.solution))
+    image = factor = None
+    if args.reference is not None:
+        image, factor = read_reference(args)
+        args.size = (image.shape[1], image.shape[0])
+    elif args.size is None:
+        args.size = (512, 512)
+    files = FILES + (reference_files(args.truth_spp > 0) if image is not None else ())
+    out = check_output_dir(args.out, "--out", files=files, inputs=(args.fit, args.solution, args.reference))
     with headless(args.size, args.samples, COMPARE_BYTES_PER_PIXEL) as ctx:
         fit, solution = load_fit(args.fit), check_drawable(load_solution(args.solution), args.solution)
+        if image is not None:
+            check_reference_camera(args, fit, solution)
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         view = resolve_view(args, renderer.bounds, fit, solution)
         views = figure5_views(view)
-        truths = truths_for(args, solution, views)
-        results = compare(renderer, out, view, args.exposure, args.shading, views=views, truths=truths)
+        reference = None if image is None else ReferenceImage(image, view, str(args.reference), factor)
+        truths = truths_for(args, solution, views[:1] if reference is not None else views)
+        results = compare(renderer, out, view, args.exposure, args.shading, views=views, truths=truths,
+                          reference_image=reference)
         renderer.release()
     print_results(results, args.samples, out)
     return 0
@@ -145,3 +189,17 @@ def print_results(results, samples, out):
         print(f"  against the path-traced truth, {name.replace('view', 'view ')} ({source}{noise}):")
         for mode in ("reference", "fitted", "diffuse"):
             print(f"    {mode + ' display':<30} {_row(t[mode])}")
+    if "reference_image" in results:
+        print_reference(results["reference_image"], out)
+
+
+def print_reference(numbers, out):
+    """The table of compare.json's "reference_image", on stdout."""
+    shrunk = f", box-averaged by {numbers['downsampled_by']}" if numbers["downsampled_by"] > 1 else ""
+    print(f"  against the reference image {numbers['file']} ({numbers['width']}x{numbers['height']}{shrunk}); "
+          f"renders and FLIP images in {out}/reference/:")
+    print(f"    {'':<30} {'FLIP':>8} {'rel.MSE':>10} {'mean ratio':>11}")
+    for mode, m in numbers["displays"].items():
+        label = {"path_tracer": f"path tracer ({m.get('spp')} spp)"}.get(mode, f"{mode} display")
+        noise = "" if m.get("noise_flip") is None else f"   (its noise floor: FLIP {m['noise_flip']:.4f})"
+        print(f"    {label:<30} {m['flip_mean']:>8.4f} {m['relative_mse']:>10.4g} {m['mean_ratio']:>11.4f}{noise}")
