@@ -574,6 +574,23 @@ def test_diffuse_reflectance(materials):
     assert scene.object("matte").material.diffuse == (0.2, 0.4, 0.6)
 
 
+def test_colour_spellings(tmp_path):
+    path = write_scene(tmp_path, """
+        <shape type="rectangle" id="grey"><bsdf type="diffuse"><rgb name="reflectance" value="0.25"/></bsdf></shape>
+        <shape type="disk" id="flat"><bsdf type="diffuse"><spectrum name="reflectance" value="0.4"/></bsdf></shape>
+        <shape type="cube" id="srgb"><bsdf type="diffuse"><srgb name="reflectance" value="1, 0.5, 0"/></bsdf></shape>
+        <shape type="sphere" id="sampled"><bsdf type="diffuse">
+            <spectrum name="reflectance" value="400:0.1, 500:0.3, 600:0.5, 700:0.7"/></bsdf></shape>
+    """)
+    scene, messages = load_warned(path)
+    assert scene.object("grey").material.diffuse == (0.25, 0.25, 0.25)
+    assert scene.object("flat").material.diffuse == (0.4, 0.4, 0.4)
+    np.testing.assert_allclose(scene.object("srgb").material.diffuse, (1, ((0.5 + 0.055) / 1.055) ** 2.4, 0))
+    # linear in wavelength: each band's mean is its middle's value (red 650 nm, green 550, blue 450)
+    np.testing.assert_allclose(scene.object("sampled").material.diffuse, (0.6, 0.4, 0.2))
+    assert len(messages) == 1 and messages[0].startswith(f"{path}:8: <spectrum name='reflectance'>: a sampled spectrum")
+
+
 def test_twosided_open_surface_gets_a_back_behind_it(materials):
     scene, _ = materials
     front, back = scene.object("sheet"), scene.object("sheet (back)")
