@@ -221,14 +221,26 @@ def read_single_mesh(path, where):
 
 def read_mesh_with_normals(path, where):
     """All triangles of a mesh file as (positions, faces, normals): normals (V, 3) are
-    the file's own per-vertex normals where it has them (OBJ ``vn``, PLY ``nx ny nz``),
-    else None."""
-    loaded = trimesh_load(path, where, force="mesh")
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+    the file's own per-vertex normals where it has them (OBJ ``vn``, PLY ``nx ny nz``)
+    in every part, else None.
+
+    Read as a scene and each part copied with its cache: ``force="mesh"`` copies the
+    parts without it, and so drops the normals the file gave."""
+    loaded = trimesh_load(path, where, force="scene")
+    parts = []
+    for node in loaded.graph.nodes_geometry:
+        transform, name = loaded.graph[node]
+        geometry = loaded.geometry[name]
+        if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
+            part = geometry.copy(include_cache=True)
+            part.apply_transform(transform)  # turns cached vertex normals with it
+            parts.append(part)
+    if not parts:
         raise InputError(f"{where}: mesh {str(path)!r} has no triangles")
-    positions = np.asarray(loaded.vertices, dtype=np.float64)
-    faces = np.asarray(loaded.faces, dtype=np.int64)
-    if "vertex_normals" not in loaded._cache:  # the file gave none (trimesh would compute them on asking)
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
+    positions = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
+    faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets[:-1], strict=True)])
+    if not all("vertex_normals" in p._cache for p in parts):  # the file gave none (trimesh would compute them)
         return positions, faces, None
-    normals = np.asarray(loaded.vertex_normals, dtype=np.float64)
+    normals = np.concatenate([np.asarray(p.vertex_normals, dtype=np.float64) for p in parts])
     return positions, faces, normals if normals.shape == positions.shape else None

@@ -896,7 +896,9 @@ class _Reader:
         positions = positions @ to_world[:3, :3].T + to_world[:3, 3]
         if normals is not None:
             normals = normals @ np.linalg.inv(to_world[:3, :3])
-        if np.linalg.det(to_world[:3, :3]) < 0:  # a mirroring transform turns the winding around
+        if np.linalg.det(to_world[:3, :3]) < 0 and (normals is not None or kind not in ("obj", "ply", "serialized")):
+            # a mirroring transform turns the winding around; Mitsuba 3 keeps a mirrored mesh's facing only where
+            # its own vertex normals say so (a mesh without them faces as its unturned winding does)
             faces = faces[:, ::-1]
         if props.boolean("flip_normals"):
             faces = faces[:, ::-1]
@@ -950,7 +952,8 @@ class _Reader:
     def _lamp(self, node, position, intensity, diagonal):
         radius = POINT_LAMP_RADIUS * diagonal
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=radius)
-        radiance = tuple(float(i) / (math.pi * radius**2) for i in intensity)  # a sphere of radiance L: pi r^2 L per sr
+        # a sphere of radiance L sends pi L area (4 pi I): by the tessellated sphere's area, the power is exact
+        radiance = tuple(4.0 * float(i) / sphere.area for i in intensity)
         name = self._name(node, f"{node.attrs['type']}_light_{len(self.names)}")
         node.warn(f"taken as a sphere lamp of radius {radius:.3g} ({POINT_LAMP_RADIUS:g} of the scene's size) and the "
                   "same intensity")
@@ -973,6 +976,7 @@ def _closed(obj):
     """Whether a surface is closed (every edge shared by two triangles): its back is
     inside, never seen, so a two-sided material needs no back copy."""
     mesh = trimesh.Trimesh(obj.positions, obj.faces, process=False)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)  # a crease's split copies are one vertex again
     return bool(mesh.is_watertight)
 
 
@@ -997,11 +1001,12 @@ def _camera(doc, node):
     fov = props.float("fov")
     if fov is None:
         focal = props.string("focal_length", f"{DEFAULT_FOCAL_LENGTH_MM}mm")
-        match = re.fullmatch(r"\s*([0-9.]+)\s*mm\s*", focal)
-        if not match:
+        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*(mm)?\s*", focal)
+        if not match or not float(match.group(1)) > 0:
             raise node.fail(f"focal length {focal!r} is not like '50mm'")
-        fov = math.degrees(2 * math.atan(36.0 / (2 * float(match.group(1)))))  # of the 36 mm film's width
-        axis = "x"
+        # Mitsuba 0.6 and 3: the diagonal field of view of a 36 x 24 mm film
+        fov = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * float(match.group(1)))))
+        axis = "diagonal"
     else:
         axis = props.string("fov_axis", "x").lower()
     if not 0 < fov < 180:
