@@ -56,18 +56,18 @@ from xml.parsers import expat
 import numpy as np
 import trimesh
 
-from radiosity.formats.camera import Camera
+from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
+from radiosity.scene import builtins
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_with_normals
-from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, SceneObject, build_object
+from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
 
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
 MAX_INCLUDES = 16  # nested <include> depth
 POINT_LAMP_RADIUS = 2e-3  # a point or spot light's sphere, as a fraction of the scene's diagonal
-BACK_OFFSET = 1e-4  # a two-sided surface's back, behind the front by this fraction of the diagonal
 DEFAULT_FILM = (768, 576)  # Mitsuba's hdrfilm
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba 0.6's perspective camera
 
@@ -611,25 +611,6 @@ def _mesh_file(doc, node, props):
     return read_mesh_with_normals(path, node.where)
 
 
-def _disk(segments):
-    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    positions = np.concatenate([[[0.0, 0.0, 0.0]], np.stack([np.cos(angles), np.sin(angles), 0 * angles], 1)])
-    ring = np.arange(segments)
-    faces = np.stack([np.zeros(segments, dtype=np.int64), 1 + ring, 1 + (ring + 1) % segments], 1)
-    return positions, faces
-
-
-def _cylinder(segments):
-    """The open cylinder of radius 1 from z = 0 to z = 1, facing outwards."""
-    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    circle = np.stack([np.cos(angles), np.sin(angles)], 1)
-    positions = np.concatenate([np.c_[circle, np.zeros(segments)], np.c_[circle, np.ones(segments)]])
-    ring = np.arange(segments)
-    nxt = (ring + 1) % segments
-    faces = np.concatenate([np.stack([ring, nxt, segments + nxt], 1), np.stack([ring, segments + nxt, segments + ring], 1)])
-    return positions, faces
-
-
 def _analytic(node, props, tessellation):
     """Positions, faces and the object-to-world matrix of a tessellated analytic shape."""
     kind = node.attrs["type"]
@@ -638,7 +619,7 @@ def _analytic(node, props, tessellation):
         positions = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
         return positions, np.array([[0, 1, 2], [0, 2, 3]]), to_world
     if kind == "disk":
-        return (*_disk(tessellation.segments), to_world)
+        return (*builtins.disk(tessellation.segments), to_world)
     if kind == "cube":
         box = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
         return np.asarray(box.vertices, dtype=np.float64), np.asarray(box.faces, dtype=np.int64), to_world
@@ -663,7 +644,7 @@ def _analytic(node, props, tessellation):
         x /= np.linalg.norm(x)
         place = np.eye(4)
         place[:3, 0], place[:3, 1], place[:3, 2], place[:3, 3] = radius * x, radius * np.cross(z, x), length * z, p0
-        return (*_cylinder(tessellation.segments), to_world @ place)
+        return (*builtins.cylinder(tessellation.segments), to_world @ place)
     raise AssertionError(kind)
 
 
@@ -929,25 +910,14 @@ class _Reader:
             raise InputError(f"{self.doc.path}: no shapes this reader can use")
         everything = np.concatenate([s.positions for s in self.shapes])
         diagonal = float(np.linalg.norm(np.ptp(everything, axis=0)))
-        objects = []
-        for shape in self.shapes:
-            material = _to_material(shape)
-            front = build_object(shape.name, material, shape.positions, shape.faces, crease_angle_deg=shape.crease,
-                                 source=shape.source, normals=shape.normals)
-            objects.append(front)
-            if shape.surface.twosided and not _closed(front):
-                objects.append(_back(front, self._name_for_back(shape.name), BACK_OFFSET * diagonal))
+        fronts = [build_object(shape.name, _to_material(shape), shape.positions, shape.faces,
+                               crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals)
+                  for shape in self.shapes]
+        objects = list(with_backs(fronts, {shape.name for shape in self.shapes if shape.surface.twosided}))
         for node, position, intensity in self.lamps:
             objects.append(self._lamp(node, position, intensity, diagonal))
         film = None if self.camera is None else (self.camera.width, self.camera.height)
         return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film)
-
-    def _name_for_back(self, name):
-        back = f"{name} (back)"
-        while back in self.names:
-            back += "'"
-        self.names.add(back)
-        return back
 
     def _lamp(self, node, position, intensity, diagonal):
         radius = POINT_LAMP_RADIUS * diagonal
@@ -972,21 +942,6 @@ def _to_material(shape):
         raise InputError(f"{shape.source}: {exc}") from None
 
 
-def _closed(obj):
-    """Whether a surface is closed (every edge shared by two triangles): its back is
-    inside, never seen, so a two-sided material needs no back copy."""
-    mesh = trimesh.Trimesh(obj.positions, obj.faces, process=False)
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)  # a crease's split copies are one vertex again
-    return bool(mesh.is_watertight)
-
-
-def _back(front, name, offset):
-    """The back of a two-sided surface: a reversed copy ``offset`` behind the front."""
-    positions = front.positions - offset * front.normals
-    return SceneObject(name=name, material=front.material, positions=positions, normals=-front.normals,
-                       tangents=-front.tangents, faces=front.faces[:, ::-1].copy(), source=front.source)
-
-
 def _camera(doc, node):
     kind = node.attrs.get("type")
     if kind not in ("perspective", "thinlens", "perspective_rdist"):
@@ -1009,23 +964,15 @@ def _camera(doc, node):
         axis = "diagonal"
     else:
         axis = props.string("fov_axis", "x").lower()
-    if not 0 < fov < 180:
-        raise node.fail(f"fov must be between 0 and 180 degrees, got {fov}")
-    half = math.tan(math.radians(fov) / 2)
-    scale = {"x": height / width, "y": 1.0, "diagonal": height / math.hypot(width, height),
-             "smaller": height / width if width < height else 1.0,
-             "larger": height / width if width > height else 1.0}
-    if axis not in scale:
-        raise node.fail(f"fov_axis {axis!r} is not one of x, y, diagonal, smaller, larger")
-    fov_y = math.degrees(2 * math.atan(half * scale[axis]))
-    to_world = props.transform("to_world")
-    linear = to_world[:3, :3]
-    eye = to_world[:3, 3]
-    forward, up = linear @ [0.0, 0, 1], linear @ [0.0, 1, 0]
-    if np.linalg.det(linear) < 0:
+    try:
+        fov_y = fov_y_deg(fov, axis, width, height)
+    except InputError as exc:
+        raise node.fail(str(exc).removeprefix("camera: ")) from None
+    eye, look_at, up, mirrored = pose_from_matrix(props.transform("to_world"))
+    if mirrored:
         node.warn("the sensor's transform mirrors the image (a negative scale): drawn unmirrored")
     try:
-        return Camera(tuple(eye), tuple(eye + forward / np.linalg.norm(forward)), tuple(up), fov_y, width, height)
+        return Camera(eye, look_at, up, fov_y, width, height)
     except InputError as exc:
         raise node.fail(str(exc)) from None
 

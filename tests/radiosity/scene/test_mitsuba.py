@@ -20,7 +20,8 @@ import pytest
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.scene import geometry
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.mitsuba import BACK_OFFSET, Tessellation, load_mitsuba, read_serialized
+from radiosity.scene.mitsuba import Tessellation, load_mitsuba, read_serialized
+from radiosity.scene.model import BACK_OFFSET
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "mitsuba"
 RECTANGLE = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
