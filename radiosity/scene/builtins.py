@@ -91,6 +91,47 @@ def mesh(spec, *, resolution=None, subdivisions=None, segments=None):
     )
 
 
+TEXTURED_MESHES = ("quad", "disk", "cube")
+
+
+def textured_mesh(spec, positions, faces):
+    """The built-in mesh ``spec`` (its ``mesh`` (positions, faces)) with texture
+    coordinates: (positions, faces, uvs (V, 2) float64), v up (``textures``). Each
+    face reads the whole image, unmirrored seen from the front:
+
+        quad  u = x + 1/2, v = 1/2 - z (seen from +y with -z up)
+        disk  u = (x + 1) / 2, v = (y + 1) / 2 (seen from +z with +y up)
+        cube  each face its own copy of the image, +y up on the sides, -z up on the
+              top, +z up on the bottom (24 vertices)
+
+    InputError for the other built-ins, which have no texture coordinates.
+    """
+    if spec == "quad":
+        return positions, faces, np.stack([positions[:, 0] + 0.5, 0.5 - positions[:, 2]], axis=1)
+    if spec == "disk":
+        return positions, faces, 0.5 * (positions[:, :2] + 1.0)
+    if spec == "cube":
+        return _textured_cube()
+    raise InputError(
+        f"builtin {spec!r} has no texture coordinates: a textured material needs builtin "
+        f"{', '.join(TEXTURED_MESHES[:-1])} or {TEXTURED_MESHES[-1]}, or a mesh file with uvs"
+    )
+
+
+def _textured_cube():
+    positions, faces, uvs = [], [], []
+    y, z = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    for normal in np.concatenate([np.eye(3), -np.eye(3)]):
+        up = y if abs(normal[1]) == 0 else -normal[1] * z  # top: -z up; bottom: +z up
+        right = np.cross(up, normal)
+        corners = [0.5 * (normal + su * right + sv * up) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        base = len(positions)
+        positions += corners
+        uvs += [[(su + 1) / 2, (sv + 1) / 2] for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]  # counter-clockwise about the normal
+    return np.array(positions), np.array(faces, dtype=np.int64), np.array(uvs)
+
+
 def _cornell_part(part):
     objects = cornell_data()["objects"]
     if part not in objects:

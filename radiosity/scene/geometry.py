@@ -37,18 +37,25 @@ def face_normals(positions, faces):
     return unit, 0.5 * twice_area
 
 
-def weld(positions, faces, tol):
+def weld(positions, faces, tol, uvs=None):
     """Merge vertices closer than ``tol``; returns (positions, faces) with faces remapped.
 
     Positions of a merged group are those of its lowest-index member, so welding is
-    exact for points that already coincide.
+    exact for points that already coincide. With texture coordinates ``uvs`` (V, 2),
+    only vertices whose uvs also agree (within ``tol`` relative to 1) merge, so a
+    texture's seam keeps a copy of each vertex per side; returns (positions, faces, uvs).
     """
     n = len(positions)
+    points = positions
+    if uvs is not None:
+        uvs = np.asarray(uvs, dtype=np.float64)
+        extent = float(np.ptp(positions, axis=0).max()) if n else 0.0
+        points = np.hstack([positions, uvs * max(extent, np.finfo(float).tiny)])
     if n == 0:
-        return positions, faces
-    pairs = cKDTree(positions).query_pairs(tol, output_type="ndarray")
+        return (positions, faces) if uvs is None else (positions, faces, uvs)
+    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
     if len(pairs) == 0:
-        return positions, faces
+        return (positions, faces) if uvs is None else (positions, faces, uvs)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     # representative of each component: its first vertex; keep original order
@@ -57,6 +64,8 @@ def weld(positions, faces, tol):
     keep = np.sort(first)
     new_index = np.empty(label.max() + 1, dtype=np.int64)
     new_index[label[keep]] = np.arange(len(keep))
+    if uvs is not None:
+        return positions[keep], new_index[label][faces], uvs[keep]
     return positions[keep], new_index[label][faces]
 
 
@@ -122,7 +131,7 @@ def corner_angles(positions, faces):
     return trimesh.triangles.angles(positions[faces])
 
 
-def crease_normals(positions, faces, crease_angle_deg):
+def crease_normals(positions, faces, crease_angle_deg, uvs=None):
     """Angle-weighted vertex normals, with vertices split where faces meet at a crease.
 
     Two faces sharing an edge are smooth across it when their normals differ by less
@@ -130,9 +139,13 @@ def crease_normals(positions, faces, crease_angle_deg):
     faces that are connected through smooth edges, so a cube keeps six flat faces and
     a crease that dies out inside a surface stays sharp only where it is sharp.
 
-    Returns (positions, faces, normals) of the split mesh.
+    Returns (positions, faces, normals) of the split mesh. With texture coordinates
+    ``uvs`` (V, 2), faces are smooth across a texture's seam too (vertices at the same
+    position, other uvs: their normals are the same), each copy keeps its uvs, and
+    (positions, faces, normals, uvs) are returned.
     """
     fn, _ = face_normals(positions, faces)
+    linked = faces if uvs is None else position_labels(positions)[faces]  # what "shares an edge" means
     weights = corner_angles(positions, faces)  # (F, 3)
     n_faces = len(faces)
     corner_vertex = faces.ravel()
@@ -140,15 +153,15 @@ def crease_normals(positions, faces, crease_angle_deg):
 
     rows, cols = [], []
     if n_faces > 1:
-        adjacency, edges = trimesh.graph.face_adjacency(faces=faces, return_edges=True)
+        adjacency, edges = trimesh.graph.face_adjacency(faces=linked, return_edges=True)
         if len(adjacency):
             cosang = np.einsum("ij,ij->i", fn[adjacency[:, 0]], fn[adjacency[:, 1]])
             smooth = cosang > np.cos(np.radians(crease_angle_deg))
             adjacency, edges = adjacency[smooth], edges[smooth]
             for side in range(2):  # both vertices of the shared edge
                 v = edges[:, side]
-                k0 = np.argmax(faces[adjacency[:, 0]] == v[:, None], axis=1)
-                k1 = np.argmax(faces[adjacency[:, 1]] == v[:, None], axis=1)
+                k0 = np.argmax(linked[adjacency[:, 0]] == v[:, None], axis=1)
+                k1 = np.argmax(linked[adjacency[:, 1]] == v[:, None], axis=1)
                 rows.append(3 * adjacency[:, 0] + k0)
                 cols.append(3 * adjacency[:, 1] + k1)
     if rows:
@@ -163,7 +176,12 @@ def crease_normals(positions, faces, crease_angle_deg):
     summed = np.zeros((n_groups, 3))
     np.add.at(summed, group, (weights[:, :, None] * fn[:, None, :]).reshape(-1, 3))
     normals = _normalize_or(summed, np.repeat(fn, 3, axis=0)[np.unique(group, return_index=True)[1]])
-    return new_positions, group.reshape(-1, 3).astype(np.int64), normals
+    if uvs is None:
+        return new_positions, group.reshape(-1, 3).astype(np.int64), normals
+    # a smooth group may hold corners of several copies of a point (a seam): one vertex per copy
+    copies, copy = unique_pairs(np.stack([group, corner_vertex], axis=1), return_inverse=True)
+    return (positions[copies[:, 1]], copy.reshape(-1, 3).astype(np.int64), normals[copies[:, 0]],
+            np.asarray(uvs, dtype=np.float64)[copies[:, 1]])
 
 
 def _normalize_or(v, fallback):
@@ -175,7 +193,7 @@ def _normalize_or(v, fallback):
     return out
 
 
-def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
+def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000, uvs=None):
     """Conforming refinement until no edge is longer than ``max_edge``.
 
     Longest-edge refinement (Rivara): every edge longer than ``max_edge`` is marked,
@@ -186,7 +204,9 @@ def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
     subdivision. Angles stay bounded away from zero.
 
     New vertices interpolate ``normals`` (renormalised), so a tessellated curved
-    surface keeps its smooth shading. Returns (positions, faces, normals_or_None).
+    surface keeps its smooth shading. Returns (positions, faces, normals_or_None), and
+    with texture coordinates ``uvs`` (V, 2) also the new vertices' (interpolated
+    linearly, each copy of a seam's edge its own): (positions, faces, normals, uvs).
     """
     if not max_edge > 0:
         raise InputError(f"max edge length must be positive, got {max_edge}")
@@ -202,6 +222,7 @@ def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
             f"triangles (limit {max_triangles:.3g}); choose a larger maximum edge"
         )
     labels = position_labels(p)
+    attributes = () if uvs is None else (np.asarray(uvs, dtype=np.float64),)
     for _ in range(200):
         edges = _edge_tables(f, labels)
         length = np.linalg.norm(p[edges.index_edges[:, 0]] - p[edges.index_edges[:, 1]], axis=1)
@@ -209,10 +230,10 @@ def refine(positions, faces, max_edge, normals=None, max_triangles=5_000_000):
         mark[edges.geometric_of[length > max_edge]] = True
         if not mark.any():
             break
-        p, f, nrm, labels, _ = _split_marked(p, f, nrm, labels, edges, mark)
+        p, f, nrm, labels, attributes = _split_marked(p, f, nrm, labels, edges, mark, attributes)
     else:  # pragma: no cover - 200 rounds halve any edge far below float precision
         raise RuntimeError("mesh refinement did not converge")
-    return p, f, nrm
+    return (p, f, nrm) if uvs is None else (p, f, nrm, attributes[0])
 
 
 def position_labels(positions):
@@ -311,7 +332,7 @@ def _split_marked(p, f, nrm, labels, edges, mark, attributes=()):
     return p, np.concatenate(pieces), nrm, labels, attributes
 
 
-def split_edges(positions, faces, edges, normals=None):
+def split_edges(positions, faces, edges, normals=None, uvs=None):
     """Conforming refinement that splits the given edges (and whatever the closure needs).
 
     edges : (K, 2) int vertex pairs of edges of ``faces`` (either order); pairs that are
@@ -320,27 +341,34 @@ def split_edges(positions, faces, edges, normals=None):
     other vertices) and, by closure, the longest edge of every triangle that has a
     split edge, get their midpoint. New vertices interpolate ``normals`` (renormalised).
     Returns (positions, faces, normals_or_None); nothing marked: the inputs unchanged.
+    With texture coordinates ``uvs`` (V, 2), interpolated linearly, also them:
+    (positions, faces, normals, uvs).
     """
     p = np.asarray(positions, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     nrm = None if normals is None else np.asarray(normals, dtype=np.float64)
+    attributes = () if uvs is None else (np.asarray(uvs, dtype=np.float64),)
     edges = np.sort(np.asarray(edges, dtype=np.int64).reshape(-1, 2), axis=1)
+
+    def result():
+        return (p, f, nrm) if uvs is None else (p, f, nrm, attributes[0])
+
     if not len(edges) or not len(f):
-        return p, f, nrm
+        return result()
     labels = position_labels(p)
     table = _edge_tables(f, labels)
     key_wanted = edges[:, 0] * len(p) + edges[:, 1]
     key_have = table.index_edges[:, 0] * len(p) + table.index_edges[:, 1]
     found = np.isin(key_have, key_wanted)
     if not found.any():
-        return p, f, nrm
+        return result()
     mark = np.zeros(len(table.geometric), dtype=bool)
     mark[table.geometric_of[found]] = True
-    p, f, nrm, _, _ = _split_marked(p, f, nrm, labels, table, mark)
-    return p, f, nrm
+    p, f, nrm, _, attributes = _split_marked(p, f, nrm, labels, table, mark, attributes)
+    return result()
 
 
-def refine_density(positions, faces, density, normals=None, max_vertices=None, max_rounds=12):
+def refine_density(positions, faces, density, normals=None, max_vertices=None, max_rounds=12, uvs=None):
     """Conforming refinement to a size field: edges no longer than 1 / density.
 
     density : (V,) float64 >= 0, the wanted edges per unit length at each vertex (0:
@@ -350,7 +378,8 @@ def refine_density(positions, faces, density, normals=None, max_vertices=None, m
     Each round is one ``_split_marked`` (closure included, so the mesh stays conforming,
     also across creases). ``max_vertices``: stop before a round that would go beyond it
     (the mesh of the last round within it is returned). Returns (positions, faces,
-    normals_or_None).
+    normals_or_None), and with texture coordinates ``uvs`` (V, 2) (interpolated
+    linearly) also them: (positions, faces, normals, uvs).
     """
     p = np.asarray(positions, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
@@ -359,6 +388,7 @@ def refine_density(positions, faces, density, normals=None, max_vertices=None, m
     if rho.shape != (len(p),) or not np.all(rho >= 0):
         raise ValueError("density must be (V,) and >= 0")
     labels = position_labels(p)
+    attributes = (rho,) if uvs is None else (rho, np.asarray(uvs, dtype=np.float64))
     for _ in range(max_rounds):
         edges = _edge_tables(f, labels)
         ends = edges.index_edges
@@ -368,11 +398,12 @@ def refine_density(positions, faces, density, normals=None, max_vertices=None, m
             break
         mark = np.zeros(len(edges.geometric), dtype=bool)
         mark[edges.geometric_of[want]] = True
-        new = _split_marked(p, f, nrm, labels, edges, mark, (rho,))
+        new = _split_marked(p, f, nrm, labels, edges, mark, attributes)
         if max_vertices is not None and len(new[0]) > max_vertices:
             break
-        p, f, nrm, labels, (rho,) = new
-    return p, f, nrm
+        p, f, nrm, labels, attributes = new
+        rho = attributes[0]
+    return (p, f, nrm) if uvs is None else (p, f, nrm, attributes[1])
 
 
 def tangents(normals):

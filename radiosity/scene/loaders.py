@@ -49,13 +49,15 @@ from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
     missing_material_libraries,
+    read_mesh_with_uvs,
     read_single_mesh,
     trimesh_load,
 )
 from radiosity.scene.mitsuba import load_mitsuba
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object, with_backs
+from radiosity.scene.textures import read_texture
 
-_MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission"}
+_MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission", "diffuse_texture"}
 _OBJECT_KEYS = {
     "name", "mesh", "builtin", "material", "scale", "rotate_deg", "translate",
     "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
@@ -105,11 +107,12 @@ def _load_toml(text, base_dir, *, name, where):
         raise InputError(f"{where}: malformed TOML: {exc}") from None
     _check_keys(data, _TOP_KEYS, where)
     materials = _parse_materials(data.get("materials", {}), where)
+    textures = _parse_textures(data.get("materials", {}), base_dir, where)
     objects_data = data.get("objects")
     if not isinstance(objects_data, list) or not objects_data:
         raise InputError(f"{where}: no [[objects]]: a scene needs at least one object")
     objects = [
-        _parse_object(entry, i, materials, base_dir, where) for i, entry in enumerate(objects_data)
+        _parse_object(entry, i, (materials, textures), base_dir, where) for i, entry in enumerate(objects_data)
     ]
     two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
@@ -171,6 +174,25 @@ def _parse_materials(table, where):
     return out
 
 
+def _parse_textures(table, base_dir, where):
+    """{material name: (H, W, 3) float32 texture} of the materials with a
+    ``diffuse_texture`` (an image file beside the scene), each read once: its objects
+    share the array."""
+    out = {}
+    for mname, spec in table.items():
+        if "diffuse_texture" not in spec:
+            continue
+        here = f"{where}: [materials.{mname}]"
+        name = spec["diffuse_texture"]
+        if not isinstance(name, str) or not name:
+            raise InputError(f"{here}: 'diffuse_texture' must be an image file name, got {name!r}")
+        path = Path(base_dir) / name
+        if not path.is_file():
+            raise InputError(f"{here}: the texture {str(path)!r} is not found")
+        out[mname] = read_texture(path, here)
+    return out
+
+
 def _material(name, *, diffuse, specular, exponent, emission, where=""):
     try:
         return Material(name=name, diffuse=diffuse, specular=specular, exponent=exponent, emission=emission)
@@ -228,7 +250,8 @@ def _matrix(value, where, key):
     return np.array([[_number(v, where, key) for v in row] for row in rows])
 
 
-def _parse_object(entry, index, materials, base_dir, where):
+def _parse_object(entry, index, materials_textures, base_dir, where):
+    materials, textures = materials_textures
     if not isinstance(entry, dict):
         raise InputError(f"{where}: [[objects]] entry {index + 1} must be a table")
     name = entry.get("name")
@@ -252,6 +275,8 @@ def _parse_object(entry, index, materials, base_dir, where):
         raise InputError(f"{here}: unknown material {mname!r} (materials: {known})")
     if ("mesh" in entry) == ("builtin" in entry):
         raise InputError(f"{here}: give exactly one of 'mesh' (a file) or 'builtin'")
+    texture = textures.get(mname)
+    uvs = None
 
     if "builtin" in entry:
         spec = entry["builtin"]
@@ -262,6 +287,8 @@ def _parse_object(entry, index, materials, base_dir, where):
                 spec, resolution=entry.get("resolution"), subdivisions=entry.get("subdivisions"),
                 segments=entry.get("segments"),
             )
+            if texture is not None:
+                positions, faces, uvs = builtins.textured_mesh(spec, positions, faces)
         except InputError as exc:
             raise InputError(f"{here}: {exc}") from None
         source = f"builtin {spec}"
@@ -273,7 +300,15 @@ def _parse_object(entry, index, materials, base_dir, where):
         if not isinstance(mesh_file, str):
             raise InputError(f"{here}: 'mesh' must be a file name, got {mesh_file!r}")
         path = base_dir / mesh_file
-        positions, faces = read_single_mesh(path, here)
+        if texture is None:
+            positions, faces = read_single_mesh(path, here)
+        else:
+            positions, faces, uvs = read_mesh_with_uvs(path, here)
+            if uvs is None:
+                raise InputError(
+                    f"{here}: material {mname!r} has a diffuse_texture but the mesh {str(path)!r} has no "
+                    "texture coordinates"
+                )
         source = str(path)
 
     scale = entry.get("scale", 1.0)
@@ -315,6 +350,8 @@ def _parse_object(entry, index, materials, base_dir, where):
         crease_angle_deg=crease,
         source=source,
         warn_degenerate=not source.startswith("builtin"),
+        uvs=uvs,
+        texture=texture,
     )
 
 

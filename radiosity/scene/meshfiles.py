@@ -244,3 +244,36 @@ def read_mesh_with_normals(path, where):
         return positions, faces, None
     normals = np.concatenate([np.asarray(p.vertex_normals, dtype=np.float64) for p in parts])
     return positions, faces, normals if normals.shape == positions.shape else None
+
+
+def read_mesh_with_uvs(path, where):
+    """All triangles of a mesh file as (positions, faces, uvs (V, 2) float64 or None):
+    the file's texture coordinates (OBJ ``vt``, glTF TEXCOORD_0, PLY ``s t``) where
+    every part has them, v up (trimesh flips glTF's, which runs down), else None."""
+    loaded = trimesh_load(path, where, force="scene")
+    parts, uvs = [], []
+    for node in loaded.graph.nodes_geometry:
+        transform, name = loaded.graph[node]
+        geometry = loaded.geometry[name]
+        if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
+            part = geometry.copy()
+            part.apply_transform(transform)
+            parts.append(part)
+            uvs.append(mesh_uvs(geometry))
+    if not parts:
+        raise InputError(f"{where}: mesh {str(path)!r} has no triangles")
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
+    positions = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
+    faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets[:-1], strict=True)])
+    if any(uv is None for uv in uvs):
+        return positions, faces, None
+    return positions, faces, np.concatenate(uvs)
+
+
+def mesh_uvs(mesh):
+    """A trimesh mesh's per-vertex texture coordinates (V, 2) float64, or None."""
+    uv = getattr(getattr(mesh, "visual", None), "uv", None)
+    if uv is None:
+        return None
+    uv = np.asarray(uv, dtype=np.float64)
+    return uv if uv.shape == (len(mesh.vertices), 2) else None

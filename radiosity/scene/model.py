@@ -22,6 +22,7 @@ from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
 from radiosity.scene.materials import Material
+from radiosity.scene.textures import check_texture
 
 DEFAULT_CREASE_ANGLE_DEG = 40.0
 # The ray tracer (Embree) works in single precision. Beyond about 1e12 its intersection
@@ -42,6 +43,16 @@ class SceneObject:
     normals   : (V, 3) float64, unit shading normals (split at creases)
     tangents  : (V, 3) float64, unit, orthogonal to the normals
     faces     : (F, 3) int64, counter-clockwise seen from the front
+    uvs       : (V, 2) float64 texture coordinates, or None (``radiosity.scene.textures``
+                states their convention: v up, repeating)
+    texture   : (H, W, 3) float32 linear RGB in [0, 1], row 0 the top, or None: the
+                diffuse reflectance is then kd * texture(uv) (``textures.lookup``)
+
+    The texture lives on the object, not on its ``Material``: a material is a small
+    validated record of numbers (Contract 1's ``meta.materials``, compared by value,
+    packed into the kernels' table by name), shared by objects that may each map it
+    differently; the image belongs beside the uvs that read it. Objects given the
+    same image share the array, and the kernels' atlas holds it once.
     """
 
     name: str
@@ -51,6 +62,19 @@ class SceneObject:
     tangents: np.ndarray
     faces: np.ndarray
     source: str = ""
+    uvs: np.ndarray | None = None
+    texture: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.uvs is not None or self.texture is not None:
+            texture, uvs = check_texture(self.texture, self.uvs, len(self.positions), f"object {self.name!r}")
+            object.__setattr__(self, "texture", texture)
+            object.__setattr__(self, "uvs", uvs)
+
+    @property
+    def textured(self):
+        """Whether a texture modulates the diffuse colour."""
+        return self.texture is not None
 
     @property
     def n_vertices(self):
@@ -79,18 +103,23 @@ class SceneObject:
 
     def refined(self, max_edge):
         """This object refined so that no edge is longer than ``max_edge``."""
+        if self.uvs is not None:
+            p, f, n, uv = geometry.refine(self.positions, self.faces, max_edge, normals=self.normals, uvs=self.uvs)
+            return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n), uvs=uv)
         p, f, n = geometry.refine(self.positions, self.faces, max_edge, normals=self.normals)
         return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n))
 
     def refined_to_density(self, density, max_vertices=None):
         """This object refined conformingly to the size field ``density`` (V,): edges
         per unit length wanted at each vertex (``geometry.refine_density``)."""
-        p, f, n = geometry.refine_density(
-            self.positions, self.faces, density, normals=self.normals, max_vertices=max_vertices
+        out = geometry.refine_density(
+            self.positions, self.faces, density, normals=self.normals, max_vertices=max_vertices, uvs=self.uvs
         )
+        p, f, n = out[:3]
         if len(f) == len(self.faces):
             return self
-        return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n))
+        uv = out[3] if self.uvs is not None else None
+        return replace(self, positions=p, faces=f, normals=n, tangents=geometry.tangents(n), uvs=uv)
 
 
 class MergedMesh(NamedTuple):
@@ -227,6 +256,8 @@ def build_object(
     source="",
     warn_degenerate=True,
     normals=None,
+    uvs=None,
+    texture=None,
 ):
     """A SceneObject from a raw triangle soup in world space.
 
@@ -235,7 +266,9 @@ def build_object(
     ``normals`` (V, 3), a mesh file's own per-vertex normals, are kept instead (the
     vertices are then not welded: a seam's copies keep their own normals); where one
     is zero or not finite, or points away from every triangle using the vertex, the
-    computed one is used.
+    computed one is used. ``uvs`` (V, 2) texture coordinates and a ``texture`` (H, W,
+    3) (``SceneObject``) are kept: vertices at one point with other uvs (a texture's
+    seam) are not welded, and the normals are smooth across the seam.
     """
     where = f"object {name!r}" + (f" ({source})" if source else "")
     positions = np.asarray(positions, dtype=np.float64)
@@ -257,17 +290,28 @@ def build_object(
     faces = faces.astype(np.int64)
     if faces.min() < 0 or faces.max() >= len(positions):
         raise InputError(f"{where}: a triangle refers to a vertex that does not exist")
+    texture, uvs = check_texture(texture, uvs, len(positions), where)
     if normals is not None:
         return _with_normals(name, material, positions, faces, normals, where=where, source=source,
-                             warn_degenerate=warn_degenerate)
+                             warn_degenerate=warn_degenerate, uvs=uvs, texture=texture)
     extent = float(np.ptp(positions[faces.ravel()], axis=0).max())
-    positions, faces = geometry.weld(positions, faces, 1e-9 * max(extent, np.finfo(float).tiny))
-    positions, faces, dropped = geometry.remove_degenerate(positions, faces)
+    tol = 1e-9 * max(extent, np.finfo(float).tiny)
+    if uvs is None:
+        positions, faces = geometry.weld(positions, faces, tol)
+        positions, faces, dropped = geometry.remove_degenerate(positions, faces)
+    else:
+        positions, faces, uvs = geometry.weld(positions, faces, tol, uvs=uvs)
+        keep = _not_degenerate(positions, faces)
+        dropped = int(len(faces) - keep.sum())
+        positions, faces, uvs = geometry.compact(positions, faces[keep], uvs)
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=2)
     if len(faces) == 0:
         raise InputError(f"{where}: every triangle is degenerate (zero area)")
-    positions, faces, normals = geometry.crease_normals(positions, faces, crease_angle_deg)
+    if uvs is None:
+        positions, faces, normals = geometry.crease_normals(positions, faces, crease_angle_deg)
+    else:
+        positions, faces, normals, uvs = geometry.crease_normals(positions, faces, crease_angle_deg, uvs=uvs)
     return SceneObject(
         name=name,
         material=material,
@@ -276,24 +320,36 @@ def build_object(
         tangents=geometry.tangents(normals),
         faces=faces,
         source=source,
+        uvs=uvs,
+        texture=texture,
     )
 
 
-def _with_normals(name, material, positions, faces, normals, *, where, source, warn_degenerate):
+def _not_degenerate(positions, faces):
+    """(F,) bool: the triangles ``geometry.remove_degenerate`` keeps (no repeated
+    vertex, an area above 1e-14 of the squared diagonal of the used vertices' box)."""
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    diag2 = float(np.sum(np.ptp(positions[faces.ravel()], axis=0) ** 2)) if len(faces) else 0.0
+    _, area = geometry.face_normals(positions, faces)
+    return ~repeated & (area > 1e-14 * diag2)
+
+
+def _with_normals(name, material, positions, faces, normals, *, where, source, warn_degenerate, uvs=None,
+                  texture=None):
     """``build_object``'s path for a mesh with its own per-vertex normals."""
     normals = np.asarray(normals, dtype=np.float64)
     if normals.shape != positions.shape:
         raise InputError(f"{where}: {len(normals)} normals for {len(positions)} vertices")
-    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-    diag2 = float(np.sum(np.ptp(positions[faces.ravel()], axis=0) ** 2))
-    _, area = geometry.face_normals(positions, faces)
-    keep = ~repeated & (area > 1e-14 * diag2)  # as geometry.remove_degenerate
+    keep = _not_degenerate(positions, faces)  # as geometry.remove_degenerate
     dropped = int(len(faces) - keep.sum())
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=3)
     if not keep.any():
         raise InputError(f"{where}: every triangle is degenerate (zero area)")
-    positions, faces, normals = geometry.compact(positions, faces[keep], normals)
+    if uvs is None:
+        positions, faces, normals = geometry.compact(positions, faces[keep], normals)
+    else:
+        positions, faces, normals, uvs = geometry.compact(positions, faces[keep], normals, uvs)
     face_n, area = geometry.face_normals(positions, faces)
     length = np.linalg.norm(normals, axis=1)
     unit = normals / np.where(length > 0, length, 1.0)[:, None]
@@ -305,7 +361,7 @@ def _with_normals(name, material, positions, faces, normals, *, where, source, w
     bad = ~np.isfinite(length) | (length < 1e-12) | ~(agrees > 0)  # none given, or facing away from its triangles
     unit[bad] = average[bad] / np.linalg.norm(average[bad], axis=1, keepdims=True)
     return SceneObject(name=name, material=material, positions=positions, normals=unit,
-                       tangents=geometry.tangents(unit), faces=faces, source=source)
+                       tangents=geometry.tangents(unit), faces=faces, source=source, uvs=uvs, texture=texture)
 
 
 BACK_OFFSET = 1e-4  # a two-sided surface's back lies behind its front by this fraction of the scene's diagonal
@@ -326,7 +382,7 @@ def back_of(front, name, offset):
     behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below."""
     return SceneObject(name=name, material=front.material, positions=front.positions - offset * front.normals,
                        normals=-front.normals, tangents=-front.tangents, faces=front.faces[:, ::-1].copy(),
-                       source=front.source)
+                       source=front.source, uvs=front.uvs, texture=front.texture)
 
 
 def with_backs(objects, two_sided):

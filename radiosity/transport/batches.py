@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from radiosity.scene.materials import albedo, pack_materials
+from radiosity.scene.textures import atlas
 from radiosity.transport.gather import gather_outputs, trace_gather
 from radiosity.transport.photons import trace_photons
 from radiosity.transport.records import (
@@ -80,7 +81,30 @@ def scene_arrays(scene, merged, epsilon, analytic=()):
         direct_cdf=direct[0],
         direct_triangles=direct[1],
         direct_area_pdf=direct[2],
+        **_texture_arrays(scene, merged),
     )
+
+
+def _texture_arrays(scene, merged):
+    """The ``SceneArrays`` fields of a scene's textures: uvs (N, 2) (zero where an
+    object has none), face_texture (T,) (-1 where untextured) and the atlas, each
+    image once however many objects share it."""
+    images, index = [], {}
+    object_texture = np.full(len(scene.objects), -1, dtype=np.int64)
+    for i, o in enumerate(scene.objects):
+        if o.texture is not None:
+            object_texture[i] = index.setdefault(id(o.texture), len(images))
+            if object_texture[i] == len(images):
+                images.append(o.texture)
+    pixels, offsets, sizes = atlas(images)
+    uvs = np.concatenate([o.uvs if o.uvs is not None else np.zeros((o.n_vertices, 2)) for o in scene.objects])
+    return {
+        "uvs": uvs,
+        "face_texture": object_texture[merged.triangle_object],
+        "texture_pixels": pixels,
+        "texture_offsets": offsets,
+        "texture_sizes": sizes,
+    }
 
 
 def trace_photon_batch(tracer, sa, seed, first_id, count, total):

@@ -36,8 +36,9 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
-from radiosity.scene.materials import EMISSION, KD, KS, brdf_eval, brdf_pdf, brdf_sample, onb
+from radiosity.scene.materials import EMISSION, KD, KS, NCOL, P_SPECULAR, brdf_eval, brdf_pdf, brdf_sample, onb
 from radiosity.scene.model import Scene, SceneObject
+from radiosity.scene.textures import texel
 from radiosity.transport.batches import scene_arrays
 from radiosity.transport.embree import (
     Hits,
@@ -51,6 +52,7 @@ from radiosity.transport.embree import (
 from radiosity.transport.rng import rand
 from radiosity.transport.sampling import (
     barycentric_point,
+    hit_uv,
     off_surface,
     pick_emitter,
     roulette,
@@ -264,6 +266,22 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     return True, origin, (dx, dy, dz), dist, value
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def textured_row(mat, rgb, row):
+    """The material row ``mat`` with its diffuse colour multiplied by a texture's
+    ``rgb`` (3-tuple), written into ``row`` (NCOL,) and returned; the probability of
+    sampling the specular lobe follows the textured colour (``pack_materials``'s rule).
+    """
+    for c in range(NCOL):
+        row[c] = mat[c]
+    for c in range(3):
+        row[KD + c] = mat[KD + c] * rgb[c]
+    kd = (row[KD] + row[KD + 1] + row[KD + 2]) / 3.0
+    ks = (row[KS] + row[KS + 1] + row[KS + 2]) / 3.0
+    row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
+    return row
+
+
 @numba.njit(cache=True, nogil=True)
 def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     """One bounce of the paths in flight; returns (shadow rays written, paths going on).
@@ -278,11 +296,14 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     has reached MAX_DEPTH segments, one light sample and one BRDF sample (the path's
     bounce depth + 1), which from bounce ROULETTE_DEPTH on must survive Russian roulette
     on its throughput. Misses and
-    back faces end the path (the background is black, backs absorb).
+    back faces end the path (the background is black, backs absorb). On a textured
+    triangle the diffuse colour is kd * texture(uv at the hit) (``textured_row``), for
+    the light sample, the BRDF sample and the roulette alike.
     """
     seed = tile.seed
     n_shadow = 0
     n_out = 0
+    row = np.empty(NCOL)  # a textured hit's material row
     for k in range(len(paths.ids)):
         t = hits.triangle[k]
         if t < 0:
@@ -311,6 +332,11 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         if max(mat[KD], mat[KD + 1], mat[KD + 2], mat[KS], mat[KS + 1], mat[KS + 2]) <= 0.0:
             continue  # a pure emitter (or black): reflects nothing
         uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
+        texture = sa.face_texture[t]
+        if texture >= 0:
+            tu, tv = hit_uv(sa.uvs, sa.faces, t, uk, vk)
+            rgb = texel(sa.texture_pixels, sa.texture_offsets, sa.texture_sizes, texture, tu, tv)
+            mat = textured_row(mat, rgb, row)
         point = barycentric_point(sa, t, uk, vk)
         nx, ny, nz = shading_normal(sa, t, uk, vk, d)
         tx, ty, tz, bx, by, bz = onb(nx, ny, nz)

@@ -41,6 +41,10 @@ class SceneArrays(NamedTuple):
     emit_triangles : (E,) int64
     emit_area_pdf  : (T,) float64     density per unit area of choosing a point on a triangle
     epsilon        : float            ray-origin offset, scene units
+    uvs            : (N, 2) float64   texture coordinates (0 on untextured objects)
+    face_texture   : (T,) int64       the texture of each triangle in the atlas, -1 for none
+    texture_pixels, texture_offsets, texture_sizes : every texture in one flat atlas
+                     ((X,) float32, (K,) int64, (K, 2) int64: ``textures.atlas``)
     direct_cdf, direct_triangles, direct_area_pdf : the same over the emitters whose direct
                      glossy highlight the gather estimates (its vertices' light samples and
                      the emission its rays find on their first segment); the others'
@@ -63,6 +67,11 @@ class SceneArrays(NamedTuple):
     direct_cdf: np.ndarray
     direct_triangles: np.ndarray
     direct_area_pdf: np.ndarray
+    uvs: np.ndarray
+    face_texture: np.ndarray
+    texture_pixels: np.ndarray
+    texture_offsets: np.ndarray
+    texture_sizes: np.ndarray
 
 
 class Rays(NamedTuple):

@@ -1,5 +1,5 @@
 """Small inlined helpers of the transport kernels (the solver's photons and gather,
-and the path tracer): barycentric points and shading normals at hits, the cosine
+and the path tracer): barycentric points, texture coordinates and shading normals at hits, the cosine
 direction, Russian roulette, choosing a point on an emitter, and a cache hint.
 
 They take arrays and numbers, not records: a named tuple handed to an inlined helper
@@ -78,6 +78,18 @@ def facing(n, d, g):
 @numba.njit(cache=True, nogil=True, inline="always")
 def barycentric_point(sa, tri, u, v):
     return lerp3(sa.positions, sa.faces[tri, 0], sa.faces[tri, 1], sa.faces[tri, 2], 1.0 - u - v, u, v)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def hit_uv(uvs, faces, tri, u, v):
+    """Texture coordinates at barycentrics (u, v) of triangle ``tri``: its corners'
+    ``uvs`` (N, 2) interpolated, as (u, v)."""
+    i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
+    w = 1.0 - u - v
+    return (
+        w * uvs[i0, 0] + u * uvs[i1, 0] + v * uvs[i2, 0],
+        w * uvs[i0, 1] + u * uvs[i1, 1] + v * uvs[i2, 1],
+    )
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

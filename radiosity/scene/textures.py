@@ -1,0 +1,188 @@
+"""Diffuse textures: images read as linear RGB, looked up at texture coordinates.
+
+A textured object's diffuse reflectance at a point x is
+
+    kd(x) = kd * texture(uv(x))
+
+with ``kd`` its material's diffuse colour and ``uv(x)`` its per-vertex texture
+coordinates interpolated barycentrically. The conventions, one for every format
+(each loader converts to them):
+
+    texture : (H, W, 3) float32, linear RGB in [0, 1], row 0 the image's top row
+    uvs     : (V, 2) float64, u to the right, v up: (0, 0) is the image's bottom-left
+              corner, (1, 1) its top-right (OBJ's and OpenGL's convention; glTF's v
+              runs down, and trimesh flips it on reading)
+    lookup  : texel (i, j) (row i from the top, column j) is centred on
+              u = (j + 0.5) / W, v = 1 - (i + 0.5) / H; bilinear between the four
+              nearest texel centres, repeating outside [0, 1) (Mitsuba's default)
+
+``lookup`` is the numpy reference; ``texel`` the same lookup for the kernels, which
+read every texture of a scene from one flat atlas (``atlas``).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numba
+import numpy as np
+from PIL import Image
+
+from radiosity.formats.errors import InputError
+from radiosity.formats.inputs import read_input_bytes
+
+__all__ = ["atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
+
+MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels (768 MB as float32 RGB): a texture larger is refused
+TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
+
+
+def srgb_to_linear(encoded):
+    """The sRGB transfer function undone: values in [0, 1] -> linear [0, 1], float64."""
+    c = np.asarray(encoded, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def texture_from_image(image, where):
+    """A PIL image (8 bits per channel, sRGB-encoded, as PNG and JPEG files hold them)
+    as a texture: (H, W, 3) float32 linear RGB, row 0 the top. Alpha is dropped; a
+    grey image is repeated into the three channels."""
+    width, height = image.size
+    if width < 1 or height < 1:
+        raise InputError(f"{where}: the texture is empty ({width} x {height} pixels)")
+    if width * height > MAX_TEXTURE_PIXELS:
+        raise InputError(
+            f"{where}: the texture is {width} x {height} pixels, more than the {MAX_TEXTURE_PIXELS:,} allowed"
+        )
+    if image.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        raise InputError(f"{where}: the texture has {image.mode} pixels; give an 8-bit RGB or grey image")
+    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
+    return srgb_to_linear(rgb).astype(np.float32)
+
+
+def read_texture(path, where):
+    """A texture from an image file (PNG, JPEG, ... through pillow): (H, W, 3) float32
+    linear RGB (``texture_from_image``). InputError naming ``where`` and the file if
+    it is missing, not an image, or too large."""
+    try:
+        data = read_input_bytes(path, "texture", TEXTURE_BYTES)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            image.load()
+            return texture_from_image(image, f"{where}: texture {str(path)!r}")
+    except InputError:
+        raise
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise InputError(f"{where}: cannot read the texture {str(path)!r}: {exc}") from None
+
+
+def check_texture(texture, uvs, n_vertices, where):
+    """``texture`` and ``uvs`` as an object keeps them, checked: (float32 (H, W, 3)
+    finite in [0, 1], float64 (V, 2) finite), or (None, uvs) for an untextured
+    object (which may still carry uvs). InputError naming ``where``."""
+    if uvs is not None:
+        uvs = np.asarray(uvs, dtype=np.float64)
+        if uvs.shape != (n_vertices, 2):
+            raise InputError(f"{where}: texture coordinates must be (V, 2) for its {n_vertices} vertices, got {uvs.shape}")
+        if not np.isfinite(uvs).all():
+            raise InputError(f"{where}: texture coordinates must be finite")
+    if texture is None:
+        return None, uvs
+    if uvs is None:
+        raise InputError(f"{where}: has a texture but no texture coordinates")
+    texture = np.asarray(texture, dtype=np.float32)
+    if texture.ndim != 3 or texture.shape[2] != 3 or 0 in texture.shape:
+        raise InputError(f"{where}: a texture must be (H, W, 3), got {texture.shape}")
+    if not (np.isfinite(texture).all() and texture.min() >= 0.0 and texture.max() <= 1.0):
+        raise InputError(f"{where}: texture values must lie in [0, 1] (a reflectance)")
+    return texture, uvs
+
+
+def _coordinates(u, v, height, width):
+    """The bilinear footprint of (u, v) on a height x width texture: the rows (i0,
+    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, repeating."""
+    x = u * width - 0.5
+    y = (1.0 - v) * height - 0.5
+    j0 = np.floor(x)
+    i0 = np.floor(y)
+    fx, fy = x - j0, y - i0
+    j0 = np.mod(j0, width).astype(np.int64)
+    i0 = np.mod(i0, height).astype(np.int64)
+    return i0, (i0 + 1) % height, j0, (j0 + 1) % width, fy, fx
+
+
+def lookup(texture, uv):
+    """The texture's bilinear, repeating value at texture coordinates uv (..., 2):
+    (..., 3) float64. The numpy reference of ``texel``."""
+    uv = np.asarray(uv, dtype=np.float64)
+    tex = np.asarray(texture, dtype=np.float64)
+    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2])
+    fx, fy = fx[..., None], fy[..., None]
+    top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
+    bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
+    return top + fy * (bottom - top)
+
+
+def atlas(textures):
+    """Every texture of a scene in one flat array, as the kernels read them.
+
+    textures : sequence of (H_k, W_k, 3) float32
+    Returns (pixels (sum H_k W_k 3,) float32, offsets (K,) int64 where texture k
+    starts, sizes (K, 2) int64 its (H_k, W_k)). With no texture the pixels are one
+    texel of zeros (a kernel's arrays are never empty) and offsets, sizes empty.
+    """
+    if not textures:
+        return np.zeros(3, np.float32), np.zeros(0, np.int64), np.zeros((0, 2), np.int64)
+    sizes = np.array([t.shape[:2] for t in textures], dtype=np.int64)
+    lengths = 3 * sizes[:, 0] * sizes[:, 1]
+    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    pixels = np.concatenate([np.ascontiguousarray(t, dtype=np.float32).ravel() for t in textures])
+    return pixels, offsets, sizes
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _wrap(i, n):
+    i = i % n
+    return i + n if i < 0 else i
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def texel(pixels, offsets, sizes, k, u, v):
+    """Texture k of an atlas (``atlas``) at texture coordinates (u, v): bilinear,
+    repeating, as an RGB 3-tuple of float64 (``lookup``, one point). Coordinates that
+    are not finite read the texel at (0, 0)."""
+    if not (math.isfinite(u) and math.isfinite(v)):
+        u, v = 0.0, 0.0
+    height, width = sizes[k, 0], sizes[k, 1]
+    base = offsets[k]
+    x = u * width - 0.5
+    y = (1.0 - v) * height - 0.5
+    xf = math.floor(x)
+    yf = math.floor(y)
+    fx, fy = x - xf, y - yf
+    j0 = _wrap(np.int64(xf), width)
+    i0 = _wrap(np.int64(yf), height)
+    j1 = j0 + 1 if j0 + 1 < width else 0
+    i1 = i0 + 1 if i0 + 1 < height else 0
+    a = base + 3 * (i0 * width + j0)
+    b = base + 3 * (i0 * width + j1)
+    c = base + 3 * (i1 * width + j0)
+    d = base + 3 * (i1 * width + j1)
+    out0 = _bilinear(pixels, a, b, c, d, fx, fy, 0)
+    out1 = _bilinear(pixels, a, b, c, d, fx, fy, 1)
+    out2 = _bilinear(pixels, a, b, c, d, fx, fy, 2)
+    return out0, out1, out2
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bilinear(pixels, a, b, c, d, fx, fy, ch):
+    """Channel ch between four texels at flat indices a (top left), b (top right), c
+    (bottom left), d (bottom right), as ``lookup`` computes it (the same rounding)."""
+    ta, tb = np.float64(pixels[a + ch]), np.float64(pixels[b + ch])
+    tc, td = np.float64(pixels[c + ch]), np.float64(pixels[d + ch])
+    top = ta + fx * (tb - ta)
+    bottom = tc + fx * (td - tc)
+    return top + fy * (bottom - top)
