@@ -35,18 +35,25 @@ without the cosine (Mitsuba's ``eval`` returns f cos(theta_o)).
 The mapping, ``phong_lobe_for(kind, distribution, alpha, **params)``, gives the
 modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
 
-- n(alpha) = ``phong_exponent(distribution, alpha)``: c / alpha^2 + d, fitted so the
-  Phong lobe's half-maximum region (the solid angle about the peak where the reflected
-  radiance under a distant light is at least half its peak) equals the microfacet
-  lobe's, averaged in log over incidence 0, 30, 45 and 60 degrees, over alpha in
-  [0.01, 1] (``benchmarks/bench_material_mapping.py --parts rule`` measures it):
-  GGX c = 0.737, d = -0.40 (GGX's half maximum is 0.837 / alpha^2 at normal incidence,
-  narrower at oblique incidence where its lobe is foreshortened across the plane of
-  incidence); Beckmann c = 0.450, d = -0.36 (0.5 / alpha^2 at normal incidence). Both
-  clipped to [0, MAX_EXPONENT]. The user's guess 2/alpha^2 - 2 is about 2.7 (GGX) to
-  4.4 (Beckmann) times too sharp; the glTF loader's (2/alpha^2 - 2)/4 = 0.5/alpha^2 -
-  0.5 is Beckmann's normal-incidence value, about right for Beckmann and 1.5 times too
-  broad for GGX (whose glTF roughness is GGX).
+- n(alpha) = ``phong_exponent(distribution, alpha)`` = c / alpha^2 + d + e alpha^2
+  (``RULE``), 0 from its first root on (alpha about 0.74 for GGX, 0.61 for Beckmann:
+  lobes broader than Phong's broadest, the cosine). Measured by
+  ``benchmarks/bench_material_mapping.py --parts rule``: per alpha (13 values in
+  [0.01, 1]) and incidence (0 to 85 degrees), the exponent whose lobe (f cos, the
+  radiance a viewer sees from a small light moving about the mirror direction) has the
+  same half-maximum solid angle as the microfacet lobe's (F = 1); their log mean over
+  incidence weighted by sin(2 theta), the density of a highlight's incidence when light
+  and viewer are independent uniform directions; then n alpha^2 fitted by c + d alpha^2
+  + e alpha^4 in relative least squares (within 0.5 % where n alpha^2 > 0.05). GGX: c =
+  1.368, d = -3.261, e = 1.384; Beckmann: c = 0.818, d = -3.014, e = 2.183. The single n
+  is a compromise: the microfacet lobe narrows across the plane of incidence as the
+  incidence grows (for small alpha n alpha^2 = 0.80 at normal incidence, 1.18 at 45,
+  1.67 at 60, 3.2 at 75 degrees for GGX; 0.49, 0.70, 1.0, 1.9 for Beckmann), so the
+  mapped lobe is about 25 % narrower (radius) than the microfacet one at normal incidence,
+  7 % at 45 degrees, and wider beyond 55. The user's guess 2/alpha^2 - 2 is 1.5 (GGX)
+  to 2.4 (Beckmann) times the rule at small alpha: too sharp except at grazing
+  incidence; the glTF loader's (2/alpha^2 - 2)/4 is 2.7 (GGX) and 1.6 (Beckmann) times
+  too broad (glTF's roughness is GGX's).
 - ks = the microfacet term's directional albedo at normal incidence (times
   specular_reflectance): the Phong lobe's albedo at normal incidence is ks exactly.
 - kd = the diffuse term's albedo at normal incidence (plastic; 0 for conductors),
@@ -100,8 +107,8 @@ KINDS = ("roughplastic", "roughconductor", "plastic", "conductor")
 POLYPROPYLENE = 1.49  # Mitsuba's default int_ior
 AIR = 1.000277  # Mitsuba's default ext_ior
 
-RULE = {"ggx": (0.737, -0.40), "beckmann": (0.450, -0.36)}
-"""n(alpha) = c / alpha^2 + d per distribution: (c, d), see the module's docstring."""
+RULE = {"ggx": (1.368, -3.261, 1.384), "beckmann": (0.818, -3.014, 2.183)}
+"""n(alpha) = c / alpha^2 + d + e alpha^2 per distribution: (c, d, e), see the module's docstring."""
 
 _TABLE_SIZE = 64  # Mitsuba's MTS_ROUGH_TRANSMITTANCE_RES
 _METALS_FILE = Path(__file__).resolve().parent / "data" / "mitsuba_metals.json"
@@ -505,16 +512,17 @@ def _rotated(theta_i: float, delta, phi):
 
 
 def lobe_width(lobe, theta_i: float, extent: float, samples: int = 400) -> dict:
-    """Shape of the reflected radiance under a distant light at incidence theta_i.
+    """Shape of a lobe about the mirror direction of wv = (sin theta_i, 0, cos theta_i).
 
-    lobe: a function of wo (..., 3) -> radiance (...) for the fixed wi = (sin theta_i, 0,
-    cos theta_i) (the BRDF's specular part: radiance is f E cos(theta_i)); extent: the
-    largest angle from the mirror direction looked at (radians). Returns the peak's
-    offset from the mirror direction in the plane of incidence (radians, > 0 towards
-    the horizon), the peak value, ``solid_angle`` of the region at or above half the
-    peak and ``radius`` = sqrt(solid_angle / pi) (the half width at half maximum of an
-    equivalent round lobe), and the in-plane and across-plane half widths about the
-    peak.
+    lobe: a function of directions w (..., 3) -> (...): for the radiance a viewer at wv
+    sees from a small light moving over w, f(w, wv) cos(theta_w) (reciprocity makes
+    wv the light and w the viewer equally); extent: the largest angle from the mirror
+    direction looked at (radians), on a polar grid of ``samples`` x 256 directions.
+    Returns the peak's offset from the mirror direction in the plane of incidence
+    (radians, > 0 towards the horizon), the peak value, ``solid_angle`` of the region
+    at or above half the peak and ``radius`` = sqrt(solid_angle / pi) (the half width
+    at half maximum of an equivalent round lobe), and the in-plane and across-plane half
+    widths at half maximum through the peak (radians).
     """
     delta = (np.arange(samples) + 0.5) * (extent / samples)
     phi = (np.arange(256) + 0.5) * (2.0 * math.pi / 256)
@@ -530,17 +538,14 @@ def lobe_width(lobe, theta_i: float, extent: float, samples: int = 400) -> dict:
     # half widths along the plane of incidence and across it, through the peak
     line = np.linspace(-extent, extent, 4 * samples + 1)
     d_in = np.abs(line + offset)
-    in_plane = _rotated(theta_i, d_in, np.where(line + offset < 0.0, math.pi, 0.0))
+    in_plane = _rotated(theta_i, d_in, np.where(line + offset > 0.0, math.pi, 0.0))
     peak_dir = _rotated(theta_i, np.array(abs(offset)), np.array(math.pi if offset > 0 else 0.0))
-    across_axis = np.cross(peak_dir, [0.0, 1.0, 0.0])
-    across_axis /= np.linalg.norm(across_axis)
     across = np.cos(line)[:, None] * peak_dir + np.sin(line)[:, None] * np.array([0.0, 1.0, 0.0])
     widths = {}
     for name, dirs in (("in_plane", in_plane), ("across", across)):
         v = np.where(dirs[:, 2] > 0.0, lobe(dirs), 0.0)
         above = line[v >= 0.5 * peak]
         widths[name] = float(above.max() - above.min()) / 2.0 if above.size else 0.0
-    del across_axis
     return {
         "offset": offset,
         "peak": peak,
@@ -555,10 +560,15 @@ def lobe_width(lobe, theta_i: float, extent: float, samples: int = 400) -> dict:
 
 
 def phong_exponent(distribution: str, alpha: float) -> float:
-    """The rule's Phong exponent: c / alpha^2 + d (``RULE``), clipped to [0, MAX_EXPONENT]."""
+    """The rule's Phong exponent c / alpha^2 + d + e alpha^2 (``RULE``), 0 from the first
+    alpha where it reaches 0 on, at most MAX_EXPONENT."""
     _check_distribution(distribution, alpha)
-    c, d = RULE[distribution]
-    return float(min(max(c / (alpha * alpha) + d, 0.0), MAX_EXPONENT))
+    c, d, e = RULE[distribution]
+    x = alpha * alpha
+    first_root = (-d - math.sqrt(d * d - 4.0 * c * e)) / (2.0 * e)  # in x = alpha^2; both constants' roots real
+    if x >= first_root:
+        return 0.0
+    return float(min(max(c / x + d + e * x, 0.0), MAX_EXPONENT))
 
 
 def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1, *, measure: bool = False, **params):
@@ -568,7 +578,7 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
     the smooth kinds); params: Mitsuba's parameters (see ``reference_brdf``).
     Returns (kd (3,), ks (3,), exponent, report): report holds the rule, the reference's
     albedo (specular, diffuse) at incidence 0, 60 and 80 degrees against the Phong
-    lobe's, and with ``measure`` the half-maximum radius of both lobes at 0, 30 and 60
+    lobe's, and with ``measure`` the half-maximum radius of both lobes at 0, 30, 45 and 60
     degrees (radians; ``lobe_width``).
     """
     brdf = reference_brdf(kind, distribution, alpha, **params)
@@ -588,7 +598,7 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
         "kind": kind,
         "distribution": None if smooth else distribution,
         "alpha": None if smooth else float(alpha),
-        "rule": "n = MAX_EXPONENT (smooth)" if smooth else f"n = {RULE[distribution][0]} / alpha^2 + {RULE[distribution][1]}",
+        "rule": "n = MAX_EXPONENT (smooth)" if smooth else "n = {} / alpha^2 + ({}) + {} alpha^2".format(*RULE[distribution]),
         "incidence_deg": [0.0, 60.0, 80.0],
         "reference_specular_albedo": specular.tolist(),
         "reference_diffuse_albedo": diffuse.tolist(),
@@ -598,10 +608,14 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
     }
     if measure and not smooth:
         report["hwhm_deg"] = {}
-        for deg in (0.0, 30.0, 60.0):
+        for deg in (0.0, 30.0, 45.0, 60.0):
             ref, phong = _lobe_radii(brdf, exponent, math.radians(deg))
             report["hwhm_deg"][f"{deg:g}"] = {"reference": math.degrees(ref), "phong": math.degrees(phong)}
     return kd, ks, exponent, report
+
+
+def _no_fresnel(cos):
+    return np.ones(np.shape(cos) + (1,))
 
 
 def _lobe_radii(brdf, exponent: float, theta_i: float) -> tuple[float, float]:
@@ -610,11 +624,12 @@ def _lobe_radii(brdf, exponent: float, theta_i: float) -> tuple[float, float]:
     guess = max(math.acos(0.5 ** (1.0 / max(exponent, 1e-3))), 1e-4) if exponent > 0 else math.pi / 2
     extent = min(math.pi, 4.0 * guess)
 
-    def reference(wo):
-        return _specular(brdf.distribution, brdf.alpha, np.broadcast_to(wi, wo.shape), wo, lambda c: np.ones(c.shape + (1,)))[..., 0]
+    def reference(w):
+        unit = _specular(brdf.distribution, brdf.alpha, np.broadcast_to(wi, w.shape), w, _no_fresnel)
+        return unit[..., 0] * w[..., 2]
 
-    def phong(wo):
+    def phong(w):
         m = np.array([-wi[0], -wi[1], wi[2]])
-        return np.maximum(wo @ m, 0.0) ** exponent
+        return np.maximum(w @ m, 0.0) ** exponent * w[..., 2]
 
     return lobe_width(reference, theta_i, extent)["radius"], lobe_width(phong, theta_i, extent)["radius"]
