@@ -16,9 +16,9 @@ the sphere's profiles, and material_mapping_rule.png, the rule and Fresnel):
            2 and (2/alpha^2 - 2)/4 against it.
   sphere   a unit sphere seen by an orthographic camera along -z, lit by one square
            area light (side 0.5 at distance 5, radiance 1) at 60 or 120 degrees from
-           the view (the highlight's incidence 30 or 60 degrees). Each pixel of a window
-           about the highlight (96 x 96) integrates the reflected radiance over the
-           light (40 x 40 Gauss-Legendre nodes) for the reference BRDF's specular part
+           the view (the highlight's incidence about 30 or 60 degrees). Each pixel of a window
+           about the highlight (72 x 72) integrates the reflected radiance over the
+           light (28 x 28 Gauss-Legendre nodes) for the reference BRDF's specular part
            and the mapped Phong lobe's (radiosity.scene.materials.eval_brdf with kd = 0);
            per kind (roughplastic, roughconductor Cu), distribution and alpha: the
            peak's position (degrees of the normal from the half vector, in the plane of
@@ -74,7 +74,7 @@ def equivalent_exponent(solid_angle, theta, extent, samples):
     lo, hi = -4.0, 7.0
     if mf.lobe_width(_phong_lobe(10**lo, theta), theta, extent, samples)["solid_angle"] <= solid_angle:
         return 0.0  # broader than the broadest Phong lobe
-    for _ in range(24):
+    for _ in range(20):
         mid = 0.5 * (lo + hi)
         if mf.lobe_width(_phong_lobe(10**mid, theta), theta, extent, samples)["solid_angle"] > solid_angle:
             lo = mid
@@ -85,7 +85,7 @@ def equivalent_exponent(solid_angle, theta, extent, samples):
 
 def part_rule(record, quick):
     alphas = ALPHAS_RULE[::3] if quick else ALPHAS_RULE
-    samples = 120 if quick else 240
+    samples = 120 if quick else 160
     weights = np.sin(2.0 * np.radians(INCIDENCE_RULE))
     weights[0] = weights[1] / 4.0  # keep normal incidence in, with a small weight
     fits = {}
@@ -239,7 +239,7 @@ def sphere_case(kind, dist, alpha, angle_deg, pixels, nodes):
 
 
 def part_sphere(record, quick):
-    pixels, nodes = (48, 24) if quick else (96, 40)
+    pixels, nodes = (48, 24) if quick else (72, 28)
     alphas = ALPHAS_SPHERE[1:4:2] if quick else ALPHAS_SPHERE
     profiles = []
     for kind in ("roughplastic", "roughconductor"):
