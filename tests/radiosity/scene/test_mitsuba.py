@@ -672,9 +672,11 @@ def test_conductor_colours_and_anisotropy(tmp_path):
     scene, messages = load_warned(path)
     assert "anisotropic roughness (0.05, 0.2) taken as isotropic 0.1" in messages[0]
     assert scene.objects[0].material.exponent == rough_surface(tmp_path, "conductor", 0.1).exponent
-    bad = write_scene(tmp_path, '<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Au"/>'
+    named = rough_surface(tmp_path, "conductor", None, '<string name="material" value="Au"/>')
+    assert named.specular[0] > named.specular[1] > named.specular[2]  # gold: Mitsuba's preset
+    bad = write_scene(tmp_path, '<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Fe"/>'
                                 "</bsdf></shape>")
-    assert "unknown metal 'Au'" in refusal(bad)
+    assert "unknown material 'Fe'" in refusal(bad)  # Mitsuba has no plain Fe either
 
 
 def test_a_bitmap_texture_counts_as_its_mean_colour(tmp_path):
