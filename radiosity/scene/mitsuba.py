@@ -719,7 +719,7 @@ def _surface(doc, node):
 def _microfacet_surface(node, props, kind):
     """plastic, roughplastic, conductor, roughconductor by ``microfacet.phong_lobe_for``'s
     measured rule (the exponent that matches the lobe's half-maximum solid angle, ks
-    and kd the original's albedos at normal incidence)."""
+    and kd fitted to the original's albedos over incidence)."""
     alpha, distribution = None, props.string("distribution", "beckmann")
     if kind.startswith("rough"):
         alpha = props.float("alpha")
