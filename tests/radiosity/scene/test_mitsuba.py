@@ -539,7 +539,7 @@ def test_the_05_spelling_gives_the_30_scene():
     from radiosity.scene.microfacet import phong_lobe_for
 
     grey = old.object("ball").material.diffuse  # #808080 decoded, after the interface
-    _, ks, _, _ = phong_lobe_for("plastic", int_ior=1.6, ext_ior=1.0, diffuse_reflectance=float(0.2158605001))
+    _, ks, _, _ = phong_lobe_for("plastic", int_ior=1.6, ext_ior=1.0, diffuse_reflectance=0.2158605001)
     np.testing.assert_allclose(old.object("ball").material.specular, ks, rtol=1e-9)
     assert not np.allclose(ks, phong_lobe_for("plastic", diffuse_reflectance=0.2158605001)[1])
     assert 0 < grey[0] < 0.2158605001
