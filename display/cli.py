@@ -128,9 +128,16 @@ def _close_progress_bars():
     one line that follows starts a line of its own in a terminal, and no bar is drawn
     again after it when the interpreter exits."""
     tqdm = sys.modules.get("tqdm")
+    unfinished = False
     for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", ())):
+        # a signal inside tqdm's __init__, after its first draw and before its clock is
+        # set: close() returns without ending the line it drew
+        half_made = not getattr(bar, "disable", True) and hasattr(bar, "sp") and not hasattr(bar, "last_print_t")
         with contextlib.suppress(Exception):
             bar.close()
+        unfinished = unfinished or half_made
+    if unfinished:  # give that line its end, so that the next is a line of its own
+        sys.stderr.write("\n")
 
 
 def _interrupted(command, exc):

@@ -103,3 +103,23 @@ def test_stopping_the_path_tracer_leaves_no_file(tmp_path, signum, status, said)
     assert code == status, err
     assert err.strip().splitlines()[-1] == f"vlights truth: {said}" and "Traceback" not in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bar_caught_half_made_still_ends_its_line(capsys):
+    """A signal inside tqdm's __init__ after its first draw and before its clock is set:
+    its close() returns without ending the line it drew; the line is ended all the same,
+    so "interrupted" is a line of its own (test_ctrl_c_during_fit at "fit: 0%" once saw
+    the message glued to the bar, on loaded cores)."""
+    from tqdm import tqdm
+
+    from display.cli import _close_progress_bars
+
+    half = tqdm.__new__(tqdm)  # registered in tqdm._instances; __init__ stopped after its draw
+    half.disable, half.pos, half.sp = False, 0, print
+    try:
+        _close_progress_bars()
+        assert capsys.readouterr().err == "\n"
+    finally:
+        tqdm._instances.discard(half)
+    _close_progress_bars()  # no bar left: nothing written
+    assert capsys.readouterr().err == ""

@@ -15,9 +15,9 @@ glTF 2.0 (metallic-roughness)
     base = baseColorFactor (times the mean of baseColorTexture, if any);
     specular ks = base * metallic + 0.04 * (1 - metallic) (the usual F0);
     diffuse kd = base * (1 - metallic) * (1 - ks);
-    exponent n = (2 / alpha^2 - 2) / 4 with alpha = roughness^2 (the Blinn-Phong
-    equivalent of GGX, quartered because our lobe is about the mirror direction, not
-    the half vector), at most 10000; a dielectric (metallic = 0) with roughness >= 0.9
+    exponent n = ``microfacet.phong_exponent("ggx", alpha)`` with alpha = roughness^2
+    (the measured rule: the Phong lobe of the same half-maximum solid angle as GGX's;
+    the old (2 / alpha^2 - 2) / 4 was 2.7 times too broad), at most 10000; a dielectric (metallic = 0) with roughness >= 0.9
     is taken as diffuse (ks = 0), a lobe that broad being indistinguishable from one;
     emission = emissiveFactor (times KHR_materials_emissive_strength, if any: folded
     into the factor before trimesh reads the file, since trimesh drops extensions).
@@ -53,6 +53,7 @@ from radiosity.scene.meshfiles import (
     read_single_mesh,
     trimesh_load,
 )
+from radiosity.scene.microfacet import phong_exponent
 from radiosity.scene.mitsuba import load_mitsuba
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object, with_backs
 from radiosity.scene.textures import read_texture
@@ -477,8 +478,8 @@ def _from_pbr(mat, name, here):
         exponent = 0.0
     else:
         ks = base * metallic + 0.04 * (1.0 - metallic)
-        alpha = max(roughness, 1e-3) ** 2
-        exponent = float(min(max(2.0 / alpha**2 - 2.0, 0.0) / 4.0, 1e4))
+        alpha = max(roughness, 1e-3) ** 2  # glTF's roughness squared is GGX's alpha
+        exponent = float(min(phong_exponent("ggx", alpha), 1e4))
     kd = base * (1.0 - metallic) * (1.0 - ks)
     # KHR_materials_emissive_strength is already in the factor (``meshfiles._gltf_emissive``)
     emissive = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, dtype=np.float64)[:3]

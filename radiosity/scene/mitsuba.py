@@ -59,7 +59,7 @@ import trimesh
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
-from radiosity.scene import builtins
+from radiosity.scene import builtins, microfacet
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_with_normals
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
@@ -717,10 +717,11 @@ def _surface(doc, node):
 
 
 def _microfacet_surface(node, props, kind):
-    rough = kind.startswith("rough")
-    alpha = None
-    distribution = props.string("distribution", "beckmann")
-    if rough:
+    """plastic, roughplastic, conductor, roughconductor by ``microfacet.phong_lobe_for``'s
+    measured rule (the exponent that matches the lobe's half-maximum solid angle, ks
+    and kd fitted to the original's albedos over incidence)."""
+    alpha, distribution = None, props.string("distribution", "beckmann")
+    if kind.startswith("rough"):
         alpha = props.float("alpha")
         if alpha is None and props.float("alpha_u") is not None:
             au, av = props.float("alpha_u"), props.float("alpha_v", props.float("alpha_u"))
@@ -728,30 +729,24 @@ def _microfacet_surface(node, props, kind):
             if au != av:
                 node.warn(f"anisotropic roughness ({au:g}, {av:g}) taken as isotropic {alpha:.4g}")
         alpha = 0.1 if alpha is None else alpha
-        if distribution not in ("beckmann", "ggx", "phong"):
-            raise node.fail(f"distribution {distribution!r} is not one of beckmann, ggx, phong")
-        if distribution == "phong":  # Mitsuba 0.x: alpha is the Phong exponent's roughness already
+        if distribution == "phong":  # Mitsuba 0.x's third distribution: close to Beckmann's at the same alpha
+            node.warn("the phong distribution is mapped as beckmann of the same alpha")
             distribution = "beckmann"
-    exponent = SMOOTH_EXPONENT if alpha is None else float(np.clip(2.0 / alpha**2 - 2.0, 1.0, SMOOTH_EXPONENT))
-    specular = np.asarray(props.colour("specular_reflectance", 1.0))
+    params = {"specular_reflectance": props.colour("specular_reflectance", 1.0)}
     if kind.endswith("plastic"):
-        f0 = _dielectric_f0(_ior(props, "int_ior", 1.49), _ior(props, "ext_ior", 1.000277))
-        diffuse = np.asarray(props.colour("diffuse_reflectance", 0.5)) * (1.0 - f0)
-        return _Surface(diffuse=tuple(diffuse), specular=tuple(specular * f0), exponent=exponent)
-    eta, k = _metal(node, props)
-    return _Surface(diffuse=(0.0, 0.0, 0.0), specular=tuple(specular * _conductor_f0(eta, k)), exponent=exponent)
-
-
-SMOOTH_EXPONENT = 1e4  # a smooth (mirror) coating's lobe
-
-
-def _dielectric_f0(int_ior, ext_ior):
-    return ((int_ior - ext_ior) / (int_ior + ext_ior)) ** 2
-
-
-def _conductor_f0(eta, k):
-    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
-    return ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)
+        params |= {"diffuse_reflectance": props.colour("diffuse_reflectance", 0.5),
+                   "int_ior": _ior(props, "int_ior", 1.49), "ext_ior": _ior(props, "ext_ior", 1.000277),
+                   "nonlinear": props.boolean("nonlinear")}
+    elif "eta" in props.named or "k" in props.named:
+        params |= {"eta": props.colour("eta", 0.0), "k": props.colour("k", 1.0)}
+    else:
+        params["material"] = props.string("material", "none")
+    try:
+        kd, ks, exponent, _ = microfacet.phong_lobe_for(kind, distribution, alpha if alpha is not None else 0.1,
+                                                         **params)
+    except InputError as exc:
+        raise node.fail(str(exc)) from None
+    return _Surface(diffuse=tuple(map(float, kd)), specular=tuple(map(float, ks)), exponent=exponent)
 
 
 _NAMED_IOR = {"vacuum": 1.0, "bk7": 1.5046, "glass": 1.5046, "acrylic glass": 1.49, "polypropylene": 1.49,
@@ -768,16 +763,6 @@ def _ior(props, name, default):
     if not value > 0:
         raise props.node.fail(f"{name} must be > 0, got {value}")
     return value
-
-
-def _metal(node, props):
-    """A conductor's RGB complex index (eta, k): given, or a named metal's."""
-    if "eta" in props.named or "k" in props.named:
-        return props.colour("eta", 0.0), props.colour("k", 1.0)
-    name = props.string("material", "none")
-    if name.lower() == "none":  # Mitsuba's perfect mirror
-        return (0.0, 0.0, 0.0), (1e9, 1e9, 1e9)
-    raise node.fail(f"unknown metal {name!r} (known: none)")
 
 
 # -- the scene ------------------------------------------------------------------------------
