@@ -7,7 +7,7 @@ spheres and cylinders, every shape with a transform and a bsdf (diffuse, roughpl
 roughconductor; some twosided). Timed: ``load_scene`` (parse, read the meshes,
 transform, weld, normals), median of --repeats runs in a fresh process each.
 
-    python benchmarks/bench_load.py                   # 10^4, 10^5 and 3 x 10^5 triangles
+    python benchmarks/bench_load.py                   # about 1.5 x 10^4, 10^5 and 2.5 x 10^5 triangles
     python benchmarks/bench_load.py --triangles 100000 --repeats 5
 """
 
@@ -90,7 +90,7 @@ def make_scene(directory, triangles):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--triangles", type=int, nargs="+", default=[10_000, 100_000, 300_000])
+    parser.add_argument("--triangles", type=int, nargs="+", default=[10_000, 120_000, 300_000])
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args(argv)
     record = Recorder(benchmark="load")

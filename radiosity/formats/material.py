@@ -167,3 +167,9 @@ def specular_albedo(exponent: float, cos_theta: np.ndarray) -> np.ndarray:
     clipped = (_W_WEIGHTS * (a * phi0 + b * np.sin(phi0))).sum(axis=1)
     sin_pow = s[:, 0] ** (n + 2.0)
     return cos_theta * (1.0 - sin_pow) + sin_pow * (n + 2.0) / ((n + 1.0) * math.pi) * clipped
+
+
+def srgb_to_linear(c):
+    """sRGB-encoded values in [0, 1] as linear ones (the IEC 61966-2-1 curve), float64."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

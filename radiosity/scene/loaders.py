@@ -42,7 +42,7 @@ import trimesh
 from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
-from radiosity.formats.material import FLOAT32_MAX
+from radiosity.formats.material import FLOAT32_MAX, srgb_to_linear
 from radiosity.formats.sniff import FILE_NAMES, input_kind
 from radiosity.scene import builtins, geometry
 from radiosity.scene.materials import Material
@@ -415,8 +415,7 @@ def _mean_texture_colour(image):
     if image is None:
         return None
     rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
-    linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-    return linear.reshape(-1, 3).mean(axis=0)
+    return srgb_to_linear(rgb).reshape(-1, 3).mean(axis=0)
 
 
 def _mapped_material(mesh, where):

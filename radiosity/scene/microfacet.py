@@ -76,14 +76,14 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 import numpy as np
 from scipy.special import erf
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import MAX_EXPONENT
+from radiosity.formats.material import MAX_EXPONENT, specular_albedo
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -584,8 +584,6 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
     lobe's, and with ``measure`` the half-maximum radius of both lobes at 0, 30, 45 and 60
     degrees (radians; ``lobe_width``).
     """
-    from radiosity.formats.material import specular_albedo
-
     brdf = reference_brdf(kind, distribution, alpha, **params)
     angles = np.radians([0.0, 60.0, 80.0])
     specular, diffuse = brdf.albedo(np.cos(angles))
@@ -617,6 +615,23 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
     return kd, ks, exponent, report
 
 
+def phong_lobe(kind: str, distribution: str = "beckmann", alpha: float = 0.1, **params):
+    """(kd, ks, n) of ``phong_lobe_for``, as tuples, remembered per distinct material:
+    a scene's many shapes of one material pay for its quadratures once (a few tenths
+    of a second each)."""
+
+    def hashable(value):
+        return tuple(float(v) for v in np.ravel(value)) if np.ndim(value) else value
+
+    return _lobe(kind, distribution, float(alpha), tuple(sorted((k, hashable(v)) for k, v in params.items())))
+
+
+@lru_cache(maxsize=1024)
+def _lobe(kind, distribution, alpha, params):
+    kd, ks, exponent, _ = phong_lobe_for(kind, distribution, alpha, **dict(params))
+    return tuple(map(float, kd)), tuple(map(float, ks)), exponent
+
+
 ALBEDO_NODES = 48  # incidence angles of the albedo fit (Gauss-Legendre in theta)
 
 
@@ -627,8 +642,6 @@ def _albedos_over_incidence(brdf, exponent):
     independent uniform directions, as for the exponent): the Phong lobe's albedo falls
     towards grazing roughly as cos theta while a microfacet lobe's stays and Fresnel
     rises, so matching at normal incidence alone leaves every oblique highlight dim."""
-    from radiosity.formats.material import specular_albedo
-
     x, w = np.polynomial.legendre.leggauss(ALBEDO_NODES)
     theta = (x + 1.0) * np.pi / 4.0  # (0, pi/2)
     weight = w * np.sin(2.0 * theta)

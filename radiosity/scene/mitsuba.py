@@ -59,6 +59,7 @@ import trimesh
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
+from radiosity.formats.material import srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_with_normals
@@ -260,11 +261,6 @@ def _numbers(node, text, count=None):
     return values
 
 
-def _srgb_to_linear(c):
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def _colour(node):
     """An RGB triple from ``rgb``, ``srgb`` or ``spectrum`` (linear)."""
     value = node.attrs.get("value")
@@ -280,7 +276,7 @@ def _colour(node):
             rgb = [int(text[i:i + 2], 16) / 255.0 for i in (1, 3, 5)]
         else:
             rgb = _numbers(node, text, (1, 3))
-        return tuple(_srgb_to_linear(rgb * 3 if len(rgb) == 1 else rgb))
+        return tuple(srgb_to_linear(rgb * 3 if len(rgb) == 1 else rgb))
     if node.tag == "spectrum" and ":" in value:
         return _spectrum_to_rgb(node, value)
     rgb = _numbers(node, value, (1, 3))
@@ -441,7 +437,7 @@ def _read_image(node, path):
     if image.shape[2] == 1:
         image = image.repeat(3, axis=2)
     if np.issubdtype(image.dtype, np.integer):
-        return _srgb_to_linear(image[..., :3] / np.iinfo(image.dtype).max)
+        return srgb_to_linear(image[..., :3] / np.iinfo(image.dtype).max)
     return image[..., :3].astype(np.float64)
 
 
@@ -620,18 +616,18 @@ def _analytic(node, props, tessellation):
         return positions, np.array([[0, 1, 2], [0, 2, 3]]), to_world
     if kind == "disk":
         return (*builtins.disk(tessellation.segments), to_world)
-    if kind == "cube":
-        box = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
-        return np.asarray(box.vertices, dtype=np.float64), np.asarray(box.faces, dtype=np.int64), to_world
+    if kind == "cube":  # [-1, 1]^3: the built-in unit cube doubled
+        positions, faces = builtins.mesh("cube")
+        return 2.0 * positions, faces, to_world
     if kind == "sphere":
-        sphere = trimesh.creation.icosphere(subdivisions=tessellation.sphere_levels, radius=1.0)
+        positions, faces = builtins.mesh("sphere", subdivisions=tessellation.sphere_levels)
         radius = props.float("radius", 1.0)
         if not radius > 0:
             raise node.fail(f"radius must be > 0, got {radius}")
         place = np.eye(4)
         place[:3, :3] *= radius
         place[:3, 3] = props.vector("center", np.zeros(3))
-        return np.asarray(sphere.vertices, dtype=np.float64), np.asarray(sphere.faces, dtype=np.int64), to_world @ place
+        return positions, faces, to_world @ place
     if kind == "cylinder":
         p0, p1 = props.vector("p0", np.zeros(3)), props.vector("p1", np.array([0.0, 0, 1]))
         radius = props.float("radius", 1.0)
@@ -742,11 +738,10 @@ def _microfacet_surface(node, props, kind):
     else:
         params["material"] = props.string("material", "none")
     try:
-        kd, ks, exponent, _ = microfacet.phong_lobe_for(kind, distribution, alpha if alpha is not None else 0.1,
-                                                         **params)
+        kd, ks, exponent = microfacet.phong_lobe(kind, distribution, alpha if alpha is not None else 0.1, **params)
     except InputError as exc:
         raise node.fail(str(exc)) from None
-    return _Surface(diffuse=tuple(map(float, kd)), specular=tuple(map(float, ks)), exponent=exponent)
+    return _Surface(diffuse=kd, specular=ks, exponent=exponent)
 
 
 _NAMED_IOR = {"vacuum": 1.0, "bk7": 1.5046, "glass": 1.5046, "acrylic glass": 1.49, "polypropylene": 1.49,
