@@ -16,8 +16,9 @@ coordinates interpolated barycentrically. The conventions, one for every format
               u = (j + 0.5) / W, v = 1 - (i + 0.5) / H; bilinear between the four
               nearest texel centres, repeating outside [0, 1) (Mitsuba's default)
 
-``lookup`` is the numpy reference; ``texel`` the same lookup for the kernels, which
-read every texture of a scene from one flat atlas (``atlas``).
+``lookup`` (``radiosity.formats.texture``, where the files' readers reach it) is the
+numpy reference; ``texel`` the same lookup for the kernels, which read every texture
+of a scene from one flat atlas (``atlas``).
 """
 
 from __future__ import annotations
@@ -31,17 +32,12 @@ from PIL import Image
 
 from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import read_input_bytes
+from radiosity.formats.material import srgb_to_linear
+from radiosity.formats.texture import MAX_TEXTURE_PIXELS, lookup
 
 __all__ = ["atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
 
-MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels (768 MB as float32 RGB): a texture larger is refused
 TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
-
-
-def srgb_to_linear(encoded):
-    """The sRGB transfer function undone: values in [0, 1] -> linear [0, 1], float64."""
-    c = np.asarray(encoded, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def texture_from_image(image, where):
@@ -99,31 +95,6 @@ def check_texture(texture, uvs, n_vertices, where):
     if not (np.isfinite(texture).all() and texture.min() >= 0.0 and texture.max() <= 1.0):
         raise InputError(f"{where}: texture values must lie in [0, 1] (a reflectance)")
     return texture, uvs
-
-
-def _coordinates(u, v, height, width):
-    """The bilinear footprint of (u, v) on a height x width texture: the rows (i0,
-    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, repeating."""
-    x = u * width - 0.5
-    y = (1.0 - v) * height - 0.5
-    j0 = np.floor(x)
-    i0 = np.floor(y)
-    fx, fy = x - j0, y - i0
-    j0 = np.mod(j0, width).astype(np.int64)
-    i0 = np.mod(i0, height).astype(np.int64)
-    return i0, (i0 + 1) % height, j0, (j0 + 1) % width, fy, fx
-
-
-def lookup(texture, uv):
-    """The texture's bilinear, repeating value at texture coordinates uv (..., 2):
-    (..., 3) float64. The numpy reference of ``texel``."""
-    uv = np.asarray(uv, dtype=np.float64)
-    tex = np.asarray(texture, dtype=np.float64)
-    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2])
-    fx, fy = fx[..., None], fy[..., None]
-    top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
-    bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
-    return top + fy * (bottom - top)
 
 
 def atlas(textures):
