@@ -38,6 +38,7 @@ def describe(scene, refined, max_edge, how, adaptive=None):
                 "refined_triangles": r.n_triangles,
                 "refined_vertices": r.n_vertices,
                 "area": float(f"{o.area:.6g}"),
+                "texture": None if o.texture is None else f"{o.texture.shape[1]}x{o.texture.shape[0]}",
             }
         )
     emitters = []
@@ -119,6 +120,7 @@ def format_description(info):
         out.append(
             f"  {o['name']:<14} {o['material']:<10} {o['triangles']:>10} {o['vertices']:>10} "
             f"{o['refined_triangles']:>13} {o['refined_vertices']:>14} {o['area']:>11.4g}  {o['source']}"
+            + (f" (texture {o['texture']})" if o.get("texture") else "")
         )
     out.append(
         f"  {'total':<14} {'':<10} {t['triangles']:>10} {t['vertices']:>10} "
