@@ -1,7 +1,7 @@
 """A path tracer: the ground truth the walkthrough is measured against.
 
 Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
-emitters combined with BRDF sampling by multiple importance sampling (power
+emitters and the environment (``radiosity.scene.environment``) combined with BRDF sampling by multiple importance sampling (power
 heuristic), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
 (``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
@@ -553,7 +553,8 @@ def tiles(seed, width, height, first_sample, samples):
 class PathTraced:
     """A path-traced image and what it cost.
 
-    radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background 0
+    radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background the
+                     scene's environment (0 without one)
     standard_error : (H, W, 3) float32 the Monte Carlo standard error of each pixel's mean
     spp            : samples per pixel
     stats          : JSON-ready: seed, threads, spp, paths, rays (closest-hit and shadow),
