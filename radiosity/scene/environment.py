@@ -169,7 +169,7 @@ class Environment:
             "height": int(self.image.shape[0]),
             "scale": self.scale,
             "rotation": self.rotation.tolist(),
-            "irradiance_mean": (self.integral() / (4 * np.pi)).tolist(),
+            "mean_radiance": (self.integral() / (4 * np.pi)).tolist(),  # over the sphere
             "source": self.source,
         }
 
