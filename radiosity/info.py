@@ -61,6 +61,7 @@ def describe(scene, refined, max_edge, how, adaptive=None):
         "materials": materials,
         "objects": objects,
         "emitters": emitters,
+        "environment": None if scene.environment is None else scene.environment.info(),
         "totals": {
             "objects": len(scene.objects),
             "triangles": scene.n_triangles,
@@ -136,7 +137,11 @@ def format_description(info):
             else f"  adaptive  off: the uniform mesh's {a['vertices_before']:,} vertices"
         )
     out += ["", f"emitters ({len(info['emitters'])})   total power (pi Le A, RGB) {_v(t['emitted_power'])}"]
-    if not info["emitters"]:
+    env = info.get("environment")
+    if env:
+        out.append(f"  environment  {env['kind']} {env['width']}x{env['height']}, scale {env['scale']:g}, "
+                   f"mean radiance {_v(env['mean_radiance'])}  ({env['source']})")
+    elif not info["emitters"]:
         out.append("  none: nothing emits light, so a solution will be black")
     for e in info["emitters"]:
         out.append(

@@ -45,6 +45,7 @@ from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX, srgb_to_linear
 from radiosity.formats.sniff import FILE_NAMES, input_kind
 from radiosity.scene import builtins, geometry
+from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
@@ -64,7 +65,8 @@ _OBJECT_KEYS = {
     "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
 }
 _CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg", "matrix", "fov_deg", "fov_axis", "width", "height"}
-_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units"}
+_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment"}
+_ENVIRONMENT_KEYS = {"radiance", "image", "scale", "rotation", "rotate_deg", "transform"}
 
 
 def load_scene(source):
@@ -117,8 +119,43 @@ def _load_toml(text, base_dir, *, name, where):
     ]
     two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
+    environment = _parse_environment(data["environment"], base_dir, where) if "environment" in data else None
     return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
-                 source=where, film=film)
+                 source=where, film=film, environment=environment)
+
+
+def _parse_environment(table, base_dir, where):
+    """The ``Environment`` of a scene's [environment]: ``radiance`` (a number or RGB)
+    or ``image`` (a latitude-longitude map beside the scene: .exr, .hdr, .pfm, .npy as
+    linear radiance, 8-bit images sRGB-decoded), ``scale`` (default 1), and its
+    orientation: ``rotation`` (3 x 3, world from environment), ``rotate_deg`` ([x, y,
+    z], as an object's) or ``transform`` (4 x 4, its translation ignored)."""
+    here = f"{where}: [environment]"
+    _check_keys(table, _ENVIRONMENT_KEYS, here)
+    if ("radiance" in table) == ("image" in table):
+        raise InputError(f"{here}: give 'radiance' (a constant environment) or 'image' (an environment map)")
+    if sum(k in table for k in ("rotation", "rotate_deg", "transform")) > 1:
+        raise InputError(f"{here}: give one of 'rotation', 'rotate_deg' and 'transform'")
+    scale = _number(table.get("scale", 1.0), here, "scale")
+    rotation = None
+    if "rotation" in table:
+        value = table["rotation"]
+        if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
+            raise InputError(f"{here}: 'rotation' must be 3 rows of 3 numbers")
+        rotation = np.array([[_number(v, here, "rotation") for v in row] for row in value])
+    elif "rotate_deg" in table:
+        rotation = geometry.transform_matrix(rotate_deg=_vec3(table["rotate_deg"], here, "rotate_deg"))[:3, :3]
+    elif "transform" in table:
+        rotation = _matrix(table["transform"], here, "transform")[:3, :3]
+    if "radiance" in table:
+        return Environment.uniform(_vec3(table["radiance"], here, "radiance", allow_scalar=True), scale, rotation, here)
+    name = table["image"]
+    if not isinstance(name, str) or not name:
+        raise InputError(f"{here}: 'image' must be an image file name, got {name!r}")
+    path = Path(base_dir) / name
+    if not path.is_file():
+        raise InputError(f"{here}: the environment map {str(path)!r} is not found")
+    return Environment.from_image(read_environment_image(path, here), scale, rotation, here)
 
 
 def _two_sided(entry, name, where):

@@ -29,8 +29,12 @@ lobes): ``diffuse``; ``twosided`` (the surface gets a back: a second, reversed c
     A texture where a colour goes counts with its mean colour (with a warning).
 Emitters
     ``area`` (a shape's radiance); ``point`` and ``spot`` as a small sphere lamp of
-    the same intensity (a spot's cone is not kept: a warning says so); ``constant``,
-    ``envmap`` and ``directional`` are not modelled yet: left out with a warning.
+    the same intensity (a spot's cone is not kept: a warning says so); ``constant``
+    (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit image, sRGB-
+    decoded; scale; to_world, its rotation) become the scene's environment
+    (``radiosity.scene.environment``; one per scene: a second is left out with a
+    warning); ``directional`` and the sky models are not modelled yet: left out with
+    a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
     ``fov_axis`` (x, y, diagonal, smaller, larger) or 0.6's ``focalLength``, the
@@ -61,6 +65,7 @@ from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
 from radiosity.formats.material import srgb_to_linear
 from radiosity.scene import builtins, microfacet
+from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_with_normals
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
@@ -783,6 +788,7 @@ class _Reader:
         self.lamps = []  # (node, position, intensity rgb)
         self.camera = None
         self.names = set()
+        self.environment = None
 
     def read(self):
         for node in self.doc.elements:
@@ -878,7 +884,12 @@ class _Reader:
             if kind == "spot":
                 node.warn("a spot light is taken as a point light: its cone is not kept, light goes every way")
             self.lamps.append((node, position, intensity))
-        elif kind in ("constant", "envmap", "directional", "sunsky", "sky", "sun"):
+        elif kind in ("constant", "envmap"):
+            if self.environment is not None:
+                node.warn("a second environment emitter: left out (the first is the scene's environment)")
+            else:
+                self.environment = _environment(self.doc, node, props)
+        elif kind in ("directional", "sunsky", "sky", "sun"):
             node.warn(f"{kind} emitters (light from outside the scene) are not modelled yet: left out")
         elif kind == "area":
             raise node.fail("an area emitter must be inside the <shape> that emits")
@@ -897,7 +908,8 @@ class _Reader:
         for node, position, intensity in self.lamps:
             objects.append(self._lamp(node, position, intensity, diagonal))
         film = None if self.camera is None else (self.camera.width, self.camera.height)
-        return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film)
+        return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film,
+                     environment=self.environment)
 
     def _lamp(self, node, position, intensity, diagonal):
         radius = POINT_LAMP_RADIUS * diagonal
@@ -911,6 +923,25 @@ class _Reader:
                             emission=radiance)
         return build_object(name, material, np.asarray(sphere.vertices) + position, np.asarray(sphere.faces),
                             crease_angle_deg=180.0, source=node.where)
+
+
+def _environment(doc, node, props):
+    """The ``Environment`` of a ``constant`` or ``envmap`` emitter."""
+    to_world = props.transform("to_world")[:3, :3]
+    u, singular, vt = np.linalg.svd(to_world)
+    if not singular.min() > 0:
+        raise node.fail("the environment's to_world is singular")
+    rotation = u @ vt
+    if np.abs(singular / singular.max() - 1).max() > 1e-6:
+        node.warn("the environment's to_world scales or shears: only its rotation is kept")
+    scale = props.float("scale", 1.0)
+    if node.attrs.get("type") == "constant":
+        return Environment.uniform(props.colour("radiance", 1.0), scale, rotation, node.where)
+    filename = props.string("filename")
+    if filename is None:
+        raise node.fail("needs a 'filename'")
+    path = doc.resolve(node, filename)
+    return Environment.from_image(read_environment_image(path, node.where), scale, rotation, node.where)
 
 
 def _to_material(shape):

@@ -738,8 +738,11 @@ def test_emitter_warnings(emitters):
     scene, messages = emitters
     where = f"{DATA / 'emitters.xml'}"
     assert any(m.startswith(f"{where}:18: <emitter type='spot'>") and "cone is not kept" in m for m in messages)
-    for kind, line in (("constant", 24), ("envmap", 25)):
-        assert any(m.startswith(f"{where}:{line}: <emitter type='{kind}'>") and "left out" in m for m in messages)
+    # the constant emitter is the scene's environment; the envmap after it a second one, left out
+    assert not any(m.startswith(f"{where}:24:") for m in messages)
+    assert scene.environment.constant and np.allclose(scene.environment.radiance([[0, 1, 0], [1, 0, 0]]), 1.0)
+    assert any(m.startswith(f"{where}:25: <emitter type='envmap'>") and "second environment" in m and "left out" in m
+               for m in messages)
     assert [o.name for o in scene.objects] == ["floor", "panel", "bulb", "spot"]
 
 

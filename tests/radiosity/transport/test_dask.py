@@ -8,6 +8,7 @@ tests marked ``dask``; skipped where Dask is not installed (``pip install ".[das
 See test_dask_cleanup.py for what a ``--scheduler dask`` run leaves behind (nothing)."""
 
 import asyncio
+import dataclasses
 import http.server
 import os
 import signal
@@ -21,6 +22,7 @@ import pytest
 from display.cli import main
 from radiosity.formats import load_solution
 from radiosity.formats.errors import InputError
+from radiosity.scene.environment import Environment
 from radiosity.scene.loaders import load_scene
 from radiosity.transport import distributed as dask_module
 from radiosity.transport import solve as solve_module
@@ -93,6 +95,17 @@ def test_a_textured_scene_same_bits_on_dask_as_on_threads(client, tmp_path):
         if x.textured is not None:
             assert np.array_equal(x.textured.irradiance, y.textured.irradiance)
     assert on_dask.object("floor").textured is not None
+
+
+@pytest.mark.dask
+def test_an_environment_gives_the_same_bits_on_dask(client, scene, on_threads):
+    """The environment's arrays travel with the scene's (``SceneArrays.env``)."""
+    sky = np.random.default_rng(3).random((8, 16, 3)).astype(np.float32) * 4
+    lit = dataclasses.replace(scene, environment=Environment.from_image(sky))
+    knobs = {**KNOBS, "photons": 100_000}
+    on_dask = solve(lit, SolveOptions(**knobs), client=client)
+    assert_same_bits(solve(lit, SolveOptions(threads=2, **knobs)), on_dask)
+    assert on_dask.stats["energy"]["emitted"] != on_threads.stats["energy"]["emitted"]
 
 
 class _Bar:
