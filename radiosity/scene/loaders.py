@@ -295,7 +295,7 @@ def _parse_object(entry, index, materials_textures, base_dir, where):
                 segments=entry.get("segments"),
             )
             if texture is not None:
-                positions, faces, uvs = builtins.textured_mesh(spec, positions, faces)
+                positions, faces, uvs = builtins.textured_mesh(spec, positions, faces, resolution=entry.get("resolution"))
         except InputError as exc:
             raise InputError(f"{here}: {exc}") from None
         source = f"builtin {spec}"

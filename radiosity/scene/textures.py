@@ -18,6 +18,12 @@ coordinates interpolated barycentrically. The conventions, one for every format
 
 ``lookup`` is the numpy reference; ``texel`` the same lookup for the kernels, which
 read every texture of a scene from one flat atlas (``atlas``).
+
+Wrap modes: every stage repeats. Mitsuba's other two (``mirror``: the image mirrored
+at each edge; ``clamp``: the edge texels extended) are turned into repeating ones by
+the loader (``as_repeating``: a texture and uvs that read, repeating, exactly what the
+original reads in its mode), so the kernels, the solution file and the displays know
+one mode; ``lookup(..., wrap=)`` is the reference of the three.
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ from PIL import Image
 from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import read_input_bytes
 
-__all__ = ["atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
+__all__ = ["WRAP_MODES", "as_repeating", "atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
 
 MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels (768 MB as float32 RGB): a texture larger is refused
 TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
@@ -101,29 +107,89 @@ def check_texture(texture, uvs, n_vertices, where):
     return texture, uvs
 
 
-def _coordinates(u, v, height, width):
+WRAP_MODES = ("repeat", "mirror", "clamp")
+
+
+def wrap_index(i, n, wrap="repeat"):
+    """Texel indices i (any integers) on an axis of n texels: repeating (i mod n),
+    mirrored (period 2n, the second half reversed) or clamped to [0, n - 1], as
+    Mitsuba 3's bitmap wraps each of the four texels of a bilinear lookup."""
+    i = np.asarray(i, dtype=np.int64)
+    if wrap == "repeat":
+        return np.mod(i, n)
+    if wrap == "mirror":
+        i = np.mod(i, 2 * n)
+        return np.where(i >= n, 2 * n - 1 - i, i)
+    if wrap == "clamp":
+        return np.clip(i, 0, n - 1)
+    raise ValueError(f"wrap mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
+
+
+def _coordinates(u, v, height, width, wrap="repeat"):
     """The bilinear footprint of (u, v) on a height x width texture: the rows (i0,
-    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, repeating."""
+    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, wrapped."""
     x = u * width - 0.5
     y = (1.0 - v) * height - 0.5
     j0 = np.floor(x)
     i0 = np.floor(y)
     fx, fy = x - j0, y - i0
-    j0 = np.mod(j0, width).astype(np.int64)
-    i0 = np.mod(i0, height).astype(np.int64)
-    return i0, (i0 + 1) % height, j0, (j0 + 1) % width, fy, fx
+    j0, i0 = j0.astype(np.int64), i0.astype(np.int64)
+    return (wrap_index(i0, height, wrap), wrap_index(i0 + 1, height, wrap), wrap_index(j0, width, wrap),
+            wrap_index(j0 + 1, width, wrap), fy, fx)
 
 
-def lookup(texture, uv):
-    """The texture's bilinear, repeating value at texture coordinates uv (..., 2):
-    (..., 3) float64. The numpy reference of ``texel``."""
+def lookup(texture, uv, wrap="repeat"):
+    """The texture's bilinear value at texture coordinates uv (..., 2): (..., 3)
+    float64, repeating (the numpy reference of ``texel``), or mirrored or clamped
+    (``wrap_index``)."""
     uv = np.asarray(uv, dtype=np.float64)
     tex = np.asarray(texture, dtype=np.float64)
-    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2])
+    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2], wrap)
     fx, fy = fx[..., None], fy[..., None]
     top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
     bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
     return top + fy * (bottom - top)
+
+
+def _repeating_axis(coordinate, n, wrap, limit):
+    """One axis of ``as_repeating``: (source texel of each new texel (n',) int64,
+    scale, offset) with the new coordinate = scale * coordinate + offset (coordinate
+    running along the texel order: u, or 1 - v), or None past ``limit`` texels."""
+    x = coordinate * n - 0.5
+    first, last = int(np.floor(x.min())), int(np.floor(x.max())) + 1  # every texel a lookup may touch
+    span = last - first + 1
+    if wrap == "mirror" and span > 2 * n:  # one mirrored pair of periods, repeating: exact for any range
+        return wrap_index(np.arange(2 * n), n, "mirror"), 0.5, 0.0
+    if span > limit:
+        return None
+    # texel k of the new axis is texel first + k of the old: x' = x - first, so c' = (c n - first) / span
+    return wrap_index(np.arange(first, last + 1), n, wrap), n / span, -first / span
+
+
+def as_repeating(texture, uvs, wrap, limit=MAX_TEXTURE_PIXELS):
+    """A texture read in Mitsuba's ``wrap`` mode as one read repeating: (texture',
+    uvs') with ``lookup(texture', uv')`` equal to ``lookup(texture, uv, wrap)`` at
+    every point of every triangle (the uvs' map is affine, so it commutes with the
+    barycentric interpolation; equal up to rounding).
+
+    repeat: unchanged. clamp, and mirror over at most two periods: the texels the
+    uvs reach, laid out once (the image and a texel's margin where the uvs stay in
+    [0, 1]); mirror over more: the image beside its mirror images (2H x 2W), uvs
+    halved. None where the new texture would pass ``limit`` pixels (clamp over a
+    range of uvs many images wide).
+    """
+    if wrap == "repeat":
+        return texture, uvs
+    uvs = np.asarray(uvs, dtype=np.float64)
+    height, width = texture.shape[:2]
+    columns = _repeating_axis(uvs[:, 0], width, wrap, limit)
+    rows = _repeating_axis(1.0 - uvs[:, 1], height, wrap, limit)
+    if columns is None or rows is None or len(columns[0]) * len(rows[0]) > limit:
+        return None
+    out = np.ascontiguousarray(texture[rows[0]][:, columns[0]])
+    u = columns[1] * uvs[:, 0] + columns[2]
+    v = 1.0 - (rows[1] * (1.0 - uvs[:, 1]) + rows[2])
+    return out, np.stack([u, v], axis=1)
 
 
 def atlas(textures):
