@@ -140,7 +140,7 @@ def split_by_corner_uvs(positions, faces, corner_uvs):
     return positions[unique[:, 0].astype(np.int64)], inverse.reshape(-1, 3).astype(np.int64), unique[:, 1:].copy()
 
 
-def spherical_uvs(positions, faces, *, axis, front, mitsuba=False):
+def spherical_uvs(positions, faces, *, axis=1, front=2, mitsuba=False):
     """A sphere mesh about the origin with latitude-longitude texture coordinates
     (``split_by_corner_uvs``: the seam's vertices doubled, u unwrapped per triangle so
     that none spans the seam the long way; a pole's copies take the mean u of their
