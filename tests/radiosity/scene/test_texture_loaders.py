@@ -154,3 +154,75 @@ def test_objects_of_one_textured_material_share_its_image(tmp_path):
     scene = load_scene(_gltf(tmp_path, material, copies=2))
     assert len(scene.objects) == 2 and all(o.textured for o in scene.objects)
     assert scene.objects[0].texture is scene.objects[1].texture
+
+
+# -- the built-ins' texture coordinates (a TOML diffuse_texture on them) ---------------------------------------
+
+
+def _ccw_in_uv(obj):
+    """Each triangle's signed area in (u, v), seen as it is from its front."""
+    c = obj.uvs[obj.faces]
+    return (c[:, 1, 0] - c[:, 0, 0]) * (c[:, 2, 1] - c[:, 0, 1]) - (c[:, 1, 1] - c[:, 0, 1]) * (c[:, 2, 0] - c[:, 0, 0])
+
+
+def _builtin(tmp_path, builtin, extra=""):
+    _png(tmp_path / "t.png")
+    (tmp_path / "s.toml").write_text(
+        f'[materials.pic]\ndiffuse = 1\ndiffuse_texture = "t.png"\n'
+        f'[[objects]]\nname = "it"\nbuiltin = "{builtin}"\nmaterial = "pic"\n{extra}')
+    return load_scene(tmp_path / "s.toml").object("it")
+
+
+def test_the_builtin_sphere_is_mapped_latitude_longitude_unmirrored(tmp_path):
+    obj = _builtin(tmp_path, "sphere")
+    assert obj.textured and (_ccw_in_uv(obj) > 0).all()  # unmirrored seen from outside, no triangle across the seam
+    assert np.ptp(obj.uvs[obj.faces][..., 0], axis=1).max() < 0.25
+    p = obj.positions
+    away = np.hypot(p[:, 0], p[:, 2]) > 1e-6  # not a pole
+    u = np.mod(0.5 + np.arctan2(p[:, 0], p[:, 2]) / (2 * np.pi), 1.0)
+    assert np.allclose(np.mod(obj.uvs[away, 0] - u[away] + 0.5, 1.0) - 0.5, 0, atol=1e-9)
+    assert np.allclose(obj.uvs[:, 1], 0.5 + np.arcsin(np.clip(p[:, 1], -1, 1)) / np.pi, atol=1e-9)
+    # facing +z, up +y: the upper right reads the image's top-right quarter (green), the lower left its
+    # bottom-left (blue), and the lookup at the point says so
+    for point, colour in (([0.3, 0.3, 0.9], EXPECTED[(1, 1)]), ([-0.3, -0.3, 0.9], EXPECTED[(0, 0)])):
+        i = np.argmin(np.linalg.norm(p - np.asarray(point) / np.linalg.norm(point), axis=1))
+        quarter = (obj.uvs[i] > 0.5).astype(float)  # (1, 1): top right
+        assert np.round(lookup(obj.texture, 0.25 + 0.5 * quarter), 4).tolist() == colour
+
+
+def test_the_builtin_cylinder_is_mapped_around_and_up(tmp_path):
+    obj = _builtin(tmp_path, "cylinder", "segments = 16\n")
+    assert obj.textured and (_ccw_in_uv(obj) > 0).all()
+    p = obj.positions
+    assert np.allclose(obj.uvs[:, 1], p[:, 2])
+    u = np.mod(np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi), 1.0)
+    seam = np.isclose(obj.uvs[:, 0], 1.0)
+    assert np.allclose(obj.uvs[~seam, 0], u[~seam]) and seam.sum() == 2  # the seam's second copy, top and bottom
+    assert obj.n_vertices == 34
+
+
+def test_the_builtin_teapot_maps_each_patch_upright_and_unmirrored(tmp_path):
+    obj = _builtin(tmp_path, "teapot", "resolution = 6\n")
+    plain = load_scene_untextured_teapot(6)
+    assert obj.textured and (_ccw_in_uv(obj) > 0).all()
+    assert len(obj.faces) == len(plain.faces)  # the same triangles, each patch's own vertices
+    area = lambda o: np.linalg.norm(np.cross(*(o.positions[o.faces[:, k]] - o.positions[o.faces[:, 0]]  # noqa: E731
+                                                for k in (1, 2))), axis=1).sum()
+    assert area(obj) == pytest.approx(area(plain), rel=1e-12)
+    # on the body's side (radius about 1.4 to 2, height 0.5 to 2), v grows with height
+    t = obj.faces
+    centre = obj.positions[t].mean(axis=1)
+    side = (np.hypot(centre[:, 0], centre[:, 2]) > 1.3) & (centre[:, 1] > 0.5) & (centre[:, 1] < 2.0) & \
+        (np.abs(centre[:, 2]) > 0.5)  # away from the spout and the handle
+    dv = obj.uvs[t[side]][:, :, 1]
+    dy = obj.positions[t[side]][:, :, 1]
+    slope = [np.polyfit(y, v, 1)[0] for y, v in zip(dy, dv, strict=True) if np.ptp(y) > 1e-3]
+    assert np.mean(np.array(slope) > 0) > 0.99
+
+
+def load_scene_untextured_teapot(resolution):
+    from radiosity.scene import builtins
+    from radiosity.scene.model import build_object
+
+    positions, faces = builtins.mesh("teapot", resolution=resolution)
+    return build_object("plain", None, positions, faces)
