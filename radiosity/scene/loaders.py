@@ -455,8 +455,10 @@ def _mapped_surface(mesh, where, images):
         mapped = _from_pbr(mat, fallback, here, mean, textured=False) if pbr else \
             _from_mtl(mat, fallback, here, mean, textured=False)
         return mapped, None, None
-    mapped = _from_pbr(mat, name, here, mean, textured=True) if pbr else _from_mtl(mat, name, here, mean, textured=True)
-    if image is None:
+    textured = image is not None
+    mapped = _from_pbr(mat, name, here, mean, textured=textured) if pbr else \
+        _from_mtl(mat, name, here, mean, textured=textured)
+    if not textured:
         return mapped, None, None
     if images.get(name) is None:
         images[name] = texture_from_image(image, f"{here}texture")

@@ -226,3 +226,23 @@ def load_scene_untextured_teapot(resolution):
 
     positions, faces = builtins.mesh("teapot", resolution=resolution)
     return build_object("plain", None, positions, faces)
+
+
+def test_a_textured_metal_warns_that_its_specular_colour_is_the_mean_and_an_untextured_one_does_not(tmp_path):
+    _png(tmp_path / "t.png")
+    metal = {"name": "pic", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.5,
+                                                     "roughnessFactor": 0.3}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        obj = load_scene(_gltf(tmp_path, metal)).objects[0]
+    said = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+    assert len(said) == 1 and "takes the texture's mean" in said[0]
+    mean = (np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]]).sum(axis=0) + GREY) / 4
+    ks = mean * 0.5 + 0.04 * 0.5
+    assert np.allclose(obj.material.specular, ks, atol=1e-6)
+    assert np.allclose(obj.material.diffuse, 0.5 * (1 - ks), atol=1e-6)  # the factor 1 alone: the image multiplies it
+    plain = {"name": "plain", "pbrMetallicRoughness": {"metallicFactor": 0.5, "roughnessFactor": 0.3}}
+    gltf = json.loads(_gltf(tmp_path, plain, name="plain.gltf").read_text())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SceneWarning)
+        assert not load_scene(tmp_path / "plain.gltf").objects[0].textured, gltf["materials"]
