@@ -98,6 +98,8 @@ class _Object:
             "in_normal": ctx.buffer(np.asarray(normals, np.float32).tobytes()),
         }
         self.index = ctx.buffer(np.asarray(faces, np.int32).tobytes())
+        self.formats = {}  # attribute -> its buffer's format where not "3f"
+        self.textured = None  # (texture, kd) of a textured object's diffuse term
         self.lights = None
         self.n_lights = 0
         self.per_light = False  # True: (V, K, 3) coefficients in the renderer's coefficient texture
@@ -113,14 +115,37 @@ class _Object:
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
 
     def add(self, ctx, attribute, values):
-        self.buffers[attribute] = ctx.buffer(np.asarray(values, np.float32).tobytes())
+        values = np.asarray(values, np.float32)
+        self.buffers[attribute] = ctx.buffer(values.tobytes())
+        if values.ndim == 2 and values.shape[1] != 3:
+            self.formats[attribute] = f"{values.shape[1]}f"
         self.bytes += self.buffers[attribute].size
+
+    def add_textured(self, ctx, textured):
+        """A textured object's diffuse term (``radiosity.formats.texture.TexturedDiffuse``):
+        its uvs and irradiance as attributes, its image as a float texture, bottom row
+        first (t = v), bilinear and repeating, mipmapped for minification."""
+        if self.textured is not None:
+            return
+        self.add(ctx, "in_uv", textured.uvs)
+        self.add(ctx, "in_irradiance", textured.irradiance)
+        image = np.ascontiguousarray(textured.texture[::-1], np.float32)
+        height, width = image.shape[:2]
+        limit = ctx.info["GL_MAX_TEXTURE_SIZE"]
+        if max(width, height) > limit:
+            raise InputError(f"object {self.name!r}: its texture ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
+        texture = ctx.texture((width, height), 3, image.tobytes(), dtype="f4")
+        texture.repeat_x = texture.repeat_y = True
+        texture.build_mipmaps()
+        texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self.textured = (texture, tuple(float(c) for c in textured.kd))
+        self.bytes += image.nbytes * 4 // 3
 
     def vao(self, ctx, program, attributes, indexed=True, sources=None):
         # an attribute with no buffer (in_specular of per-light coefficients) reads the
         # generic value, unused by the shaders; ``sources`` feeds an attribute from another buffer
         sources = sources or {}
-        content = [(self.buffers[sources.get(a, a)], "3f", a) for a in attributes
+        content = [(self.buffers[sources.get(a, a)], self.formats.get(sources.get(a, a), "3f"), a) for a in attributes
                    if a in program and sources.get(a, a) in self.buffers]
         if not indexed:
             return ctx.vertex_array(program, content)
@@ -131,6 +156,8 @@ class _Object:
             b.release()
         if self.lights is not None:
             self.lights.release()
+        if self.textured is not None:
+            self.textured[0].release()
 
 
 class _Framebuffers:
@@ -253,6 +280,8 @@ class Renderer:
         self._emitter_table("fitted", fit.emitters)
         probes, row = [], 0
         for obj, f in zip(self.objects, fit.objects):
+            if f.textured is not None:
+                obj.add_textured(ctx, f.textured)
             if f.highlight is not None:
                 h = f.highlight
                 self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility)
@@ -304,6 +333,8 @@ class Renderer:
             if s is None or len(s.positions) != obj.n_vertices:
                 raise InputError(f"the solution and the fitted model differ (object {obj.name!r})")
             obj.add(ctx, "in_tangent", s.tangents)
+            if s.textured is not None:
+                obj.add_textured(ctx, s.textured)
             # the diffuse display: each vertex's radiance averaged over directions (what a
             # diffuse walkthrough of this solution shows)
             mean = np.asarray(s.radiance, np.float64).mean(axis=1)
@@ -342,18 +373,19 @@ class Renderer:
         total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
         return total
 
-    def _program(self, key, parts=PARTS):
-        """The program ``key`` (``PROGRAMS``) with the shading code of ``parts`` alone."""
+    def _program(self, key, parts=PARTS, textured=False):
+        """The program ``key`` (``PROGRAMS``) with the shading code of ``parts`` alone,
+        and a textured object's diffuse term if ``textured``."""
         parts = tuple(p for p in PARTS if p in parts)
-        if (key, parts) not in self._programs:
+        if (key, parts, textured) not in self._programs:
             spec = dict(PROGRAMS[key])
-            extra = spec.pop("defines", ())
+            extra = spec.pop("defines", ()) + (("VL_TEXTURED",) if textured else ())
             nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
             for name in STAGES:
                 if name in spec:
                     spec[name] = stage(spec[name], nodes, parts, extra)
-            self._programs[(key, parts)] = self.ctx.program(**spec)
-        return self._programs[(key, parts)]
+            self._programs[(key, parts, textured)] = self.ctx.program(**spec)
+        return self._programs[(key, parts, textured)]
 
     def _drawn_parts(self, obj, mode, parts, n_lights):
         """The parts of ``obj``'s model a ``mode`` draws (of ``parts``): what its program holds."""
@@ -525,21 +557,26 @@ class Renderer:
                 # in every mode, so that all modes rasterise alike)
                 key = "gouraud" if shading == "gouraud" and mask is None else "fitted-pixel" if pixel else "fitted"
             drawn = self._drawn_parts(obj, mode, parts, n) if mask is None else ()
-            program = self._program(key, drawn)
-            if (key, drawn) not in ready:
+            textured = obj.textured is not None and mask is None and key != "attributes" and key != "attributes-pixel"
+            program = self._program(key, drawn, textured)
+            if (key, drawn, textured) not in ready:
                 program["mvp"].write(mvp)
                 self._set(program, "eye", eye)
                 self._set(program, "gouraud", int(shading == "gouraud"))
-                ready.add((key, drawn))
+                ready.add((key, drawn, textured))
+            if textured:
+                obj.textured[0].use(location=6)
+                self._set(program, "diffuse_texture", 6)
+                self._set(program, "texture_kd", obj.textured[1])
             if key.startswith("reference"):
                 self._bind_reference(program, obj, parts)
-                attributes = ("in_position", "in_normal", "in_tangent")
+                attributes = ("in_position", "in_normal", "in_tangent", "in_uv", "in_irradiance")
             else:
                 self._bind_fitted(program, obj, n, mode, parts if mask is None else ())
                 flat = (0.0, 0.0, 0.0, 0.0) if mask is None else ((1.0,) * 3 + (1.0,) if obj.name in mask else (0.0, 0.0, 0.0, 1.0))
                 self._set(program, "flat_colour", flat)
                 self._set(program, "object_index", index)
-                attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
+                attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe", "in_uv", "in_irradiance")
             # diffuse with a solution: its directional mean, not the fitted emitted colour
             # (with a probe or highlights that is only part of what is diffuse)
             sources = {"in_emitted": "in_mean"} if mode == "diffuse" and mask is None and "in_mean" in obj.buffers else None

@@ -278,7 +278,8 @@ def _fit_components(obj, options, scene, progress, solution, box):
 
 def _fitted_object(obj, emitted, specular, lights, info, **parts):
     """The FittedObject of solution object ``obj``: its mesh, these coefficients and
-    lights ((pos, rgb, shininess)), and the version-3 ``parts`` (highlight, probe, weight)."""
+    lights ((pos, rgb, shininess)), and the version-3 ``parts`` (highlight, probe, weight);
+    a textured object's diffuse term is carried as the solution has it (version 4)."""
     pos, rgb, shininess = lights
     return FittedObject(
         name=obj.name,
@@ -291,6 +292,7 @@ def _fitted_object(obj, emitted, specular, lights, info, **parts):
         light_rgb=np.asarray(rgb, np.float32).reshape(-1, 3),
         shininess=np.asarray(shininess, np.float32).reshape(-1),
         info=info,
+        textured=obj.textured,
         **parts,
     )
 

@@ -13,7 +13,12 @@
   float32 and ``<name>/shininess`` (K,) float32. Diffuse objects have K = 0.
 
 Version 1 files (``light_dirs`` (K, 3) instead of ``light_pos``, ``specular`` (V, 3))
-are still read: their lights are directional (w = 0).
+are still read: their lights are directional (w = 0). Version 3 adds the emitters'
+highlights and the reflection probe. Version 4 adds textured objects, as the solution's
+version 3 has them (``radiosity.formats.texture``): ``<name>/uvs``,
+``<name>/irradiance``, ``<name>/texture`` and ``meta.objects[name].textured`` =
+{"diffuse": kd}; their colour gains kd * texture(uv) / pi * E, a display's per pixel. A
+file is written with the lowest version that holds it (3 without a textured object).
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -41,13 +46,14 @@ import numpy as np
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, emitter_radiance, parts_from_meta
 from radiosity.formats.npz import open_archive, write_archive
+from radiosity.formats.texture import TexturedDiffuse, read_textured
 
 from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 3
-READS = (1, 2, 3)
+VERSION = 4
+READS = (1, 2, 3, 4)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -152,6 +158,7 @@ class FittedObject:
     highlight: Highlight | None = None  # version 3: the emitters' highlights
     probe: Probe | None = None  # version 3: the reflection probe ...
     probe_weight: np.ndarray | None = None  # ... and its per-vertex weight s (V, 3)
+    textured: TexturedDiffuse | None = None  # version 4: a textured object's diffuse term
 
     def __post_init__(self):
         v, k = len(self.positions), len(self.light_pos)
@@ -177,6 +184,8 @@ class FittedObject:
             raise ValueError(f"object {self.name!r}: a probe needs its per-vertex weight and the weight its probe")
         if self.probe_weight is not None and np.shape(self.probe_weight) != (v, 3):
             raise ValueError(f"object {self.name!r}: 'probe_weight' has shape {np.shape(self.probe_weight)}, expected ({v}, 3)")
+        if self.textured is not None and self.textured.n_vertices != v:
+            raise ValueError(f"object {self.name!r}: 'uvs' has {self.textured.n_vertices} rows, expected {v}")
         if self.highlight is not None and np.shape(self.highlight.visibility) != (v, len(self.highlight.parts)):
             raise ValueError(
                 f"object {self.name!r}: 'visibility' has shape {np.shape(self.highlight.visibility)}, "
@@ -208,12 +217,14 @@ class FittedObject:
         n = 3 + (int(np.prod(np.shape(self.specular)[1:])) if self.n_lights else 0)
         n += 3 if self.probe_weight is not None else 0
         n += self.highlight.visibility.shape[1] if self.highlight is not None else 0
+        n += 5 if self.textured is not None else 0
         return n
 
     @property
     def floats(self):
         """Numbers stored in all (per vertex x V, the probe's texels, the lights)."""
         extra = 3 * self.probe.size**2 if self.probe is not None else 0
+        extra += self.textured.texture.size if self.textured is not None else 0
         return self.floats_per_vertex * len(self.positions) + extra + 8 * self.n_lights
 
     def shade(self, w, vertices=slice(None), parts=PARTS):
@@ -237,6 +248,8 @@ class FittedObject:
             h = self.highlight
             vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index])
             out = out + vis.radiance(positions, normals, w, self.name)
+        if self.textured is not None:
+            out = out + self.textured.radiance(index)[extra]
         return out
 
     def arrays(self):
@@ -252,6 +265,7 @@ class FittedObject:
             **({"visibility": np.asarray(self.highlight.visibility, np.float32)} if self.highlight is not None else {}),
             **({"probe": np.asarray(self.probe.texels, np.float32), "probe_weight": np.asarray(self.probe_weight, np.float32)}
                if self.probe is not None else {}),
+            **({k.split("/", 1)[1]: a for k, a in self.textured.arrays("o").items()} if self.textured is not None else {}),
         }
 
     def meta_info(self):
@@ -261,6 +275,8 @@ class FittedObject:
             out["highlight"] = {"specular": [float(v) for v in self.highlight.ks], "exponent": float(self.highlight.exponent)}
         if self.probe is not None:
             out["probe"] = self.probe.to_meta()
+        if self.textured is not None:
+            out["textured"] = {"diffuse": list(self.textured.kd)}
         return out
 
 
@@ -284,10 +300,16 @@ class FittedModel:
     def names(self):
         return tuple(o.name for o in self.objects)
 
+    @property
+    def version(self):
+        """The lowest contract version that holds this model: 4 with a textured object,
+        else 3."""
+        return 4 if any(o.textured is not None for o in self.objects) else 3
+
     def meta(self):
         return {
             "format": FORMAT,
-            "version": VERSION,
+            "version": self.version,
             "source": self.source,
             "model": self.model,
             "settings": self.settings,
@@ -399,10 +421,19 @@ def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES)
     if version >= 3:
         highlight = _read_highlight(archive, name, info, n_v, emitters, nodes)
         probe, weight = _read_probe(archive, name, info, n_v)
+    textured = None
+    if version >= 4 and "textured" in info:
+        diffuse = info["textured"].get("diffuse") if isinstance(info["textured"], dict) else None
+        if not (isinstance(diffuse, list) and len(diffuse) == 3 and all(_is_number(c) for c in diffuse)):
+            raise fail(f"meta 'objects' {name!r}: 'textured' must be {{\"diffuse\": [r, g, b]}}")
+        textured = read_textured(archive, name, n_v, diffuse)
+        if textured is None:
+            raise fail(f"object {name!r} is textured in meta 'objects' but has no '{name}/uvs'")
     try:
         return FittedObject(
             name=name,
-            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe")},
+            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured")},
+            textured=textured,
             highlight=highlight,
             probe=probe,
             probe_weight=weight,
@@ -480,7 +511,7 @@ def _read_probe(archive, name, info, n_v):
 
 
 def load_fit(path):
-    """Read and check a ``fit.npz`` (Contract 2, version 2 or 1); a bad file raises
+    """Read and check a ``fit.npz`` (Contract 2, any version of ``READS``); a bad file raises
     InputError with one line naming the file and the key at fault."""
     with open_archive(path, FORMAT, READS) as archive:
         meta, fail = archive.meta, archive.fail
@@ -516,3 +547,7 @@ def _json_type(value):
     """What a JSON value is, for messages: 'a list', 'a string', 'null', ..."""
     names = {dict: "an object", list: "a list", str: "a string", bool: "a boolean", int: "a number", float: "a number"}
     return "null" if value is None else names.get(type(value), type(value).__name__)
+
+
+def _is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)

@@ -4,3 +4,7 @@ in vec3 in_normal;
 in vec3 in_emitted;
 in vec3 in_specular;
 in vec3 in_probe;
+#ifdef VL_TEXTURED
+in vec2 in_uv;
+in vec3 in_irradiance;
+#endif

@@ -13,6 +13,7 @@ const vec3 v_bary = vec3(1.0, 0.0, 0.0);
 #endif
 out vec4 f_colour;
 #include "shade.glsl"
+#include "textured.glsl"
 vec3 shade_fragment() {
     return shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_probe,
                  v_vertices, v_bary);
@@ -22,6 +23,9 @@ void main() {
     vec3 c = shade_fragment();
 #else
     vec3 c = gouraud == 1 ? v_colour : shade_fragment();
+#endif
+#ifdef VL_TEXTURED
+    c += textured_term(v_uv, v_irradiance);
 #endif
     f_colour = flat_colour.w > 0.0 ? vec4(flat_colour.rgb, 1.0) : vec4(c, 1.0);
 }

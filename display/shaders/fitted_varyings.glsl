@@ -15,6 +15,10 @@ VL_VARYING vec3 v_normal;
 VL_VARYING vec3 v_emitted;
 VL_VARYING vec3 v_specular;
 VL_VARYING vec3 v_probe;
+#ifdef VL_TEXTURED
+VL_VARYING vec2 v_uv;
+VL_VARYING vec3 v_irradiance;
+#endif
 #ifdef VL_TRIANGLE
 VL_VARYING vec3 v_bary;
 VL_FLAT ivec3 v_vertices;

@@ -10,6 +10,10 @@ uniform int gouraud;
 #include "fitted_varyings.glsl"
 #endif
 centroid out vec3 v_colour;
+#if defined(VL_GOURAUD) && defined(VL_TEXTURED)
+centroid out vec2 v_uv;
+centroid out vec3 v_irradiance;
+#endif
 #include "shade.glsl"
 vec3 shade_vertex() {   // a vertex's weights: its own id, (1, 0, 0)
     return shade(normalize(in_normal), in_position, normalize(eye - in_position), in_emitted, in_specular, in_probe,
@@ -17,6 +21,10 @@ vec3 shade_vertex() {   // a vertex's weights: its own id, (1, 0, 0)
 }
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
+#ifdef VL_TEXTURED
+    v_uv = in_uv;
+    v_irradiance = in_irradiance;
+#endif
 #ifdef VL_GOURAUD
     v_colour = shade_vertex();
 #else

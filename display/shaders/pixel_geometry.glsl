@@ -9,6 +9,10 @@ in vec3 g_emitted[];
 in vec3 g_specular[];
 in vec3 g_probe[];
 flat in int g_vertex[];
+#ifdef VL_TEXTURED
+in vec2 g_uv[];
+in vec3 g_irradiance[];
+#endif
 #define VL_OUT
 #include "fitted_varyings.glsl"
 void main() {
@@ -19,6 +23,10 @@ void main() {
         v_emitted = g_emitted[i];
         v_specular = g_specular[i];
         v_probe = g_probe[i];
+#ifdef VL_TEXTURED
+        v_uv = g_uv[i];
+        v_irradiance = g_irradiance[i];
+#endif
         v_bary = vec3(i == 0, i == 1, i == 2);
         v_vertices = ivec3(g_vertex[0], g_vertex[1], g_vertex[2]);
         EmitVertex();

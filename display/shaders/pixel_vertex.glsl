@@ -8,6 +8,10 @@ out vec3 g_emitted;
 out vec3 g_specular;
 out vec3 g_probe;
 flat out int g_vertex;
+#ifdef VL_TEXTURED
+out vec2 g_uv;
+out vec3 g_irradiance;
+#endif
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
     g_position = in_position;
@@ -16,4 +20,8 @@ void main() {
     g_specular = in_specular;
     g_probe = in_probe;
     g_vertex = gl_VertexID;
+#ifdef VL_TEXTURED
+    g_uv = in_uv;
+    g_irradiance = in_irradiance;
+#endif
 }

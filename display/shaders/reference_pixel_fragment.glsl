@@ -11,6 +11,11 @@ flat in vec3 f_t0;
 flat in vec3 f_t1;
 flat in vec3 f_t2;
 out vec4 f_colour;
+#ifdef VL_TEXTURED
+centroid in vec2 f_uv;
+centroid in vec3 f_irradiance;
+#include "textured.glsl"
+#endif
 #include "lookup.glsl"
 #include "emitters.glsl"
 void main() {
@@ -21,5 +26,8 @@ void main() {
     // the emitters' highlights at the pixel (the grid holds the rest: the solution minus them)
     vec3 n = normalize(f_bary.x * f_n0 + f_bary.y * f_n1 + f_bary.z * f_n2);
     c += emitter_term(f_position, n, w, f_vertices, f_bary);
+#ifdef VL_TEXTURED
+    c += textured_term(f_uv, f_irradiance);
+#endif
     f_colour = vec4(c, 1.0);
 }

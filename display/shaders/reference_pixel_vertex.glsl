@@ -8,10 +8,20 @@ out vec3 g_position;
 out vec3 g_normal;
 out vec3 g_tangent;
 flat out int g_vertex;
+#ifdef VL_TEXTURED
+in vec2 in_uv;
+in vec3 in_irradiance;
+out vec2 g_uv;
+out vec3 g_irradiance;
+#endif
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
     g_position = in_position;
     g_normal = in_normal;
     g_tangent = in_tangent;
     g_vertex = gl_VertexID;
+#ifdef VL_TEXTURED
+    g_uv = in_uv;
+    g_irradiance = in_irradiance;
+#endif
 }

@@ -13,6 +13,14 @@
   cross(normal, tangent), z normal) and ``<name>/radiance`` (V, D, 3) float32, the
   outgoing radiance at each vertex in each direction, emission included.
 
+Version 2 adds the emitters whose highlights are in closed form (``meta.emitters``,
+``meta.emitter_nodes``, ``<name>/visibility``). Version 3 adds textured objects
+(``radiosity.formats.texture``): ``<name>/uvs``, ``<name>/irradiance`` and
+``<name>/texture``, and such an object's ``radiance`` then holds everything but its
+textured diffuse term kd * texture(uv) / pi * E. A file is written with the lowest
+version that holds it (2 without a textured object), so tools that read version 2
+keep reading every untextured solution.
+
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
 
@@ -37,12 +45,13 @@ from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, em
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
 from radiosity.formats.npz import check_member_name, open_archive, write_archive
+from radiosity.formats.texture import TexturedDiffuse, read_textured
 
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 2
-READS = (1, 2)
+VERSION = 3
+READS = (1, 2, 3)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -113,10 +122,13 @@ class ObjectSolution:
         directions: (D, 3) float32 local outgoing directions: (0, 0, 1) alone for a
             diffuse object, else ``grid_directions(n)`` with D = n * n.
         radiance: (V, D, 3) float32 finite, non-negative outgoing radiance, emission
-            included.
+            included (a textured object's: all but its textured diffuse term).
         material: {"diffuse": [r, g, b], "specular": [r, g, b], "exponent": n,
             "emission": [r, g, b]} (a ``radiosity.scene.materials.Material`` is accepted
             and converted).
+        visibility: (V, P) float32 in [0, 1] (version 2): how much of each emitter part
+            with a closed-form highlight each vertex of a glossy object sees.
+        textured: a ``TexturedDiffuse`` of V vertices (version 3), or None.
 
     Raises ValueError if a shape, dtype kind, face index, direction or radiance value
     (NaN, infinite or negative) breaks the contract.
@@ -131,6 +143,7 @@ class ObjectSolution:
     radiance: np.ndarray
     material: dict = field(default_factory=dict)
     visibility: np.ndarray | None = None
+    textured: TexturedDiffuse | None = None
 
     def __post_init__(self) -> None:
         name = _check_name(self.name)
@@ -213,6 +226,11 @@ class ObjectSolution:
             if self.is_diffuse:
                 raise _Invalid(f"'{name}/visibility': a diffuse object has none (its emitters' highlights are diffuse)")
             put(self, "visibility", vis)
+        if self.textured is not None:
+            if not isinstance(self.textured, TexturedDiffuse):
+                raise _Invalid(f"textured must be a TexturedDiffuse, got {type(self.textured).__name__}")
+            if self.textured.n_vertices != v:
+                raise _Invalid(f"'{name}/uvs' has {self.textured.n_vertices} rows, expected V = {v}")
 
     def __repr__(self) -> str:
         return (
@@ -246,7 +264,18 @@ class ObjectSolution:
         out = {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
         if self.visibility is not None:
             out[f"{self.name}/visibility"] = self.visibility
+        if self.textured is not None:
+            out.update(self.textured.arrays(self.name))
         return out
+
+    def diffuse_radiance(self, vertices=slice(None), weights=None):
+        """The textured diffuse term (..., 3) float64 that ``radiance`` leaves out, at
+        vertices or points (``TexturedDiffuse.radiance``); zeros for an untextured
+        object."""
+        if self.textured is None:
+            shape = np.shape(np.arange(self.num_vertices)[vertices]) if weights is None else np.shape(weights)[:-1]
+            return np.zeros(tuple(shape) + (3,))
+        return self.textured.radiance(vertices, weights)
 
 
 @dataclass(frozen=True, eq=False)
@@ -305,6 +334,12 @@ class Solution:
             if not self.emitters and o.visibility is not None and o.visibility.shape[1]:
                 raise _Invalid(f"object {o.name!r} has a visibility of {o.visibility.shape[1]} parts; there are none")
     @property
+    def version(self) -> int:
+        """The lowest contract version that holds this solution: 3 with a textured
+        object, else 2."""
+        return 3 if any(o.textured is not None for o in self.objects) else 2
+
+    @property
     def names(self) -> tuple[str, ...]:
         """Object names, in file order."""
         return tuple(o.name for o in self.objects)
@@ -320,7 +355,7 @@ class Solution:
         """The ``meta`` JSON of the file, as a dict."""
         return {
             "format": FORMAT,
-            "version": VERSION,
+            "version": self.version,
             "objects": list(self.names),
             "materials": {o.name: o.material for o in self.objects},
             "settings": self.settings,
@@ -409,6 +444,11 @@ def _read(archive) -> Solution:
         arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
         if f"{name}/visibility" in archive.keys:
             arrays["visibility"] = archive.array(f"{name}/visibility")
+        if meta["version"] >= 3:
+            diffuse = materials[name].get("diffuse") if isinstance(materials[name], dict) else None
+            if not (isinstance(diffuse, list) and len(diffuse) == 3):
+                raise fail(f"object {name!r}: meta 'materials' has no diffuse colour [r, g, b]")
+            arrays["textured"] = read_textured(archive, name, arrays["positions"].shape[0], diffuse)
         try:
             objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
         except _Invalid as exc:

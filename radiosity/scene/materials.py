@@ -282,3 +282,19 @@ def albedo(material: Material, cos_theta) -> np.ndarray:
     specular = specular_albedo(material.exponent, np.atleast_1d(cos_theta))
     rho = np.asarray(material.diffuse) + specular[:, None] * np.asarray(material.specular)
     return rho[0] if cos_theta.ndim == 0 else rho
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def textured_row(mat, rgb, row):
+    """The material row ``mat`` with its diffuse colour multiplied by a texture's
+    ``rgb`` (3-tuple), written into ``row`` (NCOL,) and returned; the probability of
+    sampling the specular lobe follows the textured colour (``pack_materials``'s rule).
+    """
+    for c in range(NCOL):
+        row[c] = mat[c]
+    for c in range(3):
+        row[KD + c] = mat[KD + c] * rgb[c]
+    kd = (row[KD] + row[KD + 1] + row[KD + 2]) / 3.0
+    ks = (row[KS] + row[KS + 1] + row[KS + 2]) / 3.0
+    row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
+    return row

@@ -16,14 +16,15 @@ coordinates interpolated barycentrically. The conventions, one for every format
               u = (j + 0.5) / W, v = 1 - (i + 0.5) / H; bilinear between the four
               nearest texel centres, repeating outside [0, 1) (Mitsuba's default)
 
-``lookup`` is the numpy reference; ``texel`` the same lookup for the kernels, which
-read every texture of a scene from one flat atlas (``atlas``).
+``lookup`` (``radiosity.formats.texture``, where the files' readers reach it) is the
+numpy reference; ``texel`` the same lookup for the kernels, which read every texture
+of a scene from one flat atlas (``atlas``).
 
 Wrap modes: every stage repeats. Mitsuba's other two (``mirror``: the image mirrored
 at each edge; ``clamp``: the edge texels extended) are turned into repeating ones by
 the loader (``as_repeating``: a texture and uvs that read, repeating, exactly what the
-original reads in its mode), so the kernels, the solution file and the displays know
-one mode; ``lookup(..., wrap=)`` is the reference of the three.
+original reads in its mode), so the kernels, the files and the displays know one
+mode; ``wrapped_lookup`` is the reference of the three.
 """
 
 from __future__ import annotations
@@ -37,17 +38,12 @@ from PIL import Image
 
 from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import read_input_bytes
+from radiosity.formats.material import srgb_to_linear
+from radiosity.formats.texture import MAX_TEXTURE_PIXELS, lookup
 
-__all__ = ["WRAP_MODES", "as_repeating", "atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
+__all__ = ["WRAP_MODES", "as_repeating", "atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image", "wrap_index", "wrapped_lookup"]
 
-MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels (768 MB as float32 RGB): a texture larger is refused
 TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
-
-
-def srgb_to_linear(encoded):
-    """The sRGB transfer function undone: values in [0, 1] -> linear [0, 1], float64."""
-    c = np.asarray(encoded, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def texture_from_image(image, where):
@@ -125,27 +121,20 @@ def wrap_index(i, n, wrap="repeat"):
     raise ValueError(f"wrap mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
 
 
-def _coordinates(u, v, height, width, wrap="repeat"):
-    """The bilinear footprint of (u, v) on a height x width texture: the rows (i0,
-    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, wrapped."""
-    x = u * width - 0.5
-    y = (1.0 - v) * height - 0.5
-    j0 = np.floor(x)
-    i0 = np.floor(y)
-    fx, fy = x - j0, y - i0
-    j0, i0 = j0.astype(np.int64), i0.astype(np.int64)
-    return (wrap_index(i0, height, wrap), wrap_index(i0 + 1, height, wrap), wrap_index(j0, width, wrap),
-            wrap_index(j0 + 1, width, wrap), fy, fx)
-
-
-def lookup(texture, uv, wrap="repeat"):
-    """The texture's bilinear value at texture coordinates uv (..., 2): (..., 3)
-    float64, repeating (the numpy reference of ``texel``), or mirrored or clamped
-    (``wrap_index``)."""
+def wrapped_lookup(texture, uv, wrap="repeat"):
+    """``lookup`` with the texels wrapped by ``wrap`` (``wrap_index``): (..., 3)
+    float64, Mitsuba 3's bilinear bitmap lookup in each of its wrap modes; the
+    reference ``as_repeating`` is tested against."""
     uv = np.asarray(uv, dtype=np.float64)
     tex = np.asarray(texture, dtype=np.float64)
-    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2], wrap)
-    fx, fy = fx[..., None], fy[..., None]
+    height, width = tex.shape[:2]
+    x = uv[..., 0] * width - 0.5
+    y = (1.0 - uv[..., 1]) * height - 0.5
+    j0, i0 = np.floor(x), np.floor(y)
+    fx, fy = (x - j0)[..., None], (y - i0)[..., None]
+    j0, i0 = j0.astype(np.int64), i0.astype(np.int64)
+    i0, i1 = wrap_index(i0, height, wrap), wrap_index(i0 + 1, height, wrap)
+    j0, j1 = wrap_index(j0, width, wrap), wrap_index(j0 + 1, width, wrap)
     top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
     bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
     return top + fy * (bottom - top)
@@ -168,9 +157,9 @@ def _repeating_axis(coordinate, n, wrap, limit):
 
 def as_repeating(texture, uvs, wrap, limit=MAX_TEXTURE_PIXELS):
     """A texture read in Mitsuba's ``wrap`` mode as one read repeating: (texture',
-    uvs') with ``lookup(texture', uv')`` equal to ``lookup(texture, uv, wrap)`` at
-    every point of every triangle (the uvs' map is affine, so it commutes with the
-    barycentric interpolation; equal up to rounding).
+    uvs') with ``lookup(texture', uv')`` equal to ``wrapped_lookup(texture, uv,
+    wrap)`` at every point of every triangle (the uvs' map is affine, so it commutes
+    with the barycentric interpolation; equal up to rounding).
 
     repeat: unchanged. clamp, and mirror over at most two periods: the texels the
     uvs reach, laid out once (the image and a texel's margin where the uvs stay in

@@ -24,6 +24,7 @@ from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
 from radiosity.transport.sampling import (
     cosine_direction,
     facing,
+    hit_texel,
     lerp3,
     off_surface,
     pick_emitter,
@@ -116,7 +117,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     gather ray's density is cos / pi, its cosine at the vertex being
     ``samples.wi[id, 2]``), later the previous vertex's light sample (the ray's density
     the lobe's). The diffuse part is kd / pi times the irradiance interpolated at the
-    hit. At a glossy surface the path goes on through the specular lobe (the diffuse
+    hit (kd * texture(uv at the hit) on a textured triangle). At a glossy surface the path goes on through the specular lobe (the diffuse
     lobe's light is in the irradiance), with Russian roulette, so light that passes
     from glossy to glossy is not lost.
 
@@ -139,6 +140,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     make_gather_rays(sa, block, light, samples)
     positions, normals, faces, face_normals = sa.positions, sa.normals, sa.faces, sa.face_normals
     face_material, materials, epsilon = sa.face_material, sa.materials.copy(), sa.epsilon
+    face_texture = sa.face_texture
     emit_cdf, emit_triangles, emit_area_pdf, direct_area_pdf = (
         sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf,
     )  # fmt: skip
@@ -202,9 +204,11 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 elif lobe_light:
                     p_light = emit_area_pdf[t] * dist * dist / cos_light
                     weight = path_pdf[k] / (path_pdf[k] + p_light)
+            texture = face_texture[t]
+            tex = hit_texel(sa, texture, t, uk, vk) if texture >= 0 else (1.0, 1.0, 1.0)
             for c in range(3):
                 e = w * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]
-                radiance = weight * materials[m, EMISSION + c] + materials[m, KD + c] / math.pi * e
+                radiance = weight * materials[m, EMISSION + c] + materials[m, KD + c] * tex[c] / math.pi * e
                 incoming[target, c] += values[k, c] * radiance
             ks0, ks1, ks2 = materials[m, KS], materials[m, KS + 1], materials[m, KS + 2]
             if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:

@@ -36,9 +36,8 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
-from radiosity.scene.materials import EMISSION, KD, KS, NCOL, P_SPECULAR, brdf_eval, brdf_pdf, brdf_sample, onb
+from radiosity.scene.materials import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
 from radiosity.scene.model import Scene, SceneObject
-from radiosity.scene.textures import texel
 from radiosity.transport.batches import scene_arrays
 from radiosity.transport.embree import (
     Hits,
@@ -52,7 +51,7 @@ from radiosity.transport.embree import (
 from radiosity.transport.rng import rand
 from radiosity.transport.sampling import (
     barycentric_point,
-    hit_uv,
+    hit_texel,
     off_surface,
     pick_emitter,
     roulette,
@@ -266,22 +265,6 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     return True, origin, (dx, dy, dz), dist, value
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def textured_row(mat, rgb, row):
-    """The material row ``mat`` with its diffuse colour multiplied by a texture's
-    ``rgb`` (3-tuple), written into ``row`` (NCOL,) and returned; the probability of
-    sampling the specular lobe follows the textured colour (``pack_materials``'s rule).
-    """
-    for c in range(NCOL):
-        row[c] = mat[c]
-    for c in range(3):
-        row[KD + c] = mat[KD + c] * rgb[c]
-    kd = (row[KD] + row[KD + 1] + row[KD + 2]) / 3.0
-    ks = (row[KS] + row[KS + 1] + row[KS + 2]) / 3.0
-    row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
-    return row
-
-
 @numba.njit(cache=True, nogil=True)
 def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     """One bounce of the paths in flight; returns (shadow rays written, paths going on).
@@ -334,9 +317,7 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
         texture = sa.face_texture[t]
         if texture >= 0:
-            tu, tv = hit_uv(sa.uvs, sa.faces, t, uk, vk)
-            rgb = texel(sa.texture_pixels, sa.texture_offsets, sa.texture_sizes, texture, tu, tv)
-            mat = textured_row(mat, rgb, row)
+            mat = textured_row(mat, hit_texel(sa, texture, t, uk, vk), row)
         point = barycentric_point(sa, t, uk, vk)
         nx, ny, nz = shading_normal(sa, t, uk, vk, d)
         tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
@@ -601,7 +582,8 @@ class PathTracer:
 
 
 def scene_of_solution(solution):
-    """The ``Scene`` a solution's meshes and materials make (what its displays show)."""
+    """The ``Scene`` a solution's meshes, materials and textures make (what its displays
+    show)."""
     objects = []
     for o in solution.objects:
         m = o.material
@@ -616,6 +598,8 @@ def scene_of_solution(solution):
                 normals=o.normals.astype(np.float64),
                 tangents=o.tangents.astype(np.float64),
                 faces=o.faces.astype(np.int64),
+                uvs=None if o.textured is None else o.textured.uvs.astype(np.float64),
+                texture=None if o.textured is None else o.textured.texture,
             )
         )
     return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera)

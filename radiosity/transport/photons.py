@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from radiosity.scene.materials import EMISSION, brdf_eval, brdf_sample, onb
+from radiosity.scene.materials import EMISSION, KD, NCOL, brdf_eval, brdf_sample, onb, textured_row
 from radiosity.transport.embree import intersect1, new_rayhit
 from radiosity.transport.records import (
     T_ABSORBED,
@@ -32,7 +32,7 @@ from radiosity.transport.records import (
     T_TERMINATED,
 )
 from radiosity.transport.rng import STREAM_BOUNCE, STREAM_EMIT, rand
-from radiosity.transport.sampling import cosine_direction, facing, lerp3, pick_emitter, prefetch_row
+from radiosity.transport.sampling import cosine_direction, facing, hit_texel, lerp3, pick_emitter, prefetch_row
 
 PREFETCH_AHEAD = 4  # hits ahead whose data the wave's shading loop asks the cache for
 
@@ -66,7 +66,9 @@ def trace_photons(rt, sa, batch, acc):
     triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power
     * lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric
     weight, the hat function of vertex j). It then scatters by BRDF sampling with
-    Russian roulette that keeps its power about constant. Backs absorb.
+    Russian roulette that keeps its power about constant. Backs absorb. On a textured
+    triangle the diffuse colour is kd * texture(uv at the hit) (``textured_row``) for
+    the scattering and the absorbed-power tally alike.
 
     ``acc.tally`` gains escaped power, the expected absorbed power (incident * (1 -
     true albedo)), incident power, back-face and forced-termination losses, and the
@@ -96,6 +98,7 @@ def trace_photons(rt, sa, batch, acc):
     ray = np.empty((wave, 6), np.float32)  # origin, direction: float32, as a ``Rays`` stores them
     hit_triangle = np.empty(wave, np.int64)
     hit_uv = np.empty((wave, 2), np.float32)
+    row = np.empty(NCOL)  # a textured hit's material row
     rays = 0
     for first in range(first_id, first_id + count, wave):
         n = min(wave, first_id + count - first)
@@ -199,6 +202,11 @@ def trace_photons(rt, sa, batch, acc):
                 woy = -(dx * bx + dy * by + dz * bz)
                 woz = -(dx * nx + dy * ny + dz * nz)
                 mat = materials[m]
+                texture = sa.face_texture[t]
+                tex0, tex1, tex2 = 1.0, 1.0, 1.0
+                if texture >= 0:
+                    tex0, tex1, tex2 = hit_texel(sa, texture, t, u, v)
+                    mat = textured_row(mat, (tex0, tex1, tex2), row)
                 wix, wiy, wiz, pdf = brdf_sample(mat, wox, woy, woz, r0, r1, r2)
                 sx = wix * tx + wiy * bx + wiz * nx
                 sy = wix * ty + wiy * by + wiz * ny
@@ -211,6 +219,10 @@ def trace_photons(rt, sa, batch, acc):
                 a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
                 a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
                 a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
+                if texture >= 0:  # the diffuse part of the albedo is kd exactly: kd * texel instead
+                    a0 += materials[m, KD] * (tex0 - 1.0)
+                    a1 += materials[m, KD + 1] * (tex1 - 1.0)
+                    a2 += materials[m, KD + 2] * (tex2 - 1.0)
                 tally[T_ABSORBED] += p0 * (1.0 - a0)
                 tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
                 tally[T_ABSORBED + 2] += p2 * (1.0 - a2)

@@ -17,6 +17,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from radiosity.scene.textures import texel
+
 
 @intrinsic
 def prefetch_row(typingctx, array, row):
@@ -90,6 +92,14 @@ def hit_uv(uvs, faces, tri, u, v):
         w * uvs[i0, 0] + u * uvs[i1, 0] + v * uvs[i2, 0],
         w * uvs[i0, 1] + u * uvs[i1, 1] + v * uvs[i2, 1],
     )
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def hit_texel(sa, texture, tri, u, v):
+    """Texture ``texture`` of the scene's atlas at barycentrics (u, v) of triangle
+    ``tri`` (its corners' uvs interpolated: ``hit_uv``), as an RGB 3-tuple."""
+    tu, tv = hit_uv(sa.uvs, sa.faces, tri, u, v)
+    return texel(sa.texture_pixels, sa.texture_offsets, sa.texture_sizes, texture, tu, tv)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

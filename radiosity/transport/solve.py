@@ -40,6 +40,7 @@ from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.limits import available_memory, check_seed
 from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.formats.texture import TexturedDiffuse
 from radiosity.scene.emitters import emitter_parts
 from radiosity.transport import density, highlights, regather
 from radiosity.transport.batches import (  # noqa: F401 (the units of work, importable from the solver too)
@@ -384,16 +385,23 @@ def _solve(scene, settings, runner, progress):
         shadow_rays = tracer.rays_cast
         tracer.close()
     times["highlights"] = time.perf_counter() - t0
+    textured = {}
     for i, o in enumerate(refined.objects):
+        sl = slice(offsets[i], offsets[i + 1])
+        diffuse = np.asarray(o.material.diffuse) / np.pi * irradiance[sl]
+        if o.texture is not None:
+            # the display multiplies kd * texture(uv) / pi * E per pixel: the radiance
+            # keeps the rest (the gather added kd / pi * E to every direction)
+            textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=o.material.diffuse)
+            diffuse = np.zeros_like(diffuse)
         if o.material.is_glossy:
             dirs = glossy_dirs[o.name]
             radiance = gathered[o.name]
+            if o.texture is not None:
+                radiance = np.maximum(radiance - (np.asarray(o.material.diffuse) / np.pi * irradiance[sl])[:, None, :], 0.0)
         else:
             dirs = directions.DIFFUSE_DIRECTIONS
-            sl = slice(offsets[i], offsets[i + 1])
-            radiance = (np.asarray(o.material.diffuse) / np.pi * irradiance[sl] + np.asarray(o.material.emission))[
-                :, None, :
-            ]
+            radiance = (diffuse + np.asarray(o.material.emission))[:, None, :]
         results.append((o, dirs, radiance))
 
     stats = {
@@ -443,6 +451,7 @@ def _solve(scene, settings, runner, progress):
             material=o.material.to_dict(),
             visibility=visible.get(o.name, np.ones((o.n_vertices, len(parts)), np.float32))
             if o.material.is_glossy and parts else None,
+            textured=textured.get(o.name),
         )
         for o, dirs, radiance in results
     )

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from radiosity.formats.errors import SceneWarning
 from radiosity.scene import microfacet
 from radiosity.scene.mitsuba import Tessellation, load_mitsuba
-from radiosity.scene.textures import as_repeating, lookup, srgb_to_linear
+from radiosity.scene.textures import as_repeating, lookup, srgb_to_linear, wrapped_lookup
 
 FINE = Tessellation(segments=512, sphere_levels=6)
 
@@ -285,7 +285,7 @@ def test_a_mirror_wrap_is_a_repeating_texture_reading_the_same(tmp_path):
     texels = srgb_to_linear(_image() / 255.0)
     x, y = np.random.default_rng(1).uniform(-1, 1, size=(2, 300))
     m_u, m_v = 3 * (x + 1) / 2 - 1, 2 * (y + 1) / 2 - 0.5  # Mitsuba's (u, v) after to_uv, v down
-    expected = lookup(texels, np.stack([m_u, 1 - m_v], axis=1), wrap="mirror")
+    expected = wrapped_lookup(texels, np.stack([m_u, 1 - m_v], axis=1), "mirror")
     uv, _ = _nearest(obj, np.stack([x, y, 0 * x], axis=1))
     np.testing.assert_allclose(lookup(obj.texture, uv), expected, atol=1e-6)
 

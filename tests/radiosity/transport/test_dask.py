@@ -68,6 +68,33 @@ def test_same_seed_same_bits_on_dask_as_on_threads(client, scene, on_threads):
     assert not np.array_equal(other.object("teapot").radiance, on_dask.object("teapot").radiance)
 
 
+@pytest.mark.dask
+def test_a_textured_scene_same_bits_on_dask_as_on_threads(client, tmp_path):
+    """The textures travel with the scattered scene: photons and gather read them alike."""
+    from PIL import Image
+
+    Image.fromarray(np.random.default_rng(3).integers(0, 256, (4, 6, 3), dtype=np.uint8)).save(tmp_path / "t.png")
+    (tmp_path / "s.toml").write_text(
+        '[materials.lamp]\nemission = 5.0\n[materials.tex]\ndiffuse = 0.9\ndiffuse_texture = "t.png"\n'
+        '[materials.gloss]\ndiffuse = 0.1\nspecular = 0.5\nexponent = 50\n'
+        '[[objects]]\nname = "floor"\nbuiltin = "quad"\nscale = 4\nmaterial = "tex"\n'
+        '[[objects]]\nname = "wall"\nbuiltin = "cube"\nscale = 0.8\ntranslate = [0, 0.4, 0]\nmaterial = "tex"\n'
+        '[[objects]]\nname = "ball"\nbuiltin = "sphere"\nsubdivisions = 2\nscale = 0.3\ntranslate = [1, 0.3, 0]\n'
+        'material = "gloss"\n'
+        '[[objects]]\nname = "lamp"\nbuiltin = "quad"\nflip = true\ntranslate = [0, 2, 0]\nmaterial = "lamp"\n'
+    )
+    scene = load_scene(tmp_path / "s.toml")
+    knobs = {**KNOBS, "max_edge": 0.5}
+    on_threads = solve(scene, SolveOptions(threads=2, **knobs))
+    on_dask = solve(scene, SolveOptions(**knobs), client=client)
+    assert_same_bits(on_threads, on_dask)
+    for x, y in zip(on_threads.objects, on_dask.objects):
+        assert (x.textured is None) == (y.textured is None)
+        if x.textured is not None:
+            assert np.array_equal(x.textured.irradiance, y.textured.irradiance)
+    assert on_dask.object("floor").textured is not None
+
+
 class _Bar:
     """A progress bar that runs ``action`` at its first update."""
 

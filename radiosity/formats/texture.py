@@ -1,0 +1,179 @@
+"""A textured object's diffuse term, as the solution and fit files carry it.
+
+A textured object (``radiosity.scene.textures``) reflects diffusely with
+``kd(x) = kd * texture(uv(x))``. Its diffuse radiance ``kd(x) / pi * E(x)`` changes
+with the texture much faster than the solver's mesh can follow, so the files keep its
+two factors apart and a display multiplies them per pixel:
+
+    diffuse(x) = kd * lookup(texture, uv(x)) / pi * E(x)
+
+with ``uv(x)`` and the irradiance ``E(x)`` interpolated barycentrically from the
+vertices. The object's stored radiance then holds everything else (emission, the
+specular part). The conventions (also ``radiosity.scene.textures``'s):
+
+    texture : (H, W, 3) linear RGB in [0, 1], row 0 the image's top row
+    uvs     : (V, 2), u to the right, v up: (0, 0) the image's bottom-left corner
+    lookup  : texel (i, j) centred on u = (j + 0.5) / W, v = 1 - (i + 0.5) / H;
+              bilinear between the four nearest texel centres, repeating
+
+In a file (solution version 3, fit version 4), per textured object, all or none:
+``<name>/uvs`` (V, 2) float32, ``<name>/irradiance`` (V, 3) float32 and
+``<name>/texture`` (H, W, 3): uint8 holding the sRGB encoding when that gives back the
+same float32 values (the 8-bit images texture files hold), float32 linear otherwise.
+
+``lookup`` is the numpy reference every consumer (the fit's shading, the display's
+tests) uses; ``radiosity.scene.textures.texel`` is the kernels' copy of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from radiosity.formats.material import srgb_to_linear
+
+__all__ = ["KEYS", "MAX_TEXTURE_PIXELS", "TexturedDiffuse", "linear_to_srgb8", "lookup", "read_textured"]
+
+KEYS = ("uvs", "irradiance", "texture")
+MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels: a texture larger is refused
+
+
+def _coordinates(u, v, height, width):
+    """The bilinear footprint of (u, v) on a height x width texture: the rows (i0,
+    i1), columns (j0, j1) and weights (fy, fx) toward i1 and j1, repeating."""
+    x = u * width - 0.5
+    y = (1.0 - v) * height - 0.5
+    j0 = np.floor(x)
+    i0 = np.floor(y)
+    fx, fy = x - j0, y - i0
+    j0 = np.mod(j0, width).astype(np.int64)
+    i0 = np.mod(i0, height).astype(np.int64)
+    return i0, (i0 + 1) % height, j0, (j0 + 1) % width, fy, fx
+
+
+def lookup(texture, uv):
+    """The texture's bilinear, repeating value at texture coordinates uv (..., 2):
+    (..., 3) float64. Coordinates that are not finite read at (0, 0), as the kernels'
+    ``texel`` does."""
+    uv = np.asarray(uv, dtype=np.float64)
+    uv = np.where(np.isfinite(uv).all(axis=-1, keepdims=True), uv, 0.0)
+    tex = np.asarray(texture, dtype=np.float64)
+    i0, i1, j0, j1, fy, fx = _coordinates(uv[..., 0], uv[..., 1], *tex.shape[:2])
+    fx, fy = fx[..., None], fy[..., None]
+    top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
+    bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
+    return top + fy * (bottom - top)
+
+
+def _srgb8_table():
+    """float32 linear values of the 256 sRGB codes."""
+    return srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+
+
+def linear_to_srgb8(texture):
+    """The uint8 sRGB codes whose decoding gives back ``texture`` (float32) exactly, or
+    None if some value is not such a decoding (a float image, or one edited after
+    decoding)."""
+    table = _srgb8_table()
+    t = np.asarray(texture, dtype=np.float32)
+    codes = np.clip(np.searchsorted(table, t), 0, 255)
+    below = np.clip(codes - 1, 0, 255)
+    codes = np.where(np.abs(table[below] - t) < np.abs(table[codes] - t), below, codes).astype(np.uint8)
+    return codes if np.array_equal(table[codes], t) else None
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class TexturedDiffuse:
+    """A textured object's diffuse term, validated on construction (ValueError).
+
+    uvs (V, 2) float32 finite; irradiance (V, 3) float32 finite, >= 0; texture (H, W,
+    3) float32 linear in [0, 1]; kd: the material's diffuse colour (3,), the factor the
+    texture multiplies."""
+
+    uvs: np.ndarray
+    irradiance: np.ndarray
+    texture: np.ndarray
+    kd: tuple
+
+    def __post_init__(self):
+        put = object.__setattr__
+        uvs = np.ascontiguousarray(self.uvs, dtype=np.float32)
+        e = np.ascontiguousarray(self.irradiance, dtype=np.float32)
+        tex = np.ascontiguousarray(self.texture, dtype=np.float32)
+        kd = tuple(float(c) for c in np.asarray(self.kd, dtype=np.float64).reshape(-1))
+        if uvs.ndim != 2 or uvs.shape[1] != 2:
+            raise ValueError(f"'uvs' has shape {uvs.shape}, expected (V, 2)")
+        if e.shape != (len(uvs), 3):
+            raise ValueError(f"'irradiance' has shape {e.shape}, expected (V, 3) = ({len(uvs)}, 3)")
+        if tex.ndim != 3 or tex.shape[2] != 3 or 0 in tex.shape:
+            raise ValueError(f"'texture' has shape {tex.shape}, expected (H, W, 3)")
+        if tex.shape[0] * tex.shape[1] > MAX_TEXTURE_PIXELS:
+            raise ValueError(f"'texture' has {tex.shape[0]} x {tex.shape[1]} pixels, more than {MAX_TEXTURE_PIXELS:,}")
+        if not np.isfinite(uvs).all():
+            raise ValueError("'uvs' has NaN or infinite values")
+        if not (np.isfinite(e).all() and (e >= 0).all()):
+            raise ValueError("'irradiance' has NaN, infinite or negative values")
+        if not (np.isfinite(tex).all() and tex.min() >= 0.0 and tex.max() <= 1.0):
+            raise ValueError("'texture' has values outside [0, 1] (a reflectance)")
+        if len(kd) != 3:
+            raise ValueError(f"kd must be 3 numbers, got {len(kd)}")
+        put(self, "uvs", uvs)
+        put(self, "irradiance", e)
+        put(self, "texture", tex)
+        put(self, "kd", kd)
+
+    def __repr__(self):
+        return f"TexturedDiffuse(V={len(self.uvs)}, texture={self.texture.shape[1]}x{self.texture.shape[0]})"
+
+    @property
+    def n_vertices(self):
+        return len(self.uvs)
+
+    def radiance(self, vertices=slice(None), weights=None):
+        """kd * texture(uv) / pi * E (..., 3) float64: at the vertices ``vertices``, or,
+        with ``weights`` (..., 3), at points interpolated from the corners
+        ``vertices`` (..., 3) (barycentric weights)."""
+        uvs = self.uvs.astype(np.float64)[vertices]
+        e = self.irradiance.astype(np.float64)[vertices]
+        if weights is not None:
+            weights = np.asarray(weights, dtype=np.float64)[..., None]
+            uvs = np.sum(weights * uvs, axis=-2)
+            e = np.sum(weights * e, axis=-2)
+        return np.asarray(self.kd) / np.pi * lookup(self.texture, uvs) * e
+
+    def arrays(self, name):
+        """The file's members of object ``name``."""
+        codes = linear_to_srgb8(self.texture)
+        return {
+            f"{name}/uvs": self.uvs,
+            f"{name}/irradiance": self.irradiance,
+            f"{name}/texture": self.texture if codes is None else codes,
+        }
+
+    def nbytes(self):
+        """The bytes its arrays take in memory."""
+        return self.uvs.nbytes + self.irradiance.nbytes + self.texture.nbytes
+
+
+def read_textured(archive, name, n_vertices, kd):
+    """Object ``name``'s ``TexturedDiffuse`` from an open archive
+    (``radiosity.formats.npz``), or None if it has none; the archive's one-line
+    InputError if only some of its members are there or one is malformed."""
+    present = [k for k in KEYS if f"{name}/{k}" in archive.keys]
+    if not present:
+        return None
+    if len(present) != len(KEYS):
+        missing = next(k for k in KEYS if k not in present)
+        raise archive.fail(f"object {name!r} has '{name}/{present[0]}' but no '{name}/{missing}': a textured object has all of {', '.join(KEYS)}")
+    uvs = archive.array(f"{name}/uvs", "fiu", (n_vertices, 2))
+    irradiance = archive.array(f"{name}/irradiance", "fiu", (n_vertices, 3))
+    texture = archive.array(f"{name}/texture", "fiu", (None, None, 3))
+    if texture.dtype == np.uint8:
+        texture = _srgb8_table()[texture]
+    elif texture.dtype.kind != "f":
+        raise archive.fail(f"'{name}/texture' has dtype {texture.dtype}, expected uint8 (sRGB) or float32 (linear)")
+    try:
+        return TexturedDiffuse(uvs=uvs, irradiance=irradiance, texture=texture, kd=kd)
+    except ValueError as exc:
+        raise archive.fail(f"object {name!r}: {exc}") from None
