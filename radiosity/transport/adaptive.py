@@ -185,10 +185,17 @@ def _with_stats(solution, knobs, before, after, passes, max_edge, chosen_by=None
 
 def vertex_values(obj_solution):
     """(V,) float64: the luminance of the outgoing radiance without emission (averaged
-    over the direction grid of a glossy object)."""
+    over the direction grid of a glossy object). A textured object's radiance leaves its
+    diffuse term out (``radiosity.formats.texture``): it is added back with the
+    texture's mean colour, so that the mesh follows the light as on the same object
+    untextured (the texture's own detail is drawn per pixel, not by the mesh)."""
     # the mean in float64 straight from the float32 radiance (no float64 copy of the
     # whole grid), then less the emission: the same bits wherever the emission is 0
     mean = obj_solution.radiance.mean(axis=1, dtype=np.float64) - np.asarray(obj_solution.material["emission"])
+    t = obj_solution.textured
+    if t is not None:
+        albedo = np.asarray(t.kd) * t.texture.reshape(-1, 3).mean(axis=0, dtype=np.float64)
+        mean = mean + albedo / np.pi * t.irradiance.astype(np.float64)
     return np.maximum(mean @ LUMINANCE, 0.0)
 
 

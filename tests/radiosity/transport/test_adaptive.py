@@ -165,3 +165,31 @@ def test_the_budget_caps_the_refinement_and_the_mesh_stays_conforming(penumbra_s
     assert boundary == pytest.approx(2 * (0.8 + 0.6), rel=1e-5)  # no T-junction: open edges are the border
     _, area = geometry.face_normals(floor.positions.astype(np.float64), floor.faces)
     assert area.sum() == pytest.approx(0.48, rel=1e-5)
+
+
+def test_a_textured_floor_is_refined_like_the_same_floor_untextured(tmp_path):
+    """The indicator adds a textured object's diffuse term back (the solution keeps it
+    apart): a white texture gives the very mesh of the untextured floor, where a
+    textured floor's radiance alone (zero) would never be refined."""
+    from PIL import Image
+
+    Image.fromarray(np.full((2, 2, 3), 255, np.uint8)).save(tmp_path / "white.png")
+    path = tmp_path / "scene.toml"
+    path.write_text(textwrap.dedent(PENUMBRA).replace("diffuse = 0.5\n", 'diffuse = 0.5\ndiffuse_texture = "white.png"\n', 1))
+    textured = load_scene(path)
+    plain = load_scene_text(tmp_path, PENUMBRA)
+    assert textured.object("floor").texture is not None
+    opts = SolveOptions(photons=100_000, max_edge=0.1, seed=3)
+    adapt = AdaptiveOptions(enabled=True, passes=1, vertex_budget=1500)
+    a, b = solve_adaptive(textured, opts, adapt), solve_adaptive(plain, opts, adapt)
+    floor_a, floor_b = a.object("floor"), b.object("floor")
+    assert floor_a.textured is not None and floor_b.textured is None
+    assert b.stats["adaptive"]["vertices_after"] > b.stats["adaptive"]["vertices_before"]  # it refines
+    assert np.array_equal(floor_a.positions, floor_b.positions)
+    assert np.allclose(floor_a.diffuse_radiance(), floor_b.radiance[:, 0], rtol=1e-6, atol=1e-9)
+
+
+def load_scene_text(tmp_path, text):
+    path = tmp_path / "plain.toml"
+    path.write_text(textwrap.dedent(text))
+    return load_scene(path)
