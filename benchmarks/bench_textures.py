@@ -14,7 +14,7 @@ against its own scene's path-traced truth (FLIP, relative MSE). The truth's own 
 is measured too (the path tracer at N against 4N samples per pixel), since FLIP counts
 it as error in both scenes alike.
 
-    python benchmarks/bench_textures.py [--quality draft] [--size 320x240] [--spp 256]
+    python benchmarks/bench_textures.py [--quality draft] [--size 320x240] [--spp 256] [--samples 64]
 
 Writes benchmarks/results/textures.jsonl and textures.png (the pictures side by side
 with their FLIP images), and keeps the run's files in --keep DIR if given.
@@ -163,7 +163,7 @@ def run_scene(name, directory, args):
     size = ["--size", args.size]
     for mode in ("reference", "fitted", "diffuse"):
         vlights("render", f"{name}_fit.npz", "--solution", f"{name}_sol.npz", "--mode", mode, *size,
-                "--samples", 16, "--hdr", f"{name}_{mode}.npy", cwd=d)
+                "--samples", args.samples, "--hdr", f"{name}_{mode}.npy", cwd=d)
     for label, spp, seed in (("truth", args.spp, 1), ("truth_4x", 4 * args.spp, 2)):
         times[label] = vlights("truth", f"{name}_sol.npz", *size, "--spp", spp, "--seed", seed,
                                "--hdr", f"{name}_{label}.npy", cwd=d)
@@ -176,11 +176,12 @@ def main(argv=None):
     parser.add_argument("--quality", default="draft", choices=("draft", "medium", "high"))
     parser.add_argument("--size", default="320x240")
     parser.add_argument("--spp", type=int, default=256, help="the truth's samples per pixel (its noise: against 4x)")
+    parser.add_argument("--samples", type=int, default=64, help="the displays' samples per pixel (antialiasing)")
     parser.add_argument("--keep", type=Path, help="keep the run's files in this directory")
     args = parser.parse_args(argv)
     from display.metrics import metrics
 
-    record = Recorder(benchmark="textures", quality=args.quality, size=args.size, spp=args.spp)
+    record = Recorder(benchmark="textures", quality=args.quality, size=args.size, spp=args.spp, samples=args.samples)
     with tempfile.TemporaryDirectory() as tmp:
         directory = args.keep or Path(tmp)
         directory.mkdir(parents=True, exist_ok=True)

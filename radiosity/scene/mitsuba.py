@@ -420,7 +420,7 @@ class _Props:
         child, _ = item
         if child.tag != "transform":
             raise child.fail("expected a <transform>")
-        return _transform(child)
+        return _transform(child, normalise_axes=self.doc.major < 2)
 
 
 def _texture_mean(doc, node):
@@ -575,9 +575,13 @@ def _read_exr(node, path, data):
 # -- transforms ---------------------------------------------------------------------------
 
 
-def _rotation(axis, degrees):
+def _rotation(axis, degrees, normalise=True):
+    """Rodrigues' matrix about ``axis``: Mitsuba 0.x normalises the axis, Mitsuba 2 and
+    3 take it as written (a longer axis also scales: checked against Mitsuba 3.9.1's
+    ``ScalarTransform4f.rotate``)."""
     axis = np.asarray(axis, dtype=np.float64)
-    axis = axis / np.linalg.norm(axis)
+    if normalise:
+        axis = axis / np.linalg.norm(axis)
     x, y, z = axis
     c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
     t = 1 - c
@@ -617,8 +621,9 @@ def _look_at(node):
     return matrix
 
 
-def _transform(node):
-    """The 4x4 matrix of a ``<transform>``: its steps, each applied after the last."""
+def _transform(node, normalise_axes=True):
+    """The 4x4 matrix of a ``<transform>``: its steps, each applied after the last
+    (a rotation's axis normalised or not, as ``_rotation``)."""
     matrix = np.eye(4)
     for step in node.children:
         m = np.eye(4)
@@ -630,7 +635,7 @@ def _transform(node):
             axis = _xyz(step, 0.0) if "value" in step.attrs or any(a in step.attrs for a in "xyz") else None
             if axis is None or not np.any(axis):
                 raise step.fail("needs a non-zero axis (x, y, z or value)")
-            m[:3, :3] = _rotation(axis, _numbers(step, step.attrs.get("angle", "0"), (1,))[0])
+            m[:3, :3] = _rotation(axis, _numbers(step, step.attrs.get("angle", "0"), (1,))[0], normalise_axes)
         elif step.tag == "matrix":
             values = _numbers(step, step.attrs.get("value", ""), (16, 9))
             if len(values) == 16:

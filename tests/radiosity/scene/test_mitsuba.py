@@ -97,8 +97,8 @@ TRANSFORMS = {
     "rotate z": ('<rotate z="1" angle="90"/>', affine(RZ90)),
     "rotate x": ('<rotate x="1" angle="90"/>', affine(RX90)),
     "rotate y": ('<rotate y="1" angle="90"/>', affine(RY90)),
-    "rotate value": ('<rotate value="0, 0, 2" angle="-90"/>', affine(RZ90.T)),
-    "rotate diagonal": ('<rotate x="1" y="1" z="1" angle="120"/>', affine(CYCLE)),
+    "rotate value": ('<rotate value="0, 0, 1" angle="-90"/>', affine(RZ90.T)),
+    "rotate diagonal": (f'<rotate x="{3 ** -0.5!r}" y="{3 ** -0.5!r}" z="{3 ** -0.5!r}" angle="120"/>', affine(CYCLE)),
     "matrix 16": ('<matrix value="0 0 1 5  1 0 0 6  0 1 0 7  0 0 0 1"/>', affine(CYCLE, (5, 6, 7))),
     "matrix 9": ('<matrix value="2 0 0  0 0 -1  0 1 0"/>', affine(np.diag([2.0, 1, 1]) @ RX90)),
     # forward +x; left = up x forward = -z; up' = forward x left = +y
@@ -128,6 +128,29 @@ def test_each_transform_step_against_its_matrix(tmp_path, case):
     facing /= np.linalg.norm(facing)
     np.testing.assert_allclose(obj.normals, np.tile(facing, (len(obj.normals), 1)), atol=1e-12)
     np.testing.assert_allclose(face_normals(obj), np.tile(facing, (2, 1)), atol=1e-12)
+
+
+# Mitsuba 3.9.1's ScalarTransform4f.rotate([1, 2, 0.5], 35): the axis as written, not normalised
+MITSUBA3_ROTATE = np.array([[1.0, 0.07490766, 1.2375768], [0.6484841, 1.5425439, -0.3927285],
+                            [-1.056729, 0.7544244, 0.864364]])
+
+
+@pytest.mark.parametrize("version", ["3.0.0", "2.0.0", "0.6.0"])
+def test_a_longer_rotation_axis_as_each_mitsuba_reads_it(tmp_path, version):
+    """Mitsuba 2 and 3 take a rotation's axis as written (a longer axis scales too);
+    Mitsuba 0.x normalises it."""
+    step = '<rotate x="1" y="2" z="0.5" angle="35"/>'
+    path = write_scene(tmp_path, f'<shape type="rectangle"><transform name="to_world">{step}</transform></shape>',
+                       version=version)
+    (obj,) = load_quietly(path).objects
+    if version.startswith("0."):
+        axis = np.array([1, 2, 0.5]) / np.linalg.norm([1, 2, 0.5])
+        c, s = np.cos(np.radians(35)), np.sin(np.radians(35))
+        k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        matrix = c * np.eye(3) + s * k + (1 - c) * np.outer(axis, axis)
+    else:
+        matrix = MITSUBA3_ROTATE
+    assert_same_points(obj.positions, RECTANGLE @ matrix.T, tol=1e-6)
 
 
 def test_the_order_of_steps_matters(tmp_path):
