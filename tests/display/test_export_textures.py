@@ -40,23 +40,24 @@ def tile_uvs(p):
     return np.stack([(p[:, 0] + 0.4) * 2.0 + 0.3, (p[:, 1] + 0.4) * 1.5 - 0.2], axis=1)
 
 
-def textured_model(per_light, rng, float_tile=False, emitted_scale=0.5):
+def textured_model(per_light, rng, float_tile=False, emitted_scale=0.5, uv_scale=1.0, tiles=True):
     """``lit_model`` with both objects textured: random 8-bit sRGB images (each texel its
-    own colour: asymmetric; 8 x 6 on the wall, 4 x 5 on the tile), planar uvs, random
-    irradiance per vertex. ``float_tile``: the tile's image is not an 8-bit decoding
-    (the export rounds it). The emitted colour is scaled by ``emitted_scale`` so that
-    the texture shows in an image."""
+    own colour: asymmetric; 8 x 6 on the wall, 4 x 5 on the tile), planar uvs (times
+    ``uv_scale``: more repeats, a minified image), random irradiance per vertex.
+    ``float_tile``: the tile's image is not an 8-bit decoding (the export rounds it);
+    ``tiles`` False: the tile is not textured. The emitted colour is scaled by
+    ``emitted_scale`` so that the texture shows in an image."""
     base = lit_model(per_light, rng)
     objects = []
     for o, uvs, shape in ((base.objects[0], wall_uvs, (6, 8, 3)), (base.objects[1], tile_uvs, (5, 4, 3))):
         texture = SRGB8[rng.integers(20, 256, shape)]
         if float_tile and o.name == "tile":
             texture = rng.uniform(0.05, 1.0, shape).astype(np.float32)
-        textured = TexturedDiffuse(uvs=uvs(o.positions.astype(np.float64)),
+        textured = TexturedDiffuse(uvs=uvs(o.positions.astype(np.float64)) * uv_scale,
                                    irradiance=rng.uniform(4.0, 10.0, (len(o.positions), 3)), texture=texture,
                                    kd=KDS[o.name])
         objects.append(dataclasses.replace(o, emitted=(o.emitted * emitted_scale).astype(np.float32),
-                                           textured=textured))
+                                           textured=textured if tiles or o.name != "tile" else None))
     return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=base.camera)
 
 
