@@ -418,7 +418,8 @@ def test_a_failed_write_leaves_no_file(a_fit, tmp_path, cli, monkeypatch):
 def test_help_names_the_attributes_and_no_design_document(cli):
     code, out, _ = cli("export", "--help")
     assert code == 0
-    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0", "_PROBE", "_VISIBILITY_0"):
+    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0", "_PROBE", "_VISIBILITY_0", "TEXCOORD_0",
+                 "_IRRADIANCE"):
         assert word in out
     for word in ("Contract", "DESIGN", "shared/"):
         assert word not in out
