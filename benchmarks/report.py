@@ -384,8 +384,28 @@ def load(rows):
     return out + [""]
 
 
-SECTIONS = (
-    ("solver.jsonl", solver),
+def textures(rows):
+    out = ["## Textures", "", where("bench_textures.py", ["textures.jsonl", "textures.png"]), machine(rows), ""]
+    scenes = [r for r in rows if r.get("scene") in ("textured", "untextured")]
+    if scenes:
+        r0 = scenes[0]
+        out += [f"A textured room (tiled floor, wallpaper, wooden box) and its untextured twin (each texture folded "
+                f"into kd by its mean), {r0['quality']}, {r0['size']}, each display's FLIP against its own scene's "
+                f"path-traced truth at {4 * r0['spp']} spp; the truth's row is its own noise ({r0['spp']} spp against "
+                f"{4 * r0['spp']}). Target: the reference display's FLIP within 10 % of the untextured scene's.", ""]
+    out += table(["scene", "reference FLIP", "fitted FLIP", "diffuse FLIP", "truth noise FLIP", "reference rel. MSE"],
+                 [[r["scene"], num(r["reference"]["flip"], 4), num(r["fitted"]["flip"], 4), num(r["diffuse"]["flip"], 4),
+                   num(r["truth"]["flip"], 4), num(r["reference"]["relative_mse"], 5)] for r in scenes])
+    for r in rows:
+        if "flip_ratio" in r:
+            ratio = r["flip_ratio"]
+            out += ["", f"FLIP ratio textured / untextured: reference {num(ratio['reference'], 3)}, fitted "
+                    f"{num(ratio['fitted'], 3)}, diffuse {num(ratio['diffuse'], 3)}, the truth's own noise "
+                    f"{num(ratio['truth'], 3)} (target met: {'yes' if r['met'] else 'no'})."]
+    return out + [""]
+
+
+SECTIONS = (    ("solver.jsonl", solver),
     ("pathtrace.jsonl", pathtrace),
     ("fit.jsonl", fit),
     ("fit_speed.jsonl", fit_speed),
@@ -395,6 +415,7 @@ SECTIONS = (
     ("trade_truth.jsonl", trade_truth),
     ("mitsuba_validation.jsonl", mitsuba),
     ("load.jsonl", load),
+    ("textures.jsonl", textures),
 )
 
 

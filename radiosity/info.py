@@ -38,6 +38,7 @@ def describe(scene, refined, max_edge, how, adaptive=None):
                 "refined_triangles": r.n_triangles,
                 "refined_vertices": r.n_vertices,
                 "area": float(f"{o.area:.6g}"),
+                "texture": None if o.texture is None else f"{o.texture.shape[1]}x{o.texture.shape[0]}",
             }
         )
     emitters = []
@@ -60,6 +61,7 @@ def describe(scene, refined, max_edge, how, adaptive=None):
         "materials": materials,
         "objects": objects,
         "emitters": emitters,
+        "environment": None if scene.environment is None else scene.environment.info(),
         "totals": {
             "objects": len(scene.objects),
             "triangles": scene.n_triangles,
@@ -119,6 +121,7 @@ def format_description(info):
         out.append(
             f"  {o['name']:<14} {o['material']:<10} {o['triangles']:>10} {o['vertices']:>10} "
             f"{o['refined_triangles']:>13} {o['refined_vertices']:>14} {o['area']:>11.4g}  {o['source']}"
+            + (f" (texture {o['texture']})" if o.get("texture") else "")
         )
     out.append(
         f"  {'total':<14} {'':<10} {t['triangles']:>10} {t['vertices']:>10} "
@@ -134,7 +137,11 @@ def format_description(info):
             else f"  adaptive  off: the uniform mesh's {a['vertices_before']:,} vertices"
         )
     out += ["", f"emitters ({len(info['emitters'])})   total power (pi Le A, RGB) {_v(t['emitted_power'])}"]
-    if not info["emitters"]:
+    env = info.get("environment")
+    if env:
+        out.append(f"  environment  {env['kind']} {env['width']}x{env['height']}, scale {env['scale']:g}, "
+                   f"mean radiance {_v(env['mean_radiance'])}  ({env['source']})")
+    elif not info["emitters"]:
         out.append("  none: nothing emits light, so a solution will be black")
     for e in info["emitters"]:
         out.append(

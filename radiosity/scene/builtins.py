@@ -91,20 +91,27 @@ def mesh(spec, *, resolution=None, subdivisions=None, segments=None):
     )
 
 
-TEXTURED_MESHES = ("quad", "disk", "cube")
+TEXTURED_MESHES = ("quad", "disk", "cube", "sphere", "cylinder", "teapot")
 
 
-def textured_mesh(spec, positions, faces):
+def textured_mesh(spec, positions, faces, *, resolution=None):
     """The built-in mesh ``spec`` (its ``mesh`` (positions, faces)) with texture
-    coordinates: (positions, faces, uvs (V, 2) float64), v up (``textures``). Each
-    face reads the whole image, unmirrored seen from the front:
+    coordinates: (positions, faces, uvs (V, 2) float64), v up (``textures``), each
+    unmirrored seen from the front (outside):
 
-        quad  u = x + 1/2, v = 1/2 - z (seen from +y with -z up)
-        disk  u = (x + 1) / 2, v = (y + 1) / 2 (seen from +z with +y up)
-        cube  each face its own copy of the image, +y up on the sides, -z up on the
-              top, +z up on the bottom (24 vertices)
+        quad      u = x + 1/2, v = 1/2 - z (seen from +y with -z up)
+        disk      u = (x + 1) / 2, v = (y + 1) / 2 (seen from +z with +y up)
+        cube      each face its own copy of the image, +y up on the sides, -z up on the
+                  top, +z up on the bottom (24 vertices)
+        sphere    the equirectangular (latitude-longitude) map, +y up: u = 1/2 +
+                  atan2(x, z) / 2 pi (the image's middle faces +z, its seam -z), v = 1/2 +
+                  asin(y) / pi; the seam's vertices doubled, each pole's copied per triangle
+        cylinder  u = phi / 2 pi, phi counter-clockwise about +z from +x, v = z; the
+                  seam (phi = 0) doubled
+        teapot    each Bezier patch the whole image, upright on the body (``teapot``);
+                  the flat ring closing the lid's gap a planar map of x and z
 
-    InputError for the other built-ins, which have no texture coordinates.
+    ``resolution`` is the teapot's (``mesh``). InputError for the other built-ins.
     """
     if spec == "quad":
         return positions, faces, np.stack([positions[:, 0] + 0.5, 0.5 - positions[:, 2]], axis=1)
@@ -112,10 +119,68 @@ def textured_mesh(spec, positions, faces):
         return positions, faces, 0.5 * (positions[:, :2] + 1.0)
     if spec == "cube":
         return _textured_cube()
+    if spec == "sphere":
+        return spherical_uvs(positions, faces, axis=1, front=2)
+    if spec == "cylinder":
+        return _textured_cylinder(positions)
+    if spec == "teapot":
+        return teapot.tessellate_with_uvs(8 if resolution is None else resolution)
     raise InputError(
         f"builtin {spec!r} has no texture coordinates: a textured material needs builtin "
         f"{', '.join(TEXTURED_MESHES[:-1])} or {TEXTURED_MESHES[-1]}, or a mesh file with uvs"
     )
+
+
+def split_by_corner_uvs(positions, faces, corner_uvs):
+    """A mesh whose texture coordinates are given per triangle corner, corner_uvs (F,
+    3, 2), as per-vertex uvs: each vertex copied once per distinct uv it takes (a
+    seam's two sides, a pole's fan). Returns (positions, faces, uvs)."""
+    keys = np.concatenate([faces.reshape(-1, 1).astype(np.float64), corner_uvs.reshape(-1, 2)], axis=1)
+    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return positions[unique[:, 0].astype(np.int64)], inverse.reshape(-1, 3).astype(np.int64), unique[:, 1:].copy()
+
+
+def spherical_uvs(positions, faces, *, axis=1, front=2, mitsuba=False):
+    """A sphere mesh about the origin with latitude-longitude texture coordinates
+    (``split_by_corner_uvs``: the seam's vertices doubled, u unwrapped per triangle so
+    that none spans the seam the long way; a pole's copies take the mean u of their
+    triangle's other corners).
+
+    Ours (``mitsuba`` False): ``axis`` the pole (v up towards +axis), ``front`` the
+    direction the image's middle faces; u grows anticlockwise about +axis seen from
+    outside. ``mitsuba``: Mitsuba 3's sphere, u = phi / 2 pi with phi = atan2(y, x) in
+    [0, 2 pi) and its v = theta / pi with theta = acos(z), as our v = 1 - theta / pi.
+    """
+    p = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    if mitsuba:
+        phi = np.mod(np.arctan2(p[:, 1], p[:, 0]), 2 * np.pi)
+        u, v = phi / (2 * np.pi), 1.0 - np.arccos(np.clip(p[:, 2], -1, 1)) / np.pi
+        pole = np.hypot(p[:, 0], p[:, 1]) < 1e-9
+    else:
+        side = 3 - axis - front  # the third axis: u grows from front towards side, (front, side, axis) right-handed
+        sign = 1.0 if np.linalg.det(np.eye(3)[[front, side, axis]]) > 0 else -1.0
+        u = 0.5 + np.arctan2(sign * p[:, side], p[:, front]) / (2 * np.pi)
+        v = 0.5 + np.arcsin(np.clip(p[:, axis], -1, 1)) / np.pi
+        pole = np.hypot(p[:, side], p[:, front]) < 1e-9
+    corner_u, corner_v, corner_pole = u[faces], v[faces], pole[faces]
+    highest = np.where(corner_pole, -np.inf, corner_u).max(axis=1)
+    lowest = np.where(corner_pole, np.inf, corner_u).min(axis=1)
+    wraps = highest - lowest > 0.5
+    corner_u = np.where(wraps[:, None] & (corner_u < 0.5), corner_u + 1.0, corner_u)
+    others = np.where(corner_pole, 0.0, corner_u).sum(axis=1) / np.maximum((~corner_pole).sum(axis=1), 1)
+    corner_u = np.where(corner_pole, others[:, None], corner_u)
+    return split_by_corner_uvs(positions, faces, np.stack([corner_u, corner_v], axis=2))
+
+
+def _textured_cylinder(positions):
+    """The built-in cylinder (``cylinder``: ``segments`` vertices per ring) with the
+    seam's column doubled: u = phi / 2 pi, v = z."""
+    n = len(positions) // 2
+    positions, faces = cylinder(n, seam=True)
+    angle = np.arctan2(positions[:, 1], positions[:, 0])
+    u = np.mod(angle, 2 * np.pi) / (2 * np.pi)
+    u[np.arange(len(u)) % (n + 1) == n] = 1.0  # the seam's second copy
+    return positions, faces, np.stack([u, positions[:, 2]], axis=1)
 
 
 def _textured_cube():
@@ -168,12 +233,17 @@ def disk(segments):
     return positions, faces
 
 
-def cylinder(segments):
-    """The open cylinder of radius 1 from z = 0 to z = 1, facing outwards."""
+def cylinder(segments, seam=False):
+    """The open cylinder of radius 1 from z = 0 to z = 1, facing outwards: two rings
+    of ``segments`` vertices (``seam``: ``segments + 1``, the last a copy of the first,
+    for a texture's seam)."""
     angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
     circle = np.stack([np.cos(angles), np.sin(angles)], 1)
-    positions = np.concatenate([np.c_[circle, np.zeros(segments)], np.c_[circle, np.ones(segments)]])
+    if seam:
+        circle = np.concatenate([circle, circle[:1]])
+    columns = len(circle)
+    positions = np.concatenate([np.c_[circle, np.zeros(columns)], np.c_[circle, np.ones(columns)]])
     ring = np.arange(segments)
-    nxt = (ring + 1) % segments
-    faces = np.concatenate([np.stack([ring, nxt, segments + nxt], 1), np.stack([ring, segments + nxt, segments + ring], 1)])
+    nxt = (ring + 1) % columns
+    faces = np.concatenate([np.stack([ring, nxt, columns + nxt], 1), np.stack([ring, columns + nxt, columns + ring], 1)])
     return positions, faces.astype(np.int64)

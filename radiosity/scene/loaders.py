@@ -9,10 +9,13 @@ itself and ignores the file's):
 
 OBJ / MTL
     Kd -> diffuse, Ks -> specular, Ns -> exponent (Ks absent or zero: diffuse),
-    Ke -> emission. A map_Kd texture multiplies Kd by its mean colour (linearised
-    from sRGB). kd + ks > 1 is refused, as in a scene file.
+    Ke -> emission. A map_Kd image (sRGB-decoded) becomes the object's diffuse
+    texture, multiplying Kd (1 where Kd is absent) at each point through the mesh's
+    texture coordinates (``vt``, v up). kd + ks > 1 is refused, as in a scene file.
 glTF 2.0 (metallic-roughness)
-    base = baseColorFactor (times the mean of baseColorTexture, if any);
+    base = baseColorFactor; a baseColorTexture becomes the object's diffuse texture
+    (TEXCOORD_0; glTF's v runs down and trimesh flips it), multiplying the kd below
+    at each point (a metal's ks takes the image's mean, with a warning);
     specular ks = base * metallic + 0.04 * (1 - metallic) (the usual F0);
     diffuse kd = base * (1 - metallic) * (1 - ks);
     exponent n = ``microfacet.phong_exponent("ggx", alpha)`` with alpha = roughness^2
@@ -22,6 +25,8 @@ glTF 2.0 (metallic-roughness)
     emission = emissiveFactor (times KHR_materials_emissive_strength, if any: folded
     into the factor before trimesh reads the file, since trimesh drops extensions).
     Base colours pass through trimesh, which keeps them to 8 bits per channel.
+A mesh whose material has an image but which has no texture coordinates gets the
+image's mean colour instead, with one warning per material.
 
 Text mesh files (OBJ, MTL, ASCII STL, OFF) are read as UTF-8, a byte-order mark
 dropped, or as Latin-1 where they are not UTF-8. An OBJ whose material library is
@@ -45,9 +50,11 @@ from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX, srgb_to_linear
 from radiosity.formats.sniff import FILE_NAMES, input_kind
 from radiosity.scene import builtins, geometry
+from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
+    mesh_uvs,
     missing_material_libraries,
     read_mesh_with_uvs,
     read_single_mesh,
@@ -56,7 +63,7 @@ from radiosity.scene.meshfiles import (
 from radiosity.scene.microfacet import phong_exponent
 from radiosity.scene.mitsuba import load_mitsuba
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object, with_backs
-from radiosity.scene.textures import read_texture
+from radiosity.scene.textures import read_texture, texture_from_image
 
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission", "diffuse_texture"}
 _OBJECT_KEYS = {
@@ -64,7 +71,8 @@ _OBJECT_KEYS = {
     "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
 }
 _CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg", "matrix", "fov_deg", "fov_axis", "width", "height"}
-_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units"}
+_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment"}
+_ENVIRONMENT_KEYS = {"radiance", "image", "scale", "rotation", "rotate_deg", "transform"}
 
 
 def load_scene(source):
@@ -117,8 +125,43 @@ def _load_toml(text, base_dir, *, name, where):
     ]
     two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
+    environment = _parse_environment(data["environment"], base_dir, where) if "environment" in data else None
     return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
-                 source=where, film=film)
+                 source=where, film=film, environment=environment)
+
+
+def _parse_environment(table, base_dir, where):
+    """The ``Environment`` of a scene's [environment]: ``radiance`` (a number or RGB)
+    or ``image`` (a latitude-longitude map beside the scene: .exr, .hdr, .pfm, .npy as
+    linear radiance, 8-bit images sRGB-decoded), ``scale`` (default 1), and its
+    orientation: ``rotation`` (3 x 3, world from environment), ``rotate_deg`` ([x, y,
+    z], as an object's) or ``transform`` (4 x 4, its translation ignored)."""
+    here = f"{where}: [environment]"
+    _check_keys(table, _ENVIRONMENT_KEYS, here)
+    if ("radiance" in table) == ("image" in table):
+        raise InputError(f"{here}: give 'radiance' (a constant environment) or 'image' (an environment map)")
+    if sum(k in table for k in ("rotation", "rotate_deg", "transform")) > 1:
+        raise InputError(f"{here}: give one of 'rotation', 'rotate_deg' and 'transform'")
+    scale = _number(table.get("scale", 1.0), here, "scale")
+    rotation = None
+    if "rotation" in table:
+        value = table["rotation"]
+        if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) and len(r) == 3 for r in value)):
+            raise InputError(f"{here}: 'rotation' must be 3 rows of 3 numbers")
+        rotation = np.array([[_number(v, here, "rotation") for v in row] for row in value])
+    elif "rotate_deg" in table:
+        rotation = geometry.transform_matrix(rotate_deg=_vec3(table["rotate_deg"], here, "rotate_deg"))[:3, :3]
+    elif "transform" in table:
+        rotation = _matrix(table["transform"], here, "transform")[:3, :3]
+    if "radiance" in table:
+        return Environment.uniform(_vec3(table["radiance"], here, "radiance", allow_scalar=True), scale, rotation, here)
+    name = table["image"]
+    if not isinstance(name, str) or not name:
+        raise InputError(f"{here}: 'image' must be an image file name, got {name!r}")
+    path = Path(base_dir) / name
+    if not path.is_file():
+        raise InputError(f"{here}: the environment map {str(path)!r} is not found")
+    return Environment.from_image(read_environment_image(path, here), scale, rotation, here)
 
 
 def _two_sided(entry, name, where):
@@ -289,7 +332,7 @@ def _parse_object(entry, index, materials_textures, base_dir, where):
                 segments=entry.get("segments"),
             )
             if texture is not None:
-                positions, faces, uvs = builtins.textured_mesh(spec, positions, faces)
+                positions, faces, uvs = builtins.textured_mesh(spec, positions, faces, resolution=entry.get("resolution"))
         except InputError as exc:
             raise InputError(f"{here}: {exc}") from None
         source = f"builtin {spec}"
@@ -388,23 +431,23 @@ def _load_mesh_scene(path):
         loaded = trimesh.Scene(loaded)
     if not isinstance(loaded, trimesh.Scene) or not loaded.geometry:
         raise InputError(f"{where}: no triangle meshes in the file")
-    objects, materials = [], {}
+    objects, materials, images = [], {}, {}
     for node in loaded.graph.nodes_geometry:
         transform, geom_name = loaded.graph[node]
         mesh = loaded.geometry[geom_name]
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             continue
-        material = _mapped_material(mesh, where)
-        materials.setdefault(material.name, material)
         positions, faces, _ = geometry.apply_transform(
             np.asarray(transform, dtype=np.float64),
             np.asarray(mesh.vertices, dtype=np.float64),
             np.asarray(mesh.faces, dtype=np.int64),
         )
+        material, texture, uvs = _mapped_surface(mesh, where, images)
+        material = materials.setdefault(material.name, material)
         name = safe_object_name(str(node))  # '/' separates keys in the solution file; no control characters
         if name in {o.name for o in objects}:
             name = f"{name}#{len(objects)}"
-        objects.append(build_object(name, materials[material.name], positions, faces, source=where))
+        objects.append(build_object(name, material, positions, faces, source=where, uvs=uvs, texture=texture))
     if not objects:
         raise InputError(f"{where}: no triangle meshes in the file")
     return Scene(name=path.stem, objects=tuple(objects), camera=None, source=where)
@@ -418,16 +461,45 @@ def _mean_texture_colour(image):
     return srgb_to_linear(rgb).reshape(-1, 3).mean(axis=0)
 
 
-def _mapped_material(mesh, where):
+def _mapped_surface(mesh, where, images):
+    """(Material, texture or None, uvs or None) of a mesh from a file given directly.
+
+    A material with an image (MTL map_Kd, glTF baseColorTexture) on a mesh with
+    texture coordinates: the image becomes the object's texture (read once per
+    material into ``images``, {material name: texture}, so that its objects share
+    the array) and kd its factor alone. On a mesh without texture coordinates the
+    image counts with its mean colour (one SceneWarning per material), under the
+    material's name with " (mean texture)" added: a material is one record per name.
+    """
     visual = getattr(mesh, "visual", None)
     mat = getattr(visual, "material", None)
     if mat is None:
-        return _material("default", diffuse=(0.8, 0.8, 0.8), specular=(0, 0, 0), exponent=0, emission=(0, 0, 0))
+        return _material("default", diffuse=(0.8, 0.8, 0.8), specular=(0, 0, 0), exponent=0, emission=(0, 0, 0)), \
+            None, None
     name = getattr(mat, "name", None) or "material"
     here = f"{where}: material {name!r}: "
-    if isinstance(mat, trimesh.visual.material.PBRMaterial):
-        return _from_pbr(mat, name, here)
-    return _from_mtl(mat, name, here)
+    pbr = isinstance(mat, trimesh.visual.material.PBRMaterial)
+    image = getattr(mat, "baseColorTexture" if pbr else "image", None)
+    uvs = mesh_uvs(mesh) if image is not None else None
+    mean = _mean_texture_colour(image)
+    if image is not None and uvs is None:
+        fallback = f"{name} (mean texture)"
+        if fallback not in images:
+            images[fallback] = None
+            warnings.warn(
+                f"{here}its texture is on a mesh without texture coordinates: taken as its mean colour "
+                f"{tuple(round(float(c), 4) for c in mean)}", SceneWarning, stacklevel=4)
+        mapped = _from_pbr(mat, fallback, here, mean, textured=False) if pbr else \
+            _from_mtl(mat, fallback, here, mean, textured=False)
+        return mapped, None, None
+    textured = image is not None
+    mapped = _from_pbr(mat, name, here, mean, textured=textured) if pbr else \
+        _from_mtl(mat, name, here, mean, textured=textured)
+    if not textured:
+        return mapped, None, None
+    if images.get(name) is None:
+        images[name] = texture_from_image(image, f"{here}texture")
+    return mapped, images[name], uvs
 
 
 def _mtl_vec(raw, key, here):
@@ -445,12 +517,17 @@ def _mtl_vec(raw, key, here):
     return np.array(values)
 
 
-def _from_mtl(mat, name, here):
+def _from_mtl(mat, name, here, mean=None, *, textured=False):
+    """MTL's Kd, Ks, Ns, Ke. With a map_Kd image of linear mean colour ``mean``: kd
+    = Kd (1 where Kd is absent: the map alone), the image multiplying it per point
+    (``textured``), or its mean (not ``textured``)."""
     raw = getattr(mat, "kwargs", {}) or {}
     kd = _mtl_vec(raw, "kd", here)
-    tex = _mean_texture_colour(getattr(mat, "image", None))
-    if tex is not None:
-        kd = kd * tex
+    if mean is not None:
+        if raw.get("kd") is None:
+            kd = np.ones(3)
+        if not textured:
+            kd = kd * mean
     ks = _mtl_vec(raw, "ks", here)
     try:
         exponent = float(np.atleast_1d(raw.get("ns", 0.0))[0])
@@ -464,22 +541,29 @@ def _from_mtl(mat, name, here):
     )
 
 
-def _from_pbr(mat, name, here):
+def _from_pbr(mat, name, here, mean=None, *, textured=False):
+    """glTF's metallic-roughness material (the module docstring's mapping). With a
+    baseColorTexture of linear mean colour ``mean``: ``textured``, kd is the factor's
+    part alone and the image multiplies it per point; the specular colour of a metal
+    (metallic > 0), which our model cannot texture, takes the image's mean, with a
+    warning. Not ``textured``: the base colour is the factor times the mean."""
     factor = mat.baseColorFactor
     base = np.ones(3) if factor is None else np.asarray(factor, dtype=np.float64)[:3] / 255.0
-    tex = _mean_texture_colour(getattr(mat, "baseColorTexture", None))
-    if tex is not None:
-        base = base * tex
     metallic = 1.0 if mat.metallicFactor is None else float(mat.metallicFactor)
     roughness = 1.0 if mat.roughnessFactor is None else float(mat.roughnessFactor)
+    mean_base = base if mean is None else base * mean
+    diffuse_base = base if textured else mean_base
     if metallic == 0.0 and roughness >= 0.9:
         ks = np.zeros(3)
         exponent = 0.0
     else:
-        ks = base * metallic + 0.04 * (1.0 - metallic)
+        ks = mean_base * metallic + 0.04 * (1.0 - metallic)
         alpha = max(roughness, 1e-3) ** 2  # glTF's roughness squared is GGX's alpha
         exponent = float(min(phong_exponent("ggx", alpha), 1e4))
-    kd = base * (1.0 - metallic) * (1.0 - ks)
+        if textured and metallic > 0.0:
+            warnings.warn(f"{here}metallic {metallic:g} with a baseColorTexture: the specular colour takes the "
+                          "texture's mean (only the diffuse colour is textured)", SceneWarning, stacklevel=5)
+    kd = diffuse_base * (1.0 - metallic) * (1.0 - ks)
     # KHR_materials_emissive_strength is already in the factor (``meshfiles._gltf_emissive``)
     emissive = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, dtype=np.float64)[:3]
     return _material(

@@ -222,12 +222,21 @@ def read_single_mesh(path, where):
 def read_mesh_with_normals(path, where):
     """All triangles of a mesh file as (positions, faces, normals): normals (V, 3) are
     the file's own per-vertex normals where it has them (OBJ ``vn``, PLY ``nx ny nz``)
-    in every part, else None.
+    in every part, else None (``read_mesh_parts``)."""
+    return read_mesh_parts(path, where)[:3]
+
+
+def read_mesh_parts(path, where):
+    """All triangles of a mesh file as (positions, faces, normals, uvs): normals (V, 3)
+    the file's own per-vertex normals where every part has them (OBJ ``vn``, PLY ``nx
+    ny nz``), uvs (V, 2) its texture coordinates where every part has them (OBJ
+    ``vt``, glTF TEXCOORD_0 (v flipped by trimesh to run up), PLY ``u v`` or ``s t``,
+    as the file stores them), each else None.
 
     Read as a scene and each part copied with its cache: ``force="mesh"`` copies the
     parts without it, and so drops the normals the file gave."""
     loaded = trimesh_load(path, where, force="scene")
-    parts = []
+    parts, uvs = [], []
     for node in loaded.graph.nodes_geometry:
         transform, name = loaded.graph[node]
         geometry = loaded.geometry[name]
@@ -235,39 +244,25 @@ def read_mesh_with_normals(path, where):
             part = geometry.copy(include_cache=True)
             part.apply_transform(transform)  # turns cached vertex normals with it
             parts.append(part)
-    if not parts:
-        raise InputError(f"{where}: mesh {str(path)!r} has no triangles")
-    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
-    positions = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
-    faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets[:-1], strict=True)])
-    if not all("vertex_normals" in p._cache for p in parts):  # the file gave none (trimesh would compute them)
-        return positions, faces, None
-    normals = np.concatenate([np.asarray(p.vertex_normals, dtype=np.float64) for p in parts])
-    return positions, faces, normals if normals.shape == positions.shape else None
-
-
-def read_mesh_with_uvs(path, where):
-    """All triangles of a mesh file as (positions, faces, uvs (V, 2) float64 or None):
-    the file's texture coordinates (OBJ ``vt``, glTF TEXCOORD_0, PLY ``s t``) where
-    every part has them, v up (trimesh flips glTF's, which runs down), else None."""
-    loaded = trimesh_load(path, where, force="scene")
-    parts, uvs = [], []
-    for node in loaded.graph.nodes_geometry:
-        transform, name = loaded.graph[node]
-        geometry = loaded.geometry[name]
-        if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
-            part = geometry.copy()
-            part.apply_transform(transform)
-            parts.append(part)
             uvs.append(mesh_uvs(geometry))
     if not parts:
         raise InputError(f"{where}: mesh {str(path)!r} has no triangles")
     offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
     positions = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
     faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets[:-1], strict=True)])
-    if any(uv is None for uv in uvs):
-        return positions, faces, None
-    return positions, faces, np.concatenate(uvs)
+    uvs = None if any(uv is None for uv in uvs) else np.concatenate(uvs)
+    if not all("vertex_normals" in p._cache for p in parts):  # the file gave none (trimesh would compute them)
+        return positions, faces, None, uvs
+    normals = np.concatenate([np.asarray(p.vertex_normals, dtype=np.float64) for p in parts])
+    return positions, faces, normals if normals.shape == positions.shape else None, uvs
+
+
+def read_mesh_with_uvs(path, where):
+    """All triangles of a mesh file as (positions, faces, uvs (V, 2) float64 or None):
+    the file's texture coordinates (OBJ ``vt``, glTF TEXCOORD_0, PLY ``s t``) where
+    every part has them, v up (trimesh flips glTF's, which runs down), else None."""
+    positions, faces, _, uvs = read_mesh_parts(path, where)
+    return positions, faces, uvs
 
 
 def mesh_uvs(mesh):

@@ -26,11 +26,30 @@ lobes): ``diffuse``; ``twosided`` (the surface gets a back: a second, reversed c
     ``plastic`` / ``roughplastic`` and ``conductor`` / ``roughconductor`` by the rule
     of ``microfacet.phong_lobe_for``; anything else (dielectrics, masks, bump and
     normal maps, blends, principled, ...) approximated with one warning saying how.
-    A texture where a colour goes counts with its mean colour (with a warning).
+Textures
+    A ``bitmap`` as a ``diffuse`` bsdf's ``reflectance`` (also inside ``twosided``,
+    ``bumpmap``, ``normalmap`` and ``mask``) or a plastic's ``diffuse_reflectance``
+    is the object's diffuse texture, read through the shape's texture coordinates as
+    Mitsuba 3 defines them (``_analytic``; obj ``vt``, which Mitsuba flips to its
+    top-down v; ply ``u v`` and serialized texcoords as stored, top-down), each turned
+    to ours (``textures``: v up, (u, v) -> (u, 1 - v)). Its ``to_uv`` (scale,
+    translate, rotate about z, matrix) applies; ``wrap_mode`` repeat as it is,
+    mirror and clamp through ``textures.as_repeating``; ``filter_type`` nearest is
+    read bilinear (a warning); ``raw`` skips the sRGB decoding of 8- and 16-bit
+    images; OpenEXR images are linear. A plastic's textured diffuse reflectance maps
+    its brightest texel by the rule below and scales the others with it (exact where
+    the rule's kd is linear in it, as for ``nonlinear`` false; ``nonlinear`` true by
+    Mitsuba's kd / (1 - kd R_int) per texel). A texture anywhere else (a specular
+    reflectance, a roughness, a blend's weight), a ``checkerboard``, or a bitmap on a
+    shape without texture coordinates counts with its mean colour (with a warning).
 Emitters
     ``area`` (a shape's radiance); ``point`` and ``spot`` as a small sphere lamp of
-    the same intensity (a spot's cone is not kept: a warning says so); ``constant``,
-    ``envmap`` and ``directional`` are not modelled yet: left out with a warning.
+    the same intensity (a spot's cone is not kept: a warning says so); ``constant``
+    (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit image, sRGB-
+    decoded; scale; to_world, its rotation) become the scene's environment
+    (``radiosity.scene.environment``; one per scene: a second is left out with a
+    warning); ``directional`` and the sky models are not modelled yet: left out with
+    a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
     ``fov_axis`` (x, y, diagonal, smaller, larger) or 0.6's ``focalLength``, the
@@ -44,6 +63,7 @@ element; every approximation a SceneWarning naming them too.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 import struct
@@ -61,9 +81,11 @@ from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
 from radiosity.formats.material import srgb_to_linear
 from radiosity.scene import builtins, microfacet
+from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
-from radiosity.scene.meshfiles import read_mesh_with_normals
+from radiosity.scene.meshfiles import read_mesh_parts
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
+from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
@@ -172,6 +194,7 @@ class _Document:
                     raise node.fail("needs 'name' and 'value'")
                 self.params.setdefault(name, value)
         self.elements = self._expand(root.children, 0)
+        self.bitmaps = {}  # id(<texture> element) -> its _Bitmap, each file read once
         self.ids = {}
         for node in self._walk(self.elements):
             if "id" in node.attrs and node.tag != "ref":
@@ -406,13 +429,9 @@ def _texture_mean(doc, node):
     kind = node.attrs.get("type")
     props = _Props(doc, node)
     if kind == "bitmap":
-        filename = props.string("filename")
-        if filename is None:
-            raise node.fail("needs a 'filename'")
-        path = doc.resolve(node, filename)
-        image = _read_image(node, path)
-        mean = image.reshape(-1, image.shape[-1])[:, :3].mean(axis=0)
-        node.warn(f"texture {filename!r} taken as its mean colour {tuple(round(float(c), 4) for c in mean)}")
+        bitmap = _bitmap(doc, node)
+        mean = bitmap.mean
+        node.warn(f"texture {bitmap.filename!r} taken as its mean colour {tuple(round(float(c), 4) for c in mean)}")
         return tuple(float(c) for c in mean)
     if kind == "checkerboard":
         a, b = props.colour("color0", 0.4), props.colour("color1", 0.2)
@@ -422,23 +441,135 @@ def _texture_mean(doc, node):
     raise node.fail(f"texture type {kind!r} is not read (bitmap and checkerboard are)")
 
 
-def _read_image(node, path):
-    """Linear RGB(A) float array of an image file (8-bit images sRGB-decoded)."""
-    import imageio.v3 as iio
+@dataclass
+class _Bitmap:
+    """A ``bitmap`` texture: ``image`` (H, W, 3) float64 linear RGB, ``wrap`` (one of
+    ``textures.WRAP_MODES``), ``to_uv`` (3, 3) the affine map of Mitsuba's (u, v) it
+    applies; ``texture`` the image as a reflectance (float32, clipped to [0, 1] with a
+    warning), made once and shared by the shapes that read it as it is."""
+
+    image: np.ndarray
+    wrap: str
+    to_uv: np.ndarray
+    node: Node
+    filename: str
+    _texture: np.ndarray | None = None
+
+    @property
+    def mean(self):
+        return self.image.reshape(-1, 3).mean(axis=0)
+
+    @property
+    def texture(self):
+        if self._texture is None:
+            low, high = float(self.image.min()), float(self.image.max())
+            if low < 0.0 or high > 1.0:
+                self.node.warn(f"texture {self.filename!r} holds values in [{low:.4g}, {high:.4g}]: clipped to "
+                               "[0, 1] as a reflectance")
+            self._texture = np.clip(self.image, 0.0, 1.0).astype(np.float32)
+        return self._texture
+
+    def scaled(self, image):
+        """This bitmap with another image (a plastic's texels rescaled)."""
+        return _Bitmap(image, self.wrap, self.to_uv, self.node, self.filename)
+
+    def reading(self, uvs, where):
+        """(texture, uvs) for a shape whose (our) texture coordinates are ``uvs``: the
+        ``to_uv`` map applied (in Mitsuba's convention) and the wrap mode made
+        repeating (``textures.as_repeating``)."""
+        mitsuba = np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1) @ self.to_uv[:2, :2].T + self.to_uv[:2, 2]
+        uvs = np.stack([mitsuba[:, 0], 1.0 - mitsuba[:, 1]], axis=1)
+        repeating = as_repeating(self.texture, uvs, self.wrap)
+        if repeating is None:
+            warnings.warn(f"{where}: texture {self.filename!r}: wrap mode {self.wrap!r} over texture coordinates "
+                          f"spanning {np.ptp(uvs, axis=0).round(3).tolist()} would need too large an image: repeated "
+                          "instead", SceneWarning, stacklevel=3)
+            return self.texture, uvs
+        return repeating
+
+
+def _bitmap(doc, node):
+    """The ``_Bitmap`` of a ``<texture type="bitmap">``, read once per element."""
+    key = id(node)
+    if key in doc.bitmaps:
+        return doc.bitmaps[key]
+    props = _Props(doc, node)
+    filename = props.string("filename")
+    if filename is None:
+        raise node.fail("needs a 'filename'")
+    path = doc.resolve(node, filename)
+    filter_type = props.string("filter_type", "bilinear")
+    if filter_type not in ("bilinear", "nearest"):
+        raise node.fail(f"filter_type {filter_type!r} is not bilinear or nearest")
+    if filter_type == "nearest":
+        node.warn(f"texture {filename!r}: filter_type 'nearest' is read bilinear (textures here are bilinear)")
+    wrap = props.string("wrap_mode", "repeat")
+    if wrap not in WRAP_MODES:
+        raise node.fail(f"wrap_mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
+    image = _read_image(node, path, raw=props.boolean("raw"))
+    bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename)
+    return bitmap
+
+
+def _uv_transform(props):
+    """A bitmap's ``to_uv`` as a 3x3 affine map of (u, v, 1): Mitsuba reads a 4x4
+    transform's rows and columns x, y and w (z dropped), so ``scale`` and
+    ``translate`` take x and y, ``rotate`` turns about z."""
+    matrix = props.transform("to_uv")
+    keep = [0, 1, 3]
+    return matrix[np.ix_(keep, keep)]
+
+
+def _read_image(node, path, raw=False):
+    """Linear RGB (H, W, 3) float64 of an image file: 8- and 16-bit images
+    sRGB-decoded (unless ``raw``), float images (OpenEXR, through the OpenEXR library)
+    as they are; alpha dropped, one channel copied to three."""
+    data = read_input_bytes(path, "texture", TEXTURE_BYTES)
+    if path.suffix.lower() == ".exr":
+        image = _read_exr(node, path, data)
+    else:
+        import imageio.v3 as iio
+
+        try:
+            image = np.asarray(iio.imread(data, extension=path.suffix.lower() or None))
+        except Exception as exc:  # imageio raises many types for a bad or unknown file
+            raise node.fail(f"cannot read image {str(path)!r}: {exc}") from None
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.ndim != 3 or image.shape[2] not in (1, 2, 3, 4) or image.size == 0:
+        raise node.fail(f"image {str(path)!r} is not an RGB image (shape {image.shape})")
+    if image.shape[0] * image.shape[1] > MAX_TEXTURE_PIXELS:
+        raise node.fail(f"image {str(path)!r} is {image.shape[1]} x {image.shape[0]} pixels, more than the "
+                        f"{MAX_TEXTURE_PIXELS:,} allowed")
+    image = image[..., :1].repeat(3, axis=2) if image.shape[2] <= 2 else image[..., :3]
+    if np.issubdtype(image.dtype, np.integer):
+        encoded = image / np.iinfo(image.dtype).max
+        return encoded if raw else srgb_to_linear(encoded)
+    image = image.astype(np.float64)
+    if not np.isfinite(image).all():
+        raise node.fail(f"image {str(path)!r} holds NaN or infinite values")
+    return image
+
+
+def _read_exr(node, path, data):
+    """An OpenEXR image's R, G, B (or its one channel) as (H, W, C) float."""
+    import OpenEXR
 
     try:
-        image = np.asarray(iio.imread(path))
-    except Exception as exc:  # imageio raises many types for a bad or unknown file
-        raise node.fail(f"cannot read image {str(path)!r}: {exc}") from None
-    if image.ndim == 2:
-        image = image[..., None].repeat(3, axis=2)
-    if image.ndim != 3 or image.shape[2] not in (1, 3, 4) or image.size == 0:
-        raise node.fail(f"image {str(path)!r} is not an RGB image (shape {image.shape})")
-    if image.shape[2] == 1:
-        image = image.repeat(3, axis=2)
-    if np.issubdtype(image.dtype, np.integer):
-        return srgb_to_linear(image[..., :3] / np.iinfo(image.dtype).max)
-    return image[..., :3].astype(np.float64)
+        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr:
+            channels = {name: np.array(c.pixels) for name, c in exr.channels().items()}
+    except Exception as exc:  # the bindings raise RuntimeError, ValueError, ... for a bad file
+        raise node.fail(f"cannot read the OpenEXR image {str(path)!r}: {' '.join(str(exc).split())}") from None
+    if {"R", "G", "B"} <= set(channels):
+        names = ["R", "G", "B"]
+    elif len(channels) == 1 or "Y" in channels:
+        names = ["Y" if "Y" in channels else next(iter(channels))]
+    else:
+        raise node.fail(f"the OpenEXR image {str(path)!r} has channels {', '.join(sorted(channels))}, not R, G, B or Y")
+    planes = [channels[name] for name in names]
+    if any(p.ndim != 2 or p.shape != planes[0].shape for p in planes):
+        raise node.fail(f"the OpenEXR image {str(path)!r} has channels of different sizes")
+    return np.stack(planes, axis=2)
 
 
 # -- transforms ---------------------------------------------------------------------------
@@ -523,8 +654,9 @@ _HAS_NORMALS, _HAS_TEXCOORDS, _HAS_COLORS, _DOUBLE = 0x0001, 0x0002, 0x0008, 0x2
 
 
 def read_serialized(data, index=0, where="serialized"):
-    """Positions (V, 3), faces (F, 3) and normals (V, 3) or None of shape ``index`` of
-    a Mitsuba ``.serialized`` file's bytes.
+    """Positions (V, 3), faces (F, 3), normals (V, 3) or None and texture coordinates
+    (V, 2) or None (as stored: Mitsuba's convention, v down) of shape ``index`` of a
+    Mitsuba ``.serialized`` file's bytes.
 
     Layout (Mitsuba's documentation of ``serialized``): a file is a run of shapes, each
     a uint16 format identifier 0x041C, a uint16 version (3 or 4), then a zlib stream
@@ -590,11 +722,13 @@ def _serialized_body(body, named, where):
     faces = np.frombuffer(body, dtype=index, count=n_faces * 3, offset=at).reshape(-1, 3).astype(np.int64)
     if faces.max() >= n_vertices:
         raise InputError(f"{where}: a triangle refers to a vertex that does not exist")
-    return arrays["positions"], faces, arrays.get("normals")
+    return arrays["positions"], faces, arrays.get("normals"), arrays.get("texcoords")
 
 
 def _mesh_file(doc, node, props):
-    """Positions, faces, normals (or None) of an obj, ply or serialized shape."""
+    """Positions, faces, normals (or None) and uvs (or None, ours: v up) of an obj, ply
+    or serialized shape. Mitsuba 3 flips an obj's v (``vt`` runs up, its own v down),
+    and takes ply's and serialized texture coordinates as stored (its convention)."""
     filename = props.string("filename")
     if filename is None:
         raise node.fail("needs a 'filename'")
@@ -603,31 +737,88 @@ def _mesh_file(doc, node, props):
     if kind == "serialized":
         data = read_input_bytes(path, "mesh", MESH_BYTES)
         index = props.integer("shape_index", 0)
-        return read_serialized(data, index, where=f"{node.where}: {filename}")
-    return read_mesh_with_normals(path, node.where)
+        positions, faces, normals, texcoords = read_serialized(data, index, where=f"{node.where}: {filename}")
+        return positions, faces, normals, None if texcoords is None else _flip_v(texcoords)
+    positions, faces, normals, uvs = read_mesh_parts(path, node.where)
+    if kind == "ply" and uvs is not None:
+        uvs = _flip_v(uvs)
+    return positions, faces, normals, uvs
 
 
-def _analytic(node, props, tessellation):
-    """Positions, faces and the object-to-world matrix of a tessellated analytic shape."""
+def _flip_v(uvs):
+    """Texture coordinates between Mitsuba's convention (v down) and ours (v up)."""
+    return np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1)
+
+
+# Mitsuba 3's cube: 24 vertices, each face [0, 1]^2 in its (u, v) (its convention, v down)
+_CUBE_POSITIONS = np.array([
+    [1, -1, -1], [1, -1, 1], [-1, -1, 1], [-1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, 1, 1], [1, 1, 1],
+    [1, -1, -1], [1, 1, -1], [1, 1, 1], [1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1], [-1, -1, 1],
+    [-1, -1, 1], [-1, 1, 1], [-1, 1, -1], [-1, -1, -1], [1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1]],
+    dtype=np.float64)
+_CUBE_UVS = np.tile(np.array([[0.0, 1], [1, 1], [1, 0], [0, 0]]), (6, 1))
+_CUBE_FACES = np.concatenate([[[k, k + 1, k + 2], [k + 3, k, k + 2]] for k in range(0, 24, 4)]).astype(np.int64)
+
+
+def _coordinate_system(n):
+    """Mitsuba's frame about a unit vector n (Duff et al. 2017): (s, t), with (s, t,
+    n) right-handed; the cylinder's local x and y."""
+    sign = math.copysign(1.0, n[2])
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    return (np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]]),
+            np.array([b, sign + n[1] * n[1] * a, -n[1]]))
+
+
+def _mitsuba_disk(segments):
+    """The unit disk as a fan with Mitsuba 3's (u, v) = (r, phi / 2 pi) as ours (r,
+    1 - phi / 2 pi): the rim's seam vertex doubled, the centre copied per triangle
+    (its v the triangle's middle angle)."""
+    k = np.arange(segments + 1)
+    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    rim = np.stack([np.cos(angles), np.sin(angles), 0 * angles], 1)
+    positions = np.concatenate([rim, rim[:1], np.zeros((segments, 3))])
+    uvs = np.concatenate([np.stack([np.ones(segments + 1), 1.0 - k / segments], 1),
+                          np.stack([np.zeros(segments), 1.0 - (k[:-1] + 0.5) / segments], 1)])
+    ring = np.arange(segments)
+    faces = np.stack([segments + 1 + ring, ring, ring + 1], 1)
+    return positions, faces.astype(np.int64), uvs
+
+
+def _analytic(node, props, tessellation, textured=False):
+    """Positions, faces, uvs (with ``textured``: ours, v up, from Mitsuba 3's (u, v)
+    of each shape; else None) and the object-to-world matrix of a tessellated analytic
+    shape. Mitsuba 3's (u, v): rectangle ((x + 1) / 2, (y + 1) / 2); disk (r, phi / 2
+    pi); sphere (phi / 2 pi, theta / pi), theta from +z; cube each face's [0, 1]^2
+    (its table); cylinder (phi / 2 pi, z), phi from the axis' frame's first vector
+    (``_coordinate_system``); angles in [0, 2 pi) counter-clockwise about +z."""
     kind = node.attrs["type"]
     to_world = props.transform("to_world")
     if kind == "rectangle":
         positions = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
-        return positions, np.array([[0, 1, 2], [0, 2, 3]]), to_world
+        uvs = _flip_v(0.5 * (positions[:, :2] + 1.0)) if textured else None
+        return positions, np.array([[0, 1, 2], [0, 2, 3]]), uvs, to_world
     if kind == "disk":
-        return (*builtins.disk(tessellation.segments), to_world)
-    if kind == "cube":  # [-1, 1]^3: the built-in unit cube doubled
+        if textured:
+            return (*_mitsuba_disk(tessellation.segments), to_world)
+        return (*builtins.disk(tessellation.segments), None, to_world)
+    if kind == "cube":  # [-1, 1]^3: the built-in unit cube doubled, or Mitsuba's own with its uvs
+        if textured:
+            return _CUBE_POSITIONS, _CUBE_FACES, _flip_v(_CUBE_UVS), to_world
         positions, faces = builtins.mesh("cube")
-        return 2.0 * positions, faces, to_world
+        return 2.0 * positions, faces, None, to_world
     if kind == "sphere":
         positions, faces = builtins.mesh("sphere", subdivisions=tessellation.sphere_levels)
+        uvs = None
+        if textured:
+            positions, faces, uvs = builtins.spherical_uvs(positions, faces, mitsuba=True)
         radius = props.float("radius", 1.0)
         if not radius > 0:
             raise node.fail(f"radius must be > 0, got {radius}")
         place = np.eye(4)
         place[:3, :3] *= radius
         place[:3, 3] = props.vector("center", np.zeros(3))
-        return positions, faces, to_world @ place
+        return positions, faces, uvs, to_world @ place
     if kind == "cylinder":
         p0, p1 = props.vector("p0", np.zeros(3)), props.vector("p1", np.array([0.0, 0, 1]))
         radius = props.float("radius", 1.0)
@@ -636,11 +827,13 @@ def _analytic(node, props, tessellation):
         if not radius > 0 or length == 0:
             raise node.fail("needs radius > 0 and p0 != p1")
         z = axis / length
-        x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
-        x /= np.linalg.norm(x)
+        x, y = _coordinate_system(z)
         place = np.eye(4)
-        place[:3, 0], place[:3, 1], place[:3, 2], place[:3, 3] = radius * x, radius * np.cross(z, x), length * z, p0
-        return (*builtins.cylinder(tessellation.segments), to_world @ place)
+        place[:3, 0], place[:3, 1], place[:3, 2], place[:3, 3] = radius * x, radius * y, length * z, p0
+        if textured:
+            positions, faces, uvs = builtins.textured_mesh("cylinder", *builtins.cylinder(tessellation.segments))
+            return positions, faces, _flip_v(uvs), to_world @ place  # Mitsuba's v = z runs from p0 down the image
+        return (*builtins.cylinder(tessellation.segments), None, to_world @ place)
     raise AssertionError(kind)
 
 
@@ -656,6 +849,22 @@ class _Surface:
     exponent: float = 0.0
     twosided: bool = False
     visible: bool = True  # False: the shape is left out (a null bsdf, a dielectric)
+    texture: _Bitmap | None = None  # multiplies diffuse at each point (``textures``)
+
+    def untextured(self):
+        """This surface with its texture folded into the diffuse colour (its mean)."""
+        if self.texture is None:
+            return self
+        diffuse = tuple(float(d * m) for d, m in zip(self.diffuse, self.texture.mean, strict=True))
+        return _Surface(diffuse, self.specular, self.exponent, self.twosided, self.visible)
+
+
+def _bitmap_property(doc, props, name):
+    """The ``_Bitmap`` of property ``name`` if it is a bitmap texture, else None."""
+    item = props.named.get(name)
+    if item is None or item[1].tag != "texture" or item[1].attrs.get("type") != "bitmap":
+        return None
+    return _bitmap(doc, item[1])
 
 
 def _surface(doc, node):
@@ -673,6 +882,9 @@ def _surface(doc, node):
         surface.twosided = True
         return surface
     if kind == "diffuse":
+        bitmap = _bitmap_property(doc, props, "reflectance")
+        if bitmap is not None:
+            return _Surface(diffuse=(1.0, 1.0, 1.0), texture=bitmap)
         return _Surface(diffuse=props.colour("reflectance", 0.5))
     if kind in ("plastic", "roughplastic", "conductor", "roughconductor"):
         return _microfacet_surface(node, props, kind)
@@ -701,6 +913,9 @@ def _surface(doc, node):
             raise node.fail("needs two <bsdf> to blend")
         weight = float(np.mean(props.colour("weight", 0.5)))
         a, b = _surface(doc, inner[0]), _surface(doc, inner[1])
+        if a.texture is not None or b.texture is not None:
+            node.warn("a blend of textured bsdfs: each texture taken as its mean colour")
+            a, b = a.untextured(), b.untextured()
         node.warn(f"blended as one Phong lobe: colours mixed with weight {weight:.2f}, the exponent of the "
                   "glossier part")
         mix = lambda u, v: tuple((1 - weight) * x + weight * y for x, y in zip(u, v, strict=True))  # noqa: E731
@@ -729,10 +944,16 @@ def _microfacet_surface(node, props, kind):
             node.warn("the phong distribution is mapped as beckmann of the same alpha")
             distribution = "beckmann"
     params = {"specular_reflectance": props.colour("specular_reflectance", 1.0)}
+    bitmap = None
     if kind.endswith("plastic"):
-        params |= {"diffuse_reflectance": props.colour("diffuse_reflectance", 0.5),
-                   "int_ior": _ior(props, "int_ior", 1.49), "ext_ior": _ior(props, "ext_ior", 1.000277),
+        bitmap = _bitmap_property(props.doc, props, "diffuse_reflectance")
+        params |= {"int_ior": _ior(props, "int_ior", 1.49), "ext_ior": _ior(props, "ext_ior", 1.000277),
                    "nonlinear": props.boolean("nonlinear")}
+        if bitmap is None:
+            params["diffuse_reflectance"] = props.colour("diffuse_reflectance", 0.5)
+        else:
+            brightest = np.clip(bitmap.texture.reshape(-1, 3).max(axis=0).astype(np.float64), 0.0, 1.0)
+            params["diffuse_reflectance"] = tuple(np.where(brightest > 0, brightest, 1.0))
     elif "eta" in props.named or "k" in props.named:
         params |= {"eta": props.colour("eta", 0.0), "k": props.colour("k", 1.0)}
     else:
@@ -741,7 +962,25 @@ def _microfacet_surface(node, props, kind):
         kd, ks, exponent = microfacet.phong_lobe(kind, distribution, alpha if alpha is not None else 0.1, **params)
     except InputError as exc:
         raise node.fail(str(exc)) from None
-    return _Surface(diffuse=kd, specular=ks, exponent=exponent)
+    if bitmap is None:
+        return _Surface(diffuse=kd, specular=ks, exponent=exponent)
+    return _Surface(diffuse=kd, specular=ks, exponent=exponent,
+                    texture=_plastic_texture(bitmap, kind, distribution, alpha, params))
+
+
+def _plastic_texture(bitmap, kind, distribution, alpha, params):
+    """A plastic's diffuse texture relative to its brightest texel M (the
+    ``diffuse_reflectance`` its lobe was mapped with): g(texel) / g(M), g the
+    substrate's kd' = kd / (1 - R_int) (linear: the texel over M) or, ``nonlinear``,
+    kd / (1 - kd R_int) with the interface's internal reflectance R_int."""
+    brightest = np.asarray(params["diffuse_reflectance"], dtype=np.float64)
+    texels = bitmap.texture.astype(np.float64)
+    if not params.get("nonlinear"):
+        return bitmap.scaled(texels / brightest)
+    linear = dict(params, diffuse_reflectance=1.0, nonlinear=False)
+    r_int = 1.0 - 1.0 / float(microfacet.reference_brdf(kind, distribution, alpha or 0.1, **linear).substrate[0])
+    g = lambda kd: kd / (1.0 - kd * r_int)  # noqa: E731
+    return bitmap.scaled(np.clip(g(texels) / g(brightest), 0.0, 1.0))
 
 
 _NAMED_IOR = {"vacuum": 1.0, "bk7": 1.5046, "glass": 1.5046, "acrylic glass": 1.49, "polypropylene": 1.49,
@@ -773,6 +1012,8 @@ class _Shape:
     emission: tuple
     source: str
     crease: float
+    uvs: np.ndarray | None = None
+    texture: np.ndarray | None = None
 
 
 class _Reader:
@@ -783,6 +1024,7 @@ class _Reader:
         self.lamps = []  # (node, position, intensity rgb)
         self.camera = None
         self.names = set()
+        self.environment = None
 
     def read(self):
         for node in self.doc.elements:
@@ -826,15 +1068,18 @@ class _Reader:
                 if child.tag == "shape":
                     self._shape(child, place)
             return
+        bsdfs = [t for t in props.unnamed if t.tag == "bsdf"]
+        surface = _surface(self.doc, bsdfs[0]) if bsdfs else _Surface()
+        textured = surface.texture is not None
         if kind in ("obj", "ply", "serialized"):
-            positions, faces, normals = _mesh_file(self.doc, node, props)
+            positions, faces, normals, uvs = _mesh_file(self.doc, node, props)
             if props.boolean("face_normals"):
                 normals = None
             to_world = outer @ props.transform("to_world")
             fallback = f"{kind}_{len(self.shapes)}_{Path(props.string('filename')).stem}"
             crease = 0.0 if props.boolean("face_normals") else DEFAULT_CREASE_ANGLE_DEG
         elif kind in ("rectangle", "disk", "sphere", "cube", "cylinder"):
-            positions, faces, to_world = _analytic(node, props, self.tessellation)
+            positions, faces, uvs, to_world = _analytic(node, props, self.tessellation, textured)
             to_world = outer @ to_world
             normals = None
             fallback = f"{kind}_{len(self.shapes)}"
@@ -842,8 +1087,13 @@ class _Reader:
         else:
             raise node.fail(f"shape type {kind!r} is not read (obj, ply, serialized, rectangle, disk, sphere, cube, "
                             "cylinder, shapegroup, instance are)")
-        bsdfs = [t for t in props.unnamed if t.tag == "bsdf"]
-        surface = _surface(self.doc, bsdfs[0]) if bsdfs else _Surface()
+        texture = None
+        if textured and uvs is None:
+            node.warn(f"the mesh has no texture coordinates: texture {surface.texture.filename!r} taken as its "
+                      f"mean colour {tuple(round(float(c), 4) for c in surface.texture.mean)}")
+            surface = surface.untextured()
+        elif textured:
+            texture, uvs = surface.texture.reading(uvs, node.where)
         emission = (0.0, 0.0, 0.0)
         for child in node.children:
             if child.tag == "emitter":
@@ -865,7 +1115,8 @@ class _Reader:
             faces = faces[:, ::-1]
             normals = None if normals is None else -normals
         self.shapes.append(_Shape(self._name(node, fallback), positions, np.ascontiguousarray(faces), normals,
-                                  surface, tuple(emission), node.where, crease))
+                                  surface, tuple(emission), node.where, crease, uvs if texture is not None else None,
+                                  texture))
 
     def _emitter(self, node):
         kind = node.attrs.get("type")
@@ -878,7 +1129,12 @@ class _Reader:
             if kind == "spot":
                 node.warn("a spot light is taken as a point light: its cone is not kept, light goes every way")
             self.lamps.append((node, position, intensity))
-        elif kind in ("constant", "envmap", "directional", "sunsky", "sky", "sun"):
+        elif kind in ("constant", "envmap"):
+            if self.environment is not None:
+                node.warn("a second environment emitter: left out (the first is the scene's environment)")
+            else:
+                self.environment = _environment(self.doc, node, props)
+        elif kind in ("directional", "sunsky", "sky", "sun"):
             node.warn(f"{kind} emitters (light from outside the scene) are not modelled yet: left out")
         elif kind == "area":
             raise node.fail("an area emitter must be inside the <shape> that emits")
@@ -891,13 +1147,15 @@ class _Reader:
         everything = np.concatenate([s.positions for s in self.shapes])
         diagonal = float(np.linalg.norm(np.ptp(everything, axis=0)))
         fronts = [build_object(shape.name, _to_material(shape), shape.positions, shape.faces,
-                               crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals)
+                               crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals,
+                               uvs=shape.uvs, texture=shape.texture)
                   for shape in self.shapes]
         objects = list(with_backs(fronts, {shape.name for shape in self.shapes if shape.surface.twosided}))
         for node, position, intensity in self.lamps:
             objects.append(self._lamp(node, position, intensity, diagonal))
         film = None if self.camera is None else (self.camera.width, self.camera.height)
-        return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film)
+        return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film,
+                     environment=self.environment)
 
     def _lamp(self, node, position, intensity, diagonal):
         radius = POINT_LAMP_RADIUS * diagonal
@@ -911,6 +1169,25 @@ class _Reader:
                             emission=radiance)
         return build_object(name, material, np.asarray(sphere.vertices) + position, np.asarray(sphere.faces),
                             crease_angle_deg=180.0, source=node.where)
+
+
+def _environment(doc, node, props):
+    """The ``Environment`` of a ``constant`` or ``envmap`` emitter."""
+    to_world = props.transform("to_world")[:3, :3]
+    u, singular, vt = np.linalg.svd(to_world)
+    if not singular.min() > 0:
+        raise node.fail("the environment's to_world is singular")
+    rotation = u @ vt
+    if np.abs(singular / singular.max() - 1).max() > 1e-6:
+        node.warn("the environment's to_world scales or shears: only its rotation is kept")
+    scale = props.float("scale", 1.0)
+    if node.attrs.get("type") == "constant":
+        return Environment.uniform(props.colour("radiance", 1.0), scale, rotation, node.where)
+    filename = props.string("filename")
+    if filename is None:
+        raise node.fail("needs a 'filename'")
+    path = doc.resolve(node, filename)
+    return Environment.from_image(read_environment_image(path, node.where), scale, rotation, node.where)
 
 
 def _to_material(shape):

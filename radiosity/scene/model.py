@@ -4,6 +4,7 @@ merged triangle array the ray tracer wants.
     Scene
       objects : tuple[SceneObject, ...]   one material each, world space
       camera  : Camera | None             the scene's default viewpoint
+      environment : Environment | None    light from outside the scene, seen by rays that leave it
 
 A SceneObject's arrays are float64 in the scene's units; ``Scene.merged()`` packs
 all triangles into one float32 array with a triangle-to-object table.
@@ -21,6 +22,7 @@ from radiosity.formats.camera import Camera
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
+from radiosity.scene.environment import Environment
 from radiosity.scene.materials import Material
 from radiosity.scene.textures import check_texture
 
@@ -150,6 +152,7 @@ class Scene:
     camera: Camera | None = None
     source: str = ""
     film: tuple[int, int] | None = None  # the image size the scene asks for (a Mitsuba sensor's film), if any
+    environment: Environment | None = None  # light from outside the scene (``radiosity.scene.environment``)
 
     def __post_init__(self):
         if not self.objects:

@@ -39,12 +39,9 @@ def _bernstein(t):
     return np.stack([comb(3, k) * t**k * (1 - t) ** (3 - k) for k in range(4)], axis=1)
 
 
-def tessellate(resolution=8):
-    """Teapot surface: (positions (V, 3) float64, faces (F, 3) int64), y up, fronts out.
-
-    ``resolution`` is the number of segments along each side of each patch
-    (2 x resolution^2 triangles per patch before the poles collapse).
-    """
+def _patch_grids(resolution):
+    """Every patch evaluated on a (resolution + 1)^2 grid: (surface (P, r+1, r+1, 3) z
+    up, the triangles of one patch's grid (2 r^2, 3), outward)."""
     if int(resolution) != resolution or resolution < 2:
         raise ValueError(f"teapot resolution must be an integer >= 2, got {resolution}")
     resolution = int(resolution)
@@ -54,18 +51,75 @@ def tessellate(resolution=8):
     grid = np.arange((resolution + 1) ** 2).reshape(resolution + 1, resolution + 1)
     a, b = grid[:-1, :-1].ravel(), grid[1:, :-1].ravel()
     c, d = grid[1:, 1:].ravel(), grid[:-1, 1:].ravel()
-    quad_tris = np.concatenate([np.stack([a, c, b], 1), np.stack([a, d, c], 1)])  # outward
-    per_patch = (resolution + 1) ** 2
-    faces = np.concatenate([quad_tris + i * per_patch for i in range(len(control))])
-    positions = surface.reshape(-1, 3)
+    return surface, np.concatenate([np.stack([a, c, b], 1), np.stack([a, d, c], 1)])  # outward
 
+
+def _welded(resolution):
+    """The patches welded into one surface, the lid's gap closed: (positions, faces,
+    the number of faces the closing ring added at the end), z up."""
+    surface, quad_tris = _patch_grids(resolution)
+    per_patch = surface.shape[1] * surface.shape[2]
+    faces = np.concatenate([quad_tris + i * per_patch for i in range(len(surface))])
+    positions = surface.reshape(-1, 3)
     extent = float(np.ptp(positions, axis=0).max())
     positions, faces = geometry.weld(positions, faces, 1e-9 * extent)
     positions, faces, _ = geometry.remove_degenerate(positions, faces)
+    before = len(faces)
     positions, faces = _close_lid_gap(positions, faces)
-    # z up -> y up: (x, y, z) -> (x, z, -y), a proper rotation (winding unchanged)
-    positions = np.stack([positions[:, 0], positions[:, 2], -positions[:, 1]], axis=1)
-    return positions, faces
+    return positions, faces, len(faces) - before
+
+
+def _y_up(positions):
+    """z up -> y up: (x, y, z) -> (x, z, -y), a proper rotation (winding unchanged)."""
+    return np.stack([positions[:, 0], positions[:, 2], -positions[:, 1]], axis=1)
+
+
+def tessellate(resolution=8):
+    """Teapot surface: (positions (V, 3) float64, faces (F, 3) int64), y up, fronts out.
+
+    ``resolution`` is the number of segments along each side of each patch
+    (2 x resolution^2 triangles per patch before the poles collapse).
+    """
+    positions, faces, _ = _welded(resolution)
+    return _y_up(positions), faces
+
+
+def tessellate_with_uvs(resolution=8):
+    """The teapot with texture coordinates: (positions, faces, uvs (V, 2) float64), y
+    up, the same triangles as ``tessellate`` (in another order, each patch's vertices
+    its own: a patch's edge is a texture seam).
+
+    Each patch maps the whole image: patch parameters (s, t) (the data's two
+    directions) as u = 1 - t, v = 1 - s, which on the body puts the image upright
+    (v up) and, on every patch, unmirrored seen from outside (its triangles
+    counter-clockwise in (u, v) as in space). The flat ring closing the lid's gap
+    gets a planar map: u = (x + 1.5) / 3, v = (1.5 - z) / 3 in the y-up frame (seen
+    from above with -z up, as the built-in quad).
+    """
+    surface, quad_tris = _patch_grids(resolution)
+    n = surface.shape[1]
+    per_patch = n * n
+    s, t = np.meshgrid(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.0, n), indexing="ij")
+    patch_uvs = np.stack([1.0 - t.ravel(), 1.0 - s.ravel()], axis=1)
+    faces = np.concatenate([quad_tris + i * per_patch for i in range(len(surface))])
+    positions = surface.reshape(-1, 3)
+    uvs = np.tile(patch_uvs, (len(surface), 1))
+    # drop the triangles the poles collapse (two corners at one point)
+    corners = positions[faces]
+    area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    extent = float(np.ptp(positions, axis=0).max())
+    faces = faces[area > 1e-14 * extent * extent]
+    welded, welded_faces, ring_count = _welded(resolution)
+    ring = welded_faces[len(welded_faces) - ring_count:]
+    ring_positions = welded[ring].reshape(-1, 3)
+    ring_y_up = _y_up(ring_positions)
+    ring_uvs = np.stack([(ring_y_up[:, 0] + 1.5) / 3.0, (1.5 - ring_y_up[:, 2]) / 3.0], axis=1)
+    positions = np.concatenate([positions, ring_positions])
+    faces = np.concatenate([faces, len(uvs) + np.arange(3 * ring_count).reshape(-1, 3)])
+    uvs = np.concatenate([uvs, ring_uvs])
+    positions, faces, uvs = geometry.weld(positions, faces, 1e-9 * extent, uvs=uvs)
+    positions, faces, uvs = geometry.compact(positions, faces, uvs)
+    return _y_up(positions), faces, uvs
 
 
 def _close_lid_gap(positions, faces):

@@ -19,6 +19,12 @@ coordinates interpolated barycentrically. The conventions, one for every format
 ``lookup`` (``radiosity.formats.texture``, where the files' readers reach it) is the
 numpy reference; ``texel`` the same lookup for the kernels, which read every texture
 of a scene from one flat atlas (``atlas``).
+
+Wrap modes: every stage repeats. Mitsuba's other two (``mirror``: the image mirrored
+at each edge; ``clamp``: the edge texels extended) are turned into repeating ones by
+the loader (``as_repeating``: a texture and uvs that read, repeating, exactly what the
+original reads in its mode), so the kernels, the files and the displays know one
+mode; ``wrapped_lookup`` is the reference of the three.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ from radiosity.formats.inputs import read_input_bytes
 from radiosity.formats.material import srgb_to_linear
 from radiosity.formats.texture import MAX_TEXTURE_PIXELS, lookup
 
-__all__ = ["atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image"]
+__all__ = ["WRAP_MODES", "as_repeating", "atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image", "wrap_index", "wrapped_lookup"]
 
 TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
 
@@ -95,6 +101,84 @@ def check_texture(texture, uvs, n_vertices, where):
     if not (np.isfinite(texture).all() and texture.min() >= 0.0 and texture.max() <= 1.0):
         raise InputError(f"{where}: texture values must lie in [0, 1] (a reflectance)")
     return texture, uvs
+
+
+WRAP_MODES = ("repeat", "mirror", "clamp")
+
+
+def wrap_index(i, n, wrap="repeat"):
+    """Texel indices i (any integers) on an axis of n texels: repeating (i mod n),
+    mirrored (period 2n, the second half reversed) or clamped to [0, n - 1], as
+    Mitsuba 3's bitmap wraps each of the four texels of a bilinear lookup."""
+    i = np.asarray(i, dtype=np.int64)
+    if wrap == "repeat":
+        return np.mod(i, n)
+    if wrap == "mirror":
+        i = np.mod(i, 2 * n)
+        return np.where(i >= n, 2 * n - 1 - i, i)
+    if wrap == "clamp":
+        return np.clip(i, 0, n - 1)
+    raise ValueError(f"wrap mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
+
+
+def wrapped_lookup(texture, uv, wrap="repeat"):
+    """``lookup`` with the texels wrapped by ``wrap`` (``wrap_index``): (..., 3)
+    float64, Mitsuba 3's bilinear bitmap lookup in each of its wrap modes; the
+    reference ``as_repeating`` is tested against."""
+    uv = np.asarray(uv, dtype=np.float64)
+    tex = np.asarray(texture, dtype=np.float64)
+    height, width = tex.shape[:2]
+    x = uv[..., 0] * width - 0.5
+    y = (1.0 - uv[..., 1]) * height - 0.5
+    j0, i0 = np.floor(x), np.floor(y)
+    fx, fy = (x - j0)[..., None], (y - i0)[..., None]
+    j0, i0 = j0.astype(np.int64), i0.astype(np.int64)
+    i0, i1 = wrap_index(i0, height, wrap), wrap_index(i0 + 1, height, wrap)
+    j0, j1 = wrap_index(j0, width, wrap), wrap_index(j0 + 1, width, wrap)
+    top = tex[i0, j0] + fx * (tex[i0, j1] - tex[i0, j0])
+    bottom = tex[i1, j0] + fx * (tex[i1, j1] - tex[i1, j0])
+    return top + fy * (bottom - top)
+
+
+def _repeating_axis(coordinate, n, wrap, limit):
+    """One axis of ``as_repeating``: (source texel of each new texel (n',) int64,
+    scale, offset) with the new coordinate = scale * coordinate + offset (coordinate
+    running along the texel order: u, or 1 - v), or None past ``limit`` texels."""
+    x = coordinate * n - 0.5
+    first, last = int(np.floor(x.min())), int(np.floor(x.max())) + 1  # every texel a lookup may touch
+    span = last - first + 1
+    if wrap == "mirror" and span > 2 * n:  # one mirrored pair of periods, repeating: exact for any range
+        return wrap_index(np.arange(2 * n), n, "mirror"), 0.5, 0.0
+    if span > limit:
+        return None
+    # texel k of the new axis is texel first + k of the old: x' = x - first, so c' = (c n - first) / span
+    return wrap_index(np.arange(first, last + 1), n, wrap), n / span, -first / span
+
+
+def as_repeating(texture, uvs, wrap, limit=MAX_TEXTURE_PIXELS):
+    """A texture read in Mitsuba's ``wrap`` mode as one read repeating: (texture',
+    uvs') with ``lookup(texture', uv')`` equal to ``wrapped_lookup(texture, uv,
+    wrap)`` at every point of every triangle (the uvs' map is affine, so it commutes
+    with the barycentric interpolation; equal up to rounding).
+
+    repeat: unchanged. clamp, and mirror over at most two periods: the texels the
+    uvs reach, laid out once (the image and a texel's margin where the uvs stay in
+    [0, 1]); mirror over more: the image beside its mirror images (2H x 2W), uvs
+    halved. None where the new texture would pass ``limit`` pixels (clamp over a
+    range of uvs many images wide).
+    """
+    if wrap == "repeat":
+        return texture, uvs
+    uvs = np.asarray(uvs, dtype=np.float64)
+    height, width = texture.shape[:2]
+    columns = _repeating_axis(uvs[:, 0], width, wrap, limit)
+    rows = _repeating_axis(1.0 - uvs[:, 1], height, wrap, limit)
+    if columns is None or rows is None or len(columns[0]) * len(rows[0]) > limit:
+        return None
+    out = np.ascontiguousarray(texture[rows[0]][:, columns[0]])
+    u = columns[1] * uvs[:, 0] + columns[2]
+    v = 1.0 - (rows[1] * (1.0 - uvs[:, 1]) + rows[2])
+    return out, np.stack([u, v], axis=1)
 
 
 def atlas(textures):

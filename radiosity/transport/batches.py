@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from radiosity.scene.environment import no_environment
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.scene.textures import atlas
 from radiosity.transport.gather import gather_outputs, trace_gather
@@ -82,7 +83,19 @@ def scene_arrays(scene, merged, epsilon, analytic=()):
         direct_triangles=direct[1],
         direct_area_pdf=direct[2],
         **_texture_arrays(scene, merged),
+        env=_environment_arrays(scene, positions, float(power.sum()), epsilon),
     )
+
+
+def _environment_arrays(scene, positions, triangle_power, epsilon):
+    """``EnvArrays`` of the scene's environment (``no_environment()`` without one): its
+    photons come from a disk on the bounding sphere of the vertices ``positions``, a
+    little larger than the bounding box's (by 1e-4 of it and 4 ray offsets)."""
+    if scene.environment is None:
+        return no_environment()
+    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    half = 0.5 * float(np.linalg.norm(hi - lo))
+    return scene.environment.kernel_arrays(0.5 * (lo + hi), half * (1 + 1e-4) + 4 * epsilon, triangle_power)
 
 
 def _texture_arrays(scene, merged):

@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from radiosity.formats.directions import hemisphere_to_square_nb
+from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import EMISSION, EXPONENT, KD, KS, brdf_sample, onb, phong_lobe
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
 from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
@@ -119,7 +120,9 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     the lobe's). The diffuse part is kd / pi times the irradiance interpolated at the
     hit (kd * texture(uv at the hit) on a textured triangle). At a glossy surface the path goes on through the specular lobe (the diffuse
     lobe's light is in the irradiance), with Russian roulette, so light that passes
-    from glossy to glossy is not lost.
+    from glossy to glossy is not lost. A path that leaves the scene brings the
+    environment's radiance along its direction (``sa.env``; nothing without one): the
+    light samples never pick the environment, so it counts in full.
 
     There a light sample also catches the emitters the lobe reflects (without it, a
     lamp seen in a glossy neighbour was found only by chance and made the heavy-tailed
@@ -146,6 +149,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     )  # fmt: skip
     seed, n_light, n_gather, max_depth = block.seed, block.n_light, block.strata * block.strata, block.max_depth
     vertices, lobe_light = block.vertices, block.lobe_light
+    env_active, env_pixels, env_rotation = sa.env.active, sa.env.pixels, sa.env.rotation
     sample_wi, incoming = samples.wi, samples.incoming
     rayhit = new_rayhit()
     shadow = 0
@@ -179,6 +183,11 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
         for k in range(n):
             t = triangle[k]
             if t < 0:
+                if env_active:  # left the scene: the environment's light
+                    le = env_lookup(env_pixels, env_rotation, directions[k, 0], directions[k, 1], directions[k, 2])
+                    target = ids[k]
+                    for c in range(3):
+                        incoming[target, c] += values[k, c] * le[c]
                 continue
             d = (directions[k, 0], directions[k, 1], directions[k, 2])
             gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]

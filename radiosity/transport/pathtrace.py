@@ -1,7 +1,7 @@
 """A path tracer: the ground truth the walkthrough is measured against.
 
 Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
-emitters combined with BRDF sampling by multiple importance sampling (power
+emitters and the environment (``radiosity.scene.environment``) combined with BRDF sampling by multiple importance sampling (power
 heuristic), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
 (``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
@@ -36,6 +36,7 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
+from radiosity.scene.environment import env_lookup, env_pdf, env_sample
 from radiosity.scene.materials import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
 from radiosity.scene.model import Scene, SceneObject
 from radiosity.transport.batches import scene_arrays
@@ -227,12 +228,20 @@ def start_paths(cam, tile, out):
 def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     """Next-event estimate at ``point`` (front normal g, shading frame ``shading`` =
     (t, b, n) as a 9-tuple, outgoing ``wo`` local), with the uniform numbers rnd = (u0,
-    u1, u2): a point on an emitter chosen in proportion to power, its contribution
-    weighted by the power heuristic against BRDF sampling. Returns (whether it can
+    u1, u2): the environment with probability ``sa.env.light_share``
+    (``_environment_sample``), else a point on an emitter chosen in proportion to
+    power, its contribution weighted by the power heuristic against BRDF sampling. Returns (whether it can
     contribute, the shadow ray's origin, direction and length, the RGB value it adds
     to the path where the ray reaches the light)."""
     nothing = (False, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
-    tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rnd[0])
+    share = sa.env.light_share
+    u0 = rnd[0]
+    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
+    if u0 < share:
+        return _environment_sample(sa.env, off_surface(point, g, sa.epsilon), g, shading, wo, mat, rnd, throughput)
+    if share > 0.0:
+        u0 = (u0 - share) / (1.0 - share)
+    tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, u0)
     area_pdf = sa.emit_area_pdf[tri]
     if area_pdf <= 0.0:
         return nothing
@@ -244,13 +253,14 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
         return nothing
     if cos_light <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return nothing
-    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
     wix = dx * tx + dy * ty + dz * tz
     wiy = dx * bx + dy * by + dz * bz
     wiz = dx * nx + dy * ny + dz * nz
     if wiz <= 0.0:
         return nothing
     p_light = area_pdf * dist * dist / cos_light
+    if share > 0.0:
+        p_light *= 1.0 - share
     p_brdf = brdf_pdf(mat, wo[0], wo[1], wo[2], wix, wiy, wiz)
     ratio = p_brdf / p_light
     weight = 1.0 / (1.0 + ratio * ratio)  # the power heuristic, written so that no square overflows
@@ -263,6 +273,54 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
         throughput[2] * f[2] * le[EMISSION + 2] * scale,
     )
     return True, origin, (dx, dy, dz), dist, value
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _environment_sample(env, origin, g, shading, wo, mat, rnd, throughput):
+    """``_light_sample``'s estimate when it picks the environment (``env``:
+    ``EnvArrays``, chosen with probability env.light_share): a direction drawn from it
+    by (rnd[1], rnd[2]) (``environment.env_sample``), the shadow ray from ``origin``
+    (off the surface) unbounded, weighted by the power heuristic against BRDF sampling."""
+    nothing = (False, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+    (dx, dy, dz), pdf = env_sample(env.rotation, env.row_cdf, env.column_cdf, env.cell_pdf, rnd[1], rnd[2])
+    if pdf <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
+        return nothing
+    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
+    wix = dx * tx + dy * ty + dz * tz
+    wiy = dx * bx + dy * by + dz * bz
+    wiz = dx * nx + dy * ny + dz * nz
+    if wiz <= 0.0:
+        return nothing
+    p_light = env.light_share * pdf
+    p_brdf = brdf_pdf(mat, wo[0], wo[1], wo[2], wix, wiy, wiz)
+    ratio = p_brdf / p_light
+    weight = 1.0 / (1.0 + ratio * ratio)
+    f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
+    le = env_lookup(env.pixels, env.rotation, dx, dy, dz)
+    scale = weight * wiz / p_light
+    value = (
+        throughput[0] * f[0] * le[0] * scale,
+        throughput[1] * f[1] * le[1] * scale,
+        throughput[2] * f[2] * le[2] * scale,
+    )
+    return True, origin, (dx, dy, dz), math.inf, value
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _escaped(env, paths, k, radiance):
+    """Path k of ``paths`` left the scene: its path gains the environment's radiance
+    along its direction, weighted by the power heuristic against the light sample its
+    last vertex made (in full for a camera ray, or where the environment is not sampled)."""
+    dx, dy, dz = np.float64(paths.directions[k, 0]), np.float64(paths.directions[k, 1]), np.float64(paths.directions[k, 2])
+    le = env_lookup(env.pixels, env.rotation, dx, dy, dz)
+    weight = 1.0
+    p_brdf = paths.last_pdf[k]
+    if p_brdf > 0.0 and env.light_share > 0.0:
+        ratio = env.light_share * env_pdf(env.rotation, env.cell_pdf, dx, dy, dz) / p_brdf
+        weight = 1.0 / (1.0 + ratio * ratio)
+    path = paths.ids[k]
+    for c in range(3):
+        radiance[path, c] += weight * paths.throughput[k, c] * le[c]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -278,8 +336,8 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     sample the previous vertex made (in full for camera rays); then, unless the path
     has reached MAX_DEPTH segments, one light sample and one BRDF sample (the path's
     bounce depth + 1), which from bounce ROULETTE_DEPTH on must survive Russian roulette
-    on its throughput. Misses and
-    back faces end the path (the background is black, backs absorb). On a textured
+    on its throughput. Back faces end the path (backs absorb); so do misses, which
+    see the environment (``_escaped``; the background is black without one). On a textured
     triangle the diffuse colour is kd * texture(uv at the hit) (``textured_row``), for
     the light sample, the BRDF sample and the roulette alike.
     """
@@ -287,9 +345,13 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     n_shadow = 0
     n_out = 0
     row = np.empty(NCOL)  # a textured hit's material row
+    env = sa.env
+    env_share = env.light_share
     for k in range(len(paths.ids)):
         t = hits.triangle[k]
         if t < 0:
+            if env.active:
+                _escaped(env, paths, k, radiance)
             continue
         d = (np.float64(paths.directions[k, 0]), np.float64(paths.directions[k, 1]), np.float64(paths.directions[k, 2]))
         g = sa.face_normals[t]
@@ -307,6 +369,8 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
             if p_brdf > 0.0:
                 dist = np.float64(hits.t[k])
                 ratio = sa.emit_area_pdf[t] * dist * dist / cos_in / p_brdf  # p_light / p_brdf
+                if env_share > 0.0:
+                    ratio *= 1.0 - env_share
                 weight = 1.0 / (1.0 + ratio * ratio)
             for c in range(3):
                 radiance[path, c] += weight * throughput[c] * mat[EMISSION + c]
@@ -470,7 +534,8 @@ def tiles(seed, width, height, first_sample, samples):
 class PathTraced:
     """A path-traced image and what it cost.
 
-    radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background 0
+    radiance       : (H, W, 3) float32 linear radiance, row 0 at the top, background the
+                     scene's environment (0 without one)
     standard_error : (H, W, 3) float32 the Monte Carlo standard error of each pixel's mean
     spp            : samples per pixel
     stats          : JSON-ready: seed, threads, spp, paths, rays (closest-hit and shadow),

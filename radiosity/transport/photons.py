@@ -21,6 +21,7 @@ import math
 import numba
 import numpy as np
 
+from radiosity.scene.environment import env_lookup, env_sample
 from radiosity.scene.materials import EMISSION, KD, NCOL, brdf_eval, brdf_sample, onb, textured_row
 from radiosity.transport.embree import intersect1, new_rayhit
 from radiosity.transport.records import (
@@ -61,7 +62,12 @@ def trace_photons(rt, sa, batch, acc):
 
     Each photon: an emitter triangle in proportion to its power, a uniform point on
     it, a cosine-distributed direction about its front, carrying pi Le / (total *
-    area pdf), so a pass's power sums to the emitters' power in expectation. At a
+    area pdf), so a pass's power sums to the emitters' power in expectation. Or, with
+    probability ``sa.env.photon_share`` (the environment's share of the power), the
+    environment's: a direction w drawn from it (``environment.env_sample``, density
+    p(w)), a uniform point on the disk of the scene's bounding sphere (centre c,
+    radius R) facing w, the photon starting at that point pushed out by R along w and
+    going along -w, carrying L(w) pi R^2 / (total * share * p(w)). At a
     front-face hit its incident power is added to the density moments of the
     triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power
     * lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric
@@ -88,6 +94,10 @@ def trace_photons(rt, sa, batch, acc):
     face_normals, face_material, materials = sa.face_normals, sa.face_material, sa.materials.copy()
     albedo_table, emit_cdf, emit_triangles, emit_area_pdf = sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf
     epsilon = sa.epsilon
+    env = sa.env
+    env_share, env_pixels, env_rotation = env.photon_share, env.pixels, env.rotation
+    env_row_cdf, env_column_cdf, env_cell_pdf = env.row_cdf, env.column_cdf, env.cell_pdf
+    env_center, env_radius = env.center, env.radius
     seed, first_id, count, total, max_depth = batch.seed, batch.first_id, batch.count, batch.total, batch.max_depth
     wave = max(1, min(batch.wave, count))
     moment0, moment1, tally = acc.moment0, acc.moment1, acc.tally
@@ -106,6 +116,27 @@ def trace_photons(rt, sa, batch, acc):
         for i in range(n):
             pid = first + i
             u0 = rand(seed, STREAM_EMIT, pid, 0)
+            ids[i] = pid
+            if u0 < env_share:
+                # from the environment: a direction toward it, a point on the disk of the
+                # bounding sphere facing it, outside the sphere
+                (wx, wy, wz), pdf = env_sample(
+                    env_rotation, env_row_cdf, env_column_cdf, env_cell_pdf,
+                    rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2),
+                )  # fmt: skip
+                le = env_lookup(env_pixels, env_rotation, wx, wy, wz) if pdf > 0.0 else (0.0, 0.0, 0.0)
+                scale = math.pi * env_radius * env_radius / (total * env_share * pdf) if pdf > 0.0 else 0.0
+                ox, oy, _ = cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
+                tx, ty, tz, bx, by, bz = onb(wx, wy, wz)
+                for c in range(3):
+                    power[i, c] = le[c] * scale
+                ray[i, 0] = env_center[0] + env_radius * (ox * tx + oy * bx + wx)
+                ray[i, 1] = env_center[1] + env_radius * (ox * ty + oy * by + wy)
+                ray[i, 2] = env_center[2] + env_radius * (ox * tz + oy * bz + wz)
+                ray[i, 3], ray[i, 4], ray[i, 5] = -wx, -wy, -wz
+                continue
+            if env_share > 0.0:
+                u0 = (u0 - env_share) / (1.0 - env_share)
             tri = pick_emitter(emit_cdf, emit_triangles, u0)
             s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
             u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
@@ -116,7 +147,8 @@ def trace_photons(rt, sa, batch, acc):
             tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
             m = face_material[tri]
             scale = math.pi / (total * emit_area_pdf[tri])
-            ids[i] = pid
+            if env_share > 0.0:
+                scale /= 1.0 - env_share
             power[i, 0] = materials[m, EMISSION] * scale
             power[i, 1] = materials[m, EMISSION + 1] * scale
             power[i, 2] = materials[m, EMISSION + 2] * scale

@@ -18,6 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from radiosity.scene.environment import EnvArrays
 from radiosity.transport.embree import Hits, empty_hits
 
 # tally slots of a photon batch (RGB triples, then counts)
@@ -50,6 +51,10 @@ class SceneArrays(NamedTuple):
                      the emission its rays find on their first segment); the others'
                      (analytic emitter parts, ``radiosity.scene.emitters``) the solver adds
                      in closed form. The same arrays as emit_* when every emitter is gathered.
+                     emit_area_pdf and direct_area_pdf count the triangles alone: a photon
+                     or light sample picks the environment first, with ``env``'s shares
+    env            : ``environment.EnvArrays``, the light from outside the scene
+                     (``environment.no_environment()`` where there is none)
     """
 
     positions: np.ndarray
@@ -72,6 +77,7 @@ class SceneArrays(NamedTuple):
     texture_pixels: np.ndarray
     texture_offsets: np.ndarray
     texture_sizes: np.ndarray
+    env: EnvArrays
 
 
 class Rays(NamedTuple):

@@ -288,9 +288,9 @@ def solve(scene, opts=SolveOptions(), progress=False, client=None):
     warns (SceneWarning) if nothing emits light.
     """
     settings = opts.resolved(scene)
-    if not scene.emitters:
+    if not scene.emitters and scene.environment is None:
         warnings.warn(
-            f"scene {scene.name!r} has no emitters (no material with emission > 0): every radiance is 0",
+            f"scene {scene.name!r} has no emitters (no material with emission > 0, no environment): every radiance is 0",
             SceneWarning,
             stacklevel=2,
         )
@@ -323,13 +323,16 @@ def _solve(scene, settings, runner, progress):
     emitted = np.zeros(3)
     for o in refined.emitters:
         emitted += o.emitted_power
+    lit = bool(refined.emitters) or sa.env.photon_share > 0
+    if sa.env.photon_share > 0:
+        emitted += refined.environment.power(sa.env.radius)
     rays_before = runner.rays_cast
 
     def combine_photons(result):
         for acc, part in zip(photon_sums, result):
             acc += part
 
-    if refined.emitters:
+    if lit:
         bar = make_bar(total=total, desc="photons", unit="photon")
         try:
             runner.photon_batches(total, combine_photons, bar)
@@ -405,7 +408,7 @@ def _solve(scene, settings, runner, progress):
         results.append((o, dirs, radiance))
 
     stats = {
-        "photons": int(total) if refined.emitters else 0,
+        "photons": int(total) if lit else 0,
         "rays": int(runner.rays_cast),
         "photon_rays": int(photon_rays),
         "gather_rays": int(gather_rays),

@@ -396,15 +396,20 @@ def three_shapes(version, double):
 @pytest.mark.parametrize("double", [False, True], ids=["float", "double"])
 def test_serialized_versions_and_precisions(version, double):
     data = three_shapes(version, double)
-    positions, faces, normals = read_serialized(data, 0)
+    positions, faces, normals, texcoords = read_serialized(data, 0)
     np.testing.assert_array_equal(positions, TETRA[0])
     np.testing.assert_array_equal(faces, TETRA[1])
     np.testing.assert_array_equal(normals, TETRA[0] - 0.25)
+    assert texcoords is None
     for index, (p, f) in ((1, QUAD), (2, TRIANGLE)):
-        positions, faces, normals = read_serialized(data, index)
+        positions, faces, normals, texcoords = read_serialized(data, index)
         np.testing.assert_array_equal(positions, p)
         np.testing.assert_array_equal(faces, f)
         assert normals is None
+        if index == 1:  # the quad's texture coordinates (its colours skipped)
+            np.testing.assert_array_equal(texcoords, np.full((4, 2), 0.5))
+        else:
+            assert texcoords is None
     if double:  # a value float32 cannot hold comes back exactly
         p = TRIANGLE[0] + 0.1
         assert (read_serialized(serialized_file([serialized_shape(p, TRIANGLE[1], double=True)]))[0] == p).all()
@@ -685,7 +690,9 @@ def test_conductor_colours_and_anisotropy(tmp_path):
     assert "unknown material 'Fe'" in refusal(bad)  # Mitsuba has no plain Fe either
 
 
-def test_a_bitmap_texture_counts_as_its_mean_colour(tmp_path):
+def test_a_bitmap_texture_counts_as_its_mean_colour_where_it_is_not_a_diffuse_reflectance(tmp_path):
+    """A bitmap as a diffuse reflectance is a texture (tests/radiosity/scene/test_mitsuba_textures.py);
+    elsewhere (a conductor's specular reflectance, a blend's weight) its mean colour."""
     from PIL import Image
 
     Image.fromarray(np.array([[[255, 0, 0], [0, 0, 255]], [[255, 0, 0], [0, 0, 255]]], np.uint8)).save(
@@ -693,17 +700,20 @@ def test_a_bitmap_texture_counts_as_its_mean_colour(tmp_path):
     Image.fromarray(np.full((2, 2, 3), 128, np.uint8)).save(tmp_path / "grey.png")
     path = write_scene(tmp_path, """
         <texture type="bitmap" id="grey"><string name="filename" value="grey.png"/></texture>
-        <shape type="rectangle" id="pattern"><bsdf type="diffuse">
-            <texture type="bitmap" name="reflectance"><string name="filename" value="red_blue.png"/></texture>
+        <shape type="rectangle" id="pattern"><bsdf type="conductor">
+            <texture type="bitmap" name="specular_reflectance"><string name="filename" value="red_blue.png"/></texture>
         </bsdf></shape>
-        <shape type="disk" id="plain"><bsdf type="diffuse"><ref name="reflectance" id="grey"/></bsdf></shape>
+        <shape type="disk" id="plain"><bsdf type="blendbsdf"><ref name="weight" id="grey"/>
+            <bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf></shape>
     """)
     scene, messages = load_warned(path)
-    np.testing.assert_allclose(scene.object("pattern").material.diffuse, (0.5, 0, 0.5))  # linear: 1 and 0 averaged
-    np.testing.assert_allclose(scene.object("plain").material.diffuse, ((128 / 255 + 0.055) / 1.055) ** 2.4)
-    assert any(m.startswith(f"{path}:6: <texture type='bitmap' name='reflectance'>: texture 'red_blue.png' taken as "
-                            "its mean colour") for m in messages)
-    assert any(m.startswith(f"{path}:4: <texture type='bitmap'>: texture 'grey.png'") for m in messages)
+    specular = scene.object("pattern").material.specular
+    assert specular[0] == pytest.approx(specular[2]) and specular[1] == 0  # linear: red and blue, 1 and 0 averaged
+    assert not scene.object("pattern").textured and not scene.object("plain").textured
+    assert any(m.startswith(f"{path}:6: <texture type='bitmap' name='specular_reflectance'>: texture 'red_blue.png' "
+                            "taken as its mean colour (0.5, 0.0, 0.5)") for m in messages)
+    assert any(m.startswith(f"{path}:4: <texture type='bitmap'>: texture 'grey.png' taken as its mean colour (0.2159")
+               for m in messages)
 
 
 # -- emitters ----------------------------------------------------------------------------
@@ -738,8 +748,11 @@ def test_emitter_warnings(emitters):
     scene, messages = emitters
     where = f"{DATA / 'emitters.xml'}"
     assert any(m.startswith(f"{where}:18: <emitter type='spot'>") and "cone is not kept" in m for m in messages)
-    for kind, line in (("constant", 24), ("envmap", 25)):
-        assert any(m.startswith(f"{where}:{line}: <emitter type='{kind}'>") and "left out" in m for m in messages)
+    # the constant emitter is the scene's environment; the envmap after it a second one, left out
+    assert not any(m.startswith(f"{where}:24:") for m in messages)
+    assert scene.environment.constant and np.allclose(scene.environment.radiance([[0, 1, 0], [1, 0, 0]]), 1.0)
+    assert any(m.startswith(f"{where}:25: <emitter type='envmap'>") and "second environment" in m and "left out" in m
+               for m in messages)
     assert [o.name for o in scene.objects] == ["floor", "panel", "bulb", "spot"]
 
 

@@ -201,7 +201,7 @@ def test_a_toml_diffuse_texture_maps_onto_the_builtins_unmirrored(tmp_path, buil
 
 def test_a_texture_on_a_mesh_without_uvs_is_refused_in_one_line(tmp_path):
     _asymmetric_png(tmp_path)
-    (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="sphere")))
+    (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="cornell:floor")))
     with pytest.raises(InputError, match="no texture coordinates"):
         load_scene(tmp_path / "s.toml")
     (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")

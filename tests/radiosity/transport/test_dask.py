@@ -8,6 +8,7 @@ tests marked ``dask``; skipped where Dask is not installed (``pip install ".[das
 See test_dask_cleanup.py for what a ``--scheduler dask`` run leaves behind (nothing)."""
 
 import asyncio
+import dataclasses
 import http.server
 import os
 import signal
@@ -21,6 +22,7 @@ import pytest
 from display.cli import main
 from radiosity.formats import load_solution
 from radiosity.formats.errors import InputError
+from radiosity.scene.environment import Environment
 from radiosity.scene.loaders import load_scene
 from radiosity.transport import distributed as dask_module
 from radiosity.transport import solve as solve_module
@@ -66,6 +68,44 @@ def test_same_seed_same_bits_on_dask_as_on_threads(client, scene, on_threads):
     assert on_dask.stats["scheduler"].startswith("dask") and on_dask.stats["threads"] == 2
     other = solve(scene, SolveOptions(**{**KNOBS, "seed": 8}), client=client)
     assert not np.array_equal(other.object("teapot").radiance, on_dask.object("teapot").radiance)
+
+
+@pytest.mark.dask
+def test_a_textured_scene_same_bits_on_dask_as_on_threads(client, tmp_path):
+    """The textures travel with the scattered scene: photons and gather read them alike."""
+    from PIL import Image
+
+    Image.fromarray(np.random.default_rng(3).integers(0, 256, (4, 6, 3), dtype=np.uint8)).save(tmp_path / "t.png")
+    (tmp_path / "s.toml").write_text(
+        '[materials.lamp]\nemission = 5.0\n[materials.tex]\ndiffuse = 0.9\ndiffuse_texture = "t.png"\n'
+        '[materials.gloss]\ndiffuse = 0.1\nspecular = 0.5\nexponent = 50\n'
+        '[[objects]]\nname = "floor"\nbuiltin = "quad"\nscale = 4\nmaterial = "tex"\n'
+        '[[objects]]\nname = "wall"\nbuiltin = "cube"\nscale = 0.8\ntranslate = [0, 0.4, 0]\nmaterial = "tex"\n'
+        '[[objects]]\nname = "ball"\nbuiltin = "sphere"\nsubdivisions = 2\nscale = 0.3\ntranslate = [1, 0.3, 0]\n'
+        'material = "gloss"\n'
+        '[[objects]]\nname = "lamp"\nbuiltin = "quad"\nflip = true\ntranslate = [0, 2, 0]\nmaterial = "lamp"\n'
+    )
+    scene = load_scene(tmp_path / "s.toml")
+    knobs = {**KNOBS, "max_edge": 0.5}
+    on_threads = solve(scene, SolveOptions(threads=2, **knobs))
+    on_dask = solve(scene, SolveOptions(**knobs), client=client)
+    assert_same_bits(on_threads, on_dask)
+    for x, y in zip(on_threads.objects, on_dask.objects):
+        assert (x.textured is None) == (y.textured is None)
+        if x.textured is not None:
+            assert np.array_equal(x.textured.irradiance, y.textured.irradiance)
+    assert on_dask.object("floor").textured is not None
+
+
+@pytest.mark.dask
+def test_an_environment_gives_the_same_bits_on_dask(client, scene, on_threads):
+    """The environment's arrays travel with the scene's (``SceneArrays.env``)."""
+    sky = np.random.default_rng(3).random((8, 16, 3)).astype(np.float32) * 4
+    lit = dataclasses.replace(scene, environment=Environment.from_image(sky))
+    knobs = {**KNOBS, "photons": 100_000}
+    on_dask = solve(lit, SolveOptions(**knobs), client=client)
+    assert_same_bits(solve(lit, SolveOptions(threads=2, **knobs)), on_dask)
+    assert on_dask.stats["energy"]["emitted"] != on_threads.stats["energy"]["emitted"]
 
 
 class _Bar:
