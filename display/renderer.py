@@ -2,7 +2,8 @@
 
 It knows nothing of windows: give it a moderngl context (``display.gl``) and it draws
 into its own float framebuffer and reads back linear radiance, (H, W, 3) float32, row 0
-at the top, background 0. Exposure and sRGB come last: ``tonemap`` (numpy, to 8 bits),
+at the top; where no object is, the environment (the light from outside the scene, as
+the solution or the fit carries it) or 0. Exposure and sRGB come last: ``tonemap`` (numpy, to 8 bits),
 or ``Renderer.show`` into a framebuffer (display/shaders/tonemap.glsl, the same formula,
 which the window and the web page use too). The GLSL is in display/shaders, one file a
 stage or a part of the formula (``display.glsl``); ``PROGRAMS`` names each program's files.
@@ -73,6 +74,7 @@ PROGRAMS = {
                             fragment_shader="reference_pixel_fragment.glsl"),
     "reference-feedback": dict(vertex_shader="reference_vertex.glsl", varyings=["v_colour"]),
     "box": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="box_fragment.glsl"),
+    "background": dict(vertex_shader="background_vertex.glsl", fragment_shader="background_fragment.glsl"),
     "tonemap": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="tonemap_fragment.glsl"),
 }
 STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
@@ -138,7 +140,6 @@ class _Object:
         texture.repeat_x = texture.repeat_y = True
         texture.build_mipmaps()
         texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        texture.anisotropy = 16.0  # a floor seen at a grazing angle keeps its detail (FLIP 0.072 -> 0.064 at 4 samples)
         self.textured = (texture, tuple(float(c) for c in textured.kd))
         self.bytes += image.nbytes * 4 // 3
 
@@ -244,6 +245,11 @@ class Renderer:
         self.coefficients = None
         self.probes = None
         self.emitter_tables = {}  # mode -> the emitter parts' texture
+        environment = solution.environment if solution is not None else None
+        if environment is None and fit is not None:
+            environment = fit.environment
+        self.environment = environment  # the light from outside the scene, drawn where no object is
+        self._environment_texture = None
         self.nodes = {"fitted": DEFAULT_NODES, "reference": DEFAULT_NODES}
         visibility = []  # (N,) chunks of the visibility texture
         if fit is not None:
@@ -470,6 +476,34 @@ class Renderer:
         self._set(program, "base", obj.base)
         self._set(program, "grid_n", obj.grid_n)
 
+    def _draw_background(self, view, size):
+        """The environment where no object is (background_fragment.glsl), into the
+        framebuffer in use of ``size``, after the objects."""
+        env = self.environment
+        if self._environment_texture is None:
+            image = np.ascontiguousarray(env.image, np.float32)
+            texture = self.ctx.texture((image.shape[1], image.shape[0]), 3, image.tobytes(), dtype="f4")
+            texture.repeat_x, texture.repeat_y = True, False
+            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self._environment_texture = texture
+        program = self._program("background")
+        right, up, forward = view.basis
+        t = math.tan(math.radians(view.fov_y_deg) / 2)
+        self._environment_texture.use(location=7)
+        program["environment"].value = 7
+        program["env_rotation"].write(np.asarray(env.rotation, np.float32).T.tobytes())  # column-major
+        program["env_scale"].value = float(env.scale)
+        for name, vector in (("cam_right", right), ("cam_up", up), ("cam_forward", forward)):
+            program[name].value = tuple(float(c) for c in vector)
+        program["cam_extent"].value = (t * view.width / view.height, t)
+        program["viewport"].value = tuple(float(c) for c in size)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.depth_func = "<="
+        if program not in self._full_screens:
+            self._full_screens[program] = self.ctx.vertex_array(program, [])
+        self._full_screens[program].render(moderngl.TRIANGLES, vertices=3)
+        self.ctx.depth_func = "<"
+
     def _framebuffers_for(self, size, targets, samples):
         """The framebuffers of this size, targets and samples: made on first use, kept for
         the next frame (a walkthrough draws many), released with the renderer."""
@@ -584,10 +618,13 @@ class Renderer:
             vao = obj.vao(ctx, program, attributes, sources=sources)
             vao.render(moderngl.TRIANGLES)
             vao.release()
+        if self.environment is not None and mask is None and program_key is None and targets == 1:
+            self._draw_background(view, fbs.scene.size)
         return self._average(fbs)
 
     def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS):
-        """Linear radiance (H, W, 3) float32, row 0 at the top, background 0: each pixel
+        """Linear radiance (H, W, 3) float32, row 0 at the top, the background the
+        environment (or 0): each pixel
         the mean of its ``samples`` (None: the renderer's).
 
         ``lights``: use only the first K lights of each object (None: all); ``parts``: the
@@ -683,7 +720,8 @@ class Renderer:
             o.release()
         for p in self._programs.values():
             p.release()
-        for texture in (self.radiance, self.coefficients, self.probes, self.visibility, *self.emitter_tables.values()):
+        for texture in (self.radiance, self.coefficients, self.probes, self.visibility, self._environment_texture,
+                        *self.emitter_tables.values()):
             if texture is not None:
                 texture.release()
         for resource in (self._scratch, *self._full_screens.values()):

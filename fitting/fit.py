@@ -359,4 +359,5 @@ def fit(solution, options=FitOptions(), progress=False):
             "model": options.glossy_model, "probe_size": options.probe_size,
         },
         camera=solution.camera,
+        environment=solution.environment,
     )

@@ -17,8 +17,10 @@ are still read: their lights are directional (w = 0). Version 3 adds the emitter
 highlights and the reflection probe. Version 4 adds textured objects, as the solution's
 version 3 has them (``radiosity.formats.texture``): ``<name>/uvs``,
 ``<name>/irradiance``, ``<name>/texture`` and ``meta.objects[name].textured`` =
-{"diffuse": kd}; their colour gains kd * texture(uv) / pi * E, a display's per pixel. A
-file is written with the lowest version that holds it (3 without a textured object).
+{"diffuse": kd}; their colour gains kd * texture(uv) / pi * E, a display's per pixel;
+and the light from outside the scene, copied from the solution (``meta.environment``,
+``environment_image``: ``radiosity.formats.environment``), which displays draw where no
+object is. A file is written with the lowest version that holds it (3 without either).
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -45,6 +47,7 @@ import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, emitter_radiance, parts_from_meta
+from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.npz import open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
 
@@ -289,6 +292,7 @@ class FittedModel:
     camera: Camera | None = None  # the scene's default camera, from the solution
     emitters: tuple = ()  # version 3: the emitter parts the objects' highlights come from
     emitter_nodes: int = DEFAULT_NODES
+    environment: EnvironmentLight | None = None  # version 4: the light from outside the scene
 
     def object(self, name):
         for o in self.objects:
@@ -302,9 +306,9 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 4 with a textured object,
-        else 3."""
-        return 4 if any(o.textured is not None for o in self.objects) else 3
+        """The lowest contract version that holds this model: 4 with a textured object
+        or an environment, else 3."""
+        return 4 if self.environment is not None or any(o.textured is not None for o in self.objects) else 3
 
     def meta(self):
         return {
@@ -317,6 +321,7 @@ class FittedModel:
             "emitters": [p.to_dict() for p in self.emitters],
             "emitter_nodes": self.emitter_nodes,
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
+            **({"environment": self.environment.meta()} if self.environment is not None else {}),
         }
 
     def save(self, path):
@@ -325,6 +330,8 @@ class FittedModel:
         arrays = {}
         for o in self.objects:
             arrays.update({f"{o.name}/{k}": a for k, a in o.arrays().items()})
+        if self.environment is not None:
+            arrays[IMAGE_KEY] = self.environment.image
         write_archive(path, self.meta(), arrays)
 
     @classmethod
@@ -537,9 +544,11 @@ def load_fit(path):
                 raise fail(f"meta 'objects': the info of object {name!r} must be a JSON object, got {_json_type(info)}")
             objects.append(_read_object(archive, name, info, meta["version"], emitters, nodes))
         camera = camera_from_meta(meta, fail)
+        environment = read_environment(archive, meta) if meta["version"] >= 4 else None
     return FittedModel(
         objects=tuple(objects), source=meta.get("source", ""), model=meta.get("model", ""),
         settings=meta.get("settings", {}), camera=camera, emitters=emitters, emitter_nodes=nodes,
+        environment=environment,
     )
 
 

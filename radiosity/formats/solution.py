@@ -19,7 +19,10 @@ Version 2 adds the emitters whose highlights are in closed form (``meta.emitters
 ``<name>/texture``, and such an object's ``radiance`` then holds everything but its
 textured diffuse term kd * texture(uv) / pi * E. A file is written with the lowest
 version that holds it (2 without a textured object), so tools that read version 2
-keep reading every untextured solution.
+keep reading every untextured solution. Version 3 also adds the light from outside the
+scene (``radiosity.formats.environment``): ``meta.environment`` and the array
+``environment_image``; the radiance then includes what it lights, and a display draws
+it where no object is.
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -42,6 +45,7 @@ import numpy as np
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.directions import grid_directions
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_grid, parts_from_meta
+from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
 from radiosity.formats.npz import check_member_name, open_archive, write_archive
@@ -296,6 +300,7 @@ class Solution:
             display can subtract them on the grid and draw them per pixel. Empty: none
             (every version 1 file).
         emitter_nodes: N of the rules they were evaluated with.
+        environment: the light from outside the scene (version 3), or None.
     """
 
     objects: tuple[ObjectSolution, ...]
@@ -305,9 +310,12 @@ class Solution:
     camera: Camera | None = None
     emitters: tuple[EmitterPart, ...] = ()
     emitter_nodes: int = DEFAULT_NODES
+    environment: EnvironmentLight | None = None
 
     def __post_init__(self) -> None:
         objects = tuple(self.objects)
+        if self.environment is not None and not isinstance(self.environment, EnvironmentLight):
+            raise TypeError(f"environment must be an EnvironmentLight, got {type(self.environment).__name__}")
         for o in objects:
             if not isinstance(o, ObjectSolution):
                 raise TypeError(f"objects must be ObjectSolution, got {type(o).__name__}")
@@ -336,8 +344,8 @@ class Solution:
     @property
     def version(self) -> int:
         """The lowest contract version that holds this solution: 3 with a textured
-        object, else 2."""
-        return 3 if any(o.textured is not None for o in self.objects) else 2
+        object or an environment, else 2."""
+        return 3 if self.environment is not None or any(o.textured is not None for o in self.objects) else 2
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -364,6 +372,7 @@ class Solution:
             "emitters": [p.to_dict() for p in self.emitters],
             "emitter_nodes": self.emitter_nodes,
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
+            **({"environment": self.environment.meta()} if self.environment is not None else {}),
         }
 
     def highlights(self, name: str) -> np.ndarray:
@@ -392,6 +401,8 @@ class Solution:
         arrays = {}
         for o in self.objects:
             arrays.update(o.arrays())
+        if self.environment is not None:
+            arrays[IMAGE_KEY] = self.environment.image
         write_archive(path, self.meta(), arrays)
 
     @classmethod
@@ -434,6 +445,7 @@ def _read(archive) -> Solution:
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
 
+    environment = read_environment(archive, meta) if meta["version"] >= 3 else None
     objects = []
     for name in names:
         if name not in materials:
@@ -456,7 +468,7 @@ def _read(archive) -> Solution:
     try:
         return Solution(
             objects=tuple(objects), settings=settings, stats=stats, scene=scene, camera=camera, emitters=emitters,
-            emitter_nodes=nodes,
+            emitter_nodes=nodes, environment=environment,
         )
     except _Invalid as exc:
         raise fail(str(exc)) from None

@@ -36,7 +36,7 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
-from radiosity.scene.environment import env_lookup, env_pdf, env_sample
+from radiosity.scene.environment import Environment, env_lookup, env_pdf, env_sample
 from radiosity.scene.materials import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
 from radiosity.scene.model import Scene, SceneObject
 from radiosity.transport.batches import scene_arrays
@@ -667,4 +667,7 @@ def scene_of_solution(solution):
                 texture=None if o.textured is None else o.textured.texture,
             )
         )
-    return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera)
+    env = solution.environment
+    if env is not None:
+        env = Environment(env.image, env.scale, env.rotation, env.constant, env.source)
+    return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera, environment=env)

@@ -460,7 +460,7 @@ def _solve(scene, settings, runner, progress):
     )
     return Solution(
         objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
-        emitters=parts, emitter_nodes=int(settings["emitter_nodes"]),
+        emitters=parts, emitter_nodes=int(settings["emitter_nodes"]), environment=scene.environment,
     )
 
 

@@ -190,3 +190,29 @@ def test_path_tracer_mis_glossy_quad_under_a_sun(tmp_path):
     error = np.sqrt((image.standard_error.reshape(-1, 3) ** 2).sum(axis=0)) / 16
     assert np.all(np.abs(mean - expected) < 4 * error + 0.01 * expected), (mean, expected, error)
     assert np.all(error / expected < 0.02), error / expected  # 4096 paths: low noise despite the sun
+
+
+def test_the_solution_file_keeps_the_environment(tmp_path):
+    """Solution version 3 carries the environment (its image, scale, rotation), so
+    that `vlights truth` on a solution path-traces the same sky and a display draws it."""
+    from scipy.spatial.transform import Rotation
+
+    from radiosity.formats.solution import Solution
+    from radiosity.scene.model import Scene
+    from radiosity.transport.pathtrace import scene_of_solution
+
+    sky = np.random.default_rng(5).random((6, 10, 3)).astype(np.float32)
+    rotation = Rotation.from_euler("xyz", [10, 40, -5], degrees=True).as_matrix()
+    base = scene_from(tmp_path, QUAD.format(extra=""))
+    scene = Scene(name="sky", objects=base.objects, environment=Environment.from_image(sky, 2.5, rotation))
+    sol = solve(scene, SolveOptions(photons=2_000, max_edge=10.0, seed=1))
+    assert sol.version == 3
+    sol.save(tmp_path / "s.npz")
+    back = Solution.load(tmp_path / "s.npz")
+    env = back.environment
+    assert np.array_equal(env.image, sky) and env.scale == 2.5 and np.allclose(env.rotation, rotation, atol=0)
+    again = scene_of_solution(back).environment
+    assert isinstance(again, Environment)
+    directions = np.random.default_rng(1).normal(size=(50, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    assert np.array_equal(again.radiance(directions), scene.environment.radiance(directions))
