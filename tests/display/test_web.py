@@ -575,19 +575,24 @@ def with_textures(fit, tmp_path, name, change):
     return path
 
 
+GRAZING = {"eye": (-1.3, 0.2, -0.3), "look": (1.0, 0.0, 0.0), "up": (0.0, 1.0, 0.0), "fov": 50.0}  # along the wall
+
+
 @needs_browser
 @pytest.mark.gl
-@pytest.mark.parametrize("mode", ["fitted", "diffuse"])
-def test_textured_page_equals_render(browser, site_textured, tmp_path, mode, gl_context):
+@pytest.mark.parametrize("mode, view", [("fitted", VIEW), ("diffuse", VIEW), ("fitted", GRAZING)],
+                         ids=["fitted", "diffuse", "grazing"])
+def test_textured_page_equals_render(browser, site_textured, tmp_path, mode, view, gl_context):
     """kd * texture(uv) / pi * E per pixel, as ``vlights render`` draws it (both modes
     add it); the image is the material's PNG, sampled with the GPU's one sRGB decode,
     repeating, mipmapped, v down the image as glTF has it. Not vacuous: the page is far
     from the same fit untextured, with its images upside down, left sRGB-encoded (read
-    as linear) or decoded twice."""
+    as linear) or decoded twice. Seen from the front and along the wall (the image
+    minified across the view: mipmapped, no anisotropic filtering, as the renderer's)."""
     from fitting import load_fit
 
     fit, url = site_textured
-    page = open_page(browser, url, view_query(mode))
+    page = open_page(browser, url, view_query(mode, view=view))
     try:
         got = screenshot(page)
         textures = page.evaluate("""() => window.vlights.walkthrough.fit.scene.children.map((m) => {
@@ -604,16 +609,17 @@ def test_textured_page_equals_render(browser, site_textured, tmp_path, mode, gl_
     model = load_fit(fit)
     assert textures == [[o.name, srgb, False, repeat, mipmapped, linear, True, list(KDS[o.name])] if o.textured
                         else [o.name, None] for o in model.objects]
-    want = rendered(tmp_path, fit, mode)
+    want = rendered(tmp_path, fit, mode, view=view)
     assert_matches(got, want)
-    assert np.mean(want.max(axis=2) > 10) > 0.8 and np.mean(want == 255) < 0.01
+    filled = 0.8 if view is VIEW else 0.5  # along the wall, the background takes the left
+    assert np.mean(want.max(axis=2) > 10) > filled and np.mean(want == 255) < 0.01
     from radiosity.formats.material import srgb_to_linear
     from radiosity.formats.texture import linear_to_srgb8
 
     for name, change in (("untextured", lambda t: None), ("flipped", lambda t: t[::-1]),
                          ("encoded", lambda t: linear_to_srgb8(t) / np.float32(255)),
                          ("decoded twice", lambda t: srgb_to_linear(t).astype(np.float32))):
-        other = rendered(tmp_path, with_textures(fit, tmp_path, f"{name}.npz", change), mode)
+        other = rendered(tmp_path, with_textures(fit, tmp_path, f"{name}.npz", change), mode, view=view)
         assert np.abs(got - other).mean() > 2 * 2.0, name  # twice the tolerance: a page drawing it would fail
 
 
