@@ -39,7 +39,7 @@ it: 3 with a textured object, 2 without (the same bytes as before textures):
   REPEAT both ways, LINEAR_MIPMAP_LINEAR / LINEAR) and ``baseColorFactor`` [kd, 1], so
   that other glTF viewers show the object's diffuse colour. The PNG is exact for a
   texture decoded from 8-bit sRGB (every image file's: ``linear_to_srgb8``); another
-  (a float texture) is rounded to the nearest 8-bit sRGB code;
+  (a float texture) is rounded: its sRGB encoding to the nearest of the 256 codes;
 - the mesh's ``extras``: ``{"name", "lights": K, "per_light": bool, "light_pos":
   K x [x, y, z, w], "light_rgb": K x [r, g, b], "shininess": [K numbers]}``, with
   ``light_pos`` as in Contract 2 (w = 0: a unit vector towards a distant light, w = 1:
