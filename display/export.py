@@ -1,13 +1,14 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3 or 4) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``, the renderer's shader files from
 ``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 2; docs/formats.md). V is an
+Schema (format ``vlights.fit.gltf``, version 3; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
-parts, M an object's probe size:
+parts, M an object's probe size. A file is written with the lowest version that holds
+it: 3 with a textured object, 2 without (the same bytes as before textures):
 
 - one glTF mesh (and one node, identity transform) per object of the fit, named as
   the object, in the fit's order; one triangle primitive with attributes
@@ -25,8 +26,20 @@ parts, M an object's probe size:
     the emitters' highlights: the fraction of each part each vertex sees, three parts
     per attribute (part 3 j + c in channel c of ``_VISIBILITY_j``; the last one's
     channels past part P - 1 are 0);
+  - ``_IRRADIANCE`` (V, 3) float32, a textured object (version 3): the irradiance E
+    of its diffuse term ``kd * texture(uv) / pi * E`` (``radiosity.formats.texture``);
 
   values are the fit's float32 bits, not clamped;
+- a textured object (version 3) has, besides, ``TEXCOORD_0`` (V, 2) float32, glTF's
+  (u, 1 - v) (glTF's v runs down the image; the fit's uvs run up: trimesh flips them
+  on export and back on import, so they come back within float32 rounding), and a
+  material (named as the object, double sided, metallic 0, roughness 1) whose
+  ``pbrMetallicRoughness.baseColorTexture`` is its image as a PNG in the GLB's buffer
+  (8-bit RGB, the sRGB encoding of the linear texture, row 0 the image's top; sampler
+  REPEAT both ways, LINEAR_MIPMAP_LINEAR / LINEAR) and ``baseColorFactor`` [kd, 1], so
+  that other glTF viewers show the object's diffuse colour. The PNG is exact for a
+  texture decoded from 8-bit sRGB (every image file's: ``linear_to_srgb8``); another
+  (a float texture) is rounded: its sRGB encoding to the nearest of the 256 codes;
 - the mesh's ``extras``: ``{"name", "lights": K, "per_light": bool, "light_pos":
   K x [x, y, z, w], "light_rgb": K x [r, g, b], "shininess": [K numbers]}``, with
   ``light_pos`` as in Contract 2 (w = 0: a unit vector towards a distant light, w = 1:
@@ -35,8 +48,9 @@ parts, M an object's probe size:
   and ``"probe": {"size": M, "centre": [x, y, z], "box": [[lo], [hi]], "albedo":
   [ALBEDO_POINTS numbers], "texels": [M * M * 3 numbers]}`` (texels C-ordered as the
   fit's (M, M, 3) array: ``texels[(j * M + i) * 3 + c]`` is texel (i, j) = column i,
-  row j of the octahedral map);
-- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2, "source",
+  row j of the octahedral map), and ``"textured": {"kd": [r, g, b]}`` (version 3: the
+  diffuse colour the texture multiplies, the fit's doubles);
+- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 or 3, "source",
   "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
   "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3);
@@ -45,13 +59,14 @@ parts, M an object's probe size:
 
 Every number in the JSON is a float32 of the fit written exactly (every float32 is a
 double), except the emitters, ``ks``, ``exponent``, the probe's ``centre``, ``box``
-and ``albedo``, which the fit holds as doubles and which are written as such.
+and ``albedo`` and a textured object's ``kd`` (also its ``baseColorFactor``), which
+the fit holds as doubles and which are written as such.
 
 The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file (version 2, or 1: no emitters and no probes) back into a
-``FittedModel``.
+``load_export`` reads the file (version 3, 2: no textures, or 1: no emitters and no
+probes either) back into a ``FittedModel``.
 """
 
 from __future__ import annotations
@@ -67,13 +82,16 @@ __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "
            "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 2
-READS = (1, 2)
+VERSION = 3
+READS = (1, 2, 3)
+UNTEXTURED_VERSION = 2  # the version of a file without a textured object
 FILE = "scene.glb"
 PAGE = "index.html"
 WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
 SHADERS = "shaders"  # the renderer's shader files (display/shaders), which the page fetches
 PARTS_PER_ATTRIBUTE = 3  # emitter parts' visibility per VEC3 attribute
+# glTF's sampler enums: a textured object's image repeats, mipmapped as the renderer's
+SAMPLER = {"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}  # LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT
 
 
 def page_files():
@@ -119,6 +137,8 @@ def vertex_attributes(obj):
         attributes["_PROBE"] = np.asarray(obj.probe_weight, np.float32)
     if obj.highlight is not None:
         attributes.update(visibility_attributes(obj.highlight.visibility))
+    if obj.textured is not None:
+        attributes["_IRRADIANCE"] = obj.textured.irradiance
     return attributes
 
 
@@ -153,6 +173,8 @@ def mesh_extras(obj):
             "albedo": _doubles(p.albedo),
             "texels": np.asarray(p.texels, np.float32).reshape(-1).astype(np.float64).tolist(),
         }
+    if obj.textured is not None:
+        extras["textured"] = {"kd": list(obj.textured.kd)}
     return extras
 
 
@@ -172,7 +194,8 @@ def scene_extras(model):
     """The scene's ``extras``: format marker, provenance, object order, emitters, camera."""
     from display.glsl import TABLE_WIDTH, emitter_table
 
-    extras = {"format": FORMAT, "version": VERSION, "source": model.source, "model": model.model,
+    version = VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
+    extras = {"format": FORMAT, "version": version, "source": model.source, "model": model.model,
               "objects": list(model.names), "emitters": [p.to_dict() for p in model.emitters],
               "emitter_nodes": int(model.emitter_nodes)}
     table = emitter_table(model.emitters)[:len(model.emitters)]
@@ -181,6 +204,50 @@ def scene_extras(model):
         extras["camera"] = {k: (np.asarray(v, np.float64).tolist() if k != "fov_y_deg" else float(v))
                             for k, v in model.camera.to_dict().items()}
     return extras
+
+
+def srgb8(texture):
+    """The 8-bit sRGB codes (H, W, 3) uint8 of a linear texture in [0, 1]: exact (they
+    decode to the same float32 values) for a texture decoded from 8-bit sRGB
+    (``radiosity.formats.texture.linear_to_srgb8``), else each value's encoding
+    (IEC 61966-2-1) rounded to the nearest code."""
+    from radiosity.formats.texture import linear_to_srgb8
+
+    codes = linear_to_srgb8(texture)
+    if codes is not None:
+        return codes
+    c = np.clip(np.asarray(texture, np.float64), 0.0, 1.0)
+    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    return np.round(encoded * 255).astype(np.uint8)
+
+
+def _visual(obj):
+    """A textured object's trimesh ``TextureVisuals``: its uvs (trimesh writes glTF's
+    1 - v) and a material holding its image as sRGB codes (PNG), kd its base colour."""
+    from PIL import Image
+    from trimesh.visual.material import PBRMaterial
+    from trimesh.visual.texture import TextureVisuals
+
+    t = obj.textured
+    material = PBRMaterial(name=obj.name, baseColorTexture=Image.fromarray(srgb8(t.texture), "RGB"),
+                           baseColorFactor=[*t.kd, 1.0], metallicFactor=0.0, roughnessFactor=1.0, doubleSided=True)
+    return TextureVisuals(uv=t.uvs, material=material)
+
+
+def _finish_materials(tree):
+    """trimesh's glTF tree completed for textured objects: the sampler (trimesh writes
+    none) and the exact base colour (trimesh keeps colours as 8-bit), from each mesh's
+    extras. A material is the object's own (named as the object, so not shared)."""
+    for mesh in tree.get("meshes", []):
+        textured = (mesh.get("extras") or {}).get("textured")
+        if textured is None:
+            continue
+        material = tree["materials"][mesh["primitives"][0]["material"]]
+        pbr = material["pbrMetallicRoughness"]
+        pbr["baseColorFactor"] = [*textured["kd"], 1.0]
+        if "samplers" not in tree:
+            tree["samplers"] = [dict(SAMPLER)]
+        tree["textures"][pbr["baseColorTexture"]["index"]]["sampler"] = 0
 
 
 def export_glb(model):
@@ -196,12 +263,14 @@ def export_glb(model):
             vertex_normals=np.asarray(obj.normals, np.float32),
             vertex_attributes=vertex_attributes(obj),
             metadata=mesh_extras(obj),
+            visual=_visual(obj) if obj.textured is not None else None,
             process=False,
             validate=False,
         )
         scene.add_geometry(mesh, geom_name=obj.name, node_name=obj.name)
     scene.metadata.update(scene_extras(model))
-    return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False)
+    return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False,
+                                            tree_postprocessor=_finish_materials)
 
 
 SHADING = "shading.js"  # written with the page: the shaders' #define lines and constants, an ES module
@@ -306,8 +375,39 @@ def _read_probe(info, attributes, v, fail):
     return probe, _attribute(attributes, "_PROBE", v, fail)
 
 
+def _read_textured(info, mesh, v, fail):
+    """An object's ``TexturedDiffuse`` from its mesh extras, uvs, image and
+    ``_IRRADIANCE`` (None if it has none). The image's 8-bit sRGB codes are decoded as
+    the solution's are (``radiosity.formats.texture``): a texture that was such a
+    decoding comes back exact."""
+    from radiosity.formats.material import srgb_to_linear
+    from radiosity.formats.texture import TexturedDiffuse
+
+    entry = info.get("textured")
+    if entry is None:
+        return None
+    try:
+        kd = np.asarray(entry["kd"], np.float64).reshape(3)
+    except (KeyError, TypeError, ValueError):
+        raise fail("'textured' needs 'kd' [r, g, b]") from None
+    visual = mesh.visual
+    uv = getattr(visual, "uv", None)
+    if uv is None or np.shape(uv) != (v, 2):
+        raise fail("is textured but has no TEXCOORD_0 (VEC2) for each vertex")
+    image = getattr(getattr(visual, "material", None), "baseColorTexture", None)
+    if image is None or not hasattr(image, "convert"):
+        raise fail("is textured but its material has no baseColorTexture image")
+    codes = np.asarray(image.convert("RGB"))
+    texture = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes]
+    irradiance = _attribute(mesh.vertex_attributes, "_IRRADIANCE", v, fail)
+    try:
+        return TexturedDiffuse(uvs=np.asarray(uv, np.float64), irradiance=irradiance, texture=texture, kd=kd)
+    except ValueError as exc:
+        raise fail(f"textured: {exc}") from None
+
+
 def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` (version 2, or 1) back into a
+    """Read a ``scene.glb`` written by ``export_glb`` (version 3, 2 or 1) back into a
     ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
     specular is zeros (V, 3)). InputError if the file is not of this schema."""
     import trimesh
@@ -320,7 +420,8 @@ def load_export(path):
     header = _chunks(path)
     extras = (header.get("scenes") or [{}])[0].get("extras") or {}
     if extras.get("format") != FORMAT or extras.get("version") not in READS:
-        raise InputError(f"{shown} is not a {FORMAT} version {' or '.join(map(str, READS))} file")
+        versions = ", ".join(map(str, READS[:-1])) + f" or {READS[-1]}"
+        raise InputError(f"{shown} is not a {FORMAT} version {versions} file")
     version = extras["version"]
 
     def fail(message):
@@ -350,10 +451,12 @@ def load_export(path):
             specular = np.stack([np.asarray(attributes[f"_SPECULAR_{i}"], np.float32) for i in range(k)], axis=1)
         else:
             specular = np.asarray(attributes["_SPECULAR"], np.float32)
-        highlight, (probe, weight) = None, (None, None)
+        highlight, (probe, weight), textured = None, (None, None), None
         if version >= 2:
             highlight = _read_highlight(info, attributes, v, parts, nodes, object_fail)
             probe, weight = _read_probe(info, attributes, v, object_fail)
+        if version >= 3:
+            textured = _read_textured(info, mesh, v, object_fail)
         objects.append(FittedObject(
             name=name,
             positions=np.asarray(mesh.vertices, np.float32),
@@ -367,6 +470,7 @@ def load_export(path):
             highlight=highlight,
             probe=probe,
             probe_weight=weight,
+            textured=textured,
         ))
     camera = camera_from_dict(extras["camera"], where="scene extras 'camera'") if "camera" in extras else None
     return FittedModel(objects=tuple(objects), source=extras.get("source", ""), model=extras.get("model", ""),
@@ -382,9 +486,11 @@ def add_export_command(subparsers):
         "colour as the vertex attribute _EMITTED and the specular coefficients as _SPECULAR (shared by the "
         "lights) or _SPECULAR_0 .. _SPECULAR_{K-1} (one per light), the reflection probe's weight as _PROBE and "
         "the emitters' visibility as _VISIBILITY_0, _VISIBILITY_1, ... (three parts each), float32 as in the fit; "
-        "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent) and its "
-        "probe (size, centre, box, albedo, texels) in the mesh's extras; the format marker, the emitter parts "
-        "and the scene camera in the scene's extras.",
+        "a textured object's uvs as TEXCOORD_0, its image as the material's base colour texture (PNG, sRGB) and "
+        "the irradiance its diffuse term multiplies as _IRRADIANCE; "
+        "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent), its "
+        "probe (size, centre, box, albedo, texels) and a textured object's kd in the mesh's extras; the format "
+        "marker, the emitter parts and the scene camera in the scene's extras.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
@@ -434,6 +540,9 @@ def run_export_command(args):
         probes = sum(o.probe is not None for o in model.objects)
         if probes:
             extra += f", {probes} reflection probes"
+        textured = sum(o.textured is not None for o in model.objects)
+        if textured:
+            extra += f", {textured} textured"
         print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights{extra}, {path.stat().st_size} bytes)")
         if args.page:
             print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")

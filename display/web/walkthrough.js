@@ -1,5 +1,5 @@
-// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v2, or
-// v1; display/export.py and docs/formats.md hold the schema).
+// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v3, v2
+// or v1; display/export.py and docs/formats.md hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
@@ -15,7 +15,12 @@
 //     direction (a texture per object);
 //   - the emitters' glossy highlights: each emitter part (sphere or convex polygon, the
 //     table in the scene's extras) integrated against the object's lobe per pixel,
-//     times the fraction of the part the vertices see (_VISIBILITY_j, a texture).
+//     times the fraction of the part the vertices see (_VISIBILITY_j, a texture);
+//   - a textured object's diffuse term (textured.glsl, compiled in with #define
+//     VL_TEXTURED): kd * texture(uv) / pi * E per pixel, uv (TEXCOORD_0) and the
+//     irradiance E (_IRRADIANCE) interpolated, the image the material's base colour
+//     texture (decoded from sRGB by the GPU, bilinear, repeating, mipmapped), in both
+//     modes (the diffuse mode is the emitted colour and this term).
 // Per-light coefficients and visibilities are blended from the triangle's three
 // vertices by barycentrics, as the renderer's geometry-shader program does: such
 // objects are drawn with one vertex per triangle corner carrying the triangle's vertex
@@ -43,7 +48,7 @@ import { PointerLockControls } from 'three/addons/controls/PointerLockControls.j
 import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -54,8 +59,9 @@ const DEFAULT_FOV = 39.3; // display.camera.framing_view
 // The renderer's own shader files (display/shaders, copied into shaders/ by `vlights
 // export`), fetched once each. A stage's source is es_header.glsl (precisions,
 // VL_TRIANGLE: this page's vertices carry the triangle's ids and barycentrics), then
-// DEFINES, then its file with each `#include "file"` line replaced by that file's text,
-// each file once (display.glsl.resolve does the same); three.js writes `#version 300 es`.
+// DEFINES (and, for a textured object's program, TEXTURED), then its file with each
+// `#include "file"` line replaced by that file's text, each file once
+// (display.glsl.resolve does the same); three.js writes `#version 300 es`.
 const INCLUDE = /^#include "([^"]+)"[ \t]*$/m;
 const shaderFiles = new Map(); // name -> Promise of its text
 
@@ -79,15 +85,24 @@ export async function resolveShader(name, seen = new Set()) {
     return text;
 }
 
-export async function stageSource(name) {
-    return (await shaderFile('es_header.glsl')) + DEFINES + (await resolveShader(name));
+export const TEXTURED = '#define VL_TEXTURED\n'; // display.glsl.defines(extra=("VL_TEXTURED",))'s last line
+
+// `extra`: #define lines after DEFINES (TEXTURED, or none)
+export async function stageSource(name, extra = '') {
+    return (await shaderFile('es_header.glsl')) + DEFINES + extra + (await resolveShader(name));
 }
 
-// the fitted model per pixel (as `vlights render --shading pixel`) and the tone map
-async function loadShaders() {
+// the fitted model per pixel (as `vlights render --shading pixel`) and the tone map; with
+// `textured`, also the fitted program of textured objects (#define VL_TEXTURED)
+async function loadShaders(textured) {
     const [fittedVertex, fittedFragment, screenVertex, tonemapFragment] = await Promise.all(
-        ['web_vertex.glsl', 'fitted_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'].map(stageSource));
-    return { fittedVertex, fittedFragment, screenVertex, tonemapFragment };
+        ['web_vertex.glsl', 'fitted_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'].map((n) => stageSource(n)));
+    const shaders = { fittedVertex, fittedFragment, screenVertex, tonemapFragment };
+    if (textured) {
+        [shaders.texturedVertex, shaders.texturedFragment] = await Promise.all(
+            ['web_vertex.glsl', 'fitted_fragment.glsl'].map((n) => stageSource(n, TEXTURED)));
+    }
+    return shaders;
 }
 
 // ---------------------------------------------------------------------------------- query
@@ -211,16 +226,18 @@ function emitterTable(rows) {
     return floatTexture(data, TABLE_WIDTH, Math.max(rows.length, 1));
 }
 
-function requireAttribute(geometry, name, where) {
+function requireAttribute(geometry, name, where, size = 3, gltfName = name.toUpperCase()) {
     const a = geometry.attributes[name];
-    if (!a || a.itemSize !== 3) throw new Error(`${where}: vertex attribute ${name.toUpperCase()} (VEC3) is missing`);
+    if (!a || a.itemSize !== size) throw new Error(`${where}: vertex attribute ${gltfName} (VEC${size}) is missing`);
     return a;
 }
 
 // The triangle geometry of one object for the shader: indexed when its coefficients are
 // shared and it has no highlight; with per-light coefficients or the emitters'
 // highlights, one vertex per triangle corner carrying the triangle's vertex ids and the
-// corner's barycentrics (what the renderer's geometry shader hands its fragments).
+// corner's barycentrics (what the renderer's geometry shader hands its fragments). A
+// textured object's geometry has its uvs ('uv': glTF's TEXCOORD_0, v down the image) and
+// its irradiance as well.
 function objectGeometry(source, info) {
     const where = `object '${info.name}'`;
     const position = requireAttribute(source, 'position', where);
@@ -235,48 +252,76 @@ function objectGeometry(source, info) {
     const probe = info.probe ? requireAttribute(source, '_probe', where) : zeros();
     const coefficients = info.per_light ? coefficientTexture(source.attributes, v, k) : null;
     if (info.per_light) for (let i = 0; i < k; ++i) requireAttribute(source, `_specular_${i}`, where);
+    const src = { position, normal, emitted, specular, probe };
+    if (info.textured) {
+        src.uv = requireAttribute(source, 'uv', where, 2, 'TEXCOORD_0');
+        src.irradiance = requireAttribute(source, '_irradiance', where);
+    }
     if (!info.per_light && !info.highlight) {
         const g = new THREE.BufferGeometry();
         g.setIndex(new THREE.BufferAttribute(faces, 1));
-        g.setAttribute('position', position);
-        g.setAttribute('normal', normal);
-        g.setAttribute('emitted', emitted);
-        g.setAttribute('specular', specular);
-        g.setAttribute('probe', probe);
+        for (const [key, attribute] of Object.entries(src)) g.setAttribute(key, attribute);
         g.setAttribute('vertices', zeros());
         g.setAttribute('bary', zeros());
         return { geometry: g, coefficients };
     }
     const corners = faces.length;
-    const src = { position, normal, emitted, specular, probe };
     const out = { vertices: new Float32Array(3 * corners), bary: new Float32Array(3 * corners) };
-    for (const key of Object.keys(src)) out[key] = new Float32Array(3 * corners);
+    for (const [key, attribute] of Object.entries(src)) out[key] = new Float32Array(attribute.itemSize * corners);
     for (let c = 0; c < corners; ++c) {
         const vertex = faces[c];
         const tri = c - (c % 3);
         for (const [key, attribute] of Object.entries(src)) {
-            const a = attribute.array;
-            out[key][3 * c] = a[3 * vertex];
-            out[key][3 * c + 1] = a[3 * vertex + 1];
-            out[key][3 * c + 2] = a[3 * vertex + 2];
+            const n = attribute.itemSize;
+            for (let i = 0; i < n; ++i) out[key][n * c + i] = attribute.array[n * vertex + i];
         }
         out.vertices.set([faces[tri], faces[tri + 1], faces[tri + 2]], 3 * c);
         out.bary[3 * c + (c % 3)] = 1;
     }
     const g = new THREE.BufferGeometry();
-    for (const [key, array] of Object.entries(out)) g.setAttribute(key, new THREE.BufferAttribute(array, 3));
+    for (const [key, array] of Object.entries(out)) {
+        g.setAttribute(key, new THREE.BufferAttribute(array, array.length / corners));
+    }
     return { geometry: g, coefficients };
+}
+
+// A textured object's image: the material's base colour texture as GLTFLoader made it
+// (an 8-bit RGBA ImageBitmap; flipY false, so the image's top row lies at t = 0, where
+// glTF's v, down the image, puts it). Its colour space sRGB makes three.js store it as
+// SRGB8_ALPHA8, which the GPU decodes to linear when it samples, before filtering: the
+// one decode (the shader has none, as the renderer's float texture needs none). Repeating,
+// mipmapped, as the file's sampler and the renderer's texture.
+function diffuseTexture(material, info, where) {
+    const map = material && material.map;
+    if (!map || !map.isTexture) throw new Error(`${where}: textured, but its material has no base colour texture`);
+    const kd = info.textured.kd;
+    if (!Array.isArray(kd) || kd.length !== 3 || !kd.every(Number.isFinite)) {
+        throw new Error(`${where}: 'textured' needs 'kd' [r, g, b]`);
+    }
+    map.colorSpace = THREE.SRGBColorSpace;
+    map.format = THREE.RGBAFormat;
+    map.type = THREE.UnsignedByteType;
+    map.flipY = false;
+    map.wrapS = THREE.RepeatWrapping;
+    map.wrapT = THREE.RepeatWrapping;
+    map.magFilter = THREE.LinearFilter;
+    map.minFilter = THREE.LinearMipmapLinearFilter;
+    map.generateMipmaps = true;
+    return map;
 }
 
 const EMPTY = floatTexture(new Float32Array(4), 1, 1);
 
 // One object's mesh and material: the uniforms and textures display.renderer's
 // _bind_fitted, _bind_highlight and _bind_probe set (each object with its own textures,
-// so every base and row is 0). userData.parts: the emitter parts its highlight draws
-// (0: none), userData.probeSize its probe's M (0: none).
-function makeObject(source, info, fit) {
+// so every base and row is 0), and for a textured object (VL_TEXTURED) the uniforms of
+// textured.glsl. userData.parts: the emitter parts its highlight draws (0: none),
+// userData.probeSize its probe's M (0: none). `node`: the glTF's mesh.
+function makeObject(node, info, fit) {
     const where = `object '${info.name}'`;
+    const source = node.geometry;
     const { geometry, coefficients } = objectGeometry(source, info);
+    const textured = info.textured ? diffuseTexture(node.material, info, where) : null;
     const v = source.attributes.position.count;
     const parts = info.highlight ? fit.parts.length : 0;
     const h = info.highlight || { ks: [0, 0, 0], exponent: 0 };
@@ -285,8 +330,8 @@ function makeObject(source, info, fit) {
     fit.parts.forEach((part, i) => { if (part.source === info.name) own |= 1 << i; });
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3,
-        vertexShader: fit.shaders.fittedVertex,
-        fragmentShader: fit.shaders.fittedFragment,
+        vertexShader: textured ? fit.shaders.texturedVertex : fit.shaders.fittedVertex,
+        fragmentShader: textured ? fit.shaders.texturedFragment : fit.shaders.fittedFragment,
         side: THREE.DoubleSide, // one-sided surfaces are still seen from behind
         uniforms: {
             eye: { value: new THREE.Vector3() },
@@ -314,6 +359,8 @@ function makeObject(source, info, fit) {
             probe_lo: { value: new THREE.Vector3(...(probe ? probe.box[0] : [0, 0, 0])) },
             probe_hi: { value: new THREE.Vector3(...(probe ? probe.box[1] : [0, 0, 0])) },
             probe_albedo: { value: new Float32Array(probe ? probe.albedo : ALBEDO_POINTS) },
+            // a textured object's diffuse term
+            ...(textured ? { diffuse_texture: { value: textured }, texture_kd: { value: new THREE.Vector3(...info.textured.kd) } } : {}),
         },
     });
     const mesh = new THREE.Mesh(geometry, material);
@@ -336,17 +383,18 @@ export async function loadFit(url) {
     }
     // own_parts, an int, is a bit mask of the parts
     if (parts.length > 32) throw new Error(`${url}: ${parts.length} emitter parts; the shader draws at most 32`);
-    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders() };
-    const sources = new Map(); // object name -> its mesh (geometry, and the extras in userData)
+    const sources = new Map(); // object name -> its mesh (geometry, material, and the extras in userData)
     gltf.scene.traverse((node) => {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
     });
+    const textured = [...sources.values()].some((node) => node.userData.textured);
+    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders(textured) };
     const scene = new THREE.Scene();
     const bounds = new THREE.Box3();
     for (const name of extras.objects) {
         const source = sources.get(name);
         if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
-        scene.add(makeObject(source.geometry, source.userData, fit));
+        scene.add(makeObject(source, source.userData, fit));
         source.geometry.computeBoundingBox();
         bounds.union(source.geometry.boundingBox);
     }

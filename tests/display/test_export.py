@@ -20,7 +20,7 @@ import pytest
 import trimesh
 from display_fixtures import CAMERA, assert_refused, listing, lit_model
 
-from display.export import FILE, FORMAT, READS, VERSION, export_glb, load_export
+from display.export import FILE, FORMAT, READS, UNTEXTURED_VERSION, VERSION, export_glb, load_export
 from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table
@@ -146,7 +146,8 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and extras["version"] == VERSION == 2
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 3
+    assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object: the version before textures
     assert extras["objects"] == list(model.names)
     assert extras["emitters"] == [] and extras["emitter_table"] == [] and extras["emitter_nodes"] == 8
     assert extras["camera"] == {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
@@ -292,15 +293,15 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2)
+    assert READS == (1, 2, 3)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=3))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1 or 2 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=4))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2 or 3 file"):
         load_export(path)
 
 
@@ -417,7 +418,8 @@ def test_a_failed_write_leaves_no_file(a_fit, tmp_path, cli, monkeypatch):
 def test_help_names_the_attributes_and_no_design_document(cli):
     code, out, _ = cli("export", "--help")
     assert code == 0
-    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0", "_PROBE", "_VISIBILITY_0"):
+    for word in ("fit.npz", "scene.glb", "_EMITTED", "_SPECULAR_0", "_PROBE", "_VISIBILITY_0", "TEXCOORD_0",
+                 "_IRRADIANCE"):
         assert word in out
     for word in ("Contract", "DESIGN", "shared/"):
         assert word not in out

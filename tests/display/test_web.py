@@ -3,10 +3,10 @@
 Headless Debian chromium renders WebGL2 through SwiftShader; Playwright for Python drives
 it. The page's screenshot at a camera given in the URL must equal ``vlights render
 --shading pixel -o`` at the same camera within 2/255 on average, for directional and
-point lights, coefficients shared and per light, fitted and diffuse-only, and for a
+point lights, coefficients shared and per light, fitted and diffuse-only, for a
 version 3 fit (the emitters' highlights from a sphere and a polygon, reflection probes)
-with everything drawn and with each part off (``off=``, ``--off``); keys must switch
-what it shows. Skipped where chromium or Playwright is missing (the test set-up,
+with everything drawn and with each part off (``off=``, ``--off``), and for textured
+objects (an export of version 3); keys must switch what it shows. Skipped where chromium or Playwright is missing (the test set-up,
 ``tests/install_browser``, installs chromium where apt can).
 """
 
@@ -28,6 +28,7 @@ import pytest
 from display_fixtures import lit_model
 from PIL import Image
 from test_export import glossy_model, rewrite_json
+from test_export_textures import KDS, textured_model
 
 from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
 from display.serve import start
@@ -531,3 +532,115 @@ def test_the_shading_glsl_compiles_in_webgl2(browser, nodes):
     finally:
         page.close()
     assert log == "ok", log
+
+
+# ------------------------------------------------------------------ version 3: textured objects
+
+TEXTURED_CASES = {  # textured_model's arguments
+    "per-light": {"per_light": True},  # the tile drawn with one vertex per triangle corner
+    "shared": {"per_light": False},  # indexed
+    "minified": {"per_light": False, "uv_scale": 10.0},  # about one texel a pixel and less: the mipmaps
+    "half": {"per_light": True, "tiles": False},  # the tile untextured: both programs in one frame
+}
+
+
+@pytest.fixture(scope="module", params=list(TEXTURED_CASES))
+def site_textured(request, tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene with its objects textured
+    (``test_export_textures.textured_model``), as ``TEXTURED_CASES`` says."""
+    base = tmp_path_factory.mktemp(f"web-textured-{request.param}")
+    textured_model(rng=np.random.default_rng(3), **TEXTURED_CASES[request.param]).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+def with_textures(fit, tmp_path, name, change):
+    """fit.npz with each textured object's texture replaced by ``change(texture)`` (None:
+    untextured), saved as ``tmp_path/name``."""
+    import dataclasses
+
+    from fitting import load_fit
+
+    model = load_fit(fit)
+    objects = []
+    for o in model.objects:
+        texture = None if o.textured is None else change(o.textured.texture)
+        objects.append(dataclasses.replace(o, textured=None if texture is None else dataclasses.replace(
+            o.textured, texture=texture)))
+    path = tmp_path / name
+    dataclasses.replace(model, objects=tuple(objects)).save(path)
+    return path
+
+
+GRAZING = {"eye": (-1.3, 0.2, -0.3), "look": (1.0, 0.0, 0.0), "up": (0.0, 1.0, 0.0), "fov": 50.0}  # along the wall
+
+
+@needs_browser
+@pytest.mark.gl
+@pytest.mark.parametrize("mode, view", [("fitted", VIEW), ("diffuse", VIEW), ("fitted", GRAZING)],
+                         ids=["fitted", "diffuse", "grazing"])
+def test_textured_page_equals_render(browser, site_textured, tmp_path, mode, view, gl_context):
+    """kd * texture(uv) / pi * E per pixel, as ``vlights render`` draws it (both modes
+    add it); the image is the material's PNG, sampled with the GPU's one sRGB decode,
+    repeating, mipmapped, v down the image as glTF has it. Not vacuous: the page is far
+    from the same fit untextured, with its images upside down, left sRGB-encoded (read
+    as linear) or decoded twice. Seen from the front and along the wall (the image
+    minified across the view: mipmapped, no anisotropic filtering, as the renderer's)."""
+    from fitting import load_fit
+
+    fit, url = site_textured
+    page = open_page(browser, url, view_query(mode, view=view))
+    try:
+        got = screenshot(page)
+        textures = page.evaluate("""() => window.vlights.walkthrough.fit.scene.children.map((m) => {
+            const t = m.material.uniforms.diffuse_texture?.value;
+            if (!t) return [m.name, null];
+            return [m.name, t.colorSpace, t.flipY, t.wrapS === t.wrapT ? t.wrapS : -1, t.minFilter, t.magFilter,
+                    t.generateMipmaps, m.material.uniforms.texture_kd.value.toArray()];
+        })""")
+        constants = page.evaluate("""async () => { const THREE = await import('three');
+            return [THREE.SRGBColorSpace, THREE.RepeatWrapping, THREE.LinearMipmapLinearFilter, THREE.LinearFilter]; }""")
+    finally:
+        page.close()
+    srgb, repeat, mipmapped, linear = constants
+    model = load_fit(fit)
+    assert textures == [[o.name, srgb, False, repeat, mipmapped, linear, True, list(KDS[o.name])] if o.textured
+                        else [o.name, None] for o in model.objects]
+    want = rendered(tmp_path, fit, mode, view=view)
+    assert_matches(got, want)
+    filled = 0.8 if view is VIEW else 0.5  # along the wall, the background takes the left
+    assert np.mean(want.max(axis=2) > 10) > filled and np.mean(want == 255) < 0.01
+    from radiosity.formats.material import srgb_to_linear
+    from radiosity.formats.texture import linear_to_srgb8
+
+    for name, change in (("untextured", lambda t: None), ("flipped", lambda t: t[::-1]),
+                         ("encoded", lambda t: linear_to_srgb8(t) / np.float32(255)),
+                         ("decoded twice", lambda t: srgb_to_linear(t).astype(np.float32))):
+        other = rendered(tmp_path, with_textures(fit, tmp_path, f"{name}.npz", change), mode, view=view)
+        assert np.abs(got - other).mean() > 2 * 2.0, name  # twice the tolerance: a page drawing it would fail
+
+
+@needs_browser
+@pytest.mark.gl
+def test_a_textured_object_compiles_the_renderers_textured_program(browser, site_textured, gl_context):
+    """A textured object's stages are the page's header, the renderer's #define lines with
+    VL_TEXTURED (display.glsl.defines(extra=("VL_TEXTURED",))) and the renderer's files;
+    the untextured program stays without it."""
+    from display.glsl import ES_HEADER, defines, read, resolve
+
+    _, url = site_textured
+    page = open_page(browser, url, view_query("fitted"), size=(64, 48))
+    try:
+        for name in ("web_vertex.glsl", "fitted_fragment.glsl"):
+            got = page.evaluate("async (name) => { const m = await import('./walkthrough.js'); "
+                                "return m.stageSource(name, m.TEXTURED); }", name)
+            assert got == read(ES_HEADER) + defines(8, extra=("VL_TEXTURED",)) + resolve(name), name
+        shaders = page.evaluate("() => { const s = window.vlights.walkthrough.fit.shaders; "
+                                "return [s.texturedVertex, s.texturedFragment, s.fittedFragment]; }")
+        assert shaders[0] == read(ES_HEADER) + defines(8, extra=("VL_TEXTURED",)) + resolve("web_vertex.glsl")
+        assert "\n#define VL_TEXTURED\n" in shaders[1] and "\n#define VL_TEXTURED\n" not in shaders[2]
+    finally:
+        page.close()
