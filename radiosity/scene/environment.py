@@ -49,6 +49,7 @@ from radiosity.formats.environment import (  # noqa: F401 (re-exported: the scen
     uv_to_direction,
 )
 from radiosity.formats.hdr import HDR_EXTENSIONS, read_hdr_image
+from radiosity.transport.sampling import search_cdf
 
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709, as Mitsuba's ``luminance``
 
@@ -238,14 +239,7 @@ def env_pdf(rotation, cell_pdf, dx, dy, dz):
 @numba.njit(cache=True, nogil=True, inline="always")
 def _pick(cdf, u):
     """(slot of ``cdf`` holding u, u's fraction across that slot)."""
-    lo, hi = 0, len(cdf)
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if cdf[mid] <= u:
-            lo = mid + 1
-        else:
-            hi = mid
-    k = min(lo, len(cdf) - 1)
+    k = min(search_cdf(cdf, u), len(cdf) - 1)
     below = cdf[k - 1] if k > 0 else 0.0
     width = cdf[k] - below
     f = (u - below) / width if width > 0.0 else 0.5

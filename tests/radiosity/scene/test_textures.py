@@ -3,7 +3,6 @@ repeat, bilinear), reading images (sRGB decoded), texture coordinates through we
 crease normals and refinement (seams kept, uvs interpolated like positions), and the
 scene files that give them (TOML ``diffuse_texture``, OBJ ``vt``, glTF TEXCOORD_0)."""
 
-import json
 import textwrap
 
 import numba
@@ -244,34 +243,11 @@ def test_obj_texture_coordinates_have_v_up(tmp_path):
 
 def test_gltf_texture_coordinates_run_down_and_are_flipped(tmp_path):
     """glTF's TEXCOORD_0: (0, 0) is the image's top-left corner (trimesh flips v)."""
+    from test_texture_loaders import _gltf
+
     _asymmetric_png(tmp_path)
-    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
-    texcoords = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)  # top-down v: y = 1 is v = 0
-    indices = np.array([0, 1, 2, 0, 2, 3], np.uint16)
-    blob = positions.tobytes() + texcoords.tobytes() + indices.tobytes()
-    (tmp_path / "m.bin").write_bytes(blob)
-    gltf = {
-        "asset": {"version": "2.0"},
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
-        # trimesh keeps TEXCOORD_0 only on a primitive with a material
-        "materials": [{"name": "picture", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
-                                                                   "metallicFactor": 0.0}}],
-        "textures": [{"source": 0}],
-        "images": [{"uri": "t.png"}],
-        "buffers": [{"uri": "m.bin", "byteLength": len(blob)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
-            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
-            {"buffer": 0, "byteOffset": 80, "byteLength": 12},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
-            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
-            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"},
-        ],
-    }
-    (tmp_path / "m.gltf").write_text(json.dumps(gltf))
+    # trimesh keeps TEXCOORD_0 only on a primitive with a material
+    _gltf(tmp_path, {"name": "picture", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}})
     (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="x")).replace(
         'builtin = "x"', 'mesh = "m.gltf"'))
     obj = load_scene(tmp_path / "s.toml").object("picture")
