@@ -267,8 +267,11 @@ def test_npz_meta_nested_too_deep_is_one_line(solution, tmp_path, capsys):
     refused(["fit", solution, "-o", tmp_path / "f.npz"], capsys, "")
 
 
-def _obj_with_mtl(tmp_path, texture):
+def _obj_with_mtl(tmp_path, texture, uvs=False):
     (tmp_path / "m.mtl").write_text(f"newmtl red\nKd 0.8 0.1 0.1\nmap_Kd {texture}\n")
+    if uvs:  # a texture needs texture coordinates (without them it counts with its mean colour, and says so)
+        return write(tmp_path / "a.obj", "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                     "vt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
     return write(tmp_path / "a.obj", "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
 
 
@@ -283,10 +286,11 @@ def test_an_mtl_whose_texture_exists_does_not_warn(tmp_path):
     from PIL import Image
 
     Image.new("RGB", (2, 2), (255, 255, 255)).save(tmp_path / "white.png")
-    path = _obj_with_mtl(tmp_path, "white.png")
+    path = _obj_with_mtl(tmp_path, "white.png", uvs=True)
     with warnings.catch_warnings():
         warnings.simplefilter("error", SceneWarning)
-        load_scene(path)
+        scene = load_scene(path)
+    assert scene.objects[0].texture is not None
 
 
 def test_a_texture_that_is_a_fifo_is_refused_not_waited_for(tmp_path):
