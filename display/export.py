@@ -520,6 +520,7 @@ def load_export(path):
         nodes = extras.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
+    environment = _read_environment(header, extras, binary, fail) if version >= 4 else None  # before trimesh's checks
     scene = trimesh.load(path, file_type="glb", force="scene", process=False)
     objects = []
     for name in extras["objects"]:
@@ -560,7 +561,6 @@ def load_export(path):
             textured=textured,
         ))
     camera = camera_from_dict(extras["camera"], where="scene extras 'camera'") if "camera" in extras else None
-    environment = _read_environment(header, extras, binary, fail) if version >= 4 else None
     return FittedModel(objects=tuple(objects), source=extras.get("source", ""), model=extras.get("model", ""),
                        camera=camera, emitters=parts, emitter_nodes=nodes, environment=environment)
 
