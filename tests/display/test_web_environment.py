@@ -163,3 +163,21 @@ def test_environment_texture_falls_back_to_half_floats(browser, site_env):
     half = np.array(got["half"][1])
     want = np.array([0.1, 1.5, 3.25, 1.0, 65504.0, 0.0, 65504.0, 1.0])
     assert np.allclose(half, want, rtol=2.0 ** -10, atol=0) and half[4] == half[6] == 65504.0
+
+
+@needs_browser
+@pytest.mark.parametrize("site_env", ["map"], indirect=True)
+def test_the_background_is_the_renderers_shader_files(browser, site_env):
+    """The background's stages are the page's header, the renderer's #define lines and the
+    renderer's own background_vertex.glsl and background_fragment.glsl (display.glsl)."""
+    from display.glsl import ES_HEADER, defines, read, resolve
+
+    _, _, url = site_env
+    page = open_page(browser, url, view_query(), size=(32, 24))
+    try:
+        got = page.evaluate("() => { const s = window.vlights.walkthrough.fit.shaders; "
+                            "return [s.backgroundVertex, s.backgroundFragment]; }")
+    finally:
+        page.close()
+    assert got == [read(ES_HEADER) + defines(8) + resolve(name)
+                   for name in ("background_vertex.glsl", "background_fragment.glsl")]
