@@ -5,10 +5,11 @@ three.js modules it needs, copied from ``display/web``, the renderer's shader fi
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 3; docs/formats.md). V is an
+Schema (format ``vlights.fit.gltf``, version 4; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
 parts, M an object's probe size. A file is written with the lowest version that holds
-it: 3 with a textured object, 2 without (the same bytes as before textures):
+it: 4 with an environment, else 3 with a textured object, else 2 (the same bytes as
+before textures and environments):
 
 - one glTF mesh (and one node, identity transform) per object of the fit, named as
   the object, in the fit's order; one triangle primitive with attributes
@@ -55,18 +56,27 @@ it: 3 with a textured object, 2 without (the same bytes as before textures):
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
   "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3);
   ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
-  texels the shaders read (written so that a viewer need not repeat its arithmetic).
+  texels the shaders read (written so that a viewer need not repeat its arithmetic);
+- a fit with an environment (version 4: the light from outside the scene,
+  ``radiosity.formats.environment``, drawn where no object is) has, besides, the scene
+  extras' ``"environment": {"width": W, "height": H, "scale", "rotation": 3 x [3
+  numbers] (rows; world from environment), "constant": bool, "source", "bufferView":
+  i}``, and bufferView i of the GLB's buffer holds its image before ``scale``: H * W * 3
+  little-endian float32, row 0 first (the zenith), each row's pixels left to right, RGB
+  (the fit's ``environment_image`` as it is; a constant environment is 1 x 1). No
+  accessor refers to the view (a viewer reads it as raw bytes).
 
 Every number in the JSON is a float32 of the fit written exactly (every float32 is a
 double), except the emitters, ``ks``, ``exponent``, the probe's ``centre``, ``box``
-and ``albedo`` and a textured object's ``kd`` (also its ``baseColorFactor``), which
-the fit holds as doubles and which are written as such.
+and ``albedo``, a textured object's ``kd`` (also its ``baseColorFactor``) and the
+environment's ``scale`` and ``rotation``, which the fit holds as doubles and which are
+written as such.
 
 The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file (version 3, 2: no textures, or 1: no emitters and no
-probes either) back into a ``FittedModel``.
+``load_export`` reads the file (version 4, 3: no environment, 2: no textures either,
+or 1: no emitters and no probes either) back into a ``FittedModel``.
 """
 
 from __future__ import annotations
@@ -79,12 +89,14 @@ import numpy as np
 from radiosity.formats import InputError
 
 __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
-           "load_export", "page_files", "page_source", "write_export", "write_files"]
+           "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 3
-READS = (1, 2, 3)
-UNTEXTURED_VERSION = 2  # the version of a file without a textured object
+VERSION = 4
+READS = (1, 2, 3, 4)
+TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
+UNTEXTURED_VERSION = 2  # the version of a file with neither
+ENVIRONMENT_BUFFER = "vlights/environment"  # the environment image's key among trimesh's buffers (no hash clashes)
 FILE = "scene.glb"
 PAGE = "index.html"
 WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
@@ -190,12 +202,34 @@ def _check_highlights(model):
             raise ValueError(f"object {obj.name!r}: its highlight's emitter parts or nodes are not the model's")
 
 
+def file_version(model):
+    """The lowest version of the schema that holds ``model``: 4 with an environment, 3
+    with a textured object, else 2."""
+    if model.environment is not None:
+        return VERSION
+    return TEXTURED_VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
+
+
+def environment_extras(env, view):
+    """The scene extras' ``"environment"`` of an ``EnvironmentLight`` whose image is
+    bufferView ``view`` (JSON-ready; scale and rotation the fit's doubles)."""
+    height, width = env.image.shape[:2]
+    return {"width": int(width), "height": int(height), "scale": float(env.scale),
+            "rotation": np.asarray(env.rotation, np.float64).tolist(), "constant": bool(env.constant),
+            "source": env.source, "bufferView": int(view)}
+
+
+def environment_bytes(env):
+    """The environment's image as the file holds it: H * W * 3 little-endian float32, row 0 first."""
+    return np.ascontiguousarray(env.image, "<f4").tobytes()
+
+
 def scene_extras(model):
-    """The scene's ``extras``: format marker, provenance, object order, emitters, camera."""
+    """The scene's ``extras``: format marker, provenance, object order, emitters, camera
+    (the environment is added with its image: ``export_glb``)."""
     from display.glsl import TABLE_WIDTH, emitter_table
 
-    version = VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
-    extras = {"format": FORMAT, "version": version, "source": model.source, "model": model.model,
+    extras = {"format": FORMAT, "version": file_version(model), "source": model.source, "model": model.model,
               "objects": list(model.names), "emitters": [p.to_dict() for p in model.emitters],
               "emitter_nodes": int(model.emitter_nodes)}
     table = emitter_table(model.emitters)[:len(model.emitters)]
@@ -269,8 +303,17 @@ def export_glb(model):
         )
         scene.add_geometry(mesh, geom_name=obj.name, node_name=obj.name)
     scene.metadata.update(scene_extras(model))
+    env = model.environment
+
+    def add_environment(buffers, tree):
+        """The environment's image as one more buffer (a bufferView of its own: views are
+        made one per buffer, in order), and its entry in the scene's extras."""
+        buffers[ENVIRONMENT_BUFFER] = environment_bytes(env)  # float32: a multiple of 4 bytes, as glTF wants
+        tree["scenes"][0]["extras"]["environment"] = environment_extras(env, buffers.index(ENVIRONMENT_BUFFER))
+
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False,
-                                            tree_postprocessor=_finish_materials)
+                                            tree_postprocessor=_finish_materials,
+                                            buffer_postprocessor=add_environment if env is not None else None)
 
 
 SHADING = "shading.js"  # written with the page: the shaders' #define lines and constants, an ES module
@@ -323,12 +366,55 @@ def write_export(model, out, page=True):
 
 
 def _chunks(path):
-    """The JSON header of a .glb file (a dict); InputError if it is not one."""
+    """The JSON header of a .glb file (a dict) and its binary chunk (bytes, empty if it
+    has none); InputError if it is not one."""
     data = Path(path).read_bytes()
     if len(data) < 20 or data[:4] != b"glTF":
         raise InputError(f"{str(path)!r} is not a binary glTF file")
     length = int.from_bytes(data[12:16], "little")
-    return json.loads(data[20:20 + length])
+    header = json.loads(data[20:20 + length])
+    start = 20 + length
+    binary = b""
+    if len(data) >= start + 8 and data[start + 4:start + 8] == b"BIN\0":
+        size = int.from_bytes(data[start:start + 4], "little")
+        binary = data[start + 8:start + 8 + size]
+    return header, binary
+
+
+def _read_environment(header, extras, binary, fail):
+    """The ``EnvironmentLight`` of the scene ``extras``' ``"environment"`` and its
+    bufferView among the ``header``'s (None if the file has none)."""
+    from radiosity.formats.environment import EnvironmentLight
+
+    entry = extras.get("environment")
+    if entry is None:
+        return None
+    fail_env = lambda message: fail(f"scene extras 'environment': {message}")  # noqa: E731
+    try:
+        width, height, view = (entry[k] for k in ("width", "height", "bufferView"))
+        rotation = np.asarray(entry["rotation"], np.float64)
+        scale, constant = float(entry["scale"]), entry["constant"]
+    except (KeyError, TypeError, ValueError):
+        raise fail_env("needs 'width', 'height', 'scale', 'rotation' (3 x 3), 'constant' and 'bufferView'") from None
+    numbers = (width, height, view)
+    if any(isinstance(n, bool) or not isinstance(n, int) for n in numbers) or min(width, height) < 1 or view < 0:
+        raise fail_env(f"'width' and 'height' must be whole numbers >= 1 and 'bufferView' >= 0, got {numbers}")
+    if not isinstance(constant, bool):
+        raise fail_env(f"'constant' must be true or false, got {constant!r}")
+    views = header.get("bufferViews") or []
+    want = width * height * 3 * 4
+    if view >= len(views):
+        raise fail_env(f"bufferView {view} does not exist ({len(views)} views)")
+    v = views[view]
+    offset, length = v.get("byteOffset", 0), v.get("byteLength")
+    if v.get("buffer") != 0 or length != want or offset < 0 or offset + length > len(binary):
+        raise fail_env(f"bufferView {view} must hold {height} x {width} x 3 float32 ({want} bytes) of the GLB's "
+                       "own buffer")
+    image = np.frombuffer(binary, "<f4", width * height * 3, offset).reshape(height, width, 3).astype(np.float32)
+    try:
+        return EnvironmentLight(image, scale, rotation, constant, str(entry.get("source", "")))
+    except InputError as exc:
+        raise fail_env(str(exc)) from None
 
 
 def _attribute(attributes, key, v, fail):
@@ -407,9 +493,10 @@ def _read_textured(info, mesh, v, fail):
 
 
 def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` (version 3, 2 or 1) back into a
+    """Read a ``scene.glb`` written by ``export_glb`` (version 4, 3, 2 or 1) back into a
     ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
-    specular is zeros (V, 3)). InputError if the file is not of this schema."""
+    specular is zeros (V, 3); the environment's image exact). InputError if the file is
+    not of this schema."""
     import trimesh
 
     from fitting.model import FittedModel, FittedObject
@@ -417,7 +504,7 @@ def load_export(path):
     from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, parts_from_meta
 
     shown = repr(str(path))
-    header = _chunks(path)
+    header, binary = _chunks(path)
     extras = (header.get("scenes") or [{}])[0].get("extras") or {}
     if extras.get("format") != FORMAT or extras.get("version") not in READS:
         versions = ", ".join(map(str, READS[:-1])) + f" or {READS[-1]}"
@@ -433,6 +520,7 @@ def load_export(path):
         nodes = extras.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
+    environment = _read_environment(header, extras, binary, fail) if version >= 4 else None  # before trimesh's checks
     scene = trimesh.load(path, file_type="glb", force="scene", process=False)
     objects = []
     for name in extras["objects"]:
@@ -474,7 +562,7 @@ def load_export(path):
         ))
     camera = camera_from_dict(extras["camera"], where="scene extras 'camera'") if "camera" in extras else None
     return FittedModel(objects=tuple(objects), source=extras.get("source", ""), model=extras.get("model", ""),
-                       camera=camera, emitters=parts, emitter_nodes=nodes)
+                       camera=camera, emitters=parts, emitter_nodes=nodes, environment=environment)
 
 
 def add_export_command(subparsers):
@@ -490,7 +578,8 @@ def add_export_command(subparsers):
         "the irradiance its diffuse term multiplies as _IRRADIANCE; "
         "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent), its "
         "probe (size, centre, box, albedo, texels) and a textured object's kd in the mesh's extras; the format "
-        "marker, the emitter parts and the scene camera in the scene's extras.",
+        "marker, the emitter parts, the scene camera and the environment (size, scale, rotation; its image as "
+        "float32 in a bufferView of its own) in the scene's extras.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
@@ -543,6 +632,9 @@ def run_export_command(args):
         textured = sum(o.textured is not None for o in model.objects)
         if textured:
             extra += f", {textured} textured"
+        if model.environment is not None:
+            h, w = model.environment.image.shape[:2]
+            extra += ", a constant environment" if model.environment.constant else f", a {w} x {h} environment"
         print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights{extra}, {path.stat().st_size} bytes)")
         if args.page:
             print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")

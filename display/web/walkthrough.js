@@ -1,5 +1,5 @@
-// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v3, v2
-// or v1; display/export.py and docs/formats.md hold the schema).
+// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v4, v3,
+// v2 or v1; display/export.py and docs/formats.md hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
@@ -20,7 +20,13 @@
 //     VL_TEXTURED): kd * texture(uv) / pi * E per pixel, uv (TEXCOORD_0) and the
 //     irradiance E (_IRRADIANCE) interpolated, the image the material's base colour
 //     texture (decoded from sRGB by the GPU, bilinear, repeating, mipmapped), in both
-//     modes (the diffuse mode is the emitted colour and this term).
+//     modes (the diffuse mode is the emitted colour and this term);
+//   - where no object is, the environment (a version 4 file: the light from outside the
+//     scene), in both modes: background_vertex.glsl and background_fragment.glsl, the
+//     renderer's (display.renderer.Renderer._draw_background), drawn after the objects
+//     into the same float framebuffer with the depth test "<=" at the far plane, its
+//     image (float32 texels in a bufferView of the file) a float texture, bilinear,
+//     repeating in u, clamped in v, row 0 (the zenith) at t = 0 as the renderer uploads it.
 // Per-light coefficients and visibilities are blended from the triangle's three
 // vertices by barycentrics, as the renderer's geometry-shader program does: such
 // objects are drawn with one vertex per triangle corner carrying the triangle's vertex
@@ -48,7 +54,7 @@ import { PointerLockControls } from 'three/addons/controls/PointerLockControls.j
 import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -93,14 +99,19 @@ export async function stageSource(name, extra = '') {
 }
 
 // the fitted model per pixel (as `vlights render --shading pixel`) and the tone map; with
-// `textured`, also the fitted program of textured objects (#define VL_TEXTURED)
-async function loadShaders(textured) {
+// `textured`, also the fitted program of textured objects (#define VL_TEXTURED); with
+// `environment`, the background's program
+async function loadShaders(textured, environment) {
     const [fittedVertex, fittedFragment, screenVertex, tonemapFragment] = await Promise.all(
         ['web_vertex.glsl', 'fitted_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'].map((n) => stageSource(n)));
     const shaders = { fittedVertex, fittedFragment, screenVertex, tonemapFragment };
     if (textured) {
         [shaders.texturedVertex, shaders.texturedFragment] = await Promise.all(
             ['web_vertex.glsl', 'fitted_fragment.glsl'].map((n) => stageSource(n, TEXTURED)));
+    }
+    if (environment) {
+        [shaders.backgroundVertex, shaders.backgroundFragment] = await Promise.all(
+            ['background_vertex.glsl', 'background_fragment.glsl'].map((n) => stageSource(n)));
     }
     return shaders;
 }
@@ -370,6 +381,93 @@ function makeObject(node, info, fit) {
     return mesh;
 }
 
+// ---------------------------------------------------------------------------- environment
+
+// The scene extras' "environment" (a version 4 file) and its image, the float32 texels
+// of its bufferView (H * W * 3, little-endian, row 0 the zenith), as
+// { width, height, rgb: Float32Array, rotation: Matrix3 (world from environment), scale }
+async function readEnvironment(gltf, entry, url) {
+    const where = `${url}: scene extras 'environment'`;
+    const { width, height, bufferView, scale, rotation } = entry;
+    if (![width, height].every((n) => Number.isInteger(n) && n >= 1) || !Number.isInteger(bufferView)) {
+        throw new Error(`${where} needs whole numbers 'width', 'height' >= 1 and 'bufferView'`);
+    }
+    const rows = Array.isArray(rotation) && rotation.length === 3 && rotation.every((r) => Array.isArray(r) && r.length === 3) ? rotation.flat() : [];
+    if (rows.length !== 9 || !rows.every(Number.isFinite) || !(Number.isFinite(scale) && scale >= 0)) {
+        throw new Error(`${where} needs 'rotation' (3 x 3 numbers) and 'scale' >= 0`);
+    }
+    const bytes = await gltf.parser.getDependency('bufferView', bufferView);
+    if (bytes.byteLength !== width * height * 12) {
+        throw new Error(`${where}: bufferView ${bufferView} holds ${bytes.byteLength} bytes, not ${height} x ${width} x 3 float32`);
+    }
+    const view = new DataView(bytes);
+    const rgb = new Float32Array(width * height * 3);
+    for (let i = 0; i < rgb.length; ++i) rgb[i] = view.getFloat32(4 * i, true); // little-endian whatever the machine
+    return { width, height, rgb, rotation: new THREE.Matrix3().set(...rows), scale };
+}
+
+// The environment's image as the texture background_fragment.glsl samples: RGBA (alpha 1),
+// row 0 at t = 0 (flipY false, as the renderer uploads it), bilinear, repeating in s,
+// clamped in t, no mipmaps. Float32 where the GPU filters it (OES_texture_float_linear,
+// the renderer's 'f4'); else half floats (filterable in every WebGL2), clamped to their
+// largest value, 65504, with a warning.
+export function environmentTexture(rgb, width, height, floatLinear) {
+    const count = width * height;
+    const data = floatLinear ? new Float32Array(4 * count) : new Uint16Array(4 * count);
+    const one = floatLinear ? 1 : THREE.DataUtils.toHalfFloat(1);
+    for (let i = 0; i < count; ++i) {
+        for (let c = 0; c < 3; ++c) {
+            const value = rgb[3 * i + c];
+            data[4 * i + c] = floatLinear ? value : THREE.DataUtils.toHalfFloat(Math.min(value, 65504));
+        }
+        data[4 * i + 3] = one;
+    }
+    if (!floatLinear) console.warn('this GPU does not filter float32 textures: the environment is drawn from half floats');
+    const texture = new THREE.DataTexture(data, width, height, THREE.RGBAFormat, floatLinear ? THREE.FloatType : THREE.HalfFloatType);
+    texture.flipY = false;
+    texture.wrapS = THREE.RepeatWrapping;
+    texture.wrapT = THREE.ClampToEdgeWrapping;
+    texture.minFilter = THREE.LinearFilter;
+    texture.magFilter = THREE.LinearFilter;
+    texture.generateMipmaps = false;
+    texture.needsUpdate = true;
+    return texture;
+}
+
+// one triangle over the viewport: three vertices, which the shaders place by gl_VertexID
+function fullScreenTriangle() {
+    const triangle = new THREE.BufferGeometry();
+    triangle.setAttribute('position', new THREE.BufferAttribute(new Float32Array([-1, -1, 0, 3, -1, 0, -1, 3, 0]), 3));
+    return triangle;
+}
+
+// The background (display.renderer.Renderer._draw_background): one triangle at the far
+// plane drawn after the objects (renderOrder), where the depth test "<=" lets it through,
+// writing no depth; its camera uniforms set each frame (Walkthrough.draw).
+function backgroundMesh(environment, shaders, floatLinear) {
+    const material = new THREE.RawShaderMaterial({
+        glslVersion: THREE.GLSL3, vertexShader: shaders.backgroundVertex, fragmentShader: shaders.backgroundFragment,
+        side: THREE.DoubleSide, depthTest: true, depthWrite: false, depthFunc: THREE.LessEqualDepth,
+        uniforms: {
+            environment: { value: environmentTexture(environment.rgb, environment.width, environment.height, floatLinear) },
+            env_rotation: { value: environment.rotation },
+            env_scale: { value: environment.scale },
+            cam_right: { value: new THREE.Vector3() },
+            cam_up: { value: new THREE.Vector3() },
+            cam_forward: { value: new THREE.Vector3() },
+            cam_extent: { value: new THREE.Vector2() },
+            viewport: { value: new THREE.Vector2() },
+        },
+    });
+    const mesh = new THREE.Mesh(fullScreenTriangle(), material);
+    mesh.name = 'environment';
+    mesh.frustumCulled = false;
+    mesh.renderOrder = 1; // after every object (renderOrder 0)
+    return mesh;
+}
+
+// ---------------------------------------------------------------------------------- fit
+
 export async function loadFit(url) {
     const gltf = await new GLTFLoader().loadAsync(url);
     const extras = gltf.scene.userData || {};
@@ -388,17 +486,21 @@ export async function loadFit(url) {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
     });
     const textured = [...sources.values()].some((node) => node.userData.textured);
-    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders(textured) };
+    const environment = extras.version >= 4 && extras.environment ? await readEnvironment(gltf, extras.environment, url) : null;
+    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders(textured, environment) };
     const scene = new THREE.Scene();
+    const objects = [];
     const bounds = new THREE.Box3();
     for (const name of extras.objects) {
         const source = sources.get(name);
         if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
-        scene.add(makeObject(source, source.userData, fit));
+        objects.push(makeObject(source, source.userData, fit));
+        scene.add(objects.at(-1));
         source.geometry.computeBoundingBox();
         bounds.union(source.geometry.boundingBox);
     }
-    return { scene, bounds, camera: extras.camera || null, extras, shaders: fit.shaders };
+    // scene: the objects, then (added by the Walkthrough, which knows the GPU) the background
+    return { scene, objects, bounds, camera: extras.camera || null, extras, shaders: fit.shaders, environment };
 }
 
 // ------------------------------------------------------------------------------ the page
@@ -418,7 +520,7 @@ class Walkthrough {
         this.fit = fit;
         this.mode = query.mode || 'fitted';
         this.exposure = query.exposure ?? 1.0;
-        this.maxLights = Math.max(0, ...fit.scene.children.map((m) => m.userData.lights));
+        this.maxLights = Math.max(0, ...fit.objects.map((m) => m.userData.lights));
         this.lights = query.lights ?? null; // null: all
         this.samples = query.samples ?? 4;
         this.off = new Set(query.off || []); // the parts of the model not drawn (keys 1, 2, 3)
@@ -435,15 +537,22 @@ class Walkthrough {
         this.renderer.setPixelRatio(1);
         this.renderer.setClearColor(0x000000, 0); // background 0, as the renderer's; render() clears
         this.gl = this.renderer.getContext();
+        this.background = null; // the environment where no object is (a version 4 file)
+        if (fit.environment) {
+            const max = this.renderer.capabilities.maxTextureSize;
+            if (Math.max(fit.environment.width, fit.environment.height) > max) {
+                throw new Error(`the environment's image is ${fit.environment.width} x ${fit.environment.height}; this GPU's textures are at most ${max} wide`);
+            }
+            this.background = backgroundMesh(fit.environment, fit.shaders, this.renderer.extensions.has('OES_texture_float_linear'));
+            fit.scene.add(this.background);
+        }
         this.camera = new THREE.PerspectiveCamera(this.start.fov, 1, 0.1, 10);
 
         this.tonemap = new THREE.RawShaderMaterial({
             glslVersion: THREE.GLSL3, vertexShader: fit.shaders.screenVertex, fragmentShader: fit.shaders.tonemapFragment,
             uniforms: { hdr: { value: null }, exposure: { value: this.exposure } }, depthTest: false, depthWrite: false,
         });
-        const triangle = new THREE.BufferGeometry(); // three vertices: the shader places them by gl_VertexID
-        triangle.setAttribute('position', new THREE.BufferAttribute(new Float32Array([-1, -1, 0, 3, -1, 0, -1, 3, 0]), 3));
-        const quad = new THREE.Mesh(triangle, this.tonemap);
+        const quad = new THREE.Mesh(fullScreenTriangle(), this.tonemap);
         quad.frustumCulled = false;
         this.screen = new THREE.Scene();
         this.screen.add(quad);
@@ -549,7 +658,7 @@ class Walkthrough {
         // display.renderer.Renderer.draw and _bind_fitted: the diffuse mode draws the emitted
         // colour alone; a part switched off is not drawn
         const fitted = this.mode === 'fitted';
-        for (const mesh of this.fit.scene.children) {
+        for (const mesh of this.fit.objects) {
             const u = mesh.material.uniforms;
             const info = mesh.userData;
             const k = fitted && !this.off.has('lights') ? info.lights : 0;
@@ -558,6 +667,7 @@ class Walkthrough {
             u.probe_size.value = fitted && !this.off.has('probe') ? info.probeSize : 0;
             u.eye.value.copy(this.camera.position);
         }
+        if (this.background) this.aimBackground(width, height);
         const hdr = this.target(width, height);
         this.renderer.setRenderTarget(hdr);
         this.renderer.render(this.fit.scene, this.camera);
@@ -567,6 +677,22 @@ class Walkthrough {
         this.renderer.render(this.screen, this.screenCamera);
         // wait for the GPU, so that the frame time is the frame's and the frame is complete
         this.gl.readPixels(0, 0, 1, 1, this.gl.RGBA, this.gl.UNSIGNED_BYTE, new Uint8Array(4));
+    }
+
+    // the background's camera uniforms (display.renderer.Renderer._draw_background): the
+    // camera's right, up and forward (radiosity.formats.camera.Camera.basis: right =
+    // forward x up), tan(fov / 2) times the aspect and 1, the framebuffer's size
+    aimBackground(width, height) {
+        const u = this.background.material.uniforms;
+        this.camera.updateMatrixWorld();
+        const back = new THREE.Vector3();
+        this.camera.matrixWorld.extractBasis(u.cam_right.value, u.cam_up.value, back);
+        u.cam_right.value.normalize();
+        u.cam_up.value.normalize();
+        u.cam_forward.value.copy(back).normalize().negate();
+        const t = Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2);
+        u.cam_extent.value.set(t * width / height, t);
+        u.viewport.value.set(width, height);
     }
 
     frame() {

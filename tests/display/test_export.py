@@ -146,8 +146,9 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 3
-    assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object: the version before textures
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 4
+    assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object, no environment: the version before them
+    assert "environment" not in extras
     assert extras["objects"] == list(model.names)
     assert extras["emitters"] == [] and extras["emitter_table"] == [] and extras["emitter_nodes"] == 8
     assert extras["camera"] == {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
@@ -293,15 +294,15 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2, 3)
+    assert READS == (1, 2, 3, 4)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=4))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2 or 3 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=5))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3 or 4 file"):
         load_export(path)
 
 

@@ -20,7 +20,7 @@ from display_fixtures import lit_model
 from PIL import Image
 from test_export import bits_equal, glb_header, rewrite_json, validate
 
-from display.export import FILE, SAMPLER, UNTEXTURED_VERSION, VERSION, export_glb, load_export, srgb8
+from display.export import FILE, SAMPLER, TEXTURED_VERSION, UNTEXTURED_VERSION, export_glb, load_export, srgb8
 from fitting import FittedModel, load_fit
 from radiosity.formats import InputError
 from radiosity.formats.material import srgb_to_linear
@@ -128,7 +128,7 @@ def test_the_textured_schema_byte_by_byte(exported):
     extras; _IRRADIANCE the irradiance's float32 bits."""
     model, out = exported
     header, binary = chunks(out / FILE)
-    assert header["scenes"][0]["extras"]["version"] == VERSION == 3
+    assert header["scenes"][0]["extras"]["version"] == TEXTURED_VERSION == 3
     assert header["samplers"] == [SAMPLER]
     assert SAMPLER == {"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}
     for mesh in header["meshes"]:
