@@ -264,7 +264,6 @@ def _schlick_albedo_rows(exponent: float, cos_theta: np.ndarray, power: float = 
     """
     n = exponent
     out = np.empty(len(cos_theta))
-    w2 = -np.expm1(_LOG_ONE_MINUS_W2)  # w^2 at the nodes
     one_minus_w2 = np.exp(_LOG_ONE_MINUS_W2)
     for i, c in enumerate(cos_theta):
         c = float(min(max(c, 0.0), 1.0))

@@ -77,7 +77,10 @@ __all__ = [
     "brdf_pdf",
     "brdf_sample",
     "eval_brdf",
+    "deposit_weight",
+    "diffuse_exitance",
     "fresnel_diffuse",
+    "half_cosine",
     "onb",
     "p_specular",
     "pack_materials",
@@ -151,6 +154,27 @@ def fresnel_diffuse(cos_theta):
     x = 1.0 - min(max(cos_theta, 0.0), 1.0)
     x2 = x * x
     return 1.0 - x2 * x2 * x
+
+
+@numba.njit(cache=True, fastmath=False)
+def deposit_weight(mat, cos_in):
+    """What a photon arriving at cos_in to the shading normal adds to the density
+    estimate of a surface of material row ``mat``, per unit power: 1 without Fresnel;
+    with it (21/20) b(cos_in), so the estimate E' = (21/20) int b(cos_i) L cos_i dwi is
+    what the Fresnel diffuse part reflects, L_d(wo) = kd / pi * b(wo.z) * E' (E' = E
+    for uniform light)."""
+    if mat[HAS_FRESNEL] <= 0.0:
+        return 1.0
+    return FRESNEL_NORMALISATION * fresnel_diffuse(cos_in)
+
+
+@numba.njit(cache=True, fastmath=False)
+def diffuse_exitance(mat, cos_out):
+    """The factor of kd / pi * E' (``deposit_weight``) in the diffuse radiance leaving at
+    cos_out: 1 without Fresnel, b(cos_out) with it."""
+    if mat[HAS_FRESNEL] <= 0.0:
+        return 1.0
+    return fresnel_diffuse(cos_out)
 
 
 @numba.njit(cache=True, fastmath=False)
