@@ -23,8 +23,8 @@ ks (F0 S_n(theta) + (1 - F0) Q_n(theta)), S the lobe's albedo without Fresnel
 (``specular_albedo``) and Q the same with the weight (1 - wi.h)^5
 (``schlick_albedo``). Energy: a Fresnel material must satisfy, per channel and at every
 incidence, kd b(cos theta) + ks (F0 S + (1 - F0) Q) <= 1 (``fresnel_kd_limit`` gives the
-largest kd; the check is made on 129 incidences, to 1e-4), and ks <= 1; kd + ks <= 1 is
-not asked of it. Why this form (measured by ``benchmarks/bench_material_mapping.py
+largest kd, ``fresnel_ks_limit`` the largest ks; the check is made on 129 incidences, to
+1e-4); kd + ks <= 1 is not asked of it, and ks may exceed 1 (a fitted lobe's scale). Why this form (measured by ``benchmarks/bench_material_mapping.py
 --parts fresnel``): Schlick's curve is within 0.012 of the exact dielectric's for eta
 1.49 (the mapped plastics) and within 0.05 of Mitsuba's metals', one RGB triple serves
 dielectrics, metals and glTF alike, and Mitsuba's rough plastics' diffuse part has the
@@ -46,6 +46,7 @@ __all__ = [
     "MAX_EXPONENT",
     "Material",
     "fresnel_kd_limit",
+    "fresnel_ks_limit",
     "schlick_albedo",
     "schlick_diffuse",
     "specular_albedo",
@@ -72,7 +73,8 @@ class Material:
     Attributes:
         name: how the scene calls it; used in error messages.
         diffuse: kd, RGB reflectance in [0, 1].
-        specular: ks, RGB reflectance in [0, 1], with kd + ks <= 1 per channel.
+        specular: ks, RGB reflectance in [0, 1], with kd + ks <= 1 per channel (with
+            Fresnel: the interface's scale, >= 0, bounded by the energy check).
         exponent: Phong exponent n, in [0, ``MAX_EXPONENT``].
         emission: emitted radiance, RGB, >= 0 (not bounded by 1).
         fresnel: None (no Fresnel term), or Schlick's F0, RGB in [0, 1]: the specular
@@ -93,7 +95,8 @@ class Material:
     fresnel: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
-        for field, upper in (("diffuse", 1.0), ("specular", 1.0), ("emission", FLOAT32_MAX)):
+        ks_upper = 1.0 if self.fresnel is None else FLOAT32_MAX  # with Fresnel: the energy check bounds it
+        for field, upper in (("diffuse", 1.0), ("specular", ks_upper), ("emission", FLOAT32_MAX)):
             object.__setattr__(self, field, self._rgb(field, upper))
         object.__setattr__(self, "exponent", self._exponent())
         if self.fresnel is not None:
@@ -313,6 +316,7 @@ def schlick_diffuse(cos_theta):
 
 
 _CHECK_COSINES = np.linspace(0.0, 1.0, 129)
+_LIMIT_MARGIN = 5e-4  # the limits stay this far below 1 on the grid: the albedo between its points is <= 1
 
 
 @lru_cache(maxsize=256)
@@ -321,9 +325,18 @@ def _albedo_curves(exponent: float) -> tuple[np.ndarray, np.ndarray]:
     return specular_albedo(exponent, _CHECK_COSINES), schlick_albedo(exponent, _CHECK_COSINES)
 
 
+def fresnel_ks_limit(f0, exponent: float) -> np.ndarray:
+    """The largest ks (3,) per channel whose specular albedo ks (F0 S + (1 - F0) Q) is <= 1
+    at every incidence (kd = 0): 1 - 5e-4 on the check's grid, so that it stays <= 1
+    between the grid's points too (tests sample 1001). float64 (3,)."""
+    s, q = _albedo_curves(float(exponent))
+    f0 = np.asarray(f0, dtype=np.float64)[:, None]
+    return (1.0 - _LIMIT_MARGIN) / np.maximum((f0 * s + (1.0 - f0) * q).max(axis=1), 1e-300)
+
+
 def fresnel_kd_limit(ks, f0, exponent: float) -> np.ndarray:
     """The largest kd (3,) per channel such that kd b(cos theta) + ks (F0 S + (1 - F0) Q)
-    <= 1 at every incidence of a 129-point grid in cos theta (the specular albedo at
+    <= 1 - 5e-4 at every incidence of a 129-point grid in cos theta (the specular albedo at
     grazing must itself be <= 1: a negative limit says it is not). float64 (3,)."""
     s, q = _albedo_curves(float(exponent))
     ks = np.asarray(ks, dtype=np.float64)[:, None]
@@ -331,7 +344,7 @@ def fresnel_kd_limit(ks, f0, exponent: float) -> np.ndarray:
     specular = ks * (f0 * s + (1.0 - f0) * q)  # (3, A)
     b = schlick_diffuse(_CHECK_COSINES)
     with np.errstate(divide="ignore"):
-        room = np.where(b > 0.0, (1.0 - specular) / np.where(b > 0.0, b, 1.0), np.inf)
+        room = np.where(b > 0.0, (1.0 - _LIMIT_MARGIN - specular) / np.where(b > 0.0, b, 1.0), np.inf)
     limit = room.min(axis=1)
     worst = specular.max(axis=1)
     return np.where(worst > 1.0 + _FRESNEL_TOLERANCE, -1.0, np.maximum(limit, 0.0))

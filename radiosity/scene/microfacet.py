@@ -83,7 +83,14 @@ import numpy as np
 from scipy.special import erf
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import MAX_EXPONENT, specular_albedo
+from radiosity.formats.material import (
+    MAX_EXPONENT,
+    fresnel_kd_limit,
+    fresnel_ks_limit,
+    schlick_albedo,
+    schlick_diffuse,
+    specular_albedo,
+)
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -99,6 +106,7 @@ __all__ = [
     "lobe_width",
     "masking",
     "ndf",
+    "normal_reflectance",
     "phong_exponent",
     "phong_lobe_for",
     "reference_brdf",
@@ -574,27 +582,50 @@ def phong_exponent(distribution: str, alpha: float) -> float:
     return float(min(max(c / x + d + e * x, 0.0), MAX_EXPONENT))
 
 
-def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1, *, measure: bool = False, **params):
+def phong_lobe_for(
+    kind: str, distribution: str = "beckmann", alpha: float = 0.1, *, measure: bool = False, fresnel: bool = True,
+    **params,
+):
     """The modified-Phong (kd, ks, n) standing in for a Mitsuba material, by the module's rule.
 
     kind: one of ``KINDS``; distribution, alpha: the microfacet roughness (ignored by
-    the smooth kinds); params: Mitsuba's parameters (see ``reference_brdf``).
-    Returns (kd (3,), ks (3,), exponent, report): report holds the rule, the reference's
-    albedo (specular, diffuse) at incidence 0, 60 and 80 degrees against the Phong
-    lobe's, and with ``measure`` the half-maximum radius of both lobes at 0, 30, 45 and 60
-    degrees (radians; ``lobe_width``).
+    the smooth kinds); params: Mitsuba's parameters (see ``reference_brdf``);
+    fresnel: True (the rule): give the lobe a Fresnel term (Schlick's F0 = the exact
+    reflectance at normal incidence: the dielectric's for plastics, the conductor's per
+    channel), ks and kd fitted with it (``_fresnel_albedos_over_incidence``), ks at most
+    what keeps the specular albedo <= 1 (``fresnel_ks_limit``), kd at most
+    ``fresnel_kd_limit``; "physical": the same with ks <= 1 (Mitsuba's
+    specular_reflectance); False: the constant-ks rule of before. The last two are kept
+    for the benchmark's comparison.
+    Returns (kd (3,), ks (3,), exponent, report): report holds the rule, ``fresnel`` (F0
+    as a list, or None), the reference's albedo (specular, diffuse) at incidence 0, 60
+    and 80 degrees against the Phong lobe's, and with ``measure`` the half-maximum
+    radius of both lobes at 0, 30, 45 and 60 degrees (radians; ``lobe_width``).
     """
     brdf = reference_brdf(kind, distribution, alpha, **params)
     angles = np.radians([0.0, 60.0, 80.0])
     specular, diffuse = brdf.albedo(np.cos(angles))
     smooth = brdf.alpha is None
     exponent = float(MAX_EXPONENT) if smooth else phong_exponent(distribution, alpha)
-    ks, kd = _albedos_over_incidence(brdf, exponent)
-    total = kd + ks
-    scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
-    kd, ks = kd * scale, ks * scale
+    f0 = None
+    if fresnel:
+        f0 = normal_reflectance(brdf)
+        ks, kd = _fresnel_albedos_over_incidence(brdf, exponent, f0)
+        ks = np.minimum(ks, 1.0 if fresnel == "physical" else fresnel_ks_limit(f0, exponent))
+        limit = fresnel_kd_limit(ks, f0, exponent)
+        scale = np.where(kd > limit, limit / np.maximum(kd, 1e-300), 1.0)
+        kd = kd * scale
+        phong_specular = ks * (f0 * specular_albedo(exponent, np.cos(angles))[:, None]
+                               + (1.0 - f0) * schlick_albedo(exponent, np.cos(angles))[:, None])
+        phong_diffuse = schlick_diffuse(np.cos(angles))[:, None] * kd
+    else:
+        ks, kd = _albedos_over_incidence(brdf, exponent)
+        total = kd + ks
+        scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
+        kd, ks = kd * scale, ks * scale
+        phong_specular = specular_albedo(exponent, np.cos(angles))[:, None] * ks
+        phong_diffuse = np.broadcast_to(kd, (3, 3))
 
-    phong_specular = specular_albedo(exponent, np.cos(angles))
     report = {
         "kind": kind,
         "distribution": None if smooth else distribution,
@@ -603,8 +634,9 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
         "incidence_deg": [0.0, 60.0, 80.0],
         "reference_specular_albedo": specular.tolist(),
         "reference_diffuse_albedo": diffuse.tolist(),
-        "phong_specular_albedo": (phong_specular[:, None] * ks).tolist(),
-        "phong_diffuse_albedo": [kd.tolist()] * 3,
+        "fresnel": None if f0 is None else f0.tolist(),
+        "phong_specular_albedo": phong_specular.tolist(),
+        "phong_diffuse_albedo": phong_diffuse.tolist(),
         "energy_scaled": bool(np.any(scale < 1.0)),
     }
     if measure and not smooth:
@@ -616,7 +648,8 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
 
 
 def phong_lobe(kind: str, distribution: str = "beckmann", alpha: float = 0.1, **params):
-    """(kd, ks, n) of ``phong_lobe_for``, as tuples, remembered per distinct material:
+    """(kd, ks, n, fresnel) of ``phong_lobe_for``, as tuples (fresnel: F0, or None),
+    remembered per distinct material:
     a scene's many shapes of one material pay for its quadratures once (a few tenths
     of a second each)."""
 
@@ -628,8 +661,9 @@ def phong_lobe(kind: str, distribution: str = "beckmann", alpha: float = 0.1, **
 
 @lru_cache(maxsize=1024)
 def _lobe(kind, distribution, alpha, params):
-    kd, ks, exponent, _ = phong_lobe_for(kind, distribution, alpha, **dict(params))
-    return tuple(map(float, kd)), tuple(map(float, ks)), exponent
+    kd, ks, exponent, report = phong_lobe_for(kind, distribution, alpha, **dict(params))
+    f0 = report["fresnel"]
+    return tuple(map(float, kd)), tuple(map(float, ks)), exponent, None if f0 is None else tuple(map(float, f0))
 
 
 ALBEDO_NODES = 48  # incidence angles of the albedo fit (Gauss-Legendre in theta)
@@ -649,6 +683,30 @@ def _albedos_over_incidence(brdf, exponent):
     phong = specular_albedo(exponent, np.cos(theta))  # (N,), ks = 1
     ks = (weight * phong) @ specular / float(weight @ phong**2)
     kd = weight @ diffuse / float(weight.sum())
+    return ks, kd
+
+
+def normal_reflectance(brdf) -> np.ndarray:
+    """Schlick's F0 (3,) for a reference: its interface's exact reflectance at normal
+    incidence (without ``specular_reflectance``, which the fitted ks carries)."""
+    if isinstance(brdf, RoughPlastic):
+        return np.full(3, float(fresnel_dielectric(1.0, brdf.eta)))
+    return np.asarray(fresnel_conductor(1.0, brdf.eta, brdf.k), dtype=np.float64).reshape(3)
+
+
+def _fresnel_albedos_over_incidence(brdf, exponent, f0):
+    """(ks, kd) of the Fresnel lobe by the same weighted least squares as
+    ``_albedos_over_incidence``: ks (F0 S + (1 - F0) Q) against the reference's specular
+    albedo per channel, kd b(cos theta) against its diffuse albedo."""
+    x, w = np.polynomial.legendre.leggauss(ALBEDO_NODES)
+    theta = (x + 1.0) * np.pi / 4.0
+    weight = w * np.sin(2.0 * theta)
+    cos = np.cos(theta)
+    specular, diffuse = brdf.albedo(cos)  # (N, 3) each
+    shape = f0[None, :] * specular_albedo(exponent, cos)[:, None] + (1.0 - f0[None, :]) * schlick_albedo(exponent, cos)[:, None]
+    ks = (weight[:, None] * shape * specular).sum(axis=0) / np.maximum((weight[:, None] * shape**2).sum(axis=0), 1e-300)
+    b = schlick_diffuse(cos)
+    kd = (weight * b) @ diffuse / float(weight @ b**2)
     return ks, kd
 
 
