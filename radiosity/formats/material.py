@@ -316,7 +316,8 @@ def schlick_diffuse(cos_theta):
 
 
 _CHECK_COSINES = np.linspace(0.0, 1.0, 129)
-_LIMIT_MARGIN = 5e-4  # the limits stay this far below 1 on the grid: the albedo between its points is <= 1
+_LIMIT_MARGIN = 1e-3  # the limits take Q this much larger: its peak may fall between the grid's points
+# (S peaks at normal incidence, on the grid)
 
 
 @lru_cache(maxsize=256)
@@ -327,24 +328,25 @@ def _albedo_curves(exponent: float) -> tuple[np.ndarray, np.ndarray]:
 
 def fresnel_ks_limit(f0, exponent: float) -> np.ndarray:
     """The largest ks (3,) per channel whose specular albedo ks (F0 S + (1 - F0) Q) is <= 1
-    at every incidence (kd = 0): 1 - 5e-4 on the check's grid, so that it stays <= 1
-    between the grid's points too (tests sample 1001). float64 (3,)."""
+    at every incidence (kd = 0), Q taken 1e-3 larger on the check's grid so that it
+    stays <= 1 between the grid's points too (tests sample 1001). float64 (3,)."""
     s, q = _albedo_curves(float(exponent))
     f0 = np.asarray(f0, dtype=np.float64)[:, None]
-    return (1.0 - _LIMIT_MARGIN) / np.maximum((f0 * s + (1.0 - f0) * q).max(axis=1), 1e-300)
+    return 1.0 / np.maximum((f0 * s + (1.0 - f0) * q * (1.0 + _LIMIT_MARGIN)).max(axis=1), 1e-300)
 
 
 def fresnel_kd_limit(ks, f0, exponent: float) -> np.ndarray:
     """The largest kd (3,) per channel such that kd b(cos theta) + ks (F0 S + (1 - F0) Q)
-    <= 1 - 5e-4 at every incidence of a 129-point grid in cos theta (the specular albedo at
+    <= 1 at every incidence of a 129-point grid in cos theta, Q taken 1e-3 larger as in
+    ``fresnel_ks_limit`` (the specular albedo at
     grazing must itself be <= 1: a negative limit says it is not). float64 (3,)."""
     s, q = _albedo_curves(float(exponent))
     ks = np.asarray(ks, dtype=np.float64)[:, None]
     f0 = np.asarray(f0, dtype=np.float64)[:, None]
-    specular = ks * (f0 * s + (1.0 - f0) * q)  # (3, A)
+    specular = ks * (f0 * s + (1.0 - f0) * q * (1.0 + _LIMIT_MARGIN))  # (3, A)
     b = schlick_diffuse(_CHECK_COSINES)
     with np.errstate(divide="ignore"):
-        room = np.where(b > 0.0, (1.0 - _LIMIT_MARGIN - specular) / np.where(b > 0.0, b, 1.0), np.inf)
+        room = np.where(b > 0.0, (1.0 - specular) / np.where(b > 0.0, b, 1.0), np.inf)
     limit = room.min(axis=1)
     worst = specular.max(axis=1)
     return np.where(worst > 1.0 + _FRESNEL_TOLERANCE, -1.0, np.maximum(limit, 0.0))
