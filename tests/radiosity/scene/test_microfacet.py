@@ -259,7 +259,7 @@ def test_mapping_with_fresnel():
     # the specular albedo: the Fresnel lobe fits the reference better than the constant ks
     assert misfit(ks[0], shape, ref_spec) < 0.5 * misfit(ks_old[0], specular_albedo(n, cos), ref_spec)
     spec = np.asarray(report["phong_specular_albedo"])[:, 0]  # at 0, 60, 80 degrees
-    assert spec[2] > 1.5 * spec[0]  # rises towards grazing (a constant ks falls)
+    assert spec[2] > 1.3 * spec[0]  # rises towards grazing (a constant ks falls to a fifth)
     m = Material("m", diffuse=tuple(kd), specular=tuple(ks), exponent=n, fresnel=tuple(f0))  # accepted
     assert m.fresnel is not None
     mirror = mf.phong_lobe_for("conductor")
