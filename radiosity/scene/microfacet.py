@@ -54,21 +54,36 @@ modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
   to 2.4 (Beckmann) times the rule at small alpha: too sharp except at grazing
   incidence; the glTF loader's (2/alpha^2 - 2)/4 is 2.7 (GGX) and 1.6 (Beckmann) times
   too broad (glTF's roughness is GGX's).
-- ks: the Phong lobe's directional albedo ks S_n(theta) closest in least squares to the
-  microfacet term's (times specular_reflectance) over incidence, weighted by sin 2 theta
-  as the exponent is (``_albedos_over_incidence``); kd likewise the diffuse term's
-  (plastic; 0 for conductors); both scaled down if kd + ks would exceed 1. Matching at
+- Fresnel (the rule since issue 24's second deliverable): the lobe gets Schlick's term
+  (``radiosity.formats.material``) with F0 the exact reflectance at normal incidence
+  (``normal_reflectance``: the dielectric's for plastics, the conductor's per channel
+  for metals); ks, the lobe's scale, is the least-squares fit of its specular albedo ks
+  (F0 S_n + (1 - F0) Q_n)(theta) to the microfacet term's (times specular_reflectance)
+  over incidence, weighted by sin 2 theta as the exponent is, at most what keeps that
+  albedo <= 1 (``fresnel_ks_limit``); kd is the fit of kd b(theta) to the diffuse
+  term's albedo (plastic; 0 for conductors), at most ``fresnel_kd_limit``. ks comes out
+  above 1 (2.4 to 2.8 for the plastics, 1.0 to 1.4 for the metals): the Phong lobe's
+  albedo falls as about cos theta where the microfacet lobe's does not, and the fit
+  makes up part of it.
+- Before that (``fresnel=False``, kept for comparison): ks the fit of a constant ks
+  S_n(theta), kd of a constant, both scaled down if kd + ks would exceed 1. Matching at
   normal incidence only (the first rule) left oblique highlights dim: against Mitsuba 3
   the Veach scene's mean went from 0.874 to 0.912 of Mitsuba's, validate_box's from
-  0.987 to 0.991 (benchmarks/validate_mitsuba.py, converged images).
+  0.987 to 0.991 (benchmarks/validate_mitsuba.py, converged images). With Fresnel the
+  plates scene (a rough plastic floor at grazing) went from 0.834 to VALIDATE_PLATES of
+  Mitsuba's mean, validate_box stayed at VALIDATE_BOX.
 - smooth ``plastic`` and ``conductor``: n = MAX_EXPONENT (the nearest to a mirror the
-  material model holds), ks fitted as above (a Fresnel curve over S_n).
+  material model holds), ks fitted as above.
 
-What the rule cannot hold (measured in the report and by the benchmark): Phong's ks is
-constant, so the dielectric's Fresnel rise towards grazing (0.04 at normal, 0.39 at
-80 degrees for eta 1.49, 1 at 90) is lost, as is the microfacet lobe's off-specular
-peak and its anisotropy at oblique incidence; GGX's long tail carries energy the
-Phong lobe puts nearer the peak.
+What the rule cannot hold (measured by ``bench_material_mapping.py --parts fresnel``):
+the Phong lobe's albedo falls towards grazing as about cos theta, so even with Fresnel
+a plastic's specular albedo at 80 degrees is 0.12-0.20 where the microfacet one is
+0.2-0.39 (without Fresnel it was 0.013: 15 to 30 times too little), and a metal's 0.18-0.22
+where the microfacet one is 0.6-0.83 (the metals gain little: their F is nearly flat);
+the microfacet lobe's off-specular peak and its anisotropy at oblique incidence; GGX's
+long tail, which carries energy the Phong lobe puts nearer the peak (a smooth aluminium
+plate reflecting what lies far from its mirror direction); Schlick's curve misses
+aluminium's dip before grazing (0.13).
 """
 
 from __future__ import annotations
