@@ -342,7 +342,7 @@ class Solution:
         m = o.material
         return emitter_grid(
             self.emitters, o.positions, o.normals, o.tangents, o.directions, m["specular"], m["exponent"],
-            visibility=o.visibility, nodes=self.emitter_nodes, source=name,
+            visibility=o.visibility, nodes=self.emitter_nodes, source=name, fresnel=m.get("fresnel"),
         )
 
     def save(self, path: str | os.PathLike) -> None:
