@@ -201,8 +201,9 @@ def _fwhm_deg(values, coords_deg):
 def sphere_case(kind, dist, alpha, angle_deg, pixels, nodes):
     params = {"material": "Cu"} if kind == "roughconductor" else {}
     brdf = mf.reference_brdf(kind, dist, alpha, **params)
-    kd, ks, n, _ = mf.phong_lobe_for(kind, dist, alpha, **params)
-    phong = Material(name=f"{kind}-{dist}-{alpha}", diffuse=(0, 0, 0), specular=tuple(ks), exponent=n)
+    kd, ks, n, report = mf.phong_lobe_for(kind, dist, alpha, **params)
+    phong = Material(name=f"{kind}-{dist}-{alpha}", diffuse=(0, 0, 0), specular=tuple(ks), exponent=n,
+                     fresnel=None if report["fresnel"] is None else tuple(report["fresnel"]))
 
     def reference(wi, wo):
         return mf._specular(dist, alpha, wi, wo, brdf.fresnel)
@@ -222,7 +223,7 @@ def sphere_case(kind, dist, alpha, angle_deg, pixels, nodes):
     x_deg = np.degrees(np.arcsin(np.clip(xs, -1, 1))) - math.degrees(half)
     y_deg = np.degrees(np.arcsin(np.clip(ys, -1, 1)))
     row = {"kind": kind, "distribution": dist, "alpha": alpha, "light_deg": angle_deg,
-           "incidence_deg": angle_deg / 2.0, "exponent": n, "ks": list(map(float, ks))}
+           "incidence_deg": angle_deg / 2.0, "exponent": n, "ks": list(map(float, ks)), "f0": report["fresnel"]}
     profiles = {}
     for name, image in images.items():
         i, j = np.unravel_index(np.argmax(image), image.shape)
