@@ -63,9 +63,10 @@ def trace_photons(rt, sa, batch, acc):
     it, a cosine-distributed direction about its front, carrying pi Le / (total *
     area pdf), so a pass's power sums to the emitters' power in expectation. At a
     front-face hit its incident power (times ``materials.deposit_weight``: 1 without
-    Fresnel) is added to the density moments of the triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power
-    * lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric
-    weight, the hat function of vertex j). It then scatters by BRDF sampling with
+    Fresnel) is added to the density moments of the triangle's three vertices:
+    moment0[j] += power * lambda_j and moment1[j] += power * lambda_j * (x - p_j) in
+    vertex j's tangent frame (lambda_j the barycentric weight, the hat function of
+    vertex j). It then scatters by BRDF sampling with
     Russian roulette that keeps its power about constant. Backs absorb.
 
     ``acc.tally`` gains escaped power, the expected absorbed power (incident * (1 -
