@@ -336,7 +336,7 @@ def _albedo_curves(exponent: float) -> tuple[np.ndarray, np.ndarray]:
 def fresnel_ks_limit(f0, exponent: float) -> np.ndarray:
     """The largest ks (3,) per channel whose specular albedo ks (F0 S + (1 - F0) Q) is <= 1
     at every incidence (kd = 0), Q taken 1e-3 larger on the check's grid so that it
-    stays <= 1 between the grid's points too (tests sample 1001). float64 (3,)."""
+    stays <= 1 between the grid's points too (tests sample 401). float64 (3,)."""
     s, q = _albedo_curves(float(exponent))
     f0 = np.asarray(f0, dtype=np.float64)[:, None]
     return 1.0 / np.maximum((f0 * s + (1.0 - f0) * q * (1.0 + _LIMIT_MARGIN)).max(axis=1), 1e-300)

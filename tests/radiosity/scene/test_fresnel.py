@@ -121,7 +121,7 @@ def test_albedo_is_at_most_one_at_the_energy_limits(exponent, f0):
     """ks at its limit (the specular albedo reaching 1 somewhere), and ks = 1 with kd at
     its limit: the albedo stays <= 1 at every incidence, finely sampled between the
     check's grid points."""
-    cos = np.linspace(0.0, 1.0, 1001)
+    cos = np.linspace(0.0, 1.0, 401)  # three points in each interval of the check's 129-point grid
     ks_max = float(fresnel_ks_limit([f0] * 3, exponent)[0])
     full = fresnel_material(exponent, diffuse=(0.0,) * 3, specular=(ks_max,) * 3, fresnel=(f0,) * 3)
     rho = albedo(full, cos)
