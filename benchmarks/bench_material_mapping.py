@@ -29,7 +29,13 @@ the sphere's profiles, and material_mapping_rule.png, the rule and Fresnel):
   fresnel  the dielectric's reflectance (int_ior 1.49, ext_ior 1.000277) at incidence
            0..89 degrees, exact and Schlick's; a rough plastic floor's specular albedo
            (alpha 0.05, 0.2) against its mapped Phong lobe's (constant ks) at the same
-           angles, and the ratio a constant ks would have to absorb.
+           angles, and the ratio a constant ks would have to absorb. Rows
+           "fresnel_form": Schlick's largest error against the exact curve, for the
+           dielectric and each of Mitsuba's named metals (the choice of form). Rows
+           "fresnel_rule": per material, the mapped lobe's albedo over incidence
+           against the reference's for three rules (constant ks; Fresnel with ks <= 1;
+           Fresnel with ks fitted up to the energy bound, the rule): sin 2 theta
+           weighted relative RMS misfits of the specular, diffuse and total albedo.
 
 Equivalence check: the rule's exponent (RULE) is compared with the fit just measured
 (the same to 2 % or the script says so), and the sphere's reference is the same BRDF
@@ -195,8 +201,9 @@ def _fwhm_deg(values, coords_deg):
 def sphere_case(kind, dist, alpha, angle_deg, pixels, nodes):
     params = {"material": "Cu"} if kind == "roughconductor" else {}
     brdf = mf.reference_brdf(kind, dist, alpha, **params)
-    kd, ks, n, _ = mf.phong_lobe_for(kind, dist, alpha, **params)
-    phong = Material(name=f"{kind}-{dist}-{alpha}", diffuse=(0, 0, 0), specular=tuple(ks), exponent=n)
+    kd, ks, n, report = mf.phong_lobe_for(kind, dist, alpha, **params)
+    phong = Material(name=f"{kind}-{dist}-{alpha}", diffuse=(0, 0, 0), specular=tuple(ks), exponent=n,
+                     fresnel=None if report["fresnel"] is None else tuple(report["fresnel"]))
 
     def reference(wi, wo):
         return mf._specular(dist, alpha, wi, wo, brdf.fresnel)
@@ -216,7 +223,7 @@ def sphere_case(kind, dist, alpha, angle_deg, pixels, nodes):
     x_deg = np.degrees(np.arcsin(np.clip(xs, -1, 1))) - math.degrees(half)
     y_deg = np.degrees(np.arcsin(np.clip(ys, -1, 1)))
     row = {"kind": kind, "distribution": dist, "alpha": alpha, "light_deg": angle_deg,
-           "incidence_deg": angle_deg / 2.0, "exponent": n, "ks": list(map(float, ks))}
+           "incidence_deg": angle_deg / 2.0, "exponent": n, "ks": list(map(float, ks)), "f0": report["fresnel"]}
     profiles = {}
     for name, image in images.items():
         i, j = np.unravel_index(np.argmax(image), image.shape)
@@ -283,7 +290,81 @@ def part_fresnel(record):
                     "reference_over_phong": (specular[:, 0] / np.maximum(phong, 1e-12)).tolist(),
                     "reference_diffuse_albedo": diffuse[:, 0].tolist(), "phong_diffuse_albedo": float(kd[0])})
             rows[f"{dist} {alpha}"] = (specular[:, 0], phong)
+    part_fresnel_form(record)
+    part_fresnel_rule(record)
     return rows
+
+
+def part_fresnel_form(record):
+    """Schlick's curve (F0 = the exact reflectance at normal incidence) against the exact
+    Fresnel reflectance: the dielectric of the plastics and Mitsuba's named metals."""
+    cos = np.cos(np.radians(np.linspace(0.0, 90.0, 181)))
+    eta = mf.POLYPROPYLENE / mf.AIR
+    exact = mf.fresnel_dielectric(cos, eta)
+    error = np.abs(mf.fresnel_schlick(cos, float(exact[0])) - exact)
+    record({"part": "fresnel_form", "material": f"dielectric eta {eta:.4g}", "f0": [float(exact[0])] * 3,
+            "max_abs_error": [float(error.max())] * 3, "at_deg": float(np.degrees(np.arccos(cos[error.argmax()])))})
+    for name, (eta_m, k_m) in sorted(mf.METALS.items()):
+        if not (np.all(np.isfinite(eta_m)) and np.all(np.isfinite(k_m))):
+            continue  # a preset without data in some channel
+        exact = mf.fresnel_conductor(cos[:, None], np.asarray(eta_m), np.asarray(k_m))  # (A, 3)
+        error = np.abs(mf.fresnel_schlick(cos[:, None], exact[0]) - exact)
+        record({"part": "fresnel_form", "material": name, "f0": exact[0].tolist(),
+                "max_abs_error": error.max(axis=0).tolist(),
+                "at_deg": np.degrees(np.arccos(cos[error.argmax(axis=0)])).tolist()})
+
+
+FRESNEL_CASES = (
+    ("roughplastic", "ggx", 0.05, {}),
+    ("roughplastic", "ggx", 0.15, {"diffuse_reflectance": (0.35, 0.3, 0.25)}),  # the plates' floor
+    ("roughplastic", "beckmann", 0.1, {}),
+    ("roughplastic", "ggx", 0.3, {}),
+    ("plastic", "beckmann", 0.1, {"diffuse_reflectance": 0.8}),
+    ("roughconductor", "beckmann", 0.3, {"material": "Cu"}),
+    ("roughconductor", "beckmann", 0.1, {"material": "Au"}),
+    ("roughconductor", "ggx", 0.05, {"material": "Al"}),
+)
+
+
+def part_fresnel_rule(record):
+    """Per material: the mapped lobe's albedo over incidence against the reference's, for
+    the constant-ks rule (fresnel=False), Fresnel with ks <= 1 ("physical") and Fresnel
+    with ks fitted up to the energy bound (the rule): the sin 2 theta weighted relative
+    RMS misfit of the specular albedo, of the diffuse albedo and of the total, and the
+    specular albedo at 0, 60 and 80 degrees."""
+    from radiosity.formats.material import schlick_albedo, schlick_diffuse, specular_albedo
+
+    x, w = np.polynomial.legendre.leggauss(48)
+    theta = (x + 1.0) * np.pi / 4.0
+    weight = w * np.sin(2.0 * theta)
+    cos = np.cos(theta)
+
+    def misfit(curve, reference):
+        return float(np.mean(np.sqrt((weight[:, None] * (curve - reference) ** 2).sum(0)
+                                     / np.maximum((weight[:, None] * reference**2).sum(0), 1e-300))))
+
+    for kind, dist, alpha, params in FRESNEL_CASES:
+        brdf = mf.reference_brdf(kind, dist, alpha, **params)
+        ref_spec, ref_diff = brdf.albedo(cos)
+        for rule in (False, "physical", True):
+            kd, ks, n, report = mf.phong_lobe_for(kind, dist, alpha, fresnel=rule, **params)
+            if report["fresnel"] is None:
+                spec = specular_albedo(n, cos)[:, None] * ks
+                diff = np.broadcast_to(kd, spec.shape)
+            else:
+                f0 = np.asarray(report["fresnel"])
+                spec = ks * (f0 * specular_albedo(n, cos)[:, None] + (1 - f0) * schlick_albedo(n, cos)[:, None])
+                diff = schlick_diffuse(cos)[:, None] * kd
+            record({"part": "fresnel_rule", "kind": kind, "distribution": dist, "alpha": alpha,
+                    "params": {k: v if np.isscalar(v) else list(v) for k, v in params.items()},
+                    "rule": {False: "constant ks", "physical": "fresnel, ks <= 1", True: "fresnel, ks fitted"}[rule],
+                    "kd": kd.tolist(), "ks": ks.tolist(), "f0": report["fresnel"], "exponent": n,
+                    "misfit_specular": misfit(spec, ref_spec),
+                    "misfit_diffuse": misfit(diff, ref_diff) if np.any(ref_diff > 0) else None,
+                    "misfit_total": misfit(spec + diff, ref_spec + ref_diff),
+                    "incidence_deg": [0.0, 60.0, 80.0],
+                    "reference_specular": np.asarray(report["reference_specular_albedo"])[:, 1].tolist(),
+                    "phong_specular": np.asarray(report["phong_specular_albedo"])[:, 1].tolist()})
 
 
 # --- plots -----------------------------------------------------------------------------------

@@ -176,6 +176,8 @@ def mesh_extras(obj):
     }
     if obj.highlight is not None:
         extras["highlight"] = {"ks": _doubles(obj.highlight.ks), "exponent": float(obj.highlight.exponent)}
+        if obj.highlight.fresnel is not None:
+            extras["highlight"]["fresnel"] = _doubles(obj.highlight.fresnel)
     if obj.probe is not None:
         p = obj.probe
         extras["probe"] = {
@@ -434,12 +436,13 @@ def _read_highlight(info, attributes, v, parts, nodes, fail):
     try:
         ks = np.asarray(entry["ks"], np.float64).reshape(3)
         exponent = float(entry["exponent"])
+        fresnel = None if entry.get("fresnel") is None else np.asarray(entry["fresnel"], np.float64).reshape(3)
     except (KeyError, TypeError, ValueError):
-        raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent'") from None
+        raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent' (and 'fresnel' [r, g, b] if given)") from None
     p = len(parts)
     columns = [_attribute(attributes, key, v, fail) for key in visibility_attributes(np.zeros((0, p)))]
     visibility = np.concatenate(columns, axis=1)[:, :p] if columns else np.zeros((v, 0), np.float32)
-    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32))
+    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel)
 
 
 def _read_probe(info, attributes, v, fail):

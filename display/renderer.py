@@ -266,13 +266,14 @@ class Renderer:
         self._scratch = None
         self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
-    def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks):
+    def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks, *, fresnel=None):
         """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) appended to
-        the visibility texture's ``chunks``."""
+        the visibility texture's ``chunks``; ``fresnel`` the material's Schlick F0 or None."""
         base = sum(len(c) for c in chunks)
         chunks.append(np.asarray(visibility, np.float32).reshape(-1))
         own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
-        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent))
+        f0 = (-1.0, -1.0, -1.0) if fresnel is None else tuple(float(v) for v in fresnel)  # < 0: no Fresnel
+        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0)
 
     def _emitter_table(self, mode, parts):
         table = emitter_table(parts)
@@ -291,7 +292,7 @@ class Renderer:
                 obj.add_textured(ctx, f.textured)
             if f.highlight is not None:
                 h = f.highlight
-                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility)
+                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility, fresnel=h.fresnel)
             obj.glossy = obj.glossy or bool(f.n_lights or f.probe is not None or f.highlight is not None)
             weight = np.zeros((obj.n_vertices, 3), np.float32)
             if f.probe is not None:
@@ -360,7 +361,7 @@ class Renderer:
                 radiance = s.radiance - solution.highlights(s.name)
                 m = s.material
                 self._highlight("reference", obj, solution.emitters, s.visibility, m["specular"], m["exponent"],
-                                visibility)
+                                visibility, fresnel=m.get("fresnel"))
             values = np.asarray(radiance, np.float32).reshape(-1, 3)
             chunks.append(values)
             base += len(values)
@@ -437,6 +438,7 @@ class Renderer:
             self._set(program, "own_parts", h[2])
             self._set(program, "emitter_ks", h[3])
             self._set(program, "emitter_exponent", h[4])
+            self._set(program, "emitter_f0", h[5])
 
     def _bind_probe(self, program, obj, on):
         p = obj.probe if on else None

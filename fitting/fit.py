@@ -251,7 +251,8 @@ def _fit_components(obj, options, scene, progress, solution, box):
     if c.emitters and parts:
         m = obj.material
         highlight = Highlight(tuple(solution.emitters), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
-                              float(m["exponent"]), np.asarray(obj.visibility, np.float32))
+                              float(m["exponent"]), np.asarray(obj.visibility, np.float32),
+                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64))
     per_light = c.n_lights and c.specular.ndim == 3
     info = {
         "model": c.model,

@@ -119,13 +119,14 @@ class Highlight:
 
     parts: the scene's ``EmitterPart`` s; nodes: N of the quadrature; ks (3,) and exponent:
     the surface's modified-Phong specular part; visibility (V, P) float32: how much of
-    each part each vertex sees."""
+    each part each vertex sees; fresnel: None, or the material's Schlick F0 (3,)."""
 
     parts: tuple
     nodes: int
     ks: np.ndarray
     exponent: float
     visibility: np.ndarray
+    fresnel: np.ndarray | None = None  # Schlick's F0 (3,) of a Fresnel material: ks weighted by F(w.n)
 
     def radiance(self, positions, normals, views, source):
         """E (..., 3) float64 at points (..., 3) with unit normals, unit views, the
@@ -138,7 +139,7 @@ class Highlight:
         out = emitter_radiance(
             self.parts, np.broadcast_to(positions, shape).reshape(-1, 3), np.broadcast_to(normals, shape).reshape(-1, 3),
             np.broadcast_to(views, shape).reshape(-1, 3), self.ks, self.exponent,
-            visibility=vis.reshape(-1, len(self.parts)), nodes=self.nodes, source=source,
+            visibility=vis.reshape(-1, len(self.parts)), nodes=self.nodes, source=source, fresnel=self.fresnel,
         )
         return out.reshape(shape)
 
@@ -249,7 +250,7 @@ class FittedObject:
             )
         if self.highlight is not None and "emitters" in parts:
             h = self.highlight
-            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index])
+            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index], h.fresnel)
             out = out + vis.radiance(positions, normals, w, self.name)
         if self.textured is not None:
             out = out + self.textured.radiance(index)[extra]
@@ -276,6 +277,8 @@ class FittedObject:
         out = {"lights": self.n_lights, **self.info}
         if self.highlight is not None:
             out["highlight"] = {"specular": [float(v) for v in self.highlight.ks], "exponent": float(self.highlight.exponent)}
+            if self.highlight.fresnel is not None:
+                out["highlight"]["fresnel"] = [float(v) for v in self.highlight.fresnel]
         if self.probe is not None:
             out["probe"] = self.probe.to_meta()
         if self.textured is not None:
@@ -474,12 +477,17 @@ def _read_highlight(archive, name, info, n_v, emitters, nodes):
     exponent = _finite_numbers(entry.get("exponent"), 1)
     if ks is None or (ks < 0).any() or exponent is None or exponent[0] < 0:
         raise fail(f"meta 'objects': object {name!r}'s 'highlight' needs 'specular' [r, g, b] >= 0 and 'exponent' >= 0")
+    fresnel = None
+    if "fresnel" in entry:
+        fresnel = _finite_numbers(entry["fresnel"], 3)
+        if fresnel is None or (fresnel < 0).any() or (fresnel > 1).any():
+            raise fail(f"meta 'objects': object {name!r}'s 'highlight' 'fresnel' must be [r, g, b] in [0, 1]")
     if key not in archive.keys:
         raise fail(f"object {name!r} has a 'highlight' but no '{key}' array")
     vis = archive.array(key, "fiu", (n_v, len(emitters)))
     if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
         raise fail(f"'{key}' has values outside [0, 1]")
-    return Highlight(emitters, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32))
+    return Highlight(emitters, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel)
 
 
 def _read_probe(archive, name, info, n_v):

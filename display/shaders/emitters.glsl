@@ -13,6 +13,7 @@
 //   own_parts         bit i set: part i belongs to the object (it does not see itself)
 //   emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
 //   emitter_exponent  its modified-Phong exponent
+//   emitter_f0        its Schlick F0 (a Fresnel material: ks weighted by F(n.w)); < 0: no Fresnel
 //   visibility        RGB32F texture VL_TEXTURE_WIDTH wide, the value in red: vertex v's
 //                     fraction of part i at texel visibility_base + v * n_parts + i
 //   visibility_base
@@ -24,6 +25,7 @@ uniform int n_parts;
 uniform int own_parts;
 uniform vec3 emitter_ks;
 uniform float emitter_exponent;
+uniform vec3 emitter_f0;
 uniform sampler2D visibility;
 uniform int visibility_base;
 const int VISIBILITY_WIDTH = VL_TEXTURE_WIDTH;
@@ -198,6 +200,11 @@ vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
     r /= rl;
     float p = emitter_exponent;
     float norm = (p + 2.0) / TWO_PI;
+    vec3 ks = emitter_ks;
+    if (emitter_f0.x >= 0.0) {   // Fresnel: Schlick's F at the highlight's direction (wi.h = n.w at r)
+        float x5 = pow(1.0 - clamp(dot(n, w), 0.0, 1.0), 5.0);
+        ks *= emitter_f0 + (1.0 - emitter_f0) * x5;
+    }
     for (int i = 0; i < n_parts; ++i) {
         if (((own_parts >> i) & 1) == 1) continue;
         float v = weights.x * visibility_at(vertices.x, i);
@@ -209,7 +216,7 @@ vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
         if (emitter_culled(bound, x, r, p)) continue;
         float j = head.x < 0.5 ? sphere_integral(emitter_point(i, 0), head.z, x, n, r, p)
                                : polygon_integral(i, int(head.y + 0.5), x, n, r, p);
-        colour += (j * norm * v) * emitter_ks * texelFetch(emitter_table, ivec2(1, i), 0).rgb;
+        colour += (j * norm * v) * ks * texelFetch(emitter_table, ivec2(1, i), 0).rgb;
     }
     return colour;
 }

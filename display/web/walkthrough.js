@@ -360,6 +360,7 @@ function makeObject(node, info, fit) {
             own_parts: { value: own },
             emitter_ks: { value: new THREE.Vector3(...h.ks) },
             emitter_exponent: { value: h.exponent },
+            emitter_f0: { value: new THREE.Vector3(...(h.fresnel || [-1, -1, -1])) },
             visibility: { value: parts ? visibilityTexture(source.attributes, v, parts, where) : EMPTY },
             visibility_base: { value: 0 }, // one visibility texture per object
             // the reflection probe

@@ -480,12 +480,18 @@ def _culled(bound_centre, bound_radius, x, r, exponent):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _point_radiance(pk, visibility, own, where, ks, exponent, rule):
+def _point_radiance(pk, visibility, own, where, material, rule):
     """E (3-tuple) at where = (point x, unit normal n, unit view w), with visibility[i]
-    of part i; pk : ``PackedParts.arrays()``."""
+    of part i; pk : ``PackedParts.arrays()``; material = (ks, exponent, f0, fresnel):
+    with ``fresnel`` ks is weighted by Schlick's F(w.n) (``emitter_radiance``)."""
     kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
+    ks, exponent, f0, fresnel = material
     x, n, w = where
     wn = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
+    k0, k1, k2 = ks[0], ks[1], ks[2]
+    if fresnel:
+        x5 = (1.0 - min(max(wn, 0.0), 1.0)) ** 5
+        k0, k1, k2 = k0 * (f0[0] + (1.0 - f0[0]) * x5), k1 * (f0[1] + (1.0 - f0[1]) * x5), k2 * (f0[2] + (1.0 - f0[2]) * x5)
     rx, ry, rz = 2.0 * wn * n[0] - w[0], 2.0 * wn * n[1] - w[1], 2.0 * wn * n[2] - w[2]
     rl = math.sqrt(rx * rx + ry * ry + rz * rz)
     e0 = e1 = e2 = 0.0
@@ -498,9 +504,9 @@ def _point_radiance(pk, visibility, own, where, ks, exponent, rule):
         if own[i] or not v > 0.0 or _culled(bound_centre[i], bound_radius[i], x, r, exponent):
             continue
         j = highlight_integral(kinds[i], counts[i], points[i], radius[i], (x, n, r), exponent, rule) * norm * v
-        e0 += j * ks[0] * radiance[i, 0]
-        e1 += j * ks[1] * radiance[i, 1]
-        e2 += j * ks[2] * radiance[i, 2]
+        e0 += j * k0 * radiance[i, 0]
+        e1 += j * k1 * radiance[i, 1]
+        e2 += j * k2 * radiance[i, 2]
     return e0, e1, e2
 
 
@@ -510,14 +516,13 @@ ROWS = 256  # queries of one task of ``_radiance_many``
 @numba.njit(cache=True, nogil=True)
 def _radiance_rows(pk, visibility, own, queries, material, rule, out, rows):
     """out[q] = E at queries q = rows[0] .. rows[1] - 1 (``emitter_radiance``): queries
-    = (positions, normals, views), material = (ks, exponent)."""
+    = (positions, normals, views), material = (ks, exponent, f0, fresnel)."""
     positions, normals, views = queries
-    ks, exponent = material
     for q in range(rows[0], rows[1]):
         x = (positions[q, 0], positions[q, 1], positions[q, 2])
         n = (normals[q, 0], normals[q, 1], normals[q, 2])
         w = (views[q, 0], views[q, 1], views[q, 2])
-        out[q, 0], out[q, 1], out[q, 2] = _point_radiance(pk, visibility[q], own, (x, n, w), ks, exponent, rule)
+        out[q, 0], out[q, 1], out[q, 2] = _point_radiance(pk, visibility[q], own, (x, n, w), material, rule)
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
@@ -533,21 +538,20 @@ def _vertex_grid(pk, visibility, own, frame, directions, material, rule, out):
     """out[d] = E at one vertex, frame = (position, unit normal, unit tangent) as
     3-tuples, seen from each local direction d (x tangent, y bitangent, z normal)."""
     x, (nx, ny, nz), (tx, ty, tz) = frame
-    ks, exponent = material
     bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
     for d in range(directions.shape[0]):
         a, b, c = directions[d, 0], directions[d, 1], directions[d, 2]
         wx, wy, wz = a * tx + b * bx + c * nx, a * ty + b * by + c * ny, a * tz + b * bz + c * nz
         wl = math.sqrt(wx * wx + wy * wy + wz * wz)
         out[d, 0], out[d, 1], out[d, 2] = _point_radiance(
-            pk, visibility, own, (x, (nx, ny, nz), (wx / wl, wy / wl, wz / wl)), ks, exponent, rule
+            pk, visibility, own, (x, (nx, ny, nz), (wx / wl, wy / wl, wz / wl)), material, rule
         )
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
 def _radiance_grid(pk, visibility, own, frames, directions, material, rule, out):
     """out[v, d] = E at vertex v seen from its local direction d (``emitter_grid``):
-    frames = (positions, normals, tangents), material = (ks, exponent)."""
+    frames = (positions, normals, tangents), material = (ks, exponent, f0, fresnel)."""
     positions, normals, tangents = frames
     for v in numba.prange(positions.shape[0]):
         frame = (
@@ -567,14 +571,22 @@ def _prepare(parts, source, count, visibility):
     return packed, own, visibility
 
 
-def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES, source=None):
+def _material(ks, exponent, fresnel):
+    f0 = np.zeros(3) if fresnel is None else np.asarray(fresnel, np.float64).reshape(3)
+    return (np.asarray(ks, np.float64).reshape(3), float(exponent), f0, fresnel is not None)
+
+
+def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES, source=None,
+                     fresnel=None):
     """E (Q, 3) float64: the glossy reflection of the emitter ``parts`` (a sequence of
     ``EmitterPart`` or a ``PackedParts``) at Q points.
 
     positions, normals : (Q, 3) world space (normals unit); views : (Q, 3) unit, towards
     the eye; ks : (3,) and exponent p: the surface's modified-Phong specular part;
     visibility : (Q, P) fraction of each part seen (None: all seen); nodes : N of the
-    rules; source : the object's own name (its own parts are not reflected).
+    rules; source : the object's own name (its own parts are not reflected);
+    fresnel : None, or the surface's Schlick F0 (3,): ks is then weighted by F(w.n), F
+    at the highlight's own direction (the mirror of w, where wi.h = w.n).
     """
     positions = np.ascontiguousarray(positions, np.float64).reshape(-1, 3)
     q = len(positions)
@@ -586,13 +598,13 @@ def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibili
             np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
             np.ascontiguousarray(views, np.float64).reshape(-1, 3),
         )
-        material = (np.asarray(ks, np.float64).reshape(3), float(exponent))
+        material = _material(ks, exponent, fresnel)
         _radiance_many(packed.arrays(), visibility, own, queries, material, rules(nodes), out)
     return out
 
 
 def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES,
-                 source=None):
+                 source=None, fresnel=None):
     """E (V, D, 3) float64 at every vertex (positions, unit normals, unit tangents (V, 3))
     seen from every local direction (D, 3) of the solution's grid (x tangent, y
     bitangent = normal x tangent, z normal); the other arguments as ``emitter_radiance``."""
@@ -607,6 +619,6 @@ def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, 
             np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
             np.ascontiguousarray(tangents, np.float64).reshape(-1, 3),
         )
-        material = (np.asarray(ks, np.float64).reshape(3), float(exponent))
+        material = _material(ks, exponent, fresnel)
         _radiance_grid(packed.arrays(), visibility, own, frames, directions, material, rules(nodes), out)
     return out

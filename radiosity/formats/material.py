@@ -1,18 +1,63 @@
 """The material record of a scene and of Contract 1's ``meta.materials``: Lambert plus
-modified Phong (``kd``, ``ks``, ``n``) and an emitted radiance, validated on
-construction. The BRDF's kernels that use it live in ``radiosity.scene.materials``.
+modified Phong (``kd``, ``ks``, ``n``), an optional Fresnel term and an emitted radiance,
+validated on construction. The BRDF's kernels that use it live in
+``radiosity.scene.materials``.
+
+Without Fresnel (``fresnel`` None, the files' key absent) the BRDF is
+
+    f(wi, wo) = kd / pi + ks (n + 2) / (2 pi) cos^n(alpha),
+
+energy conserving for kd + ks <= 1. With Fresnel (``fresnel`` = Schlick's F0 per
+channel, the files' key ``"fresnel": [r, g, b]``) the specular lobe is weighted by
+Schlick's reflectance at the half vector and the diffuse part loses what the interface
+reflects, both ways:
+
+    f(wi, wo) = kd / pi * (21/20) b(cos_i) b(cos_o) + ks F(wi.h) (n + 2) / (2 pi) cos^n(alpha),
+    F(c) = F0 + (1 - F0) (1 - c)^5,   b(c) = 1 - (1 - c)^5 = (1 - F(c)) / (1 - F0),
+
+h = normalize(wi + wo). Both parts are symmetric in wi and wo (reciprocal). 21/20
+normalises the diffuse part so its directional albedo is kd b(cos theta): kd at normal
+incidence, 0 at grazing (2 int_0^1 b(mu) mu dmu = 20/21). ``ks`` is the interface's
+scale (Mitsuba's ``specular_reflectance``, 1 for physics); the specular albedo is
+ks (F0 S_n(theta) + (1 - F0) Q_n(theta)), S the lobe's albedo without Fresnel
+(``specular_albedo``) and Q the same with the weight (1 - wi.h)^5
+(``schlick_albedo``). Energy: a Fresnel material must satisfy, per channel and at every
+incidence, kd b(cos theta) + ks (F0 S + (1 - F0) Q) <= 1 (``fresnel_kd_limit`` gives the
+largest kd, ``fresnel_ks_limit`` the largest ks; the check is made on 129 incidences, to
+1e-4); kd + ks <= 1 is not asked of it, and ks may exceed 1 (a fitted lobe's scale).
+
+Why this form (measured by ``benchmarks/bench_material_mapping.py --parts fresnel``,
+rows "fresnel_form" and "fresnel_rule"): Schlick's curve is within 0.036 of the exact
+dielectric's for eta 1.49 (the plastics) and within 0.03 of Mitsuba's Cu, Ag and Au, 0.13
+of its Al (the dip before grazing), so one RGB triple serves dielectrics, metals and
+glTF alike at no cost in the kernels (6 columns and complex arithmetic for an exact
+conductor would buy back less than the Phong lobe's own loss towards grazing: its
+albedo falls as about cos theta, 5 to 6 times below a microfacet lobe's at 80 degrees).
+Mitsuba's rough plastics' diffuse part has the (1 - F(cos_i))(1 - F(cos_o)) shape this
+one has: its albedo's misfit over incidence falls from 0.07-0.11 (constant kd) to
+0.01-0.06 in four plastics of five (0.061 to 0.068 in the fifth, GGX alpha 0.3).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from radiosity.formats.errors import InputError
 
-__all__ = ["MAX_EXPONENT", "Material"]
+__all__ = [
+    "FRESNEL_NORMALISATION",
+    "MAX_EXPONENT",
+    "Material",
+    "fresnel_kd_limit",
+    "fresnel_ks_limit",
+    "schlick_albedo",
+    "schlick_diffuse",
+    "specular_albedo",
+]
 
 MAX_EXPONENT = 1e6
 """Largest Phong exponent a material may have."""
@@ -21,7 +66,11 @@ FLOAT32_MAX = 3.4028234663852886e38
 """Largest value a float32 array (the solver's and the files') can hold."""
 
 _ENERGY_TOLERANCE = 1e-6
+_FRESNEL_TOLERANCE = 1e-4  # the Fresnel energy check is made on a grid of incidences
 _CHANNELS = ("red", "green", "blue")
+
+FRESNEL_NORMALISATION = 21.0 / 20.0
+"""The Fresnel diffuse part's factor: 1 / (2 int_0^1 (1 - (1 - mu)^5) mu dmu)."""
 
 
 @dataclass(frozen=True)
@@ -31,13 +80,18 @@ class Material:
     Attributes:
         name: how the scene calls it; used in error messages.
         diffuse: kd, RGB reflectance in [0, 1].
-        specular: ks, RGB reflectance in [0, 1], with kd + ks <= 1 per channel.
+        specular: ks, RGB reflectance in [0, 1], with kd + ks <= 1 per channel (with
+            Fresnel: the interface's scale, >= 0, bounded by the energy check).
         exponent: Phong exponent n, in [0, ``MAX_EXPONENT``].
         emission: emitted radiance, RGB, >= 0 (not bounded by 1).
+        fresnel: None (no Fresnel term), or Schlick's F0, RGB in [0, 1]: the specular
+            lobe is weighted by F(wi.h) and the diffuse part by the light the interface
+            lets through (see the module's docstring); needs a positive ks.
 
     All numbers are stored as python floats. Raises ``InputError`` naming the
     material and the problem if a value is missing, not finite, out of range, or if
-    kd + ks > 1 in a channel.
+    the material reflects more than it receives: kd + ks > 1 in a channel without
+    Fresnel, kd above ``fresnel_kd_limit`` with it.
     """
 
     name: str
@@ -45,16 +99,37 @@ class Material:
     specular: tuple[float, float, float] = (0.0, 0.0, 0.0)
     exponent: float = 0.0
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fresnel: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
-        for field, upper in (("diffuse", 1.0), ("specular", 1.0), ("emission", FLOAT32_MAX)):
+        ks_upper = 1.0 if self.fresnel is None else FLOAT32_MAX  # with Fresnel: the energy check bounds it
+        for field, upper in (("diffuse", 1.0), ("specular", ks_upper), ("emission", FLOAT32_MAX)):
             object.__setattr__(self, field, self._rgb(field, upper))
         object.__setattr__(self, "exponent", self._exponent())
+        if self.fresnel is not None:
+            object.__setattr__(self, "fresnel", self._rgb("fresnel", 1.0))
+            self._check_fresnel_energy()
+            return
         for channel, kd, ks in zip(_CHANNELS, self.diffuse, self.specular):
             if kd + ks > 1.0 + _ENERGY_TOLERANCE:
                 raise self._error(
                     f"diffuse + specular = {kd + ks:.6g} in the {channel} channel is above 1, "
                     "so the material would reflect more light than it receives"
+                )
+
+    def _check_fresnel_energy(self) -> None:
+        if not self.is_glossy:
+            raise self._error("fresnel needs a positive specular (the interface's reflectance scale)")
+        limit = fresnel_kd_limit(self.specular, self.fresnel, self.exponent)
+        for channel, kd, top in zip(_CHANNELS, self.diffuse, limit):
+            if top < 0.0:
+                raise self._error(
+                    f"specular with fresnel reflects more than 1 at some incidence in the {channel} channel"
+                )
+            if kd > top + _FRESNEL_TOLERANCE:
+                raise self._error(
+                    f"diffuse {channel} = {kd:.6g} is above {top:.6g}, the most this specular and fresnel "
+                    "leave at some incidence, so the material would reflect more light than it receives"
                 )
 
     def _error(self, problem: str) -> InputError:
@@ -108,13 +183,17 @@ class Material:
         return self.is_glossy or any(v > 0.0 for v in self.diffuse)
 
     def to_dict(self) -> dict:
-        """The material as plain JSON-ready values (the name is the caller's key)."""
-        return {
+        """The material as plain JSON-ready values (the name is the caller's key); the key
+        ``fresnel`` only if the material has one, so files without Fresnel stay as they were."""
+        out = {
             "diffuse": list(self.diffuse),
             "specular": list(self.specular),
             "exponent": self.exponent,
             "emission": list(self.emission),
         }
+        if self.fresnel is not None:
+            out["fresnel"] = list(self.fresnel)
+        return out
 
 
 def _kink_rule(points: int, ratio: float, panels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -173,3 +252,108 @@ def srgb_to_linear(c):
     """sRGB-encoded values in [0, 1] as linear ones (the IEC 61966-2-1 curve), float64."""
     c = np.asarray(c, dtype=np.float64)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+# --- Fresnel (Schlick) ---------------------------------------------------------------
+
+_PHI_X, _PHI_W = np.polynomial.legendre.leggauss(24)
+
+
+def _schlick_albedo_rows(exponent: float, cos_theta: np.ndarray, power: float = 5.0) -> np.ndarray:
+    """Q_n(theta) for each cos_theta (see ``schlick_albedo``), float64 (N,); ``power`` 0
+    gives S_n(theta) (the tests' check of the rule).
+
+    In the lobe's frame (alpha from the mirror direction, phi about it, phi = 0 towards
+    the normal): wi.z = A + B cos phi and wi.wo = cos alpha cos 2 theta + sin alpha sin
+    2 theta cos phi. With s = cos^(n+1) alpha the lobe's measure is (n + 2) / ((n + 1) 2
+    pi) ds dphi. The s integral is split at the kink s_k = sin^(n+1) theta (below it
+    part of the circle about the mirror direction is under the horizon, phi0 =
+    arccos(-A/B) < pi), each part mapped onto ``_kink_rule``'s nodes (s = s_k (1 - w^2)
+    below, s = s_k + (1 - s_k)(1 - w^2) above), and the phi integral over [0, phi0] is
+    a 24-point Gauss-Legendre rule (the integrand is smooth there).
+    """
+    n = exponent
+    out = np.empty(len(cos_theta))
+    one_minus_w2 = np.exp(_LOG_ONE_MINUS_W2)
+    for i, c in enumerate(cos_theta):
+        c = float(min(max(c, 0.0), 1.0))
+        s_theta = math.sqrt(max(0.0, 1.0 - c * c))
+        s_k = s_theta ** (n + 1.0)
+        total = 0.0
+        for lo, span, u in ((0.0, s_k, one_minus_w2), (s_k, 1.0 - s_k, one_minus_w2)):
+            if span <= 0.0:
+                continue
+            s = lo + span * u
+            s = np.where(lo > 0.0, np.minimum(s, 1.0), s)
+            log_s = np.log(np.maximum(s, 1e-300))
+            cos_a = np.exp(log_s / (n + 1.0))
+            sin_a = np.sqrt(-np.expm1(2.0 * log_s / (n + 1.0)))
+            a = cos_a * c
+            b = sin_a * s_theta
+            with np.errstate(divide="ignore", invalid="ignore"):
+                phi0 = np.where(b > a, np.arccos(np.clip(-a / np.where(b > 0, b, 1.0), -1.0, 1.0)), math.pi)
+            phi = 0.5 * phi0[:, None] * (_PHI_X[None, :] + 1.0)
+            cos_phi = np.cos(phi)
+            wiz = np.maximum(a[:, None] + b[:, None] * cos_phi, 0.0)
+            dot = cos_a[:, None] * (2.0 * c * c - 1.0) + (sin_a * 2.0 * s_theta * c)[:, None] * cos_phi
+            cos_h = np.sqrt(np.clip(0.5 * (1.0 + dot), 0.0, 1.0))
+            inner = 0.5 * phi0 * ((_PHI_W[None, :] * (1.0 - cos_h) ** power * wiz).sum(axis=1))
+            total += span * float(_W_WEIGHTS @ inner)
+        out[i] = (n + 2.0) / ((n + 1.0) * math.pi) * total
+    return out
+
+
+def schlick_albedo(exponent: float, cos_theta) -> np.ndarray:
+    """Q_n(theta) = int (1 - wi.h)^5 (n + 2) / (2 pi) max(0, cos alpha)^n cos(theta_i) dwi
+    over the upper hemisphere, for wo at each cos_theta; float64 (N,).
+
+    With Schlick's F the specular albedo of the normalised lobe (ks = 1) is F0 S + (1 -
+    F0) Q. Deterministic quadrature (``_schlick_albedo_rows``); it gives
+    ``specular_albedo`` to 1e-7 when the weight is left out (tests check), and Q is 0 at
+    normal incidence only in the limit n -> infinity.
+    """
+    cos_theta = np.atleast_1d(np.asarray(cos_theta, dtype=np.float64))
+    return _schlick_albedo_rows(float(exponent), cos_theta)
+
+
+def schlick_diffuse(cos_theta):
+    """b(c) = 1 - (1 - c)^5: the Fresnel diffuse part's directional albedo over kd, float64."""
+    c = np.clip(np.asarray(cos_theta, dtype=np.float64), 0.0, 1.0)
+    return 1.0 - (1.0 - c) ** 5
+
+
+_CHECK_COSINES = np.linspace(0.0, 1.0, 129)
+_LIMIT_MARGIN = 1e-3  # the limits take Q this much larger: its peak may fall between the grid's points
+# (S peaks at normal incidence, on the grid)
+
+
+@lru_cache(maxsize=256)
+def _albedo_curves(exponent: float) -> tuple[np.ndarray, np.ndarray]:
+    """(S, Q) on ``_CHECK_COSINES``, remembered per exponent."""
+    return specular_albedo(exponent, _CHECK_COSINES), schlick_albedo(exponent, _CHECK_COSINES)
+
+
+def fresnel_ks_limit(f0, exponent: float) -> np.ndarray:
+    """The largest ks (3,) per channel whose specular albedo ks (F0 S + (1 - F0) Q) is <= 1
+    at every incidence (kd = 0), Q taken 1e-3 larger on the check's grid so that it
+    stays <= 1 between the grid's points too (tests sample 401). float64 (3,)."""
+    s, q = _albedo_curves(float(exponent))
+    f0 = np.asarray(f0, dtype=np.float64)[:, None]
+    return 1.0 / np.maximum((f0 * s + (1.0 - f0) * q * (1.0 + _LIMIT_MARGIN)).max(axis=1), 1e-300)
+
+
+def fresnel_kd_limit(ks, f0, exponent: float) -> np.ndarray:
+    """The largest kd (3,) per channel such that kd b(cos theta) + ks (F0 S + (1 - F0) Q)
+    <= 1 at every incidence of a 129-point grid in cos theta, Q taken 1e-3 larger as in
+    ``fresnel_ks_limit`` (the specular albedo at
+    grazing must itself be <= 1: a negative limit says it is not). float64 (3,)."""
+    s, q = _albedo_curves(float(exponent))
+    ks = np.asarray(ks, dtype=np.float64)[:, None]
+    f0 = np.asarray(f0, dtype=np.float64)[:, None]
+    specular = ks * (f0 * s + (1.0 - f0) * q * (1.0 + _LIMIT_MARGIN))  # (3, A)
+    b = schlick_diffuse(_CHECK_COSINES)
+    with np.errstate(divide="ignore"):
+        room = np.where(b > 0.0, (1.0 - specular) / np.where(b > 0.0, b, 1.0), np.inf)
+    limit = room.min(axis=1)
+    worst = specular.max(axis=1)
+    return np.where(worst > 1.0 + _FRESNEL_TOLERANCE, -1.0, np.maximum(limit, 0.0))

@@ -59,6 +59,7 @@ READS = (1, 2, 3)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
+_OPTIONAL_MATERIAL_KEYS = ("fresnel",)  # Schlick's F0 (docs/formats.md); absent: no Fresnel
 _UNIT_TOLERANCE = 1e-4  # |direction| within this of 1
 _GRID_TOLERANCE = 1e-5  # stored directions within this of the contract's grid
 
@@ -106,7 +107,8 @@ def _material_dict(name: str, material: Any) -> dict:
     if missing:
         raise _Invalid(f"material has no {', '.join(repr(k) for k in missing)}")
     try:
-        return Material(name, **{k: material[k] for k in _MATERIAL_KEYS}).to_dict()
+        optional = {k: material[k] for k in _OPTIONAL_MATERIAL_KEYS if k in material}
+        return Material(name, **{k: material[k] for k in _MATERIAL_KEYS}, **optional).to_dict()
     except InputError as exc:
         raise _Invalid(str(exc)) from None
 
@@ -384,7 +386,7 @@ class Solution:
         m = o.material
         return emitter_grid(
             self.emitters, o.positions, o.normals, o.tangents, o.directions, m["specular"], m["exponent"],
-            visibility=o.visibility, nodes=self.emitter_nodes, source=name,
+            visibility=o.visibility, nodes=self.emitter_nodes, source=name, fresnel=m.get("fresnel"),
         )
 
     def save(self, path: str | os.PathLike) -> None:

@@ -47,7 +47,7 @@ import trimesh
 from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
-from radiosity.formats.material import FLOAT32_MAX, srgb_to_linear
+from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit, srgb_to_linear
 from radiosity.formats.sniff import FILE_NAMES, input_kind
 from radiosity.scene import builtins, geometry
 from radiosity.scene.environment import Environment, read_environment_image
@@ -237,9 +237,10 @@ def _parse_textures(table, base_dir, where):
     return out
 
 
-def _material(name, *, diffuse, specular, exponent, emission, where=""):
+def _material(name, *, diffuse, specular, exponent, emission, where="", fresnel=None):
     try:
-        return Material(name=name, diffuse=diffuse, specular=specular, exponent=exponent, emission=emission)
+        return Material(name=name, diffuse=diffuse, specular=specular, exponent=exponent, emission=emission,
+                        fresnel=fresnel)
     except InputError as exc:
         raise InputError(f"{where}{exc}") from None
 
@@ -553,20 +554,24 @@ def _from_pbr(mat, name, here, mean=None, *, textured=False):
     roughness = 1.0 if mat.roughnessFactor is None else float(mat.roughnessFactor)
     mean_base = base if mean is None else base * mean
     diffuse_base = base if textured else mean_base
-    if metallic == 0.0 and roughness >= 0.9:
-        ks = np.zeros(3)
-        exponent = 0.0
-    else:
-        ks = mean_base * metallic + 0.04 * (1.0 - metallic)
-        alpha = max(roughness, 1e-3) ** 2  # glTF's roughness squared is GGX's alpha
-        exponent = float(min(phong_exponent("ggx", alpha), 1e4))
-        if textured and metallic > 0.0:
-            warnings.warn(f"{here}metallic {metallic:g} with a baseColorTexture: the specular colour takes the "
-                          "texture's mean (only the diffuse colour is textured)", SceneWarning, stacklevel=5)
-    kd = diffuse_base * (1.0 - metallic) * (1.0 - ks)
     # KHR_materials_emissive_strength is already in the factor (``meshfiles._gltf_emissive``)
     emissive = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, dtype=np.float64)[:3]
+    if metallic == 0.0 and roughness >= 0.9:
+        return _material(
+            name, diffuse=tuple(diffuse_base), specular=(0.0, 0.0, 0.0), exponent=0.0,
+            emission=tuple(emissive), where=here[:-2] + ": ",
+        )
+    # glTF's own BRDF: Schlick's F with F0 = 0.04 (dielectric) mixed to baseColor (metal),
+    # the diffuse part baseColor (1 - metallic), losing what F reflects
+    f0 = np.clip(mean_base * metallic + 0.04 * (1.0 - metallic), 0.0, 1.0)
+    alpha = max(roughness, 1e-3) ** 2  # glTF's roughness squared is GGX's alpha
+    exponent = float(min(phong_exponent("ggx", alpha), 1e4))
+    if textured and metallic > 0.0:
+        warnings.warn(f"{here}metallic {metallic:g} with a baseColorTexture: the specular colour takes the "
+                      "texture's mean (only the diffuse colour is textured)", SceneWarning, stacklevel=5)
+    ks = np.ones(3)
+    kd = np.minimum(diffuse_base * (1.0 - metallic), fresnel_kd_limit(ks, f0, exponent))
     return _material(
         name, diffuse=tuple(kd), specular=tuple(ks), exponent=exponent,
-        emission=tuple(emissive), where=here[:-2] + ": ",
+        emission=tuple(emissive), where=here[:-2] + ": ", fresnel=tuple(f0),
     )

@@ -10,6 +10,15 @@ c <= 0 also when n = 0. f is reciprocal and, for kd + ks <= 1 in every channel,
 energy conserving: the directional albedo is kd + ks at normal incidence and the
 specular part falls towards grazing incidence (see ``albedo``).
 
+A material with a Fresnel term (``Material.fresnel``: Schlick's F0 per channel; the
+rule and its reasons in ``radiosity.formats.material``) reflects with
+
+    f(wi, wo) = kd / pi * (21/20) b(wi.z) b(wo.z) + ks F(wi.h) (n + 2) / (2 pi) cos^n(alpha),
+    F(c) = F0 + (1 - F0)(1 - c)^5, b(c) = 1 - (1 - c)^5, h = normalize(wi + wo),
+
+reciprocal, and energy conserving when ``Material`` accepts it. Materials without
+Fresnel run the same operations as before (the same bits).
+
 Conventions: directions are unit vectors in the local shading frame (x tangent,
 y bitangent, z normal), wi and wo both pointing away from the surface, and
 reflect(w) = (-w.x, -w.y, w.z).
@@ -18,14 +27,16 @@ Contents:
 
 - ``Material``: an immutable, validated description, as scene files give it.
 - ``pack_materials``: a float64 table, one row per material, with the column
-  indices ``KD``, ``KS``, ``EXPONENT``, ``EMISSION``, ``P_SPECULAR`` and ``NCOL``.
+  indices ``KD``, ``KS``, ``EXPONENT``, ``EMISSION``, ``P_SPECULAR``, ``F0``,
+  ``HAS_FRESNEL`` and ``NCOL``.
 - numba kernels on one row ``mat`` of that table and plain floats:
   ``brdf_eval``, ``brdf_pdf``, ``brdf_sample`` and the basis helper ``onb``.
 - ``eval_brdf``, ``pdf``, ``sample``: the kernels vectorised over arrays.
 - ``albedo``: the exact directional albedo, by deterministic quadrature.
 
 Importance sampling: ``brdf_sample`` picks the specular lobe with probability
-``P_SPECULAR`` = mean(ks) / (mean(kd) + mean(ks)), otherwise the diffuse lobe. The
+``P_SPECULAR`` = mean(ks) / (mean(kd) + mean(ks)), otherwise the diffuse lobe (with
+Fresnel the probability follows the two parts' albedos at wo, ``p_specular``). The
 diffuse lobe is cosine-weighted over the upper hemisphere; the specular lobe has
 density (n + 1) / (2 pi) * max(0, cos alpha)^n over the whole sphere, alpha being
 the angle to the mirror direction reflect(wo). Some specular samples therefore lie
@@ -41,11 +52,20 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
-from radiosity.formats.material import MAX_EXPONENT, Material, specular_albedo
+from radiosity.formats.material import (
+    FRESNEL_NORMALISATION,
+    MAX_EXPONENT,
+    Material,
+    schlick_albedo,
+    schlick_diffuse,
+    specular_albedo,
+)
 
 __all__ = [
     "EMISSION",
     "EXPONENT",
+    "F0",
+    "HAS_FRESNEL",
     "KD",
     "KS",
     "MAX_EXPONENT",
@@ -57,8 +77,14 @@ __all__ = [
     "brdf_pdf",
     "brdf_sample",
     "eval_brdf",
+    "deposit_weight",
+    "diffuse_exitance",
+    "fresnel_diffuse",
+    "half_cosine",
     "onb",
+    "p_specular",
     "pack_materials",
+    "schlick",
     "phong_lobe",
     "pdf",
     "sample",
@@ -69,8 +95,11 @@ KD = 0  # 3 columns: diffuse reflectance
 KS = 3  # 3 columns: specular reflectance
 EXPONENT = 6  # Phong exponent n
 EMISSION = 7  # 3 columns: emitted radiance
-P_SPECULAR = 10  # probability that brdf_sample picks the specular lobe
-NCOL = 11
+P_SPECULAR = 10  # probability that brdf_sample picks the specular lobe (without Fresnel)
+F0 = 11  # 3 columns: Schlick's F0 (with Fresnel)
+HAS_FRESNEL = 14  # 1.0 if the material has a Fresnel term, else 0.0
+NCOL = 15
+P_SPECULAR_MIN = 0.05  # with Fresnel, the least probability of the specular lobe (ks > 0)
 
 
 def pack_materials(materials: Sequence[Material]) -> np.ndarray:
@@ -78,8 +107,8 @@ def pack_materials(materials: Sequence[Material]) -> np.ndarray:
 
     Returns a C-contiguous float64 array of shape (M, NCOL); row i describes
     ``materials[i]`` with the column layout ``KD``, ``KS``, ``EXPONENT``,
-    ``EMISSION``, ``P_SPECULAR``. P_SPECULAR = mean(ks) / (mean(kd) + mean(ks)),
-    0 if both are 0.
+    ``EMISSION``, ``P_SPECULAR``, ``F0``, ``HAS_FRESNEL``. P_SPECULAR = mean(ks) /
+    (mean(kd) + mean(ks)), 0 if both are 0; F0 and HAS_FRESNEL are 0 without Fresnel.
     """
     table = np.zeros((len(materials), NCOL), dtype=np.float64)
     for row, m in zip(table, materials):
@@ -89,11 +118,85 @@ def pack_materials(materials: Sequence[Material]) -> np.ndarray:
         row[EMISSION : EMISSION + 3] = m.emission
         kd, ks = sum(m.diffuse) / 3.0, sum(m.specular) / 3.0
         row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
+        if m.fresnel is not None:
+            row[F0 : F0 + 3] = m.fresnel
+            row[HAS_FRESNEL] = 1.0
     return table
 
 
 _INV_PI = 1.0 / math.pi
 _INV_2PI = 0.5 / math.pi
+_DIFFUSE_NORM = FRESNEL_NORMALISATION / math.pi
+
+
+@numba.njit(cache=True, fastmath=False)
+def schlick(mat, cos_h):
+    """Schlick's F per channel at cos_h (clamped to [0, 1]) for the material row ``mat``."""
+    x = 1.0 - min(max(cos_h, 0.0), 1.0)
+    x2 = x * x
+    x5 = x2 * x2 * x
+    return (
+        mat[F0] + (1.0 - mat[F0]) * x5,
+        mat[F0 + 1] + (1.0 - mat[F0 + 1]) * x5,
+        mat[F0 + 2] + (1.0 - mat[F0 + 2]) * x5,
+    )
+
+
+@numba.njit(cache=True, fastmath=False)
+def half_cosine(dot_wi_wo):
+    """wi.h for unit wi, wo with wi.wo = dot_wi_wo: sqrt((1 + wi.wo) / 2)."""
+    return math.sqrt(max(0.5 * (1.0 + dot_wi_wo), 0.0))
+
+
+@numba.njit(cache=True, fastmath=False)
+def fresnel_diffuse(cos_theta):
+    """b(c) = 1 - (1 - c)^5 (c clamped to [0, 1]): the Fresnel diffuse part's factor."""
+    x = 1.0 - min(max(cos_theta, 0.0), 1.0)
+    x2 = x * x
+    return 1.0 - x2 * x2 * x
+
+
+@numba.njit(cache=True, fastmath=False)
+def deposit_weight(mat, cos_in):
+    """What a photon arriving at cos_in to the shading normal adds to the density
+    estimate of a surface of material row ``mat``, per unit power: 1 without Fresnel;
+    with it (21/20) b(cos_in), so the estimate E' = (21/20) int b(cos_i) L cos_i dwi is
+    what the Fresnel diffuse part reflects, L_d(wo) = kd / pi * b(wo.z) * E' (E' = E
+    for uniform light)."""
+    if mat[HAS_FRESNEL] <= 0.0:
+        return 1.0
+    return FRESNEL_NORMALISATION * fresnel_diffuse(cos_in)
+
+
+@numba.njit(cache=True, fastmath=False)
+def diffuse_exitance(mat, cos_out):
+    """The factor of kd / pi * E' (``deposit_weight``) in the diffuse radiance leaving at
+    cos_out: 1 without Fresnel, b(cos_out) with it."""
+    if mat[HAS_FRESNEL] <= 0.0:
+        return 1.0
+    return fresnel_diffuse(cos_out)
+
+
+@numba.njit(cache=True, fastmath=False)
+def p_specular(mat, woz):
+    """Probability that ``brdf_sample`` picks the specular lobe for wo.z = woz.
+
+    Without Fresnel mat[P_SPECULAR]; with it the specular part's share of the two
+    albedos' channel means at wo, s / (d + s), s = mean(ks) F(woz) with mean F0, d =
+    mean(kd) b(woz), at least ``P_SPECULAR_MIN`` if ks > 0 (the gather's forced lobe
+    samples, u1 = 0, need it positive; 0 if both are 0): most samples go where the
+    light goes, the specular lobe near grazing."""
+    if mat[HAS_FRESNEL] <= 0.0:
+        return mat[P_SPECULAR]
+    kd = (mat[KD] + mat[KD + 1] + mat[KD + 2]) / 3.0
+    ks = (mat[KS] + mat[KS + 1] + mat[KS + 2]) / 3.0
+    f0 = (mat[F0] + mat[F0 + 1] + mat[F0 + 2]) / 3.0
+    b = fresnel_diffuse(woz)
+    s = ks * (f0 + (1.0 - f0) * (1.0 - b))
+    d = kd * b
+    if ks <= 0.0:
+        return 0.0
+    return max(s / (d + s), P_SPECULAR_MIN)
 
 
 @numba.njit(cache=True, fastmath=False)
@@ -118,13 +221,13 @@ def phong_lobe(cos_alpha, exponent):
 
 
 @numba.njit(cache=True, fastmath=False)
-def _mixture_pdf(mat, cos_alpha, wiz):
-    """Sampling density of a direction with wi.z = wiz at angle alpha from reflect(wo)."""
+def _mixture_pdf(mat, cos_alpha, wiz, p_spec):
+    """Sampling density of a direction with wi.z = wiz at angle alpha from reflect(wo),
+    p_spec the probability of the specular lobe."""
     n = mat[EXPONENT]
-    p_specular = mat[P_SPECULAR]
     diffuse = max(0.0, wiz) * _INV_PI
     specular = (n + 1.0) * _INV_2PI * phong_lobe(cos_alpha, n)
-    return (1.0 - p_specular) * diffuse + p_specular * specular
+    return (1.0 - p_spec) * diffuse + p_spec * specular
 
 
 @numba.njit(cache=True, fastmath=False)
@@ -139,6 +242,14 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     n = mat[EXPONENT]
     cos_alpha = wiz * woz - wix * wox - wiy * woy
     specular = (n + 2.0) * _INV_2PI * phong_lobe(cos_alpha, n)
+    if mat[HAS_FRESNEL] > 0.0:
+        f0, f1, f2 = schlick(mat, half_cosine(wix * wox + wiy * woy + wiz * woz))
+        diffuse = _DIFFUSE_NORM * fresnel_diffuse(wiz) * fresnel_diffuse(woz)
+        return (
+            mat[KD] * diffuse + mat[KS] * f0 * specular,
+            mat[KD + 1] * diffuse + mat[KS + 1] * f1 * specular,
+            mat[KD + 2] * diffuse + mat[KS + 2] * f2 * specular,
+        )
     return (
         mat[KD] * _INV_PI + mat[KS] * specular,
         mat[KD + 1] * _INV_PI + mat[KS + 1] * specular,
@@ -151,19 +262,19 @@ def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
     """Density, per unit solid angle over the whole sphere, of ``brdf_sample``'s wi for this wo.
 
     (1 - ps) * max(0, wi.z) / pi + ps * (n + 1) / (2 pi) * max(0, cos alpha)^n, with
-    ps = mat[P_SPECULAR] and alpha the angle between wi and reflect(wo). It integrates
+    ps = ``p_specular(mat, wo.z)`` and alpha the angle between wi and reflect(wo). It integrates
     to 1 over the sphere; if ps > 0 it is also positive below the horizon within 90
     degrees of the mirror direction.
     """
     cos_alpha = wiz * woz - wix * wox - wiy * woy
-    return _mixture_pdf(mat, cos_alpha, wiz)
+    return _mixture_pdf(mat, cos_alpha, wiz, p_specular(mat, woz))
 
 
 @numba.njit(cache=True, fastmath=False)
 def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     """Sample wi for the outgoing direction wo from uniform numbers u1, u2, u3 in [0, 1).
 
-    u1 < mat[P_SPECULAR] picks the specular lobe, otherwise the diffuse lobe;
+    u1 < ``p_specular(mat, wo.z)`` picks the specular lobe, otherwise the diffuse lobe;
     (u2, u3) place the direction in the lobe: cos alpha = (1 - u2)^(1/(n+1)) about
     reflect(wo) for the specular lobe (u2 = 0 gives the mirror direction; 1 - u2 is
     never 0 for u2 < 1, and u2 = 1 still gives a finite direction), and the
@@ -173,7 +284,8 @@ def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     lie below the horizon (wiz <= 0); the caller must treat those as absorbed.
     """
     phi = 2.0 * math.pi * u3
-    if u1 < mat[P_SPECULAR]:
+    p_spec = p_specular(mat, woz)
+    if u1 < p_spec:
         rx, ry, rz = -wox, -woy, woz
         tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
         # log(cos alpha); sin^2 alpha = 1 - cos^2 alpha without cancellation for huge n.
@@ -185,13 +297,13 @@ def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
         wix = sx * tx + sy * bx + cos_alpha * rx
         wiy = sx * ty + sy * by + cos_alpha * ry
         wiz = sx * tz + sy * bz + cos_alpha * rz
-        return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz)
+        return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz, p_spec)
     radius = math.sqrt(u2)
     wix = radius * math.cos(phi)
     wiy = radius * math.sin(phi)
     wiz = math.sqrt(1.0 - u2)
     cos_alpha = wiz * woz - wix * wox - wiy * woy
-    return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz)
+    return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz, p_spec)
 
 
 @numba.njit(cache=True, fastmath=False)
@@ -272,7 +384,8 @@ def albedo(material: Material, cos_theta) -> np.ndarray:
     cos_theta: wo.z, a float or float array of shape (N,), in [0, 1] (at 0 the
     grazing limit). Deterministic quadrature, accurate to ~1e-12. Returns float64
     RGB, shape (3,) for a scalar, (N, 3) for an array: kd + ks * S(theta), where
-    S = 1 at normal incidence and falls towards grazing incidence.
+    S = 1 at normal incidence and falls towards grazing incidence; with Fresnel
+    kd b(theta) + ks (F0 S + (1 - F0) Q) (``radiosity.formats.material``).
     """
     cos_theta = np.asarray(cos_theta, dtype=np.float64)
     if cos_theta.ndim > 1:
@@ -280,6 +393,12 @@ def albedo(material: Material, cos_theta) -> np.ndarray:
     if not np.all((cos_theta >= 0.0) & (cos_theta <= 1.0)):
         raise ValueError("cos_theta must be in [0, 1]")
     specular = specular_albedo(material.exponent, np.atleast_1d(cos_theta))
+    if material.fresnel is not None:
+        f0 = np.asarray(material.fresnel)
+        q = schlick_albedo(material.exponent, np.atleast_1d(cos_theta))
+        diffuse = schlick_diffuse(np.atleast_1d(cos_theta))[:, None] * np.asarray(material.diffuse)
+        rho = diffuse + (f0 * specular[:, None] + (1.0 - f0) * q[:, None]) * np.asarray(material.specular)
+        return rho[0] if cos_theta.ndim == 0 else rho
     rho = np.asarray(material.diffuse) + specular[:, None] * np.asarray(material.specular)
     return rho[0] if cos_theta.ndim == 0 else rho
 

@@ -54,21 +54,41 @@ modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
   to 2.4 (Beckmann) times the rule at small alpha: too sharp except at grazing
   incidence; the glTF loader's (2/alpha^2 - 2)/4 is 2.7 (GGX) and 1.6 (Beckmann) times
   too broad (glTF's roughness is GGX's).
-- ks: the Phong lobe's directional albedo ks S_n(theta) closest in least squares to the
-  microfacet term's (times specular_reflectance) over incidence, weighted by sin 2 theta
-  as the exponent is (``_albedos_over_incidence``); kd likewise the diffuse term's
-  (plastic; 0 for conductors); both scaled down if kd + ks would exceed 1. Matching at
+- Fresnel (the rule since issue 24's second deliverable): the lobe gets Schlick's term
+  (``radiosity.formats.material``) with F0 the exact reflectance at normal incidence
+  (``normal_reflectance``: the dielectric's for plastics, the conductor's per channel
+  for metals); ks, the lobe's scale, is the least-squares fit of its specular albedo ks
+  (F0 S_n + (1 - F0) Q_n)(theta) to the microfacet term's (times specular_reflectance)
+  over incidence, weighted by sin 2 theta as the exponent is, at most what keeps that
+  albedo <= 1 (``fresnel_ks_limit``); kd is the fit of kd b(theta) to the diffuse
+  term's albedo (plastic; 0 for conductors), at most ``fresnel_kd_limit``. ks comes out
+  above 1 (2.4 to 2.8 for the plastics, 1.0 to 1.4 for the metals): the Phong lobe's
+  albedo falls as about cos theta where the microfacet lobe's does not, and the fit
+  makes up part of it. The price, measured on the sphere (``--parts sphere``, power
+  ratio Phong / reference): a plastic's highlight at 30 degrees incidence is now 1.2 to
+  2.2 times too bright (it was 0.7-0.9), at 60 degrees 0.4-1.0 (it was 0.1-0.2); a
+  metal's 0.97-1.10 at 30 degrees (was 0.74-0.90) and 0.35-0.71 at 60 (was 0.29-0.53).
+  No single ks makes a lobe whose albedo falls as the cosine right at both.
+- Before that (``fresnel=False``, kept for comparison): ks the fit of a constant ks
+  S_n(theta), kd of a constant, both scaled down if kd + ks would exceed 1. Matching at
   normal incidence only (the first rule) left oblique highlights dim: against Mitsuba 3
   the Veach scene's mean went from 0.874 to 0.912 of Mitsuba's, validate_box's from
-  0.987 to 0.991 (benchmarks/validate_mitsuba.py, converged images).
+  0.987 to 0.991 (benchmarks/validate_mitsuba.py, converged images). With Fresnel the
+  plates scene (a rough plastic floor at grazing, three metal plates) went from 0.834 to
+  0.858 of Mitsuba's mean (its floor from 0.72 to 0.84; FLIP 0.235 to 0.206 at 256 spp),
+  validate_box from 0.991 to 0.992; Fresnel with ks <= 1 made the plates worse (0.797).
 - smooth ``plastic`` and ``conductor``: n = MAX_EXPONENT (the nearest to a mirror the
-  material model holds), ks fitted as above (a Fresnel curve over S_n).
+  material model holds), ks fitted as above.
 
-What the rule cannot hold (measured in the report and by the benchmark): Phong's ks is
-constant, so the dielectric's Fresnel rise towards grazing (0.04 at normal, 0.39 at
-80 degrees for eta 1.49, 1 at 90) is lost, as is the microfacet lobe's off-specular
-peak and its anisotropy at oblique incidence; GGX's long tail carries energy the
-Phong lobe puts nearer the peak.
+What the rule cannot hold (measured by ``bench_material_mapping.py --parts fresnel``):
+the Phong lobe's albedo falls towards grazing as about cos theta, so even with Fresnel
+a plastic's specular albedo at 80 degrees is 0.12-0.20 where the microfacet one is
+0.2-0.39 (without Fresnel it was 0.013: 15 to 30 times too little), and a metal's 0.18-0.22
+where the microfacet one is 0.6-0.83 (the metals gain little: their F is nearly flat);
+the microfacet lobe's off-specular peak and its anisotropy at oblique incidence; GGX's
+long tail, which carries energy the Phong lobe puts nearer the peak (a smooth aluminium
+plate reflecting what lies far from its mirror direction); Schlick's curve misses
+aluminium's dip before grazing (0.13).
 """
 
 from __future__ import annotations
@@ -83,7 +103,14 @@ import numpy as np
 from scipy.special import erf
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import MAX_EXPONENT, specular_albedo
+from radiosity.formats.material import (
+    MAX_EXPONENT,
+    fresnel_kd_limit,
+    fresnel_ks_limit,
+    schlick_albedo,
+    schlick_diffuse,
+    specular_albedo,
+)
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -99,6 +126,7 @@ __all__ = [
     "lobe_width",
     "masking",
     "ndf",
+    "normal_reflectance",
     "phong_exponent",
     "phong_lobe_for",
     "reference_brdf",
@@ -574,27 +602,50 @@ def phong_exponent(distribution: str, alpha: float) -> float:
     return float(min(max(c / x + d + e * x, 0.0), MAX_EXPONENT))
 
 
-def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1, *, measure: bool = False, **params):
+def phong_lobe_for(
+    kind: str, distribution: str = "beckmann", alpha: float = 0.1, *, measure: bool = False, fresnel: bool = True,
+    **params,
+):
     """The modified-Phong (kd, ks, n) standing in for a Mitsuba material, by the module's rule.
 
     kind: one of ``KINDS``; distribution, alpha: the microfacet roughness (ignored by
-    the smooth kinds); params: Mitsuba's parameters (see ``reference_brdf``).
-    Returns (kd (3,), ks (3,), exponent, report): report holds the rule, the reference's
-    albedo (specular, diffuse) at incidence 0, 60 and 80 degrees against the Phong
-    lobe's, and with ``measure`` the half-maximum radius of both lobes at 0, 30, 45 and 60
-    degrees (radians; ``lobe_width``).
+    the smooth kinds); params: Mitsuba's parameters (see ``reference_brdf``);
+    fresnel: True (the rule): give the lobe a Fresnel term (Schlick's F0 = the exact
+    reflectance at normal incidence: the dielectric's for plastics, the conductor's per
+    channel), ks and kd fitted with it (``_fresnel_albedos_over_incidence``), ks at most
+    what keeps the specular albedo <= 1 (``fresnel_ks_limit``), kd at most
+    ``fresnel_kd_limit``; "physical": the same with ks <= 1 (Mitsuba's
+    specular_reflectance); False: the constant-ks rule of before. The last two are kept
+    for the benchmark's comparison.
+    Returns (kd (3,), ks (3,), exponent, report): report holds the rule, ``fresnel`` (F0
+    as a list, or None), the reference's albedo (specular, diffuse) at incidence 0, 60
+    and 80 degrees against the Phong lobe's, and with ``measure`` the half-maximum
+    radius of both lobes at 0, 30, 45 and 60 degrees (radians; ``lobe_width``).
     """
     brdf = reference_brdf(kind, distribution, alpha, **params)
     angles = np.radians([0.0, 60.0, 80.0])
     specular, diffuse = brdf.albedo(np.cos(angles))
     smooth = brdf.alpha is None
     exponent = float(MAX_EXPONENT) if smooth else phong_exponent(distribution, alpha)
-    ks, kd = _albedos_over_incidence(brdf, exponent)
-    total = kd + ks
-    scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
-    kd, ks = kd * scale, ks * scale
+    f0 = None
+    if fresnel:
+        f0 = normal_reflectance(brdf)
+        ks, kd = _fresnel_albedos_over_incidence(brdf, exponent, f0)
+        ks = np.minimum(ks, 1.0 if fresnel == "physical" else fresnel_ks_limit(f0, exponent))
+        limit = fresnel_kd_limit(ks, f0, exponent)
+        scale = np.where(kd > limit, limit / np.maximum(kd, 1e-300), 1.0)
+        kd = kd * scale
+        phong_specular = ks * (f0 * specular_albedo(exponent, np.cos(angles))[:, None]
+                               + (1.0 - f0) * schlick_albedo(exponent, np.cos(angles))[:, None])
+        phong_diffuse = schlick_diffuse(np.cos(angles))[:, None] * kd
+    else:
+        ks, kd = _albedos_over_incidence(brdf, exponent)
+        total = kd + ks
+        scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
+        kd, ks = kd * scale, ks * scale
+        phong_specular = specular_albedo(exponent, np.cos(angles))[:, None] * ks
+        phong_diffuse = np.broadcast_to(kd, (3, 3))
 
-    phong_specular = specular_albedo(exponent, np.cos(angles))
     report = {
         "kind": kind,
         "distribution": None if smooth else distribution,
@@ -603,8 +654,9 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
         "incidence_deg": [0.0, 60.0, 80.0],
         "reference_specular_albedo": specular.tolist(),
         "reference_diffuse_albedo": diffuse.tolist(),
-        "phong_specular_albedo": (phong_specular[:, None] * ks).tolist(),
-        "phong_diffuse_albedo": [kd.tolist()] * 3,
+        "fresnel": None if f0 is None else f0.tolist(),
+        "phong_specular_albedo": phong_specular.tolist(),
+        "phong_diffuse_albedo": phong_diffuse.tolist(),
         "energy_scaled": bool(np.any(scale < 1.0)),
     }
     if measure and not smooth:
@@ -616,7 +668,8 @@ def phong_lobe_for(kind: str, distribution: str = "beckmann", alpha: float = 0.1
 
 
 def phong_lobe(kind: str, distribution: str = "beckmann", alpha: float = 0.1, **params):
-    """(kd, ks, n) of ``phong_lobe_for``, as tuples, remembered per distinct material:
+    """(kd, ks, n, fresnel) of ``phong_lobe_for``, as tuples (fresnel: F0, or None),
+    remembered per distinct material:
     a scene's many shapes of one material pay for its quadratures once (a few tenths
     of a second each)."""
 
@@ -628,8 +681,9 @@ def phong_lobe(kind: str, distribution: str = "beckmann", alpha: float = 0.1, **
 
 @lru_cache(maxsize=1024)
 def _lobe(kind, distribution, alpha, params):
-    kd, ks, exponent, _ = phong_lobe_for(kind, distribution, alpha, **dict(params))
-    return tuple(map(float, kd)), tuple(map(float, ks)), exponent
+    kd, ks, exponent, report = phong_lobe_for(kind, distribution, alpha, **dict(params))
+    f0 = report["fresnel"]
+    return tuple(map(float, kd)), tuple(map(float, ks)), exponent, None if f0 is None else tuple(map(float, f0))
 
 
 ALBEDO_NODES = 48  # incidence angles of the albedo fit (Gauss-Legendre in theta)
@@ -649,6 +703,30 @@ def _albedos_over_incidence(brdf, exponent):
     phong = specular_albedo(exponent, np.cos(theta))  # (N,), ks = 1
     ks = (weight * phong) @ specular / float(weight @ phong**2)
     kd = weight @ diffuse / float(weight.sum())
+    return ks, kd
+
+
+def normal_reflectance(brdf) -> np.ndarray:
+    """Schlick's F0 (3,) for a reference: its interface's exact reflectance at normal
+    incidence (without ``specular_reflectance``, which the fitted ks carries)."""
+    if isinstance(brdf, RoughPlastic):
+        return np.full(3, float(fresnel_dielectric(1.0, brdf.eta)))
+    return np.asarray(fresnel_conductor(1.0, brdf.eta, brdf.k), dtype=np.float64).reshape(3)
+
+
+def _fresnel_albedos_over_incidence(brdf, exponent, f0):
+    """(ks, kd) of the Fresnel lobe by the same weighted least squares as
+    ``_albedos_over_incidence``: ks (F0 S + (1 - F0) Q) against the reference's specular
+    albedo per channel, kd b(cos theta) against its diffuse albedo."""
+    x, w = np.polynomial.legendre.leggauss(ALBEDO_NODES)
+    theta = (x + 1.0) * np.pi / 4.0
+    weight = w * np.sin(2.0 * theta)
+    cos = np.cos(theta)
+    specular, diffuse = brdf.albedo(cos)  # (N, 3) each
+    shape = f0[None, :] * specular_albedo(exponent, cos)[:, None] + (1.0 - f0[None, :]) * schlick_albedo(exponent, cos)[:, None]
+    ks = (weight[:, None] * shape * specular).sum(axis=0) / np.maximum((weight[:, None] * shape**2).sum(axis=0), 1e-300)
+    b = schlick_diffuse(cos)
+    kd = (weight * b) @ diffuse / float(weight @ b**2)
     return ks, kd
 
 

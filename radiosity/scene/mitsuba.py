@@ -79,7 +79,7 @@ import trimesh
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
-from radiosity.formats.material import srgb_to_linear
+from radiosity.formats.material import fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
@@ -854,6 +854,7 @@ class _Surface:
     exponent: float = 0.0
     twosided: bool = False
     visible: bool = True  # False: the shape is left out (a null bsdf, a dielectric)
+    fresnel: tuple | None = None  # Schlick's F0 of a mapped plastic or conductor
     texture: _Bitmap | None = None  # multiplies diffuse at each point (``textures``)
 
     def untextured(self):
@@ -861,7 +862,7 @@ class _Surface:
         if self.texture is None:
             return self
         diffuse = tuple(float(d * m) for d, m in zip(self.diffuse, self.texture.mean, strict=True))
-        return _Surface(diffuse, self.specular, self.exponent, self.twosided, self.visible)
+        return _Surface(diffuse, self.specular, self.exponent, self.twosided, self.visible, self.fresnel)
 
 
 def _bitmap_property(doc, props, name):
@@ -924,8 +925,12 @@ def _surface(doc, node):
         node.warn(f"blended as one Phong lobe: colours mixed with weight {weight:.2f}, the exponent of the "
                   "glossier part")
         mix = lambda u, v: tuple((1 - weight) * x + weight * y for x, y in zip(u, v, strict=True))  # noqa: E731
-        return _Surface(mix(a.diffuse, b.diffuse), mix(a.specular, b.specular), max(a.exponent, b.exponent),
-                        a.twosided or b.twosided, a.visible or b.visible)
+        glossier = a if a.exponent >= b.exponent else b
+        diffuse, specular, exponent = mix(a.diffuse, b.diffuse), mix(a.specular, b.specular), glossier.exponent
+        if glossier.fresnel is not None and any(specular):  # its Fresnel for the blend, kd within the energy bound
+            diffuse = tuple(np.minimum(diffuse, fresnel_kd_limit(specular, glossier.fresnel, exponent)))
+        return _Surface(diffuse, specular, exponent, a.twosided or b.twosided, a.visible or b.visible,
+                        glossier.fresnel if any(specular) else None)
     colour = props.colour("base_color") or props.colour("reflectance") or props.colour("diffuse_reflectance")
     node.warn(f"bsdf type {kind!r} is not modelled: taken as diffuse"
               + (" with its base colour" if colour is not None else " 0.5"))
@@ -964,12 +969,13 @@ def _microfacet_surface(node, props, kind):
     else:
         params["material"] = props.string("material", "none")
     try:
-        kd, ks, exponent = microfacet.phong_lobe(kind, distribution, alpha if alpha is not None else 0.1, **params)
+        kd, ks, exponent, fresnel = microfacet.phong_lobe(kind, distribution, alpha if alpha is not None else 0.1,
+                                                          **params)
     except InputError as exc:
         raise node.fail(str(exc)) from None
     if bitmap is None:
-        return _Surface(diffuse=kd, specular=ks, exponent=exponent)
-    return _Surface(diffuse=kd, specular=ks, exponent=exponent,
+        return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel)
+    return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel,
                     texture=_plastic_texture(bitmap, kind, distribution, alpha, params))
 
 
@@ -1199,7 +1205,7 @@ def _to_material(shape):
     s = shape.surface
     try:
         return Material(name=shape.name, diffuse=s.diffuse, specular=s.specular, exponent=s.exponent,
-                        emission=shape.emission)
+                        emission=shape.emission, fresnel=s.fresnel)
     except InputError as exc:
         raise InputError(f"{shape.source}: {exc}") from None
 

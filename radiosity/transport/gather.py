@@ -19,7 +19,19 @@ import numpy as np
 
 from radiosity.formats.directions import hemisphere_to_square_nb
 from radiosity.scene.environment import env_lookup
-from radiosity.scene.materials import EMISSION, EXPONENT, KD, KS, brdf_sample, onb, phong_lobe
+from radiosity.scene.materials import (
+    EMISSION,
+    EXPONENT,
+    HAS_FRESNEL,
+    KD,
+    KS,
+    brdf_sample,
+    diffuse_exitance,
+    half_cosine,
+    onb,
+    phong_lobe,
+    schlick,
+)
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
 from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
 from radiosity.transport.sampling import (
@@ -198,6 +210,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
             px, py, pz = lerp3(positions, i0, i1, i2, w, uk, vk)
             m = face_material[t]
+            fresnel = materials[m, HAS_FRESNEL] > 0.0
             target = ids[k]
             weight = 1.0
             if depth == 0 and emit_area_pdf[t] > 0.0 and direct_area_pdf[t] <= 0.0:
@@ -213,17 +226,20 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 elif lobe_light:
                     p_light = emit_area_pdf[t] * dist * dist / cos_light
                     weight = path_pdf[k] / (path_pdf[k] + p_light)
+            nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, uk, vk), d, (gx, gy, gz))
+            # a Fresnel surface's diffuse part leaves less light towards grazing
+            kd_scale = diffuse_exitance(materials[m], -(d[0] * nx + d[1] * ny + d[2] * nz)) if fresnel else 1.0
             texture = face_texture[t]
             tex = hit_texel(sa, texture, t, uk, vk) if texture >= 0 else (1.0, 1.0, 1.0)
             for c in range(3):
                 e = w * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]
-                radiance = weight * materials[m, EMISSION + c] + materials[m, KD + c] * tex[c] / math.pi * e
+                kd = materials[m, KD + c] * kd_scale if fresnel else materials[m, KD + c]
+                radiance = weight * materials[m, EMISSION + c] + kd * tex[c] / math.pi * e
                 incoming[target, c] += values[k, c] * radiance
             ks0, ks1, ks2 = materials[m, KS], materials[m, KS + 1], materials[m, KS + 2]
             if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:
                 continue
             item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
-            nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, uk, vk), d, (gx, gy, gz))
             exponent = materials[m, EXPONENT]
             if has_lights:
                 # the light sample at the glossy hit
@@ -250,9 +266,12 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                                     p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
                                     scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
                                     lm = face_material[tri]
-                                    incoming[target, 0] += values[k, 0] * (ks0 * materials[lm, EMISSION] * scale)
-                                    incoming[target, 1] += values[k, 1] * (ks1 * materials[lm, EMISSION + 1] * scale)
-                                    incoming[target, 2] += values[k, 2] * (ks2 * materials[lm, EMISSION + 2] * scale)
+                                    f0, f1, f2 = 1.0, 1.0, 1.0
+                                    if fresnel:
+                                        f0, f1, f2 = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                                    incoming[target, 0] += values[k, 0] * (ks0 * f0 * materials[lm, EMISSION] * scale)
+                                    incoming[target, 1] += values[k, 1] * (ks1 * f1 * materials[lm, EMISSION + 1] * scale)
+                                    incoming[target, 2] += values[k, 2] * (ks2 * f2 * materials[lm, EMISSION + 2] * scale)
             # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
             # diffuse lobe's light is in the irradiance)
             tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
@@ -269,6 +288,9 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 continue
             # specular lobe sampled exactly: f_s cos / pdf_s = ks (n + 2) / (n + 1) cos
             lobe_weight = (exponent + 2.0) / (exponent + 1.0) * wiz
+            if fresnel:
+                f0, f1, f2 = schlick(materials[m], half_cosine(wix * wox + wiy * woy + wiz * woz))
+                ks0, ks1, ks2 = ks0 * f0, ks1 * f1, ks2 * f2
             q0, q1, q2 = values[k, 0] * ks0 * lobe_weight, values[k, 1] * ks1 * lobe_weight, values[k, 2] * ks2 * lobe_weight
             survives, carried = roulette((q0, q1, q2), 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
             if not survives:
@@ -312,8 +334,8 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     (balance-heuristic weighted against the gather rays) and its gather rays, all
     shared by every direction d.
 
-    Each sample adds ks (n + 2) / (2 pi) cos^n(alpha) times its weight to the grid
-    directions within its lobe, alpha measured from its mirror direction; directions
+    Each sample adds ks (n + 2) / (2 pi) cos^n(alpha) times its weight (and, with
+    Fresnel, times F(wi.h) per channel) to the grid directions within its lobe, alpha measured from its mirror direction; directions
     where the lobe is below LOBE_CUTOFF of its peak are skipped (that loses at most
     LOBE_CUTOFF of the lobe's energy). The cells to visit come from the grid's square:
     the concentric map never shrinks angles by more than SQUARE_PER_RADIAN, so a
@@ -322,7 +344,7 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     interpolated (relative error ~1e-6 whatever n).
 
     mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
-    (B, 3) kd E / pi; light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
+    (B, 3) kd E / pi (with Fresnel kd E' / pi, times b(wo.z) here per direction); light : ``LightSamples`` (B * n_light, its ``wi``, ``radiance``,
     ``pdf`` and ``visible`` read); samples : ``GatherSamples`` (B * n_gather, its ``wi``
     and ``incoming`` read); directions : (n^2, 3) local, ``directions.grid_directions``;
     out : (B, n^2, 3) float64; variance : (B,) float64 (or empty: not measured), receives each vertex's
@@ -351,6 +373,10 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     moments = np.empty((4, n_dirs))  # light S1, S2, gather S1, S2 of luminance
     lum_ks = (LUMINANCE[0] * mat[KS], LUMINANCE[1] * mat[KS + 1], LUMINANCE[2] * mat[KS + 2])
     measure = variance.shape[0] > 0
+    fresnel = mat[HAS_FRESNEL] > 0.0
+    # with Fresnel the noise measure weights each channel's F like the luminance of ks
+    total_ks = lum_ks[0] + lum_ks[1] + lum_ks[2]
+    lum_f0 = (lum_ks[0] / total_ks, lum_ks[1] / total_ks, lum_ks[2] / total_ks) if total_ks > 0.0 else (1 / 3, 1 / 3, 1 / 3)
     for b in range(n_blocks):
         used = 0
         for m in range(n_light):
@@ -399,9 +425,17 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
                     x = min((cos_alpha - cos_min) * inv_step, LOBE_TABLE - 1.0)
                     k = min(int(x), LOBE_TABLE - 2)
                     lobe = table[k] + (x - k) * (table[k + 1] - table[k])
-                    acc[d, 0] += lobe * w0
-                    acc[d, 1] += lobe * w1
-                    acc[d, 2] += lobe * w2
+                    if fresnel:
+                        # F at wi.h: wi = (-rx, -ry, rz), so wi.wo = 2 rz wo.z - cos alpha
+                        f0, f1, f2 = schlick(mat, half_cosine(2.0 * rz * directions[d, 2] - cos_alpha))
+                        acc[d, 0] += lobe * w0 * f0
+                        acc[d, 1] += lobe * w1 * f1
+                        acc[d, 2] += lobe * w2 * f2
+                        lobe = lobe * (lum_f0[0] * f0 + lum_f0[1] * f1 + lum_f0[2] * f2)
+                    else:
+                        acc[d, 0] += lobe * w0
+                        acc[d, 1] += lobe * w1
+                        acc[d, 2] += lobe * w2
                     if measure:
                         x = lobe * y
                         s1[d] += x
@@ -410,4 +444,8 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
             variance[b] = _variance_sum(moments, n_light, n_gather)
         for d in range(acc.shape[0]):
             for c in range(3):
-                acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]
+                if fresnel:
+                    diffuse = diffuse_radiance[b, c] * diffuse_exitance(mat, directions[d, 2])
+                    acc[d, c] = emission[c] + diffuse + norm * mat[KS + c] * acc[d, c]
+                else:
+                    acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]

@@ -130,5 +130,5 @@ def grid_highlights(parts, obj, directions, visible, nodes):
     material = obj.material
     return emitter_grid(
         parts, obj.positions, obj.normals, obj.tangents, directions, material.specular, material.exponent,
-        visibility=visible, nodes=nodes, source=obj.name,
+        visibility=visible, nodes=nodes, source=obj.name, fresnel=material.fresnel,
     )

@@ -653,7 +653,8 @@ def scene_of_solution(solution):
     for o in solution.objects:
         m = o.material
         material = Material(
-            name=o.name, diffuse=m["diffuse"], specular=m["specular"], exponent=m["exponent"], emission=m["emission"]
+            name=o.name, diffuse=m["diffuse"], specular=m["specular"], exponent=m["exponent"], emission=m["emission"],
+            fresnel=m.get("fresnel"),
         )
         objects.append(
             SceneObject(

@@ -22,7 +22,17 @@ import numba
 import numpy as np
 
 from radiosity.scene.environment import env_lookup, env_sample
-from radiosity.scene.materials import EMISSION, KD, NCOL, brdf_eval, brdf_sample, onb, textured_row
+from radiosity.scene.materials import (
+    EMISSION,
+    HAS_FRESNEL,
+    KD,
+    NCOL,
+    brdf_eval,
+    brdf_sample,
+    deposit_weight,
+    onb,
+    textured_row,
+)
 from radiosity.transport.embree import intersect1, new_rayhit
 from radiosity.transport.records import (
     T_ABSORBED,
@@ -69,7 +79,8 @@ def trace_photons(rt, sa, batch, acc):
     radius R) facing w, the photon starting at that point pushed out by R along w and
     going along -w, carrying L(w) pi R^2 / (total * share * p(w)). At a
     front-face hit its incident power is added to the density moments of the
-    triangle's three vertices: moment0[j] += power * lambda_j and moment1[j] += power
+    triangle's three vertices (times ``materials.deposit_weight``: 1 without Fresnel):
+    moment0[j] += power * lambda_j and moment1[j] += power
     * lambda_j * (x - p_j) in vertex j's tangent frame (lambda_j the barycentric
     weight, the hat function of vertex j). It then scatters by BRDF sampling with
     Russian roulette that keeps its power about constant. Backs absorb. On a textured
@@ -200,6 +211,15 @@ def trace_photons(rt, sa, batch, acc):
                 w = 1.0 - u - v
                 i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
                 px, py, pz = lerp3(positions, i0, i1, i2, w, u, v)
+                m = face_material[t]
+                # the shading frame
+                nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
+                if materials[m, HAS_FRESNEL] > 0.0:
+                    # a Fresnel surface's estimate counts what its diffuse part lets in
+                    fw = deposit_weight(materials[m], -(dx * nx + dy * ny + dz * nz))
+                    d0, d1, d2 = p0 * fw, p1 * fw, p2 * fw
+                else:
+                    d0, d1, d2 = p0, p1, p2
                 # deposit
                 for j in range(3):
                     vert = faces[t, j]
@@ -215,20 +235,18 @@ def trace_photons(rt, sa, batch, acc):
                     along_t = ex * t0 + ey * t1 + ez * t2
                     along_b = ex * cx + ey * cy + ez * cz
                     for c in range(3):
-                        wc = (p0 if c == 0 else (p1 if c == 1 else p2)) * lam
+                        wc = (d0 if c == 0 else (d1 if c == 1 else d2)) * lam
                         moment0[vert, c] += wc
                         moment1[vert, c, 0] += wc * along_t
                         moment1[vert, c, 1] += wc * along_b
                 tally[T_INCIDENT] += p0
                 tally[T_INCIDENT + 1] += p1
                 tally[T_INCIDENT + 2] += p2
-                m = face_material[t]
                 base = depth * 8
                 r0 = rand(seed, STREAM_BOUNCE, pid, base)
                 r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
                 r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)
-                # scatter: the shading frame, then brdf_sample
-                nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
+                # scatter: brdf_sample in the shading frame
                 tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
                 wox = -(dx * tx + dy * ty + dz * tz)
                 woy = -(dx * bx + dy * by + dz * bz)

@@ -46,11 +46,12 @@ def glossy_model(per_light, rng, camera=CAMERA, nodes=8):
     a reflection probe (4 x 4 and 8 x 8 random texels, random per-vertex weights)."""
     base = lit_model(per_light, rng, camera)
     objects = []
-    for o, (ks, exponent, m) in zip(base.objects, (((0.3, 0.3, 0.25), 20.0, 4), ((0.5, 0.45, 0.4), 30.0, 8)),
-                                    strict=True):
+    for o, (ks, exponent, m, f0) in zip(base.objects, (((0.3, 0.3, 0.25), 20.0, 4, None),
+                                                       ((0.5, 0.45, 0.4), 30.0, 8, np.array([0.04, 0.3, 0.9]))),
+                                        strict=True):  # the second a Fresnel material's
         v = len(o.positions)
         highlight = Highlight(LAMPS, nodes, np.array(ks), exponent,
-                              rng.uniform(0.3, 1.0, (v, len(LAMPS))).astype(np.float32))
+                              rng.uniform(0.3, 1.0, (v, len(LAMPS))).astype(np.float32), f0)
         probe = Probe(rng.uniform(0, 2, (m, m, 3)).astype(np.float32), np.array([0.0, 0.0, -0.8]),
                       np.array([[-1.5, -1.5, -2.5], [1.5, 1.5, 0.3]]), albedo_table(exponent))
         objects.append(dataclasses.replace(o, highlight=highlight, probe=probe,
@@ -196,6 +197,8 @@ def test_a_version_3_fit_round_trips(exported_v3, rng):
         ha, hb = a.highlight, b.highlight
         assert hb.parts is back.emitters and hb.nodes == ha.nodes
         assert bits_equal(hb.ks, ha.ks) and hb.exponent == ha.exponent
+        assert (ha.fresnel is None) == (hb.fresnel is None)
+        assert ha.fresnel is None or bits_equal(hb.fresnel, ha.fresnel)
         for key in ("texels", "centre", "box", "albedo"):
             assert bits_equal(getattr(b.probe, key), getattr(a.probe, key)), f"{a.name}/probe {key}"
         assert bits_equal(b.probe_weight, a.probe_weight)
@@ -230,7 +233,8 @@ def test_a_version_3_fit_in_the_gltf(exported_v3):
         assert visibility.dtype == np.float32 and visibility.shape == (v, 6)
         assert bits_equal(visibility[:, :p], obj.highlight.visibility) and not visibility[:, p:].any()
         assert bits_equal(np.asarray(attributes["_PROBE"]), obj.probe_weight)
-        assert info["highlight"] == {"ks": obj.highlight.ks.tolist(), "exponent": obj.highlight.exponent}
+        fresnel = {} if obj.highlight.fresnel is None else {"fresnel": obj.highlight.fresnel.tolist()}
+        assert info["highlight"] == {"ks": obj.highlight.ks.tolist(), "exponent": obj.highlight.exponent, **fresnel}
         probe = info["probe"]
         assert probe.keys() == {"size", "centre", "box", "albedo", "texels"}
         assert probe["size"] == obj.probe.size and probe["centre"] == obj.probe.centre.tolist()

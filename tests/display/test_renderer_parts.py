@@ -10,6 +10,7 @@ the position, normal, emitted colour, probe weight and visibility. Tolerances: f
 on the GPU (the highlight's quadrature in single precision, a sharp lobe's exponent
 multiplying the rounding) against float64: 2e-3 relative plus 1e-5 absolute."""
 
+import dataclasses
 import textwrap
 
 import numpy as np
@@ -42,7 +43,7 @@ def parts():
     return (lamp, ball, own)
 
 
-def ball_model(rng, probe=True, highlight=True, lights=2):
+def ball_model(rng, probe=True, highlight=True, lights=2, fresnel=None):
     s = trimesh.creation.icosphere(subdivisions=3)
     positions = np.asarray(s.vertices, np.float32)
     normals = (positions / np.linalg.norm(positions, axis=1, keepdims=True)).astype(np.float32)
@@ -60,7 +61,8 @@ def ball_model(rng, probe=True, highlight=True, lights=2):
         emitted=rng.uniform(0, 0.1, (v, 3)).astype(np.float32),
         specular=rng.uniform(0.1, 0.5, (v, k, 3)).astype(np.float32), light_pos=light_pos,
         light_rgb=np.ones((k, 3), np.float32), shininess=np.array([20.0, 150.0][:k], np.float32),
-        highlight=Highlight(pp, 8, KS, EXPONENT, rng.uniform(0.3, 1.0, (v, 3)).astype(np.float32)) if highlight else None,
+        highlight=Highlight(pp, 8, KS, EXPONENT, rng.uniform(0.3, 1.0, (v, 3)).astype(np.float32), fresnel)
+        if highlight else None,
         probe=Probe(texels, np.zeros(3), np.array([[-3.0, -1.0, -3.0], [3.0, 4.0, 4.0]]), albedo_table(EXPONENT))
         if probe else None,
         probe_weight=rng.uniform(0.2, 0.8, (v, 3)).astype(np.float32) if probe else None,
@@ -87,7 +89,8 @@ def expected_pixels(renderer, obj, view, parts):
         name=obj.name, positions=x, normals=n, faces=np.zeros((1, 3), np.int32), emitted=blend(obj.emitted),
         specular=blend(obj.specular), light_pos=obj.light_pos, light_rgb=obj.light_rgb, shininess=obj.shininess,
         highlight=None if obj.highlight is None else Highlight(obj.highlight.parts, 8, obj.highlight.ks,
-                                                               obj.highlight.exponent, blend(obj.highlight.visibility)),
+                                                               obj.highlight.exponent, blend(obj.highlight.visibility),
+                                                               obj.highlight.fresnel),
         probe=obj.probe, probe_weight=None if obj.probe is None else blend(obj.probe_weight),
     )
     return blended.shade(w, parts=parts), covered
@@ -110,6 +113,30 @@ def test_per_pixel_equals_the_formula_with_each_part_on_and_off(gl_context, rng,
         full = r.render(VIEW, "fitted", "pixel")
         assert np.abs(full - image).max() > 0.01
     r.release()
+
+
+def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl_context, rng):
+    """The emitter term of a Fresnel material: ks weighted by Schlick's F(n . w), on the GPU
+    as in radiosity.formats.emitters (per pixel and Gouraud), and it changes the picture."""
+    f0 = np.array([0.04, 0.3, 0.9])
+    model = ball_model(rng, probe=False, lights=1, fresnel=f0)
+    obj = model.objects[0]
+    r = Renderer(gl_context, fit=model, samples=1)
+    image = r.render(VIEW, "fitted", "pixel", parts=("emitters",))
+    expected, covered = expected_pixels(r, obj, VIEW, ("emitters",))
+    assert covered.sum() > 500 and expected.max() > 0.01
+    diff = np.abs(image[covered] - expected)
+    assert (diff <= RTOL * np.abs(expected) + ATOL).all(), diff.max()
+    w = np.asarray(VIEW.eye) - obj.positions.astype(np.float64)
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    got = r.vertex_colours(VIEW, "ball")
+    assert np.allclose(got, obj.shade(w), rtol=RTOL, atol=ATOL)
+    without = FittedModel(objects=(dataclasses.replace(obj, highlight=dataclasses.replace(obj.highlight, fresnel=None)),),
+                          source="test", emitters=model.emitters, emitter_nodes=8)
+    rp = Renderer(gl_context, fit=without, samples=1)
+    assert np.abs(rp.render(VIEW, "fitted", "pixel", parts=("emitters",)) - image).max() > 0.01
+    r.release()
+    rp.release()
 
 
 def test_gouraud_vertex_colours_equal_the_formula_at_the_vertices(gl_context, rng):

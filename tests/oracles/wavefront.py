@@ -21,7 +21,21 @@ import numpy as np
 
 import radiosity
 from radiosity import jit_cache
-from radiosity.scene.materials import EMISSION, EXPONENT, KD, KS, brdf_eval, brdf_sample, onb, phong_lobe
+from radiosity.scene.materials import (
+    EMISSION,
+    EXPONENT,
+    HAS_FRESNEL,
+    KD,
+    KS,
+    brdf_eval,
+    brdf_sample,
+    deposit_weight,
+    diffuse_exitance,
+    half_cosine,
+    onb,
+    phong_lobe,
+    schlick,
+)
 from radiosity.transport.embree import occluded1
 from radiosity.transport.records import (
     T_ABSORBED,
@@ -173,11 +187,16 @@ def bounce_photons(sa, batch, depth, photons, hits, acc, out):
             continue
         uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
         point = barycentric_point(sa, t, uk, vk)
-        _deposit(sa, t, point, (1.0 - uk - vk, uk, vk), power, acc)
+        m = sa.face_material[t]
+        deposited = power
+        if sa.materials[m, HAS_FRESNEL] > 0.0:
+            n = facing(lerp3(sa.normals, sa.faces[t, 0], sa.faces[t, 1], sa.faces[t, 2], 1.0 - uk - vk, uk, vk), d, g)
+            fw = deposit_weight(sa.materials[m], -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2]))
+            deposited = (power[0] * fw, power[1] * fw, power[2] * fw)
+        _deposit(sa, t, point, (1.0 - uk - vk, uk, vk), deposited, acc)
         for c in range(3):
             tally[T_INCIDENT + c] += power[c]
 
-        m = sa.face_material[t]
         base = depth * 8
         rnd = (
             rand(seed, STREAM_BOUNCE, pid, base),
@@ -267,20 +286,23 @@ def shade_paths(tracing, sa, irradiance, block, depth, wave, samples, out):
         origin = (paths.origins[k, 0], paths.origins[k, 1], paths.origins[k, 2])
         weight = _emission_weight(sa, block, depth, d, point, t, (p_before, origin))
         i0, i1, i2 = sa.faces[t, 0], sa.faces[t, 1], sa.faces[t, 2]
+        fresnel = sa.materials[m, HAS_FRESNEL] > 0.0
+        n = facing(lerp3(sa.normals, i0, i1, i2, 1.0 - uk - vk, uk, vk), d, g)
+        kd_scale = diffuse_exitance(sa.materials[m], -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])) if fresnel else 1.0
         for c in range(3):
             e = (1.0 - uk - vk) * irradiance[i0, c] + uk * irradiance[i1, c] + vk * irradiance[i2, c]
-            radiance = weight * sa.materials[m, EMISSION + c] + sa.materials[m, KD + c] / math.pi * e
+            kd = sa.materials[m, KD + c] * kd_scale if fresnel else sa.materials[m, KD + c]
+            radiance = weight * sa.materials[m, EMISSION + c] + kd / math.pi * e
             samples.incoming[target, c] += paths.values[k, c] * radiance
         ks = (sa.materials[m, KS], sa.materials[m, KS + 1], sa.materials[m, KS + 2])
         if max(ks[0], ks[1], ks[2]) <= 0.0 or depth + 1 >= block.max_depth:
             continue
         item = (block.vertices[target // n_gather] * n_gather + target % n_gather) * block.max_depth + depth
-        n = facing(lerp3(sa.normals, i0, i1, i2, 1.0 - uk - vk, uk, vk), d, g)
         exponent = sa.materials[m, EXPONENT]
         if len(sa.emit_triangles) > 0 and block.lobe_light:
             shadow += _glossy_light_sample(
-                (rt, rayhit), sa, (point, g, n, d), (exponent, ks), _light_numbers(block.seed, item), paths.values[k],
-                samples.incoming[target],
+                (rt, rayhit), sa, (point, g, n, d), (exponent, ks, sa.materials[m]), _light_numbers(block.seed, item),
+                paths.values[k], samples.incoming[target],
             )  # fmt: skip
         nx, ny, nz = n
         tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
@@ -297,6 +319,9 @@ def shade_paths(tracing, sa, irradiance, block, depth, wave, samples, out):
         if not (wiz > 0.0 and pdf > 0.0 and sx * g[0] + sy * g[1] + sz * g[2] > 0.0):
             continue
         lobe_weight = (exponent + 2.0) / (exponent + 1.0) * wiz
+        if fresnel:
+            f = schlick(sa.materials[m], half_cosine(wix * wox + wiy * woy + wiz * woz))
+            ks = (ks[0] * f[0], ks[1] * f[1], ks[2] * f[2])
         q = (
             paths.values[k, 0] * ks[0] * lobe_weight,
             paths.values[k, 1] * ks[1] * lobe_weight,
@@ -325,12 +350,12 @@ def _light_numbers(seed, item):
 @numba.njit(cache=True, inline="always")
 def _glossy_light_sample(tracing, sa, where, lobe, rnd, throughput, incoming):
     """The light sample at a glossy hit where = (point, g, shading normal n, arrival
-    direction d), for lobe = (exponent, ks): adds its balance-heuristic-weighted
+    direction d), for lobe = (exponent, ks, the material row: its Fresnel): adds its balance-heuristic-weighted
     contribution to ``incoming`` (3,) when its shadow ray is clear; returns the shadow
     rays traced (0 or 1)."""
     rt, rayhit = tracing
     point, g, n, d = where
-    exponent, ks = lobe
+    exponent, ks, mat = lobe
     tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rnd[0])
     area_pdf = sa.emit_area_pdf[tri]
     if area_pdf <= 0.0:
@@ -357,6 +382,9 @@ def _glossy_light_sample(tracing, sa, where, lobe, rnd, throughput, incoming):
         p_lobe = (exponent + 1.0) / (2.0 * math.pi) * value
         scale = (exponent + 2.0) / (2.0 * math.pi) * value * cos_i / (p_light + p_lobe)
         lm = sa.face_material[tri]
+        if mat[HAS_FRESNEL] > 0.0:
+            f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+            ks = (ks[0] * f[0], ks[1] * f[1], ks[2] * f[2])
         for c in range(3):
             incoming[c] += throughput[c] * (ks[c] * sa.materials[lm, EMISSION + c] * scale)
     return 1

@@ -168,6 +168,20 @@ def test_material_objects_are_accepted():
     assert o.material == POLISHED
 
 
+def test_a_fresnel_material_round_trips_and_files_without_it_have_no_key(tmp_path, saved):
+    plastic = {"diffuse": [0.6, 0.5, 0.4], "specular": [1.0, 1.0, 1.0], "exponent": 60.0, "emission": BLACK,
+               "fresnel": [0.04, 0.04, 0.04]}  # kd + ks > 1: allowed with Fresnel
+    path = tmp_path / "fresnel.npz"
+    Solution((make_object("floor", 2, plastic, 5),)).save(path)
+    assert load_solution(path).object("floor").material == plastic
+    with np.load(saved, allow_pickle=False) as npz:
+        meta = json.loads(str(npz["meta"]))
+    assert all("fresnel" not in m for m in meta["materials"].values())
+    bad = dict(plastic, fresnel=[0.04, 0.04])
+    with pytest.raises(ValueError, match="fresnel must be 3 numbers"):
+        make_object("floor", 2, bad, 5)
+
+
 def test_names_with_a_slash_are_refused(tmp_path):
     with pytest.raises(ValueError, match="'/'"):
         Solution((make_object("box/top", 0, WHITE, 1),)).save(tmp_path / "s.npz")

@@ -11,6 +11,7 @@ import pytest
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import MAX_EXPONENT
 from radiosity.scene import microfacet as mf
+from radiosity.scene.materials import Material
 
 
 def _hemisphere(rng, count):
@@ -195,12 +196,14 @@ def test_mapped_lobe_reproduces_the_measured_width(dist, alpha):
 
 
 def test_mapping_of_albedos():
-    """ks and kd fit the reference's albedos over incidence (sin 2 theta weighted least
-    squares): better there than matching at normal incidence, where the Phong lobe's
-    albedo (falling as about cos theta) is made to start higher than the reference's."""
+    """The constant-ks rule (fresnel=False): ks and kd fit the reference's albedos over
+    incidence (sin 2 theta weighted least squares): better there than matching at normal
+    incidence, where the Phong lobe's albedo (falling as about cos theta) is made to
+    start higher than the reference's."""
     from radiosity.formats.material import specular_albedo
 
-    kd, ks, n, report = mf.phong_lobe_for("roughplastic", "beckmann", 0.1)
+    kd, ks, n, report = mf.phong_lobe_for("roughplastic", "beckmann", 0.1, fresnel=False)
+    assert report["fresnel"] is None
     spec0 = np.asarray(report["reference_specular_albedo"][0])
     assert spec0[0] == pytest.approx(0.0387, abs=1e-3)  # Fresnel at normal incidence, eta 1.49
     assert np.all(ks > spec0) and np.all(kd + ks <= 1.0)
@@ -216,9 +219,51 @@ def test_mapping_of_albedos():
 
     assert misfit(ks[0]) < misfit(spec0[0])
     assert misfit(ks[0]) <= min(misfit(ks[0] * 1.01), misfit(ks[0] * 0.99))  # the least-squares minimum
-    kd, ks, n, _ = mf.phong_lobe_for("plastic", diffuse_reflectance=0.8)
+    kd, ks, n, _ = mf.phong_lobe_for("plastic", diffuse_reflectance=0.8, fresnel=False)
     assert n == MAX_EXPONENT
     assert ks[0] > float(mf.fresnel_dielectric(1.0, 1.49 / 1.000277))  # Fresnel rises towards grazing
-    kd, ks, n, _ = mf.phong_lobe_for("conductor")
+    kd, ks, n, _ = mf.phong_lobe_for("conductor", fresnel=False)
     np.testing.assert_allclose(ks, 1.0)
     np.testing.assert_allclose(kd, 0.0)
+
+
+def test_mapping_with_fresnel():
+    """The rule: F0 the exact reflectance at normal incidence; ks the least-squares scale
+    of the Fresnel lobe's albedo shape (F0 S + (1 - F0) Q) against the reference's
+    specular albedo, kd of b(cos theta) against its diffuse one, within the energy
+    limits; the mapped specular albedo then rises towards grazing as the reference's
+    does, and fits it better than the constant ks."""
+    from radiosity.formats.material import fresnel_kd_limit, schlick_albedo, schlick_diffuse, specular_albedo
+
+    brdf = mf.reference_brdf("roughplastic", "ggx", 0.15, diffuse_reflectance=0.5)
+    kd, ks, n, report = mf.phong_lobe_for("roughplastic", "ggx", 0.15, diffuse_reflectance=0.5)
+    f0 = np.asarray(report["fresnel"])
+    np.testing.assert_allclose(f0, float(mf.fresnel_dielectric(1.0, 1.49 / 1.000277)))
+    x, w = np.polynomial.legendre.leggauss(48)
+    theta = (x + 1) * np.pi / 4
+    cos = np.cos(theta)
+    weight = w * np.sin(2 * theta)
+    ref_spec, ref_diff = (a[:, 0] for a in brdf.albedo(cos))
+    shape = f0[0] * specular_albedo(n, cos) + (1 - f0[0]) * schlick_albedo(n, cos)
+
+    def misfit(k, curve, reference):
+        return float(weight @ (k * curve - reference) ** 2)
+
+    assert misfit(ks[0], shape, ref_spec) <= min(misfit(ks[0] * 1.01, shape, ref_spec),
+                                                 misfit(ks[0] * 0.99, shape, ref_spec))
+    b = schlick_diffuse(cos)
+    kd_fit = float(weight @ (b * ref_diff) / (weight @ b**2))
+    limit = fresnel_kd_limit(ks, f0, n)[0]
+    assert kd[0] == pytest.approx(min(kd_fit, limit))  # least squares, within the energy bound
+    kd_old, ks_old, _, _ = mf.phong_lobe_for("roughplastic", "ggx", 0.15, diffuse_reflectance=0.5, fresnel=False)
+    # the specular albedo: the Fresnel lobe fits the reference better than the constant ks
+    assert misfit(ks[0], shape, ref_spec) < 0.5 * misfit(ks_old[0], specular_albedo(n, cos), ref_spec)
+    spec = np.asarray(report["phong_specular_albedo"])[:, 0]  # at 0, 60, 80 degrees
+    assert spec[2] > 1.3 * spec[0]  # rises towards grazing (a constant ks falls to a fifth)
+    m = Material("m", diffuse=tuple(kd), specular=tuple(ks), exponent=n, fresnel=tuple(f0))  # accepted
+    assert m.fresnel is not None
+    mirror = mf.phong_lobe_for("conductor")
+    np.testing.assert_allclose(mirror[1], 1.0)
+    np.testing.assert_allclose(mirror[3]["fresnel"], 1.0)
+    gold = mf.phong_lobe_for("roughconductor", "beckmann", 0.1, material="Au")
+    np.testing.assert_allclose(gold[3]["fresnel"], mf.fresnel_conductor(1.0, *mf.METALS["Au"]))

@@ -20,6 +20,7 @@ import pytest
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.scene import geometry
 from radiosity.scene.loaders import load_scene
+from radiosity.scene.materials import albedo
 from radiosity.scene.mitsuba import Tessellation, load_mitsuba, read_serialized
 from radiosity.scene.model import BACK_OFFSET
 
@@ -688,7 +689,8 @@ def test_glossy_bsdfs_sharpen_as_roughness_falls(tmp_path, kind):
     assert all(a < b for a, b in zip(exponents, exponents[1:])), exponents  # strictly sharper
     for m in rough + [smooth]:
         assert min(m.specular) > 0
-        assert max(np.add(m.diffuse, m.specular)) <= 1
+        assert m.fresnel is not None  # the measured rule gives plastics and conductors Fresnel
+        assert albedo(m, np.linspace(0, 1, 101)).max() <= 1 + 1e-4
         if kind == "conductor":
             assert m.diffuse == (0, 0, 0)
         else:
@@ -700,14 +702,16 @@ def test_conductor_colours_and_anisotropy(tmp_path):
     np.testing.assert_allclose(mirror.specular, 1, atol=1e-6)
     gold = rough_surface(tmp_path, "conductor", 0.1, '<rgb name="eta" value="0.2, 0.45, 1.4"/>'
                                                      '<rgb name="k" value="3.6, 2.4, 1.8"/>')
-    assert gold.specular[0] >= gold.specular[1] > gold.specular[2]
+    normal = albedo(gold, 1.0)  # the colour is in F0 now, ks the fitted scale
+    assert normal[0] >= normal[1] > normal[2]
     path = write_scene(tmp_path, '<shape type="rectangle"><bsdf type="roughconductor"><float name="alpha_u" value="0.05"/>'
                                  '<float name="alpha_v" value="0.2"/></bsdf></shape>')
     scene, messages = load_warned(path)
     assert "anisotropic roughness (0.05, 0.2) taken as isotropic 0.1" in messages[0]
     assert scene.objects[0].material.exponent == rough_surface(tmp_path, "conductor", 0.1).exponent
     named = rough_surface(tmp_path, "conductor", None, '<string name="material" value="Au"/>')
-    assert named.specular[0] >= named.specular[1] > named.specular[2]  # gold: Mitsuba's preset
+    normal = albedo(named, 1.0)  # red and green may both reach the energy bound
+    assert normal[0] + 1e-9 >= normal[1] > normal[2]  # gold: Mitsuba's preset
     bad = write_scene(tmp_path, '<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Fe"/>'
                                 "</bsdf></shape>")
     assert "unknown material 'Fe'" in refusal(bad)  # Mitsuba has no plain Fe either

@@ -12,6 +12,7 @@ from bad_inputs import BAD_INPUTS, bad_input_path, write
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.scene import builtins, geometry
 from radiosity.scene.loaders import load_scene
+from radiosity.scene.materials import albedo
 from radiosity.scene.microfacet import RULE
 
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])
@@ -208,7 +209,9 @@ def test_gltf_maps_metallic_roughness(tmp_path):
     gltf.export(path)
     scene = load_scene(path)
     brass = scene.object("brass").material
-    assert np.allclose(brass.specular, (0.8, 0.6, 0.2), atol=1 / 255) and brass.diffuse == (0, 0, 0)
+    # glTF's Schlick F0: baseColor for a metal, ks the interface's scale 1
+    assert np.allclose(brass.fresnel, (0.8, 0.6, 0.2), atol=1 / 255) and brass.diffuse == (0, 0, 0)
+    assert brass.specular == (1.0, 1.0, 1.0)
     alpha = 0.3**2
     c, d, e = RULE["ggx"]  # the measured GGX rule (radiosity.scene.microfacet)
     assert brass.exponent == pytest.approx(c / alpha**2 + d + e * alpha**2)
@@ -216,6 +219,22 @@ def test_gltf_maps_metallic_roughness(tmp_path):
     plaster = scene.object("plaster").material
     assert not plaster.is_glossy and np.allclose(plaster.diffuse, 0.8, atol=1 / 255)
     assert scene.object("glow").material.emission == pytest.approx((1.0, 0.5, 0.25), abs=1e-6)
+    assert plaster.fresnel is None
+
+
+def test_gltf_dielectric_gets_f0_004_and_its_diffuse_loses_what_f_reflects(tmp_path):
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(
+        material=trimesh.visual.material.PBRMaterial(name="paint", baseColorFactor=[1.0, 0.5, 0.25, 1.0],
+                                                     metallicFactor=0.0, roughnessFactor=0.4)
+    )
+    path = tmp_path / "paint.glb"
+    trimesh.Scene(box).export(path)
+    paint = load_scene(path).objects[0].material
+    assert paint.fresnel == pytest.approx((0.04, 0.04, 0.04))
+    # white base colour: kd held to what F leaves (the albedo at most 1 at every incidence)
+    assert paint.diffuse[0] < 1.0 and paint.diffuse[1] == pytest.approx(0.5, abs=1 / 255)
+    assert albedo(paint, np.linspace(0, 1, 65)).max() <= 1 + 1e-4
 
 
 @pytest.mark.parametrize("factor", [1e-3, 1e4])

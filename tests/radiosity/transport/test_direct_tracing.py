@@ -7,13 +7,16 @@ driven so; a photon batch (traced in waves) the
 same bits photon by photon and as one wave, and the same sums up to the order of their
 terms in waves of any size."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from oracles import wavefront
 
 from radiosity.formats import directions
+from radiosity.formats.material import fresnel_kd_limit
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import pack_materials
+from radiosity.scene.materials import Material, pack_materials
 from radiosity.transport import gather, pathtrace, records, solve
 from radiosity.transport import photons as photons_kernel
 from radiosity.transport.embree import MISS, Hits, RayTracer, new_rayhit, origin_offset
@@ -43,9 +46,26 @@ class EmbreexTracer:
         return out != MISS
 
 
-@pytest.fixture(scope="module")
-def teapot():
+def with_fresnel(scene):
+    """The scene with each glossy material given a Fresnel term (a plastic: ks 1, F0 0.04
+    and 0.9 in one channel, kd within its energy limit): the kernels' Fresnel paths."""
+    new = {}
+    for name, m in scene.materials.items():
+        if m.is_glossy:
+            f0 = (0.04, 0.04, 0.9)
+            limit = fresnel_kd_limit((1.0,) * 3, f0, m.exponent)
+            new[name] = Material(name, diffuse=tuple(np.minimum(m.diffuse, limit)), specular=(1.0,) * 3,
+                                 exponent=m.exponent, emission=m.emission, fresnel=f0)
+    objects = tuple(dataclasses.replace(o, material=new.get(o.material.name, o.material)) for o in scene.objects)
+    return dataclasses.replace(scene, objects=objects)
+
+
+@pytest.fixture(scope="module", params=["plain", "fresnel"])
+def teapot(request):
     scene = load_scene("cornell-teapot").refined(150.0)
+    if request.param == "fresnel":
+        scene = with_fresnel(scene)
+        assert any(m.fresnel is not None for m in scene.materials.values())
     merged = scene.merged()
     sa = solve.scene_arrays(scene, merged, origin_offset(merged.positions))
     with RayTracer(merged.positions, merged.faces, threads=2) as tracer:
