@@ -9,7 +9,11 @@ two factors apart and a display multiplies them per pixel:
 
 with ``uv(x)`` and the irradiance ``E(x)`` interpolated barycentrically from the
 vertices. The object's stored radiance then holds everything else (emission, the
-specular part). The conventions (also ``radiosity.scene.textures``'s):
+specular part). A material with Fresnel (``radiosity.formats.material``) sends its
+diffuse part out with a further factor b(cos_o) = 1 - (1 - cos_o)^5; the stored
+radiance leaves out exactly what the solver added, but the term above is drawn
+without that factor (1 at the normal, 0.94 at 65 degrees, 0.60 at 80 degrees): a
+textured glossy Fresnel surface seen at grazing angles is drawn too bright. The conventions (also ``radiosity.scene.textures``'s):
 
     texture : (H, W, 3) linear RGB in [0, 1], row 0 the image's top row
     uvs     : (V, 2), u to the right, v up: (0, 0) the image's bottom-left corner

@@ -30,6 +30,7 @@ from radiosity.scene.materials import (
     brdf_eval,
     brdf_sample,
     deposit_weight,
+    diffuse_exitance,
     onb,
     textured_row,
 )
@@ -269,10 +270,11 @@ def trace_photons(rt, sa, batch, acc):
                 a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
                 a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
                 a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
-                if texture >= 0:  # the diffuse part of the albedo is kd exactly: kd * texel instead
-                    a0 += materials[m, KD] * (tex0 - 1.0)
-                    a1 += materials[m, KD + 1] * (tex1 - 1.0)
-                    a2 += materials[m, KD + 2] * (tex2 - 1.0)
+                if texture >= 0:  # the diffuse part of the albedo is kd (kd b(cos) with Fresnel): kd * texel instead
+                    b = diffuse_exitance(materials[m], woz)
+                    a0 += b * materials[m, KD] * (tex0 - 1.0)
+                    a1 += b * materials[m, KD + 1] * (tex1 - 1.0)
+                    a2 += b * materials[m, KD + 2] * (tex2 - 1.0)
                 tally[T_ABSORBED] += p0 * (1.0 - a0)
                 tally[T_ABSORBED + 1] += p1 * (1.0 - a1)
                 tally[T_ABSORBED + 2] += p2 * (1.0 - a2)

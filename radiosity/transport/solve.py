@@ -401,7 +401,12 @@ def _solve(scene, settings, runner, progress):
             dirs = glossy_dirs[o.name]
             radiance = gathered[o.name]
             if o.texture is not None:
-                radiance = np.maximum(radiance - (np.asarray(o.material.diffuse) / np.pi * irradiance[sl])[:, None, :], 0.0)
+                # what the gather added: kd / pi * E in every direction (times b(cos_o) with Fresnel)
+                exitance = np.ones(len(dirs))
+                if o.material.fresnel is not None:
+                    exitance = 1.0 - (1.0 - np.clip(np.asarray(dirs, np.float64)[:, 2], 0.0, 1.0)) ** 5
+                added = (np.asarray(o.material.diffuse) / np.pi * irradiance[sl])[:, None, :] * exitance[None, :, None]
+                radiance = np.maximum(radiance - added, 0.0)
         else:
             dirs = directions.DIFFUSE_DIRECTIONS
             radiance = (diffuse + np.asarray(o.material.emission))[:, None, :]

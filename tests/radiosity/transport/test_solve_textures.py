@@ -140,3 +140,23 @@ def test_an_untextured_solution_is_written_as_version_2(tmp_path):
     with np.load(tmp_path / "s.npz") as z:
         assert '"version": 2' in str(z["meta"])
         assert not any(k.endswith(("/uvs", "/texture", "/irradiance")) for k in z.files)
+
+
+def test_a_glossy_textured_fresnel_object_keeps_the_rest_of_its_radiance():
+    """With Fresnel the gather's diffuse part falls as b(cos_o) = 1 - (1 - cos_o)^5; the
+    stored radiance leaves out exactly that, so adding it back gives the untextured
+    twin's radiance (a constant texture t against kd * t)."""
+    from radiosity.formats.directions import grid_directions
+
+    kd = np.array([0.5, 0.4, 0.3])
+    glossy = dict(specular=(1.0, 1.0, 1.0), exponent=20.0, emission=(1.0, 1.0, 1.0), fresnel=(0.04, 0.04, 0.04))
+    texture = np.full((2, 2, 3), 0.5, np.float32)
+    textured = sphere_furnace(Material("wall", diffuse=tuple(kd), **glossy), texture, subdivisions=2)
+    plain = sphere_furnace(Material("wall", diffuse=tuple(kd * 0.5), **glossy), None, subdivisions=2)
+    opts = SolveOptions(photons=200_000, max_edge=10.0, seed=4, gather_samples=16, light_samples=4, grid=6)
+    one, two = solve(textured, opts).object("sphere"), solve(plain, opts).object("sphere")
+    z = np.clip(grid_directions(6)[:, 2], 0, 1)
+    b = 1 - (1 - z) ** 5
+    full = one.radiance + (kd * 0.5 / np.pi * one.textured.irradiance)[:, None, :] * b[None, :, None]
+    per_direction = full.mean(axis=(0, 2)) / two.radiance.mean(axis=(0, 2))
+    assert np.abs(per_direction - 1).max() < 0.03, per_direction
