@@ -263,13 +263,14 @@ def test_a_plastic_diffuse_bitmap_is_its_brightest_texel_mapped_and_the_rest_rel
     brightest = texels.reshape(-1, 3).max(axis=0)
     params = {"diffuse_reflectance": tuple(brightest), "specular_reflectance": (1.0,) * 3, "int_ior": 1.49,
               "ext_ior": 1.000277, "nonlinear": nonlinear}
-    kd, ks, n = microfacet.phong_lobe("roughplastic", "beckmann", 0.2, **params)
+    kd, ks, n, f0 = microfacet.phong_lobe("roughplastic", "beckmann", 0.2, **params)
     np.testing.assert_allclose(obj.material.diffuse, kd)
     np.testing.assert_allclose(obj.material.specular, ks)
+    np.testing.assert_allclose(obj.material.fresnel, f0)
     # each texel's kd is the rule's kd for that texel's diffuse reflectance
     i, j = 1, 2
     single = dict(params, diffuse_reflectance=tuple(texels[i, j]))
-    kd_texel, _, _ = microfacet.phong_lobe("roughplastic", "beckmann", 0.2, **single)
+    kd_texel, _, _, _ = microfacet.phong_lobe("roughplastic", "beckmann", 0.2, **single)
     np.testing.assert_allclose(np.asarray(kd) * obj.texture[i, j], kd_texel, rtol=2e-3)
 
 

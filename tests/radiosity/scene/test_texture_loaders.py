@@ -12,6 +12,7 @@ import trimesh
 from PIL import Image
 
 from radiosity.formats.errors import SceneWarning
+from radiosity.formats.material import fresnel_kd_limit
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.textures import lookup, srgb_to_linear
 
@@ -144,7 +145,10 @@ def test_a_textured_glossy_gltf_keeps_its_specular_and_scales_kd(tmp_path):
         "baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 0.3}}
     obj = load_scene(_gltf(tmp_path, material)).objects[0]
     assert obj.textured
-    assert np.allclose(obj.material.specular, 0.04) and np.allclose(obj.material.diffuse, 0.96)  # base 1 x (1 - ks)
+    # glTF's Schlick F0 = 0.04 (a dielectric), ks 1; kd the factor (1) within the energy bound, the image multiplies it
+    assert np.allclose(obj.material.fresnel, 0.04) and np.allclose(obj.material.specular, 1.0)
+    limit = fresnel_kd_limit(np.ones(3), np.full(3, 0.04), obj.material.exponent)
+    assert np.allclose(obj.material.diffuse, np.minimum(1.0, limit))
     assert obj.material.exponent > 0
 
 
@@ -238,9 +242,10 @@ def test_a_textured_metal_warns_that_its_specular_colour_is_the_mean_and_an_unte
     said = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
     assert len(said) == 1 and "takes the texture's mean" in said[0]
     mean = (np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]]).sum(axis=0) + GREY) / 4
-    ks = mean * 0.5 + 0.04 * 0.5
-    assert np.allclose(obj.material.specular, ks, atol=1e-6)
-    assert np.allclose(obj.material.diffuse, 0.5 * (1 - ks), atol=1e-6)  # the factor 1 alone: the image multiplies it
+    f0 = mean * 0.5 + 0.04 * 0.5  # Schlick's F0 mixed to the base colour's mean by metallic
+    assert np.allclose(obj.material.fresnel, f0, atol=1e-6) and np.allclose(obj.material.specular, 1.0)
+    limit = fresnel_kd_limit(np.ones(3), f0, obj.material.exponent)
+    assert np.allclose(obj.material.diffuse, np.minimum(0.5, limit), atol=1e-6)  # the factor 1 (1 - metallic) alone
     plain = {"name": "plain", "pbrMetallicRoughness": {"metallicFactor": 0.5, "roughnessFactor": 0.3}}
     gltf = json.loads(_gltf(tmp_path, plain, name="plain.gltf").read_text())
     with warnings.catch_warnings():
