@@ -14,7 +14,7 @@ against its own scene's path-traced truth (FLIP, relative MSE). The truth's own 
 is measured too (the path tracer at N against 4N samples per pixel), since FLIP counts
 it as error in both scenes alike.
 
-    python benchmarks/bench_textures.py [--quality draft] [--size 320x240] [--spp 256] [--samples 64]
+    python benchmarks/bench_textures.py [--quality draft] [--size 240x180] [--spp 256] [--samples 64]
 
 Writes benchmarks/results/textures.jsonl and textures.png (the pictures side by side
 with their FLIP images), and keeps the run's files in --keep DIR if given.
@@ -174,7 +174,7 @@ def run_scene(name, directory, args):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quality", default="draft", choices=("draft", "medium", "high"))
-    parser.add_argument("--size", default="320x240")
+    parser.add_argument("--size", default="240x180")
     parser.add_argument("--spp", type=int, default=256, help="the truth's samples per pixel (its noise: against 4x)")
     parser.add_argument("--samples", type=int, default=64, help="the displays' samples per pixel (antialiasing)")
     parser.add_argument("--keep", type=Path, help="keep the run's files in this directory")
