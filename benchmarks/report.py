@@ -405,7 +405,28 @@ def textures(rows):
     return out + [""]
 
 
-SECTIONS = (    ("solver.jsonl", solver),
+def scale(rows):
+    out = ["## Scale", "", where("bench_scale.py", ["scale.jsonl"]), machine(rows), ""]
+    stages = [r for r in rows if "seconds" in r]
+    if stages:
+        out += [f"A generated closed interior (rooms, tables, chairs, balls of which every other is glossy, a lamp "
+                f"per room), {stages[0]['quality']}, each stage the command a user types in a process of its own; "
+                "peak resident memory from the kernel. Issue 25's targets: 10^6 triangles with solve + fit <= 5 "
+                "minutes and <= 8 GB; each stage's log-log slope <= 1.15 between 10^5 and 10^6.", ""]
+    out += table(["triangles", "rooms", "stage", "seconds", "peak MB"],
+                 [[f"{r['triangles']:,}", r["rooms"], r["stage"], num(r["seconds"], 2), num(r["peak_mb"], 1)]
+                  for r in stages])
+    slopes = [r for r in rows if "time_slope" in r]
+    if slopes:
+        out += ["", "Log-log slopes between consecutive sizes:", ""]
+        out += table(["stage", "from", "to", "time slope", "memory slope"],
+                     [[r["stage"], f"{r['from']:,}", f"{r['to']:,}", num(r["time_slope"], 3), num(r["memory_slope"], 3)]
+                      for r in slopes])
+    return out + [""]
+
+
+SECTIONS = (
+    ("solver.jsonl", solver),
     ("pathtrace.jsonl", pathtrace),
     ("fit.jsonl", fit),
     ("fit_speed.jsonl", fit_speed),
@@ -416,6 +437,7 @@ SECTIONS = (    ("solver.jsonl", solver),
     ("mitsuba_validation.jsonl", mitsuba),
     ("load.jsonl", load),
     ("textures.jsonl", textures),
+    ("scale.jsonl", scale),
 )
 
 
