@@ -13,6 +13,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from test_pathtrace import ENCLOSED_QUAD
 
 from radiosity.formats.camera import Camera
 from radiosity.formats.material import FRESNEL_NORMALISATION, fresnel_kd_limit
@@ -91,26 +92,6 @@ def test_fresnel_glossy_furnace_matches_the_integral_equation(tmp_path):
     assert np.abs(measured / expected - 1).max() < 0.03, (measured, expected)
 
 
-ENCLOSED_QUAD = """
-    [materials.sky]
-    diffuse = 0.0
-    emission = 1.0
-    [materials.glossy]
-    diffuse = 0.1
-    specular = 0.8
-    exponent = {exponent}
-    [[objects]]
-    name = "sky"
-    builtin = "sphere"
-    flip = true
-    scale = 20
-    material = "sky"
-    [[objects]]
-    name = "quad"
-    builtin = "quad"
-    scale = 4
-    material = "glossy"
-"""
 
 
 @pytest.mark.parametrize("exponent", [3.0, 300.0])
