@@ -1,10 +1,13 @@
 """Time and peak memory of every stage against the scene's size (issue 25).
 
-The scene (``interior``, written as a TOML file): a closed hall divided into rooms
-by half-height walls, each room with a table (a cube), a chair (a cylinder), a ball (an
-icosphere; every other one glossy, three Phong exponents) and a lamp (an area light
-under the ceiling); the balls' subdivision and the number of rooms set the input
-triangles, from about 10^4 to 10^6. Every stage runs as the command a user types
+The scene (``interior``, written as a TOML file): a closed hall divided into rooms by
+full-height walls with a doorway between neighbours; every room is furnished alike: a
+table (a cube), a chair (a cylinder), a diffuse statue (an icosphere of 5,120
+triangles), a glossy ball on the table (Phong exponent 20, 100 or 1000, room by room)
+and a lamp (an area light under the ceiling). The number of rooms sets the input
+triangles, from about 1.7 x 10^4 (3 rooms) to 10^6 (180 rooms), and the mix of work is
+the same at every size: glossy balls are about 6 % of the triangles, as the glossy
+objects of a furnished interior. Every stage runs as the command a user types
 (``vlights scene-info``, ``solve``, ``fit``, ``render``, ``export``) in a process of its
 own, timed, its peak resident memory read from the kernel (``os.wait4``'s rusage).
 
@@ -31,7 +34,12 @@ from _common import Recorder
 
 ROOM = 4.0  # a room's side (scene units: metres)
 HEIGHT = 3.0
-EXPONENTS = (50, 400, 3000)  # the glossy balls' Phong exponents, in turn
+DOOR = 1.0  # the doorway in each inner wall
+THICK = 0.1  # the inner walls' thickness
+EXPONENTS = (20, 100, 1000)  # the glossy balls' Phong exponents, room by room: plastic, varnish, polished metal
+STATUE = 4  # the diffuse statue's icosphere subdivisions (5,120 triangles)
+BALL = 2  # the glossy ball's (320 triangles)
+PER_ROOM = 5_600  # input triangles of one room, about (statue, ball, chair, table, walls, lamp)
 
 HEADER = """\
 [camera]
@@ -48,27 +56,29 @@ diffuse = 0.7
 diffuse = [0.45, 0.3, 0.18]
 [materials.cloth]
 diffuse = [0.2, 0.3, 0.55]
-[materials.matte]
-diffuse = [0.6, 0.2, 0.2]
+[materials.stone]
+diffuse = [0.6, 0.55, 0.5]
 [materials.lamp]
-emission = 8.0
+emission = 16.0
 {glossy}
 """
 
 
 def layout(triangles):
-    """(rooms per side, ball subdivision) for about ``triangles`` input triangles: 2 x 2
-    rooms up to 10^4, 4 x 4 up to 10^5, then 8 x 8 (a scene of hundreds of objects,
-    not thousands); a ball of subdivision s has 20 * 4^s triangles, the rest of a room
-    about 300, and s is the one that comes closest."""
-    side = 2 if triangles <= 20_000 else 4 if triangles <= 200_000 else 8
-    per_room = max(triangles / (side * side) - 300, 20)
-    subdivisions = min(range(1, 9), key=lambda s: abs(math.log(20 * 4**s / per_room)))
-    return side, subdivisions
+    """(rooms along x, rooms along z) for about ``triangles`` input triangles. Every room
+    is furnished alike (PER_ROOM triangles, one glossy ball) and the balls' exponents
+    cycle through EXPONENTS, so the rooms come in threes: the scene's mix of work is
+    the same at every size (only its amount grows), from 3 rooms (about 1.7 x 10^4
+    triangles) up."""
+    rooms = max(3, 3 * round(triangles / PER_ROOM / 3))
+    best = min(((a, rooms // a) for a in range(1, rooms + 1) if rooms % a == 0), key=lambda ab: abs(ab[0] - ab[1]))
+    return best
 
 
-def objects(side, subdivisions):
-    """The TOML [[objects]] of ``side`` x ``side`` rooms."""
+def objects(nx, nz):
+    """The TOML [[objects]] of ``nx`` x ``nz`` rooms: a closed hall, inner walls of full
+    height with a doorway between neighbouring rooms, and in each room a table, a chair,
+    a diffuse statue, a glossy ball on the table and a lamp under the ceiling."""
     out = []
 
     def add(name, builtin, material, **keys):
@@ -77,38 +87,42 @@ def objects(side, subdivisions):
             lines.append(f"{key} = {json.dumps(value)}")  # TOML's numbers, lists and booleans as JSON writes them
         out.append("\n".join(lines))
 
-    size = side * ROOM
-    add("floor", "quad", "floor", scale=[size, 1.0, size], translate=[size / 2, 0.0, size / 2])
-    add("ceiling", "quad", "wall", scale=[size, 1.0, size], flip=True, translate=[size / 2, HEIGHT, size / 2])
+    sx, sz = nx * ROOM, nz * ROOM
+    add("floor", "quad", "floor", scale=[sx, 1.0, sz], translate=[sx / 2, 0.0, sz / 2])
+    add("ceiling", "quad", "wall", scale=[sx, 1.0, sz], flip=True, translate=[sx / 2, HEIGHT, sz / 2])
     half = HEIGHT / 2
-    add("outer_north", "quad", "wall", scale=[size, 1.0, HEIGHT], rotate_deg=[90, 0, 0], translate=[size / 2, half, 0.0])
-    add("outer_south", "quad", "wall", scale=[size, 1.0, HEIGHT], rotate_deg=[-90, 0, 0], translate=[size / 2, half, size])
-    add("outer_west", "quad", "wall", scale=[HEIGHT, 1.0, size], rotate_deg=[0, 0, -90], translate=[0.0, half, size / 2])
-    add("outer_east", "quad", "wall", scale=[HEIGHT, 1.0, size], rotate_deg=[0, 0, 90], translate=[size, half, size / 2])
-    for i in range(side):
-        for j in range(side):
+    add("outer_north", "quad", "wall", scale=[sx, 1.0, HEIGHT], rotate_deg=[90, 0, 0], translate=[sx / 2, half, 0.0])
+    add("outer_south", "quad", "wall", scale=[sx, 1.0, HEIGHT], rotate_deg=[-90, 0, 0], translate=[sx / 2, half, sz])
+    add("outer_west", "quad", "wall", scale=[HEIGHT, 1.0, sz], rotate_deg=[0, 0, -90], translate=[0.0, half, sz / 2])
+    add("outer_east", "quad", "wall", scale=[HEIGHT, 1.0, sz], rotate_deg=[0, 0, 90], translate=[sx, half, sz / 2])
+    piece = (ROOM - DOOR) / 2  # each side of a doorway
+    for i in range(nx):
+        for j in range(nz):
             x0, z0 = i * ROOM, j * ROOM
-            k = i * side + j
-            add(f"wall_{k}", "cube", "wall", scale=[ROOM * 0.6, 1.5, 0.1], translate=[x0 + ROOM * 0.3, 0.75, z0])
-            add(f"table_{k}", "cube", "wood", scale=[1.2, 0.75, 0.8], translate=[x0 + 1.2, 0.375, z0 + 2.0])
+            k = i * nz + j
+            if j > 0:  # the wall to the room at lower z, a doorway in its middle
+                for side, x in (("a", x0 + piece / 2), ("b", x0 + ROOM - piece / 2)):
+                    add(f"wall_z{k}{side}", "cube", "wall", scale=[piece, HEIGHT, THICK], translate=[x, half, z0])
+            if i > 0:  # the wall to the room at lower x
+                for side, z in (("a", z0 + piece / 2), ("b", z0 + ROOM - piece / 2)):
+                    add(f"wall_x{k}{side}", "cube", "wall", scale=[THICK, HEIGHT, piece], translate=[x0, half, z])
+            add(f"table_{k}", "cube", "wood", scale=[1.2, 0.75, 0.8], translate=[x0 + 1.3, 0.375, z0 + 2.0])
             add(f"chair_{k}", "cylinder", "cloth", segments=24, scale=[0.25, 0.45, 0.25],
-                rotate_deg=[-90, 0, 0], translate=[x0 + 2.4, 0.0, z0 + 2.6])
-            glossy = k % 2 == 0
-            material = f"glossy_{(k // 2) % len(EXPONENTS)}" if glossy else "matte"
-            add(f"ball_{k}", "sphere", material, subdivisions=subdivisions, scale=0.3,
-                translate=[x0 + 1.2, 1.05, z0 + 2.0])
+                rotate_deg=[-90, 0, 0], translate=[x0 + 2.5, 0.0, z0 + 2.7])
+            add(f"statue_{k}", "sphere", "stone", subdivisions=STATUE, scale=0.4, translate=[x0 + 3.0, 0.4, z0 + 0.9])
+            add(f"ball_{k}", "sphere", f"glossy_{k % len(EXPONENTS)}", subdivisions=BALL, scale=0.25,
+                translate=[x0 + 1.3, 1.0, z0 + 2.0])
             add(f"lamp_{k}", "quad", "lamp", scale=[0.5, 1.0, 0.5], flip=True, translate=[x0 + 2.0, HEIGHT - 0.01, z0 + 2.0])
     return out
 
 
 def write_scene(path, triangles):
-    side, subdivisions = layout(triangles)
+    nx, nz = layout(triangles)
     glossy = "\n".join(f"[materials.glossy_{i}]\ndiffuse = 0.05\nspecular = 0.6\nexponent = {n}"
                        for i, n in enumerate(EXPONENTS))
-    size = side * ROOM
-    header = HEADER.format(cx=0.3, cz=0.3, lx=size / 2, lz=size / 2, glossy=glossy)
-    path.write_text(header + "\n" + "\n\n".join(objects(side, subdivisions)) + "\n")
-    return side, subdivisions
+    header = HEADER.format(cx=0.4, cz=0.4, lx=ROOM * 0.75, lz=ROOM * 0.75, glossy=glossy)
+    path.write_text(header + "\n" + "\n\n".join(objects(nx, nz)) + "\n")
+    return nx, nz
 
 
 def run(args, cwd):
@@ -141,7 +155,7 @@ def main(argv=None):
         for target in args.triangles:
             d = directory / f"t{target}"
             d.mkdir(exist_ok=True)
-            side, subdivisions = write_scene(d / "interior.toml", target)
+            nx, nz = write_scene(d / "interior.toml", target)
             commands = {
                 "scene-info": ["scene-info", "interior.toml", "--json"],
                 "solve": ["solve", "interior.toml", "--quality", args.quality, "-o", "solution.npz"],
@@ -155,8 +169,7 @@ def main(argv=None):
             triangles = json.loads(info.stdout)["totals"]["triangles"]
             for stage in stages:
                 seconds, peak = run(commands[stage], d)
-                rows[(target, stage)] = record({"target": target, "triangles": triangles, "rooms": side * side,
-                                                "ball_subdivisions": subdivisions, "stage": stage,
+                rows[(target, stage)] = record({"target": target, "triangles": triangles, "rooms": nx * nz, "stage": stage,
                                                 "seconds": round(seconds, 2), "peak_mb": round(peak, 1)})
     targets = list(args.triangles)
     for a, b in zip(targets, targets[1:]):

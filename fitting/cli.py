@@ -18,10 +18,11 @@ from radiosity.formats.atomic import check_output
 from radiosity.formats.errors import InputError
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.sniff import SOLUTION, require_format
-from radiosity.formats.solution import load_solution
+from radiosity.formats.solution import SolutionFile
 
 from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit
 from .glossy import MODEL_TARGET
+from .memory import check_fit_memory, cores
 
 
 def _lights(text):
@@ -98,7 +99,20 @@ def register(subparsers, not_built):
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",
                    help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality preset's)")
+    p.add_argument("--workers", type=_workers, default=None, metavar="N",
+                   help="processes fitting glossy objects at once, the costliest first; the model is the same "
+                   "whatever N (default: one per core)")
     p.set_defaults(func=_fit)
+
+
+def _workers(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes a whole number, got {text!r}") from None
+    if not 1 <= n <= 256:
+        raise argparse.ArgumentTypeError(f"takes a whole number from 1 to 256, got {n}")
+    return n
 
 
 def fit_quality(args_quality, solution):
@@ -137,10 +151,12 @@ def _fit(args):
     out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
     require_format(args.solution, (SOLUTION,), "solution")
-    solution = load_solution(args.solution)
-    quality, chosen_by = fit_quality(args.quality, solution)
-    options = fit_options(args, quality)
-    model = fit(solution, options, progress=True)
+    with SolutionFile(args.solution) as solution:
+        quality, chosen_by = fit_quality(args.quality, solution)
+        options = fit_options(args, quality)
+        workers = args.workers or cores()
+        workers = check_fit_memory(solution, workers)
+        model = fit(solution, options, progress=True, workers=workers)
     model = replace(model, settings={**model.settings, "quality": quality, "quality_chosen_by": chosen_by})
     model.save(out)
     print(format_report(model, out))

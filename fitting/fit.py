@@ -17,9 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.solution import SolutionFile
 
 from . import glossy, loss, mixed, paper
 from .data import fit_data, relative_error
+from .memory import cores
 from .model import FittedModel, FittedObject, Highlight, directional
 
 METHODS = ("paper", "refined", "per-light")
@@ -325,22 +327,38 @@ def _auto_lights(problem, options, exponent, log=None):
     return fit, why
 
 
-def fit(solution, options=FitOptions(), progress=False):
-    """The fitted model of every object of ``solution``."""
+def fit(solution, options=FitOptions(), progress=False, workers=1):
+    """The fitted model of every object of ``solution``: a ``Solution``, or a
+    ``radiosity.formats.solution.SolutionFile``, read an object at a time so that the
+    fit's memory is that of the objects being fitted, not of the whole solution.
+    ``workers`` > 1 (a ``SolutionFile`` only) fits the glossy objects in that many
+    processes, the costliest first; the model is the same, bit for bit."""
     options.check()
-    scene = mixed.SceneGeometry.of_solution(solution)
-    box = glossy.proxy_box(solution)
-    objects = []
+    streamed = isinstance(solution, SolutionFile)
+    if workers > 1 and not streamed:
+        raise ValueError("workers > 1 needs a SolutionFile (each process reads its objects from the file)")
+    if streamed:
+        meshes = [(*solution.geometry(n), solution.materials[n]) for n in solution.names]
+        scene = mixed.SceneGeometry.of_meshes(meshes)
+        box = glossy.proxy_box_of(m[0] for m in meshes)
+        del meshes
+    else:
+        scene = mixed.SceneGeometry.of_solution(solution)
+        box = glossy.proxy_box(solution)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(solution.objects), desc="fit", unit="object", disable=None, dynamic_ncols=True)
+        bar = tqdm(total=len(solution.names), desc="fit", unit="object", disable=None, dynamic_ncols=True)
     try:
-        for obj in solution.objects:
-            objects.append(fit_object(obj, options, scene, bar, solution, box))
-            if bar is not None:
-                bar.update(1)
+        if streamed:
+            objects = _fit_streamed(solution, options, (scene, box), bar, workers)
+        else:
+            objects = []
+            for obj in solution.objects:
+                objects.append(fit_object(obj, options, scene, bar, solution, box))
+                if bar is not None:
+                    bar.update(1)
     finally:
         if bar is not None:
             bar.close()
@@ -362,3 +380,49 @@ def fit(solution, options=FitOptions(), progress=False):
         camera=solution.camera,
         environment=solution.environment,
     )
+
+
+def _fit_streamed(source, options, place, bar, workers):
+    """The ``FittedObject`` of every object of the ``SolutionFile`` ``source``, in file
+    order: diffuse objects here, glossy ones here or (workers > 1) in worker processes,
+    the costliest (vertices x directions) first; place = (scene geometry, probe box)."""
+    scene, box = place
+    names = source.names
+    glossy_names = [n for n in names if source.n_directions(n) > 1]
+    done = {}
+
+    def tick():
+        if bar is not None:
+            bar.update(1)
+
+    for name in names:
+        if name not in glossy_names or workers <= 1:
+            done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if name in glossy_names else None, box)
+            tick()
+    if workers > 1 and glossy_names:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        cost = {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in glossy_names}
+        order = sorted(glossy_names, key=lambda n: -cost[n])
+        threads = max(1, cores() // workers)
+        with ProcessPoolExecutor(max_workers=min(workers, len(order)), mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=_worker_start, initargs=(threads,)) as pool:
+            futures = {pool.submit(_fit_in_worker, source.path, name, options, scene, box): name for name in order}
+            for future in as_completed(futures):
+                done[futures[future]] = future.result()
+                tick()
+    return [done[n] for n in names]
+
+
+def _worker_start(threads):
+    """A worker process: numba's threads shared out between the workers."""
+    import numba
+
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+
+
+def _fit_in_worker(path, name, options, scene, box):
+    """Object ``name`` of the solution file at ``path``, fitted (in a worker process)."""
+    with SolutionFile(path) as source:
+        return fit_object(source.object(name), options, scene, None, source.alone(name), box)

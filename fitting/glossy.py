@@ -83,8 +83,16 @@ def _floats(n_vertices, parts, probe_size, n_lights, emitters):
 
 def proxy_box(solution):
     """The probe's proxy: the scene's bounding box (every object of ``solution``), grown a little."""
-    points = np.concatenate([np.asarray(o.positions, np.float64) for o in solution.objects])
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    return proxy_box_of(o.positions for o in solution.objects)
+
+
+def proxy_box_of(positions):
+    """``proxy_box`` of the objects' vertex positions (an iterable of (V, 3))."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in positions:
+        p = np.asarray(p, np.float64)
+        if len(p):
+            lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
     pad = BOX_MARGIN * float(np.linalg.norm(hi - lo))
     return np.stack([lo - pad, hi + pad])
 

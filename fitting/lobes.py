@@ -331,6 +331,17 @@ def normal_equations(normals, views, lights, samples, per_light, G, h, yy):
                     G[v, c, j, i] = G[v, c, i, j]
 
 
+@numba.njit(cache=True, nogil=True)
+def ordered_sum(values):
+    """sum(values) added in order, one thread: inside a parallel kernel numba makes
+    ``values.sum()`` a parallel reduction whose bits depend on the number of threads
+    (and a fit's on the number of worker processes, ``fit(workers=...)``)."""
+    total = 0.0
+    for i in range(values.shape[0]):
+        total += values[i]
+    return total
+
+
 @numba.njit(cache=True, nogil=True, parallel=True)
 def mixed_loss_and_gradient(normals, views, lights, samples, emitted, coefficients, partial):
     """sum_{v,d,c} w (L - e - sum_k S[v, k or 0, c] rgb[k, c] lobe_k)^2 at fixed
@@ -403,4 +414,4 @@ def mixed_loss_and_gradient(normals, views, lights, samples, emitted, coefficien
             partial[v, k, 4] += gx
             partial[v, k, 5] += gy
             partial[v, k, 6] += gz
-    return losses.sum()
+    return ordered_sum(losses)  # in vertex order: the same bits whatever the thread count

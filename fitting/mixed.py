@@ -112,11 +112,16 @@ class SceneGeometry:
     def of_solution(cls, solution):
         """From a ``radiosity.formats.Solution``: every object's triangles; emitters are
         the objects whose material emits."""
+        return cls.of_meshes((o.positions, o.faces, o.material) for o in solution.objects)
+
+    @classmethod
+    def of_meshes(cls, meshes):
+        """From (positions (V, 3), faces (F, 3), material dict) of every object, in order."""
         tris, owner, emissive = [], [], []
-        for i, o in enumerate(solution.objects):
-            tris.append(np.asarray(o.positions, np.float64)[o.faces])
-            owner.append(np.full(len(o.faces), i))
-            emissive.append(max(o.material["emission"]) > 0)
+        for i, (positions, faces, material) in enumerate(meshes):
+            tris.append(np.asarray(positions, np.float64)[faces])
+            owner.append(np.full(len(faces), i))
+            emissive.append(max(material["emission"]) > 0)
         return cls(np.concatenate(tris), np.concatenate(owner), np.array(emissive, bool))
 
     def spread(self, obj, count, seed=0):

@@ -193,16 +193,29 @@ class Archive:
 
     def __init__(self, path: str, npz, meta: dict, what: str):
         self.path, self.npz, self.meta, self.what = path, npz, meta, what
+        self.keys: frozenset[str] = frozenset(npz.files)  # the archive's members, once (a scene may have thousands)
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
         self.npz.close()
 
-    @property
-    def keys(self) -> set[str]:
-        return set(self.npz.files)
+    def shape(self, key: str) -> tuple[int, ...]:
+        """The shape of array ``key`` from its header alone (nothing else is read)."""
+        if key not in self.keys:
+            raise self.fail(f"no '{key}' array")
+        try:
+            with self.npz.zip.open(key + ".npy") as f:
+                major, _ = np.lib.format.read_magic(f)
+                read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+                shape, _, _ = read(f)
+        except READ_ERRORS as exc:
+            raise InputError(one_line(f"'{self.path}' is not a {self.what} ({key}: {type(exc).__name__}: {exc})")) from None
+        return tuple(int(n) for n in shape)
 
     def fail(self, problem: str) -> InputError:
         return InputError(one_line(f"{self.what} '{self.path}': {problem}"))

@@ -410,8 +410,8 @@ class Solution:
     @classmethod
     def load(cls, path: str | os.PathLike) -> Solution:
         """Read and validate a solution file; InputError (one line) if it is not valid."""
-        with open_archive(path, FORMAT, READS) as archive:
-            return _read(archive)
+        with SolutionFile(path) as f:
+            return f.load()
 
 
 def load_solution(path: str | os.PathLike) -> Solution:
@@ -419,7 +419,79 @@ def load_solution(path: str | os.PathLike) -> Solution:
     return Solution.load(path)
 
 
-def _read(archive) -> Solution:
+class SolutionFile:
+    """A solution file read an object at a time, for stages whose memory must not grow
+    with the whole solution (the fit of a large scene: issue 25).
+
+    Opening reads and validates the meta (and the environment); ``object(name)`` reads
+    and validates one object as ``load_solution`` would; ``alone(name)`` is a
+    ``Solution`` of that object with the file's emitters, camera and environment (what
+    ``Solution.highlights`` needs); ``geometry(name)`` reads only its positions and
+    faces. ``load()`` is the whole ``Solution``. A context manager: the archive is
+    closed on leaving."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = os.fspath(path)
+        self._archive = open_archive(path, FORMAT, READS)
+        try:
+            self._header = _read_header(self._archive)
+        except BaseException:
+            self._archive.close()
+            raise
+        h = self._header
+        self.names: tuple[str, ...] = tuple(h["names"])
+        self.materials: dict = h["materials"]
+        self.settings, self.stats, self.scene = h["settings"], h["stats"], h["scene"]
+        self.camera, self.emitters, self.emitter_nodes = h["camera"], h["emitters"], h["nodes"]
+        self.environment = h["environment"]
+        self.version: int = self._archive.meta["version"]
+
+    def __enter__(self) -> SolutionFile:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._archive.close()
+
+    def object(self, name: str) -> ObjectSolution:
+        """Object ``name``, read and validated; InputError (one line) if it is not valid."""
+        return _read_object(self._archive, name, self._header)
+
+    def alone(self, name: str) -> Solution:
+        """A ``Solution`` of object ``name`` alone, with the file's emitters, nodes,
+        camera, environment, settings and scene."""
+        return self._solution((self.object(name),))
+
+    def geometry(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(positions (V, 3) float32, faces (F, 3) int) of object ``name``, unvalidated:
+        ``object`` checks them when the object itself is read."""
+        if name not in self.names:
+            raise KeyError(f"no object {name!r} in the solution (objects: {', '.join(self.names)})")
+        return self._archive.array(f"{name}/positions"), self._archive.array(f"{name}/faces")
+
+    def n_directions(self, name: str) -> int:
+        """D of object ``name``'s grid (1: diffuse), from its array's header alone."""
+        return int(self._archive.shape(f"{name}/radiance")[1])
+
+    def load(self) -> Solution:
+        """The whole ``Solution``, validated."""
+        return self._solution(tuple(self.object(name) for name in self.names))
+
+    def _solution(self, objects) -> Solution:
+        h = self._header
+        try:
+            return Solution(
+                objects=objects, settings=h["settings"], stats=h["stats"], scene=h["scene"], camera=h["camera"],
+                emitters=h["emitters"], emitter_nodes=h["nodes"], environment=h["environment"],
+            )
+        except _Invalid as exc:
+            raise self._archive.fail(str(exc)) from None
+
+
+def _read_header(archive) -> dict:
+    """Everything of a solution file but its objects' arrays, validated."""
     meta = archive.meta
     fail = archive.fail
     names = meta.get("objects")
@@ -446,31 +518,29 @@ def _read(archive) -> Solution:
         nodes = meta.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
-
     environment = read_environment(archive, meta) if meta["version"] >= 3 else None
-    objects = []
     for name in names:
         if name not in materials:
             raise fail(f"object {name!r} has no entry in meta 'materials'")
         missing = [k for k in ARRAY_KEYS if f"{name}/{k}" not in archive.keys]
         if missing:
             raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
-        arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
-        if f"{name}/visibility" in archive.keys:
-            arrays["visibility"] = archive.array(f"{name}/visibility")
-        if meta["version"] >= 3:
-            diffuse = materials[name].get("diffuse") if isinstance(materials[name], dict) else None
-            if not (isinstance(diffuse, list) and len(diffuse) == 3):
-                raise fail(f"object {name!r}: meta 'materials' has no diffuse colour [r, g, b]")
-            arrays["textured"] = read_textured(archive, name, arrays["positions"].shape[0], diffuse)
-        try:
-            objects.append(ObjectSolution(name=name, material=materials[name], **arrays))
-        except _Invalid as exc:
-            raise fail(str(exc)) from None
+    return {"names": names, "materials": materials, "settings": settings, "stats": stats, "scene": scene,
+            "camera": camera, "emitters": emitters, "nodes": nodes, "environment": environment}
+
+
+def _read_object(archive, name, header) -> ObjectSolution:
+    """Object ``name`` of a file whose header ``_read_header`` read, validated."""
+    meta, fail, materials = archive.meta, archive.fail, header["materials"]
+    arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
+    if f"{name}/visibility" in archive.keys:
+        arrays["visibility"] = archive.array(f"{name}/visibility")
+    if meta["version"] >= 3:
+        diffuse = materials[name].get("diffuse") if isinstance(materials[name], dict) else None
+        if not (isinstance(diffuse, list) and len(diffuse) == 3):
+            raise fail(f"object {name!r}: meta 'materials' has no diffuse colour [r, g, b]")
+        arrays["textured"] = read_textured(archive, name, arrays["positions"].shape[0], diffuse)
     try:
-        return Solution(
-            objects=tuple(objects), settings=settings, stats=stats, scene=scene, camera=camera, emitters=emitters,
-            emitter_nodes=nodes, environment=environment,
-        )
+        return ObjectSolution(name=name, material=materials[name], **arrays)
     except _Invalid as exc:
         raise fail(str(exc)) from None

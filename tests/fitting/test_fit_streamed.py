@@ -1,0 +1,147 @@
+"""The fit read an object at a time (issue 25): the same model as from a loaded
+solution, the same bits with any number of worker processes or numba threads, and a
+memory estimate that is said before the work and refuses in one line what cannot fit."""
+
+from dataclasses import replace
+
+import numba
+import numpy as np
+import pytest
+from test_fit import synthetic
+from test_fit_cli import DIFFUSE_MATERIAL, run
+
+from fitting import lobes, mixed
+from fitting.data import fit_data
+from fitting.fit import FitOptions, fit
+from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate
+from radiosity.formats.errors import InputError
+from radiosity.formats.solution import ObjectSolution, Solution, SolutionFile, load_solution
+
+OPTIONS = FitOptions.for_quality("draft")
+
+
+def scene_file(path):
+    """Two glossy domes (different lights and lobes: one a probe's, one needing lights)
+    and a diffuse floor."""
+    objects = []
+    for i, (seed, shininess, grid) in enumerate(((1, 30.0, 6), (2, 300.0, 9))):
+        sol, _ = synthetic(np.random.default_rng(seed), lights=2, shininess=shininess, grid=grid, subdivisions=1)
+        objects.append(replace(sol.objects[0], name=f"dome_{i}", positions=sol.objects[0].positions + np.float32(3 * i)))
+    objects.append(ObjectSolution(
+        name="floor", positions=np.array([[0, 0, 0], [9, 0, 0], [0, 9, 0]], np.float32),
+        normals=np.tile(np.float32([0, 0, 1]), (3, 1)), tangents=np.tile(np.float32([1, 0, 0]), (3, 1)),
+        faces=np.array([[0, 1, 2]], np.int32), directions=np.float32([[0, 0, 1]]),
+        radiance=np.full((3, 1, 3), 0.25, np.float32), material=DIFFUSE_MATERIAL,
+    ))
+    Solution(objects=tuple(objects), settings={"quality": "draft"}, scene="test").save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def path(tmp_path_factory):
+    return scene_file(tmp_path_factory.mktemp("streamed") / "s.npz")
+
+
+def arrays(model, tmp_path, name):
+    model.save(tmp_path / name)
+    with np.load(tmp_path / name) as z:
+        return {k: z[k] for k in z.files if k != "meta"}
+
+
+def same(a, b):
+    assert a.keys() == b.keys()
+    differ = [k for k in a if not np.array_equal(a[k], b[k])]
+    assert not differ, differ
+
+
+def test_the_file_read_an_object_at_a_time_holds_what_load_solution_reads(path):
+    whole = load_solution(path)
+    with SolutionFile(path) as f:
+        assert f.names == whole.names and f.version == whole.version
+        for o in whole.objects:
+            one = f.object(o.name)
+            for key in ("positions", "normals", "tangents", "faces", "directions", "radiance"):
+                assert np.array_equal(getattr(one, key), getattr(o, key))
+            positions, faces = f.geometry(o.name)
+            assert np.array_equal(positions, o.positions) and np.array_equal(faces, o.faces)
+            assert f.n_directions(o.name) == o.directions.shape[0]
+            alone = f.alone(o.name)
+            assert alone.names == (o.name,) and alone.settings == whole.settings and alone.scene == whole.scene
+        assert f.load().names == whole.names
+        with pytest.raises(KeyError, match="no object 'nothing'"):
+            f.geometry("nothing")
+
+
+def test_streamed_fit_is_the_loaded_fit_and_workers_change_no_bit(path, tmp_path):
+    loaded = arrays(fit(load_solution(path), OPTIONS), tmp_path, "a.npz")
+    with SolutionFile(path) as f:
+        one = arrays(fit(f, OPTIONS, workers=1), tmp_path, "b.npz")
+        two = arrays(fit(f, OPTIONS, workers=2), tmp_path, "c.npz")
+    same(loaded, one)
+    same(one, two)
+    assert any(k.endswith("/light_pos") and len(v) for k, v in one.items()) or any(k.endswith("/probe") for k in one)
+
+
+def test_workers_need_the_file():
+    sol, _ = synthetic(np.random.default_rng(0), lights=1, grid=4, subdivisions=1)
+    with pytest.raises(ValueError, match="SolutionFile"):
+        fit(sol, OPTIONS, workers=2)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one numba thread: nothing to compare")
+def test_the_lights_loss_has_the_same_bits_on_any_number_of_threads():
+    sol, _ = synthetic(np.random.default_rng(3), lights=3, shininess=80.0, grid=16, subdivisions=3)
+    data = fit_data(sol.objects[0])
+    problem = mixed.Problem.make(data, np.ones((1, 1, 1)), True, mixed.SceneGeometry.empty(), (1.0, 1e4))
+    rng = np.random.default_rng(4)
+    pos = np.concatenate([rng.normal(size=(3, 3)), np.zeros((3, 1))], axis=1)
+    pos[:, 2] = np.abs(pos[:, 2]) + 0.5
+    pos[:, :3] /= np.linalg.norm(pos[:, :3], axis=1, keepdims=True)
+    lights = lobes.MixedLights(pos, rng.uniform(0.5, 2, (3, 3)), np.array([20.0, 80.0, 300.0]))
+    v = data.n_vertices
+    emitted, coefficients = rng.uniform(0, 0.2, (v, 3)), rng.uniform(0, 1, (v, 3, 3))
+    before = numba.get_num_threads()
+    losses = []
+    try:
+        for threads in (1, 2, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            partial = np.zeros((v, 3, 7))
+            losses.append(lobes.mixed_loss_and_gradient(data.normals, data.views, lights, problem.samples, emitted,
+                                                        coefficients, partial))
+    finally:
+        numba.set_num_threads(before)
+    assert losses[0] > 0 and len({float(x).hex() for x in losses}) == 1, losses
+
+
+def test_the_estimate_adds_the_base_the_geometry_and_each_worker_s_largest_object(path):
+    with SolutionFile(path) as f:
+        geometry = sum(f.geometry(n)[0].nbytes * 4 + f.geometry(n)[1].nbytes for n in f.names)
+        samples = sorted((len(f.geometry(n)[0]) * f.n_directions(n) for n in f.names if f.n_directions(n) > 1), reverse=True)
+        one, biggest = fit_estimate(f, 1)
+        two, _ = fit_estimate(f, 2)
+        assert biggest[0] == "dome_1" and biggest[1] * biggest[2] == samples[0]
+        assert one == PROCESS_BYTES + 2 * geometry + samples[0] * SAMPLE_BYTES
+        assert two == PROCESS_BYTES + 2 * geometry + 2 * PROCESS_BYTES + (samples[0] + samples[1]) * SAMPLE_BYTES
+        said = []
+        assert check_fit_memory(f, 2, available=two, out=said.append) == 2
+        assert check_fit_memory(f, 2, available=two - 1, out=said.append) == 1
+        assert "fewer than the 2 asked" in said[-1] and "'dome_1'" in said[-1]
+        with pytest.raises(InputError, match=r"fit needs about .* GB of .* GB available; largest glossy object 'dome_1'"):
+            check_fit_memory(f, 1, available=one - 1, out=said.append)
+
+
+def test_the_command_refuses_what_does_not_fit_in_one_line_and_writes_nothing(path, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("fitting.memory.available_memory", lambda: 10 * 2**20)
+    out = tmp_path / "fit.npz"
+    code, stdout, err = run(["fit", str(path), "-o", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and "fit needs about" in err and "Traceback" not in err, err
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_the_command_says_its_estimate_and_takes_workers(path, tmp_path, capsys):
+    out = tmp_path / "fit.npz"
+    code, stdout, err = run(["fit", str(path), "-o", str(out), "--workers", "2"], capsys)
+    assert code == 0, err
+    assert "fit: about" in err and "2 workers" in err and "fit: about" not in stdout
+    code, _, err = run(["fit", str(path), "-o", str(out), "--workers", "0"], capsys)
+    assert code == 2 and "--workers" in err
