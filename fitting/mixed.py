@@ -499,6 +499,7 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
             spread.add(hit)
             if count > 1:
                 pos = [np.append(c, 1.0) for c in problem.scene.spread(hit, count)]
+                count = len(pos)  # an emitter of fewer triangles than count gets one light on each
                 rgb = [rgb[0]] * count
                 p = [p[0] * count**SPREAD_SHARPENING] * count
         first = fit.n_lights == 0

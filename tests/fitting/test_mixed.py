@@ -308,3 +308,23 @@ def test_refine_never_makes_a_fit_worse():
     refined = refine(problem, start, max_iterations=10)
     assert isinstance(refined, MixedFit) and refined.sq_error <= start.sq_error
     assert isinstance(refined.lights(), MixedLights)
+
+
+def test_an_emitter_of_fewer_triangles_than_its_lights_gets_one_light_on_each():
+    # a glossy plane lit by a point light that stands on a lamp of two triangles: a mirror
+    # ray from the highlight hits the lamp, whose area gets SPREAD point lights, but it
+    # has only two triangles (two centroids): one light each, the arrays agreeing
+    light = np.array([0.0, 0.0, 1.5])
+    solution = synthetic(plane(9), [np.append(light, 1.0)], 60.0)
+    lamp = ObjectSolution(
+        name="lamp", positions=(light + np.array([[-0.2, -0.2, 0], [0.2, -0.2, 0], [0.2, 0.2, 0], [-0.2, 0.2, 0]])).astype(np.float32),
+        normals=np.tile(np.float32([0, 0, -1]), (4, 1)), tangents=np.tile(np.float32([1, 0, 0]), (4, 1)),
+        faces=np.array([[0, 2, 1], [0, 3, 2]], np.int32), directions=np.float32([[0, 0, 1]]),
+        radiance=np.full((4, 1, 3), 5.0, np.float32), material={**MATERIAL, "emission": [5.0, 5.0, 5.0]},
+    )
+    problem = problem_of(Solution(objects=(solution.objects[0], lamp), settings={}, stats={}, scene="synthetic"))
+    assert problem.scene.emissive.tolist() == [False, True]
+    found = fit_mixed(problem, 4, 60.0, light_kind="positional", iterations=20)
+    assert 1 <= found.n_lights <= 4
+    assert len(found.pos) == len(found.rgb) == len(found.shininess) == found.specular.shape[1]
+    assert error_of(problem, found) < 0.1
