@@ -154,7 +154,7 @@ def _light_caps(data, lights):
     unit = mixed.light_vectors(pos, data.positions)
     theta = np.arccos(np.clip(np.einsum("vi,vki->vk", data.normals, unit), -1.0, 1.0))
     peak = np.cos(np.maximum(theta - np.pi / 2, 0.0) / 2) ** shininess[None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a subnormal peak: the cap is 1e200
         cap = np.where(peak[:, None, :] > 0, mixed.CAP_FACTOR * data.radiance.max(axis=1)[:, :, None] / peak[:, None, :], 0.0)
     return np.minimum(cap, 1e200)
 

@@ -179,3 +179,27 @@ def test_radiance_zero_tiny_and_huge(scale):
         return
     np.testing.assert_allclose(model / scale, fitted(shape), rtol=1e-6, atol=1e-9)
     assert np.sqrt(np.mean((model / scale - shape) ** 2) / np.mean(shape**2)) < 5e-3
+
+
+def test_light_caps_of_a_lobe_below_the_horizon_are_the_ceiling_without_a_warning():
+    # a light far below a vertex's horizon with an exponent of 1e4: its lobe's peak
+    # cos((theta - 90 deg) / 2)^p is subnormal, the cap brightest / peak overflows;
+    # it is the ceiling 1e200, and nothing is printed (users saw "overflow in divide")
+    import warnings
+
+    from fitting.data import FitData
+    from fitting.glossy import _light_caps
+
+    data = FitData(radiance=np.full((1, 4, 3), 2.0), views=np.tile([0.0, 0.0, 1.0], (1, 4, 1)),
+                   normals=np.array([[0.0, 0.0, 1.0]]), weights=np.full((1, 4), 0.25), positions=np.zeros((1, 3)))
+    half = np.arccos(np.exp(np.log(1e-310) / 1e4))  # the half angle whose peak is 1e-310
+    theta = np.pi / 2 + 2 * half
+    below = [np.sin(theta), 0.0, np.cos(theta), 0.0]
+    lights = (np.array([below, [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, -1.0, 0.0]]), np.ones((3, 3)), np.full(3, 1e4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        caps = _light_caps(data, lights)
+    assert caps.shape == (1, 3, 3)
+    assert np.all(caps[0, :, 0] == 1e200)  # overflowed: the ceiling
+    assert np.all(np.isfinite(caps[0, :, 1])) and np.all(caps[0, :, 1] > 0)
+    assert np.all(caps[0, :, 2] == 0.0)  # straight below: the peak underflows to 0, so no coefficient
