@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -407,7 +408,7 @@ def _fit_streamed(source, options, place, bar, workers):
         order = sorted(glossy_names, key=lambda n: -cost[n])
         threads = max(1, cores() // workers)
         with ProcessPoolExecutor(max_workers=min(workers, len(order)), mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_worker_start, initargs=(threads,)) as pool:
+                                 initializer=_worker_start, initargs=(threads, warnings.showwarning)) as pool:
             futures = {pool.submit(_fit_in_worker, source.path, name, options, scene, box): name for name in order}
             for future in as_completed(futures):
                 done[futures[future]] = future.result()
@@ -415,11 +416,13 @@ def _fit_streamed(source, options, place, bar, workers):
     return [done[n] for n in names]
 
 
-def _worker_start(threads):
-    """A worker process: numba's threads shared out between the workers."""
+def _worker_start(threads, show_warning):
+    """A worker process: numba's threads shared out between the workers, and warnings
+    shown as the parent process shows them (the command's one-line form)."""
     import numba
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    warnings.showwarning = show_warning
 
 
 def _fit_in_worker(path, name, options, scene, box):

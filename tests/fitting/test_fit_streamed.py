@@ -145,3 +145,20 @@ def test_the_command_says_its_estimate_and_takes_workers(path, tmp_path, capsys)
     assert "fit: about" in err and "2 workers" in err and "fit: about" not in stdout
     code, _, err = run(["fit", str(path), "-o", str(out), "--workers", "0"], capsys)
     assert code == 2 and "--workers" in err
+
+
+def test_a_worker_shows_warnings_as_its_parent_does(capsys):
+    # the worker's initializer takes the parent's warnings.showwarning (the command's
+    # "vlights: warning: ..." line) and uses it
+    import warnings
+
+    from fitting.fit import _worker_start
+
+    before = warnings.showwarning
+    said = []
+    try:
+        _worker_start(1, lambda message, *rest, **kw: said.append(str(message)))
+        warnings.warn("a sharp lobe", RuntimeWarning, stacklevel=1)
+    finally:
+        warnings.showwarning = before
+    assert said == ["a sharp lobe"]
