@@ -154,11 +154,13 @@ def test_a_worker_shows_warnings_as_its_parent_does(capsys):
 
     from fitting.fit import _worker_start
 
-    before = warnings.showwarning
+    before, threads = warnings.showwarning, numba.get_num_threads()
     said = []
     try:
         _worker_start(1, lambda message, *rest, **kw: said.append(str(message)))
+        assert numba.get_num_threads() == 1
         warnings.warn("a sharp lobe", RuntimeWarning, stacklevel=1)
     finally:
         warnings.showwarning = before
+        numba.set_num_threads(threads)
     assert said == ["a sharp lobe"]
