@@ -180,12 +180,23 @@ def _solve(args):
     return 0
 
 
+LISTED = 8  # the summary names up to this many objects on a line; past it, it counts them
+
+
 def format_summary(solution, path):
     """The end-of-solve summary: work done, speed, time per phase, output size."""
     st = solution.stats
     t = st["time_s"]
     total = sum(t.values())
     glossy = {o.name: f"{o.grid_n}x{o.grid_n}" for o in solution.objects if not o.is_diffuse}
+    if len(glossy) > LISTED:  # a large scene: how many objects have each grid, not every name
+        counts = {}
+        for grid in glossy.values():
+            counts[grid] = counts.get(grid, 0) + 1
+        grids = ", ".join(f"{grid} x {n}" for grid, n in sorted(counts.items(), key=lambda g: int(g[0].split("x")[0])))
+        grids = f"{len(glossy):,} glossy objects: {grids}"
+    else:
+        grids = ", ".join(f"{k} {v}" for k, v in glossy.items())
     size = Path(path).stat().st_size
     where = st.get("scheduler", "threads")
     lines = [
@@ -197,7 +208,7 @@ def format_summary(solution, path):
         f"  density  {t['density']:.2f} s",
         (
             f"  gather   {st['gather_rays']:,} rays, {st['gather_rays_per_s'] / 1e6:.2f} M rays/s, "
-            f"{t['gather']:.2f} s  (grids: {', '.join(f'{k} {v}' for k, v in glossy.items())})"
+            f"{t['gather']:.2f} s  (grids: {grids})"
             if glossy
             else "  gather   none: no glossy objects"
         ),
@@ -215,6 +226,14 @@ def _regather_lines(regather):
     ran = {name: r for name, r in (regather or {}).items() if r["extra_passes"]}
     if not ran:
         return []
+    if len(ran) > LISTED:
+        rs = ran.values()
+        tolerances = [r["tolerance"] for r in rs]
+        return [
+            f"  regather {len(ran):,} objects, {sum(r['regathered'] for r in rs):,} vertices "
+            f"+{sum(r['extra_passes'] for r in rs):,} passes (at most {max(r['max_passes'] for r in rs)}, "
+            f"tolerance {min(tolerances):.3g} to {max(tolerances):.3g})"
+        ]
     parts = [
         f"{name} {r['regathered']:,} vertices +{r['extra_passes']:,} passes (at most {r['max_passes']}, "
         f"tolerance {r['tolerance']:.3g})"
@@ -233,6 +252,12 @@ def _highlight_lines(solution):
         what = "sphere" if p.kind == "sphere" else f"{len(p.points)}-gon"
         kinds.setdefault(p.source, []).append(what)
     described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
+    if len(kinds) > LISTED:
+        shapes = {}
+        for k in kinds.values():
+            for what in k:
+                shapes[what] = shapes.get(what, 0) + 1
+        described = f"from {len(kinds):,} objects ({', '.join(f'{what} x {n}' for what, n in shapes.items())})"
     st = solution.stats
     return [
         f"  highlights {len(parts)} emitter part(s) in closed form: {described}; "
