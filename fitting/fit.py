@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -236,15 +236,20 @@ def _fit_components(obj, options, scene, progress, solution, box):
     exponent = start_exponent(obj, options)
     chosen_by = []
 
-    def lights_for(data, loss_weights, start):
+    def lights_for(data, loss_weights, start, count=None, previous=None):
+        # count: a quick fit of this many lights (the first light's polish, as many
+        # iterations: whether lights pay), previous: a fit of fewer to continue from
         problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
                                      options.exponent_bounds)
+        if count is not None:
+            quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
+            return fit_lights(problem, count, quick, start, previous=previous, log=log)
         if options.probe_lights == "auto":
             fit, why = _auto_lights(problem, options, start, log)
             chosen_by.append(why)
             return fit
         chosen_by.append(f"{options.probe_lights} lights")
-        return fit_lights(problem, options.probe_lights, options, start, log=log)
+        return fit_lights(problem, options.probe_lights, options, start, previous=previous, log=log)
 
     highlights = solution.highlights(obj.name)
     parts = len(solution.emitters) if obj.visibility is not None else 0

@@ -39,6 +39,7 @@ MODELS = ("diffuse", "emitters", "probe", "probe+lights", "lights")
 PROBE_SIZES = (8, 16, 32)
 WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fraction of the best's
 MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
+FIRST_LIGHT_PAYS = 0.02  # "auto" fits more lights beside a probe only if the first lowers the perceptual error this much
 HIGHLIGHT = 1.0  # a residual peak above this times the object's mean radiance is a highlight: lights fit it
 BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal
 WARM_ROUNDS = 3  # alternations of a probe fit that starts from another's coefficients
@@ -241,7 +242,8 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     tried, fits = [], []
 
     def record(model, size, emitters, emitted, *, light_fit=None, probe_fit=None, weight=None, probe_term=None,
-               light_term=None):
+               light_term=None, keep=True):
+        # keep=False: a step on the way (tried, shown in the report), not a model "auto" may choose
         n_lights = 0 if light_fit is None else len(light_fit[0])
         floats = _floats(v, parts, size, n_lights, emitters)
         approximation = _model(highlights if emitters else 0.0, emitted, probe_term, light_term)
@@ -254,8 +256,9 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
             probe_weight=weight, error=error, floats=floats, perceptual=seen,
         )
         tried.append({"model": model, "probe_size": size, "lights": n_lights, "floats": floats,
-                      "relative_rms": round(error, 5), "perceptual": round(seen, 5)})
-        fits.append(c)
+                      "relative_rms": round(error, 5), "perceptual": round(seen, 5), **({} if keep else {"kept": False})})
+        if keep:
+            fits.append(c)
         return c
 
     wanted = options.model
@@ -298,11 +301,31 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
 
 def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place, exponent, fit_lights, required):
     """Lights for what the probe leaves, then the probe again with them held, then every
-    per-vertex coefficient together; place = the probe's (centre, box, albedo table)."""
+    per-vertex coefficient together; place = the probe's (centre, box, albedo table).
+
+    Unless the lights are ``required`` (--model probe+lights), one light is fitted
+    first (with every coefficient), and the others only if it pays: if it lowers the
+    perceptual error of the probe's model by less than FIRST_LIGHT_PAYS of it, what the
+    probe leaves is detail no few lights draw (a room seen in a near-mirror), and the
+    lights' search, most of such an object's fit, is not run. The one-light step is
+    in what was tried, marked not kept."""
     centre, box, albedo = place
     lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
                           weights=full.weights, positions=full.positions)
-    fitted = fit_lights(lights_data, lw, exponent)
+    first = None
+    if not required:
+        first = fit_lights(lights_data, lw, exponent, count=1)
+        if first.n_lights:
+            lights = (first.pos, first.rgb, first.shininess)
+            lobes = _lobe_columns(full, lights)
+            values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
+            e, s, c = _joint(data, rest, lw, values, lobes, _light_caps(data, lights))
+            one = record("probe+lights", chosen.probe.size, True, e, light_fit=(*lights, c), probe_fit=chosen.probe,
+                         weight=s, probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c),
+                         keep=False)
+            if chosen.perceptual - one.perceptual < FIRST_LIGHT_PAYS * chosen.perceptual:
+                return
+    fitted = fit_lights(lights_data, lw, exponent, previous=first)
     if not fitted.n_lights:
         if required:  # nothing left for a light to explain
             record("probe+lights", chosen.probe.size, True, chosen.emitted, probe_fit=chosen.probe,

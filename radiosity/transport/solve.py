@@ -27,6 +27,7 @@ refinement) are refused with an InputError naming the estimate and the memory.
 from __future__ import annotations
 
 import math
+import sys
 import time
 import warnings
 from collections import deque
@@ -75,6 +76,11 @@ _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
 _LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
 _GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
 _OUTPUT_BYTES = 3 * (8 + 4)  # per vertex and direction: float64 radiance, then its float32 copy
+# the rest, measured (benchmarks/bench_scale.py, draft, 58k and 553k vertices: 2.3 and 1.8 kB a
+# vertex besides the parts above and the process): the scene, its refined and merged meshes,
+# Embree's BVH, the density estimate's arrays, the solution's arrays as written
+_SCENE_VERTEX_BYTES = 2_500
+_PROCESS_BYTES = 250 * 2**20  # Python, numpy, scipy, numba, Embree before any scene
 
 
 @dataclass(frozen=True)
@@ -227,27 +233,33 @@ def memory_estimate(settings, n_vertices, glossy):
         blocks = min(in_flight, -(-vertices // block))
         buffers = max(buffers, blocks * per_block)
         output += vertices * directions_count * _OUTPUT_BYTES
-    return {"photons": batches * per_batch, "gather buffers": buffers, "gather output": output}
+    scene = _PROCESS_BYTES + n_vertices * _SCENE_VERTEX_BYTES
+    return {"scene": scene, "photons": batches * per_batch, "gather buffers": buffers, "gather output": output}
 
 
 _MEMORY_ADVICE = {
+    "scene": "choose a larger --max-edge (fewer vertices) or free memory",
     "photons": "use fewer --threads or a larger --max-edge",
     "gather buffers": "lower --gather-samples, --light-samples or --threads",
     "gather output": "lower --grid or choose a larger --max-edge",
 }
 
 
-def check_memory(settings, n_vertices, glossy, available=None):
-    """Refuse (InputError) a solve whose arrays cannot fit in the machine's memory.
+def check_memory(settings, n_vertices, glossy, available=None, say=None):
+    """Refuse (InputError) a solve whose arrays cannot fit in the machine's memory;
+    ``say`` (a function of one line), if given, is told the estimate first.
 
     ``available`` : bytes; default ``available_memory()`` (unknown: no check).
     """
     available = available_memory() if available is None else available
-    if available is None:
-        return
     parts = memory_estimate(settings, n_vertices, glossy)
     need = sum(parts.values())
-    if need <= available:
+    if say is not None:
+        largest = max(parts, key=parts.get)
+        have = "" if available is None else f" of {_bytes(available)} available"
+        say(f"solve: about {_bytes(need)} at most{have} ({n_vertices:,} vertices; the largest part: {largest} "
+            f"{_bytes(parts[largest])})")
+    if available is None or need <= available:
         return
     worst = max(parts, key=parts.get)
     detail = f"{worst} {_bytes(parts[worst])}"
@@ -306,7 +318,8 @@ def _solve(scene, settings, runner, progress):
     times = {}
     t0 = time.perf_counter()
     refined = scene.refined(settings["max_edge"])
-    check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings))
+    check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings),
+                 say=(lambda line: print(line, file=sys.stderr)) if progress else None)
     merged = refined.merged()
     # parts from the scene as given: refinement would add vertices off a sphere lamp
     parts, analytic = emitter_parts(scene) if settings["emitter_highlights"] else ((), ())

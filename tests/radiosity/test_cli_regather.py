@@ -17,8 +17,12 @@ def test_extra_gather_passes_are_run_and_reported(tmp_path, capsys):
     out = tmp_path / "s.npz"
     base = ["solve", "cornell-teapot", "-o", str(out), "--photons", "20000", "--gather-samples", "16",
             "--light-samples", "4", "--max-edge", "200"]
-    code, stdout, _ = run(base + ["--extra-gather", "0.5", "--gather-tolerance", "0.001"], capsys)
+    code, stdout, err = run(base + ["--extra-gather", "0.5", "--gather-tolerance", "0.001"], capsys)
     assert code == 0
+    # the memory estimate is said before the work, on stderr (stdout is the summary)
+    said = [line for line in err.splitlines() if line.startswith("solve: about ")]
+    assert said and " at most of " in said[-1] and "vertices; the largest part: " in said[-1], err
+    assert "solve: about" not in stdout
     stats = load_solution(out).stats
     teapot = stats["regather"]["teapot"]
     # the tolerance is out of reach, so the budget binds: half a pass per vertex

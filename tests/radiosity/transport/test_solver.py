@@ -400,8 +400,9 @@ def test_memory_estimate_grows_with_each_knob():
     base = SolveOptions(photons=1_000_000, gather_samples=64, light_samples=8, threads=2).resolved(load_scene("cornell"))
     glossy = [("pot", 5000, 17)]
     parts = solve_module.memory_estimate(base, 10_000, glossy)
-    assert set(parts) == {"photons", "gather buffers", "gather output"}
+    assert set(parts) == {"scene", "photons", "gather buffers", "gather output"}
     assert parts["gather output"] == 5000 * 17**2 * 3 * (8 + 4)
+    assert parts["scene"] == solve_module._PROCESS_BYTES + 10_000 * solve_module._SCENE_VERTEX_BYTES
     for change, part in (
         (dict(threads=8), "photons"),
         # blocks shrink as samples grow, down to 8 vertices: beyond 8 x 65536 / 8 samples per vertex
@@ -427,9 +428,9 @@ def test_knobs_that_cannot_fit_in_memory_are_refused_before_the_work(tmp_path, m
         material = "shiny"
         """,
     )
-    monkeypatch.setattr(solve_module, "available_memory", lambda: 100e6)
+    monkeypatch.setattr(solve_module, "available_memory", lambda: 400e6)  # the process itself is 250 MB
     # gather rays of every vertex of a block at once: refused by resolved(), before refinement
-    with pytest.raises(InputError, match=r"about [\d.]+ GB of memory \(gather buffers [\d.]+ GB\), more than the 100 MB "
+    with pytest.raises(InputError, match=r"about [\d.]+ GB of memory \(gather buffers [\d.]+ GB\), more than the 400 MB "
                                          r"available; lower --gather-samples"):
         SolveOptions(gather_samples=10**8, threads=2).resolved(scene)
     # a fine grid on a finely refined mesh: refused by solve() once the mesh is refined
@@ -437,8 +438,13 @@ def test_knobs_that_cannot_fit_in_memory_are_refused_before_the_work(tmp_path, m
     assert opts.resolved(scene)  # the unrefined mesh (4 vertices) would fit
     with pytest.warns(SceneWarning, match="no emitters"):
         with pytest.raises(InputError, match=r"gather output .* 'plate': [\d,]+ vertices x 4,096 directions\), "
-                                             r"more than the 100 MB available; lower --grid"):
+                                             r"more than the 400 MB available; lower --grid"):
             solve(scene, opts)
+    # less than the process and its scene need: refused naming the scene's part
+    monkeypatch.setattr(solve_module, "available_memory", lambda: 150e6)
+    with pytest.raises(InputError, match=r"\(scene [\d.]+ MB\), more than the 150 MB available; choose a larger "
+                                         r"--max-edge"):
+        SolveOptions().resolved(scene)
     monkeypatch.setattr(solve_module, "available_memory", lambda: None)  # unknown: no check
     SolveOptions(gather_samples=10**8).resolved(scene)
 
