@@ -390,8 +390,9 @@ def fit(solution, options=FitOptions(), progress=False, workers=1):
 
 def _fit_streamed(source, options, place, bar, workers):
     """The ``FittedObject`` of every object of the ``SolutionFile`` ``source``, in file
-    order: diffuse objects here, glossy ones here or (workers > 1) in worker processes,
-    the costliest (vertices x directions) first; place = (scene geometry, probe box)."""
+    order: glossy ones in worker processes (workers > 1), the costliest (vertices x
+    directions) first, while this process copies the diffuse ones; or all here;
+    place = (scene geometry, probe box), sent to each worker once."""
     scene, box = place
     names = source.names
     glossy_names = [n for n in names if source.n_directions(n) > 1]
@@ -401,36 +402,47 @@ def _fit_streamed(source, options, place, bar, workers):
         if bar is not None:
             bar.update(1)
 
-    for name in names:
-        if name not in glossy_names or workers <= 1:
-            done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if name in glossy_names else None, box)
+    def here(chosen):
+        for name in chosen:
+            glossy = name in glossy_names
+            done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if glossy else None, box)
             tick()
-    if workers > 1 and glossy_names:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        cost = {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in glossy_names}
-        order = sorted(glossy_names, key=lambda n: -cost[n])
-        threads = max(1, cores() // workers)
-        with ProcessPoolExecutor(max_workers=min(workers, len(order)), mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_worker_start, initargs=(threads, warnings.showwarning)) as pool:
-            futures = {pool.submit(_fit_in_worker, source.path, name, options, scene, box): name for name in order}
-            for future in as_completed(futures):
-                done[futures[future]] = future.result()
-                tick()
+    if workers <= 1 or not glossy_names:
+        here(names)
+        return [done[n] for n in names]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    cost = {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in glossy_names}
+    order = sorted(glossy_names, key=lambda n: -cost[n])
+    threads = max(1, cores() // workers)
+    with ProcessPoolExecutor(max_workers=min(workers, len(order)), mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_worker_start,
+                             initargs=(threads, warnings.showwarning, source.path, scene, box)) as pool:
+        futures = {pool.submit(_fit_in_worker, name, options): name for name in order}
+        here([n for n in names if n not in cost])  # the diffuse objects, while the workers fit
+        for future in as_completed(futures):
+            done[futures[future]] = future.result()
+            tick()
     return [done[n] for n in names]
 
 
-def _worker_start(threads, show_warning):
-    """A worker process: numba's threads shared out between the workers, and warnings
-    shown as the parent process shows them (the command's one-line form)."""
+_WORKER = {}  # a worker process's solution file, scene geometry and probe box (``_worker_start``)
+
+
+def _worker_start(threads, show_warning, path, scene, box):
+    """A worker process: numba's threads shared out between the workers, warnings shown
+    as the parent process shows them (the command's one-line form), and what every
+    object's fit reads, received once."""
     import numba
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     warnings.showwarning = show_warning
+    _WORKER.update(source=SolutionFile(path), scene=scene, box=box)
 
 
-def _fit_in_worker(path, name, options, scene, box):
-    """Object ``name`` of the solution file at ``path``, fitted (in a worker process)."""
-    with SolutionFile(path) as source:
-        return fit_object(source.object(name), options, scene, None, source.alone(name), box)
+def _fit_in_worker(name, options):
+    """Object ``name`` of the worker's solution file, fitted (in a worker process)."""
+    source = _WORKER["source"]
+    return fit_object(source.object(name), options, _WORKER["scene"], None, source.alone(name), _WORKER["box"])

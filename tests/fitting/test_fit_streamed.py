@@ -147,20 +147,23 @@ def test_the_command_says_its_estimate_and_takes_workers(path, tmp_path, capsys)
     assert code == 2 and "--workers" in err
 
 
-def test_a_worker_shows_warnings_as_its_parent_does(capsys):
+def test_a_worker_shows_warnings_as_its_parent_does(path):
     # the worker's initializer takes the parent's warnings.showwarning (the command's
     # "vlights: warning: ..." line) and uses it
     import warnings
 
-    from fitting.fit import _worker_start
+    from fitting.fit import _WORKER, _worker_start
 
     before, threads = warnings.showwarning, numba.get_num_threads()
     said = []
     try:
-        _worker_start(1, lambda message, *rest, **kw: said.append(str(message)))
+        _worker_start(1, lambda message, *rest, **kw: said.append(str(message)), str(path), "scene", "box")
+        assert _WORKER["scene"] == "scene" and _WORKER["source"].names == ("dome_0", "dome_1", "floor")
         assert numba.get_num_threads() == 1
         warnings.warn("a sharp lobe", RuntimeWarning, stacklevel=1)
     finally:
         warnings.showwarning = before
         numba.set_num_threads(threads)
+        _WORKER.pop("source").close()
+        _WORKER.clear()
     assert said == ["a sharp lobe"]
