@@ -231,15 +231,23 @@ def _estimate(fit, solution, layout):
             textured = getattr(o, "textured", None)
             if textured is not None:
                 buffers += np.asarray(textured.texture).size * 4 * 4 // 3
-    # a band of rows, and a chunk of radiance as float32, its highlights and their difference as float64
-    staging = STAGING_BYTES + CHUNK_VALUES * 3 * (4 + 8 + 8 + 4)
+    # a band of rows; a chunk of a grid: its highlights and their difference (float64), that as
+    # float32, or its float64 copy for the directional mean (_grid_chunks, _directional_mean)
+    chunk = max((min(s.radiance.size // 3, _chunk_vertices(s.radiance) * s.radiance.shape[1])
+                 for s in (solution.objects if solution is not None else ())), default=0)
+    staging = min(STAGING_BYTES, layout.nbytes) + chunk * 3 * (8 + 8 + 4)
     return Estimate(store=layout.nbytes, buffers=buffers, staging=staging, host=host)
+
+
+def _chunk_vertices(radiance):
+    """Vertices of a grid (V, D, 3) read at a time: CHUNK_VALUES values, at least a vertex."""
+    return max(1, CHUNK_VALUES // max(radiance.shape[1], 1))
 
 
 def _directional_mean(radiance):
     """(V, 3) float64: each vertex's radiance (V, D, 3) averaged over directions, read a
     chunk of vertices at a time (as float64, the whole never copied)."""
-    step = max(1, CHUNK_VALUES // max(radiance.shape[1], 1))
+    step = _chunk_vertices(radiance)
     parts = [np.asarray(radiance[i:i + step], np.float64).mean(axis=1) for i in range(0, len(radiance), step)]
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
@@ -248,7 +256,7 @@ def _grid_chunks(solution, s, split):
     """Object ``s``'s radiance grids (V, D, 3) a chunk of vertices at a time, less the
     emitters' highlights where ``split`` (the shader adds them per pixel), as
     ``display.store.StorePlan`` takes a block's values."""
-    step = max(1, CHUNK_VALUES // max(s.radiance.shape[1], 1))
+    step = _chunk_vertices(s.radiance)
     for start in range(0, len(s.radiance), step):
         rows = slice(start, start + step)
         yield s.radiance[rows] - solution.highlights(s.name, vertices=rows) if split else s.radiance[rows]
