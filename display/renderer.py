@@ -209,7 +209,10 @@ def _store_blocks(fit, solution):
         if f.highlight is not None:
             visibility = np.asarray(f.highlight.visibility)
             blocks.append((f.name, "emitter visibility", visibility.size, visibility.size // max(len(f.positions), 1)))
+    drawn = {f.name for f in fit.objects} if fit is not None else None  # a solution's objects the fit names
     for s in solution.objects if solution is not None else ():
+        if drawn is not None and s.name not in drawn:
+            continue
         blocks.append((s.name, "radiance directions", s.radiance.size // 3, s.radiance.shape[1]))
         if not s.is_diffuse and solution.emitters and s.visibility is not None:
             blocks.append((s.name, "emitter visibility", s.visibility.size, s.visibility.size // max(len(s.positions), 1)))

@@ -9,20 +9,24 @@ and find a vertex's row of it in 32-bit unsigned arithmetic that stays exact wha
 the offset (store.glsl's ``store_start``): a flat texel index passes 2^31 at 2.1e9
 values and a float index 3 i at 7.2e8.
 
-Layout (``StoreLayout``): ``layers`` layers of WIDTH x ``rows`` texels, L = WIDTH *
-rows texels a layer, rows a multiple of 16 (L a multiple of 2^16, which ``store_start``
-needs); value i at layer i // L, texel t = i % L, (x, y) = (t % WIDTH, t // WIDTH); the
-layers ``page_layers`` to a texture (a "page", each a sampler of its own, MAX_PAGES at
-most). Why not one texture: a 2D texture has at most GL_MAX_TEXTURE_SIZE rows (16384 on
+Layout (``StoreLayout``): ``layers`` layers of WIDTH x ``rows`` texels, value i at
+layer i // L, texel t = i % L, (x, y) = (t % WIDTH, t // WIDTH), L = WIDTH * rows texels
+a layer; the layers ``page_layers`` to a texture (a "page", each a sampler of its own,
+MAX_PAGES at most). WIDTH and rows are powers of two, rows at least 16, so L is a power
+of two of at least 2^16 and the shaders divide by shifts alone (a division by a uniform
+is scalarised on llvmpipe: it made the per-pixel reference display half as slow again).
+A store of up to LARGE_ROWS rows is one layer of the least such rows; a larger one is
+layers of LARGE_ROWS rows (12.6 MB each: the padding is under one), as many as it needs.
+
+Why not one texture: a 2D texture has at most GL_MAX_TEXTURE_SIZE rows (16384 on
 llvmpipe: 67 million values 4096 wide, fewer than the 79 million a user's solution
 had), and llvmpipe makes no texture of 2 GiB or more, counting 16 bytes an RGB32F texel
 (measured: an array of 4096 x 16376 x 2 is made, 4096 x 16384 x 2 and 4096 x 8192 x 4
 are not; it stores 12), so one array texture holds fewer than 2^27 values (1.6 GB of
-float32); MAX_PAGES of them hold 1.07e9 values, 12.9 GB, more than a 24 GB machine
-holds twice (the host copy and the textures). Why arrays and not GL_TEXTURE_BUFFER:
-moderngl (5.13) makes no buffer textures, and their limit (GL_MAX_TEXTURE_BUFFER_SIZE,
-2^27 texels on llvmpipe) is no larger than an array's. The layers are balanced (each
-about values / layers long), so padding is under 16 rows a layer.
+float32): 127 layers of 2^20; MAX_PAGES of them hold 1.07e9 values, 12.8 GB, more than
+a 24 GB machine holds twice (the host copy and the textures). Why arrays and not
+GL_TEXTURE_BUFFER: moderngl (5.13) makes no buffer textures, and their limit
+(GL_MAX_TEXTURE_BUFFER_SIZE, 2^27 texels on llvmpipe) is no larger than an array's.
 
 The values are streamed into the textures a band of rows at a time (``Store.fill``),
 from each block's chunks, never gathered into one host array. ``check_memory`` refuses,
@@ -31,7 +35,6 @@ in one line, textures and buffers that would not fit in the memory left.
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import moderngl
@@ -43,8 +46,9 @@ from radiosity.formats.limits import available_memory
 from .gl import MAX_BUFFER_BYTES, _size
 from .glsl import FLOAT_TEXTURE_WIDTH
 
-WIDTH = FLOAT_TEXTURE_WIDTH      # texels a row
-ROW_QUANTUM = 16                 # rows a layer are a multiple of it: L a multiple of 2^16 (store.glsl)
+WIDTH = FLOAT_TEXTURE_WIDTH      # texels a row (store.glsl's VL_TEXTURE_WIDTH): a power of two
+MIN_ROWS = 16                    # rows a layer at least: L >= 2^16 (store.glsl's store_start)
+LARGE_ROWS = 256                 # rows a layer of a store of several layers: 2^20 values
 MAX_STRIDE = 1 << 16             # the longest row of a block store_start addresses (a 256 x 256 grid)
 MAX_PAGES = 8                    # the if-chain of store.glsl's store_fetch
 FIRST_UNIT = 8                   # pages at texture units 8 .. 8 + pages - 1 (the renderer's others: 0 .. 7)
@@ -69,6 +73,11 @@ class StoreLayout(NamedTuple):
     @property
     def layer_texels(self):
         return WIDTH * self.rows
+
+    @property
+    def shift(self):
+        """log2 of ``layer_texels`` (store.glsl's store_shift)."""
+        return self.layer_texels.bit_length() - 1
 
     @property
     def pages(self):
@@ -113,18 +122,25 @@ def context_limits(ctx):
     return rows, layers, max(0, min(MAX_PAGES, units - FIRST_UNIT))
 
 
+def _floor_power_of_two(n):
+    return 1 << (max(int(n), 1).bit_length() - 1)
+
+
 def store_layout(values, max_rows, max_layers, max_pages=MAX_PAGES, what="the model"):
-    """The layout of ``values`` values in layers of at most ``max_rows`` rows, textures
-    of at most ``max_layers`` layers and under MAX_BUFFER_BYTES (as llvmpipe counts
-    them), at most ``max_pages`` textures; InputError naming ``what`` beyond them."""
+    """The layout of ``values`` values in layers of at most ``max_rows`` rows (and
+    LARGE_ROWS when there are several), textures of at most ``max_layers`` layers and
+    under MAX_BUFFER_BYTES (as llvmpipe counts them), at most ``max_pages`` textures;
+    InputError naming ``what`` beyond them."""
     values = max(int(values), 1)
     page_texels = (MAX_BUFFER_BYTES - 1) // COUNTED_TEXEL_BYTES
-    cap = min(int(max_rows), page_texels // WIDTH) // ROW_QUANTUM * ROW_QUANTUM
-    if cap < ROW_QUANTUM:
-        raise InputError(f"this OpenGL's textures hold fewer than {ROW_QUANTUM} rows of {WIDTH} texels")
+    cap = _floor_power_of_two(min(int(max_rows), LARGE_ROWS, page_texels // WIDTH))
+    if cap < MIN_ROWS:
+        raise InputError(f"this OpenGL's textures hold fewer than {MIN_ROWS} rows of {WIDTH} texels")
     needed = _ceil_div(values, WIDTH)  # rows
-    layers = _ceil_div(needed, cap)
-    rows = _ceil_div(_ceil_div(needed, layers), ROW_QUANTUM) * ROW_QUANTUM  # balanced: <= cap
+    if needed <= cap:  # one layer of the least power of two of rows
+        rows, layers = max(MIN_ROWS, 1 << (needed - 1).bit_length()), 1
+    else:
+        rows, layers = cap, _ceil_div(needed, cap)
     page_layers = max(1, min(int(max_layers), page_texels // (WIDTH * rows)))
     layout = StoreLayout(values, rows, layers, page_layers)
     if layout.pages > max_pages:
@@ -185,7 +201,7 @@ class Store:
     """The pages of ``layout`` (RGB32F array textures), filled from ``plan``."""
 
     def __init__(self, ctx, layout, plan):
-        if plan.values > layout.values:
+        if max(plan.values, 1) != layout.values:
             raise ValueError(f"a plan of {plan.values} values in a layout of {layout.values}")
         self.layout = layout
         rows = layout.rows
@@ -198,7 +214,7 @@ class Store:
     def fill(self, plan):
         """Stream the plan's blocks into the pages, a band of rows at a time, zeros after
         the last value of the last band."""
-        band = math.gcd(self.layout.rows, BAND_ROWS)
+        band = min(self.layout.rows, BAND_ROWS)  # powers of two: a band divides a layer
         staging = np.zeros((band * WIDTH, 3), np.float32)
         cap, filled, written = len(staging), 0, 0
         for count, chunks in plan.blocks:
@@ -238,8 +254,7 @@ class Store:
             page.use(location=unit)
         if "store" in program:
             program["store"].value = units if len(units) > 1 else units[0]
-        for name, value in (("store_width", WIDTH), ("store_rows", self.layout.rows),
-                            ("store_layers", self.layout.page_layers)):
+        for name, value in (("store_shift", self.layout.shift), ("store_layers", self.layout.page_layers)):
             if name in program:
                 program[name].value = value
 

@@ -19,7 +19,7 @@ import trimesh
 
 import display.renderer
 import display.store
-from display.glsl import DESKTOP, resolve
+from display.glsl import DESKTOP, defines, resolve
 from display.renderer import Renderer
 from display.store import MAX_PAGES, WIDTH, store_layout
 from fitting import FittedModel, FittedObject
@@ -51,10 +51,11 @@ def sphere(centre, subdivisions=3, radius=0.8):
     return positions, normals, geometry.tangents(normals).astype(np.float32), np.asarray(s.faces, np.int32)
 
 
-def spheres_solution(rng, grid=16):
+def spheres_solution(rng, grid=15):
     """Two glossy spheres (642 vertices, ``grid`` x ``grid`` directions, random radiance,
-    the lamps' highlights in their grids) and a diffuse one behind: 2 x 164,352 + 642
-    values at grid 16, six layers of 65,536."""
+    the lamps' highlights in their grids) and a diffuse one behind: 2 x 144,450 + 642
+    radiance values at grid 15 (225 a vertex: many a vertex's grid straddles two layers
+    of 65,536) and 2 x 1,284 of visibility, in five layers."""
     objects = []
     for name, centre, glossy in (("left", (-1.0, 0.0, 0.0), True), ("right", (1.0, 0.0, 0.0), True),
                                  ("back", (0.0, 0.2, -1.8), False)):
@@ -125,9 +126,9 @@ def test_a_solution_over_several_textures_draws_as_in_one(gl_context, rng, monke
     many = Renderer(gl_context, solution=solution, samples=1)
     assert many.layout.rows == 16 and many.layout.page_layers == 1
     values = sum(o.radiance.size // 3 for o in solution.objects) + 2 * 642 * 2
-    assert many.layout.values == values and many.layout.pages == len(many.store.pages) == 6
+    assert many.layout.values == values and many.layout.pages == len(many.store.pages) == 5
     bases = [many.layout.address(o.base) for o in many.objects]
-    assert bases[1][0] == 2 and bases[2][0] == 5  # the right sphere's grid starts in layer 2 and ends in layer 5
+    assert bases[1][0] == 2 and bases[2][0] == 4  # the right sphere's grid starts in layer 2 and ends in layer 4
     monkeypatch.setattr(display.store, "LAYER_ROWS", None)
     monkeypatch.setattr(display.store, "PAGE_LAYERS", None)
     one = Renderer(gl_context, solution=solution, samples=1)
@@ -173,6 +174,73 @@ def test_per_light_coefficients_over_several_textures_draw_as_in_one(gl_context,
     one.release()
 
 
+# ------------------------------------------------------------------ every value, through store.glsl
+
+VALUE_PROGRAM = """
+in ivec2 in_base;
+in int in_row;
+in int in_stride;
+in int in_offset;
+out vec3 v_value;
+void main() { v_value = store_value(in_base, in_row, in_stride, in_offset).rgb; }
+"""
+
+
+def run_cases(ctx, source, cases, varying, dtype, bind):
+    """Transform feedback of ``source`` (the cases (base layer, base texel, row, stride,
+    offset) as its attributes) into 3 or 2 values of ``dtype`` a case."""
+    program = ctx.program(vertex_shader=source, varyings=[varying])
+    bind(program)
+    data = np.asarray(cases, np.int64)
+    buffers = [ctx.buffer(np.ascontiguousarray(data[:, columns], np.int32).tobytes())
+               for columns in ([0, 1], [2], [3], [4])]
+    vao = ctx.vertex_array(program, [(buffers[0], "2i", "in_base"), (buffers[1], "i", "in_row"),
+                                     (buffers[2], "i", "in_stride"), (buffers[3], "i", "in_offset")])
+    width = 3 if varying == "v_value" else 2
+    out = ctx.buffer(reserve=len(data) * 4 * width)
+    scratch = ctx.simple_framebuffer((1, 1))  # transform feedback writes nothing without a framebuffer
+    scratch.use()
+    vao.transform(out, moderngl.POINTS, vertices=len(data))
+    got = np.frombuffer(out.read(), dtype).reshape(-1, width).copy()
+    for resource in (vao, out, scratch, program, *buffers):
+        resource.release()
+    return got
+
+
+def block_cases(layout, base, rows, stride):
+    """Every value of a block: (base layer, base texel, row, stride, offset)."""
+    layer, texel = layout.address(base)
+    row, offset = np.divmod(np.arange(rows * stride), stride)
+    return np.stack([np.full_like(row, layer), np.full_like(row, texel), row, np.full_like(row, stride), offset], axis=1)
+
+
+def test_every_value_reads_back_through_the_store(gl_context, rng, small_store):
+    """store.glsl's store_value of every row and offset of every block (radiance grids
+    less the highlights, visibility in red, per-light coefficients) is the value
+    uploaded, bit for bit, across six textures of one layer."""
+    fit = balls_fit(rng)  # the two glossy spheres of the solution: drawn from both files
+    solution = Solution(objects=spheres_solution(rng).objects[:2], emitters=lamps(), emitter_nodes=8)
+    r = Renderer(gl_context, solution=solution, fit=fit, samples=1)
+    assert r.layout.pages == 6
+    source = DESKTOP + defines(extra=(r.store.define,)) + resolve("store.glsl") + VALUE_PROGRAM
+    cases, expected = [], []
+    for obj, s, f in zip(r.objects, solution.objects, fit.objects):
+        rest = s.radiance - solution.highlights(s.name) if not s.is_diffuse else s.radiance
+        cases.append(block_cases(r.layout, obj.base, len(s.radiance), s.radiance.shape[1]))
+        expected.append(np.asarray(rest, np.float32).reshape(-1, 3))
+        for mode, visibility in (("reference", s.visibility), ("fitted", f.highlight.visibility)):
+            cases.append(block_cases(r.layout, obj.highlight[mode][0], *visibility.shape))
+            expected.append(np.stack([visibility.reshape(-1), np.zeros(visibility.size), np.zeros(visibility.size)],
+                                     axis=1).astype(np.float32))
+        cases.append(block_cases(r.layout, obj.coefficient_base, len(f.specular), f.n_lights))
+        expected.append(f.specular.reshape(-1, 3))
+    cases, expected = np.concatenate(cases), np.concatenate(expected)
+    assert len(cases) == r.layout.values
+    got = run_cases(gl_context, source, cases, "v_value", np.float32, r.store.bind)
+    assert np.array_equal(got, expected), np.nonzero((got != expected).any(axis=1))[0][:10]
+    r.release()
+
+
 # ------------------------------------------------------------------ addresses past 2^31
 
 ADDRESS_PROGRAM = """
@@ -188,23 +256,12 @@ void main() { v_address = store_step(store_start(in_base, in_row, in_stride), in
 def glsl_addresses(ctx, rows, cases):
     """store.glsl's address (layer, texel) of each case (base layer, base texel, row,
     stride, offset), run on the GPU with layers of ``rows`` rows."""
-    program = ctx.program(vertex_shader=DESKTOP + "#define VL_STORE_PAGES 1\n" + resolve("store.glsl") + ADDRESS_PROGRAM,
-                          varyings=["v_address"])
-    program["store_width"].value = WIDTH
-    program["store_rows"].value = rows
-    data = np.asarray(cases, np.int64)
-    buffers = [ctx.buffer(np.ascontiguousarray(data[:, columns], np.int32).tobytes())
-               for columns in ([0, 1], [2], [3], [4])]
-    vao = ctx.vertex_array(program, [(buffers[0], "2i", "in_base"), (buffers[1], "i", "in_row"),
-                                     (buffers[2], "i", "in_stride"), (buffers[3], "i", "in_offset")])
-    out = ctx.buffer(reserve=len(data) * 8)
-    scratch = ctx.simple_framebuffer((1, 1))  # transform feedback writes nothing without a framebuffer
-    scratch.use()
-    vao.transform(out, moderngl.POINTS, vertices=len(data))
-    got = np.frombuffer(out.read(), np.int32).reshape(-1, 2).astype(np.int64)
-    for resource in (vao, out, scratch, program, *buffers):
-        resource.release()
-    return got
+    source = DESKTOP + defines(extra=("VL_STORE_PAGES 1",)) + resolve("store.glsl") + ADDRESS_PROGRAM
+
+    def bind(program):
+        program["store_shift"].value = (WIDTH * rows).bit_length() - 1
+
+    return run_cases(ctx, source, cases, "v_address", np.int32, bind).astype(np.int64)
 
 
 def address_cases(rng, rows):
@@ -228,7 +285,7 @@ def address_cases(rng, rows):
     return [c for c in cases if (c[0] * layer + c[1] + c[2] * c[3] + c[4]) // layer < 2**31]
 
 
-@pytest.mark.parametrize("rows", [16, 12208, 16384])
+@pytest.mark.parametrize("rows", [16, 256, 16384])
 def test_glsl_addresses_are_exact_past_two_to_the_31(gl_context, rng, rows):
     cases = address_cases(rng, rows)
     layer = WIDTH * rows
@@ -241,11 +298,14 @@ def test_glsl_addresses_are_exact_past_two_to_the_31(gl_context, rng, rows):
 
 
 def test_a_layout_names_each_value_by_layer_and_texel():
+    assert WIDTH & (WIDTH - 1) == 0  # store.glsl divides by shifts
+    small = store_layout(100_000, 16384, 2048)
+    assert (small.rows, small.layers, small.pages, small.shift) == (32, 1, 1, 17)  # the least power of two of rows
     layout = store_layout(79_276_514, 16384, 2048)  # the user's solution: more rows than a texture has
-    assert layout.layers == 2 and layout.pages == 1 and layout.rows % 16 == 0
-    assert layout.layers * layout.layer_texels - layout.values < 2 * 16 * WIDTH  # balanced: padding under 16 rows a layer
-    big = store_layout(10**9, 16384, 2048)  # 12 GB of float32 RGB in 8 textures of 2 layers
-    assert big.pages == MAX_PAGES and big.page_layers == 2 and big.page_depth(MAX_PAGES - 1) == 1
+    assert (layout.rows, layout.layers, layout.page_layers, layout.pages) == (256, 76, 127, 1)
+    assert 0 <= layout.layers * layout.layer_texels - layout.values < layout.layer_texels  # padding under a layer
+    big = store_layout(10**9, 16384, 2048)  # 12 GB of float32 RGB in 8 textures
+    assert big.pages == MAX_PAGES and big.page_layers == 127 and big.page_depth(MAX_PAGES - 1) == 954 - 7 * 127
     assert big.page_layers * big.layer_texels * 16 < 2**31  # llvmpipe's limit, counting 16 bytes a texel
     for i in (0, 2**31 // 3 + 1, 3 * 10**8 + 12345, 10**9 - 1):
         page, x, y, z = big.texel(i)
