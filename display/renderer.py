@@ -288,9 +288,11 @@ class Renderer:
 
     Before anything is uploaded the store is laid out and the memory it, the vertex
     buffers and the upload's staging need (``estimate``) checked against the memory
-    free: InputError (one line) naming the estimate when it does not fit."""
+    free: InputError (one line) naming the estimate when it does not fit. ``say`` (a
+    function of one line), if given, is told an estimate of a gigabyte or more first
+    (``display.store.check_memory``)."""
 
-    def __init__(self, ctx, fit=None, solution=None, samples=DEFAULT_SAMPLES):
+    def __init__(self, ctx, fit=None, solution=None, samples=DEFAULT_SAMPLES, *, say=None):
         if fit is None and solution is None:
             raise ValueError("give a fitted model, a solution, or both")
         self.ctx = ctx
@@ -302,7 +304,7 @@ class Renderer:
         blocks = _store_blocks(fit, solution)
         self.layout = store_layout(sum(b[2] for b in blocks), *context_limits(ctx))
         self.estimate = _estimate(fit, solution, self.layout)
-        check_memory(self.estimate, self.layout)
+        check_memory(self.estimate, self.layout, say=say)
         self.objects = [_Object(ctx, o.name, o.positions, o.normals, o.faces) for o in source.objects]
         positions = np.concatenate([o.positions for o in self.objects])
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)

@@ -30,7 +30,8 @@ GL_TEXTURE_BUFFER: moderngl (5.13) makes no buffer textures, and their limit
 
 The values are streamed into the textures a band of rows at a time (``Store.fill``),
 from each block's chunks, never gathered into one host array. ``check_memory`` refuses,
-in one line, textures and buffers that would not fit in the memory left.
+in one line, textures and buffers that would not fit in the memory left, and says the
+estimate of an upload of SAY_BYTES or more before it is made.
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ def store_layout(values, max_rows, max_layers, max_pages=MAX_PAGES, what="the mo
     if layout.pages > max_pages:
         most = max_pages * page_layers * WIDTH * rows
         raise InputError(
-            f"{what} has {values:,} float values for the display to read, in {layout.pages} textures of at most "
+            f"{what} has {values:,} RGB values for the display to read, in {layout.pages} textures of at most "
             f"{page_layers * WIDTH * rows:,}; this OpenGL binds {max_pages} for them ({most:,} values); "
             "use a coarser --grid or --max-edge"
         )
@@ -167,17 +168,29 @@ class Estimate(NamedTuple):
         return self.store + self.buffers + self.staging
 
 
-def check_memory(estimate, layout, free=None):
+SAY_BYTES = 1 << 30  # an upload this large is said before it is made (it takes seconds)
+
+
+def _parts(estimate, layout):
+    textures = f"{layout.pages} texture{'s' if layout.pages > 1 else ''}"
+    return (f"its {layout.values:,} RGB values in {textures} ({_size(estimate.store)}), vertex buffers "
+            f"({_size(estimate.buffers)}) and upload staging ({_size(estimate.staging)}), next to the "
+            f"{_size(estimate.host)} host copy already read")
+
+
+def check_memory(estimate, layout, free=None, say=None):
     """Refuse (InputError, one line) an ``estimate`` (``Estimate``) beyond the memory this
-    process may still use (``radiosity.formats.limits.available_memory``, or ``free``)."""
+    process may still use (``radiosity.formats.limits.available_memory``, or ``free``);
+    ``say`` (a function of one line), if given, is told an estimate of SAY_BYTES or more
+    first."""
     free = available_memory() if free is None else free
+    if say is not None and estimate.total >= SAY_BYTES:
+        have = "" if free is None else f" ({_size(free)} free)"
+        say(f"drawing: about {_size(estimate.total)} more memory{have}: {_parts(estimate, layout)}")
     if free is not None and estimate.total > free:
         raise InputError(
-            f"drawing this model needs about {_size(estimate.total)} more memory: its {layout.values:,} float values "
-            f"in {layout.pages} texture{'s' if layout.pages > 1 else ''} ({_size(estimate.store)}), vertex buffers "
-            f"({_size(estimate.buffers)}) and upload staging ({_size(estimate.staging)}), next to the "
-            f"{_size(estimate.host)} host copy already read; only {_size(free)} is free. "
-            "Use a coarser --grid or --max-edge, or a machine with more memory"
+            f"drawing this model needs about {_size(estimate.total)} more memory: {_parts(estimate, layout)}; "
+            f"only {_size(free)} is free. Use a coarser --grid or --max-edge, or a machine with more memory"
         )
 
 

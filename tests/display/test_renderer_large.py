@@ -330,7 +330,12 @@ def test_a_model_beyond_the_free_memory_is_refused_in_one_line(gl_context, rng, 
     message = str(refused.value)
     assert "\n" not in message and "needs about" in message and "is free" in message and "--grid" in message
     monkeypatch.setattr(display.store, "available_memory", lambda: estimate.total)
-    Renderer(gl_context, solution=solution, samples=1).release()  # just enough: drawn
+    said = []
+    Renderer(gl_context, solution=solution, samples=1, say=said.append).release()  # just enough: drawn
+    assert said == []  # quiet below SAY_BYTES
+    monkeypatch.setattr(display.store, "SAY_BYTES", 0)
+    Renderer(gl_context, solution=solution, samples=1, say=said.append).release()
+    assert len(said) == 1 and said[0].startswith("drawing: about ") and "free" in said[0] and "\n" not in said[0]
 
 
 def test_the_command_refuses_a_model_beyond_the_free_memory(gl_context, tmp_path, rng, cli, monkeypatch):
