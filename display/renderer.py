@@ -49,11 +49,13 @@ from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, sample_plan
-from .glsl import FLOAT_TEXTURE_WIDTH, emitter_table, stage
+from .glsl import emitter_table, stage
+from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_memory, context_limits, store_layout
 
 MODES = ("fitted", "diffuse", "reference")
 SHADINGS = ("gouraud", "pixel")
-RADIANCE_TEXTURE_WIDTH = FLOAT_TEXTURE_WIDTH
+CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
+VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
 
 # The programs: a shader file per stage (display/shaders), compiled with ``display.glsl``'s
 # defines for the object's parts and emitter nodes, and the variants named in "defines".
@@ -195,18 +197,72 @@ class _Framebuffers:
             fbo.release()
 
 
-def _float_texture(ctx, values, what):
-    """(N, 3) float values as an RGB32F texture FLOAT_TEXTURE_WIDTH texels wide, value i
-    at texel (i % width, i // width); InputError if it exceeds the context's textures."""
-    width = FLOAT_TEXTURE_WIDTH
-    height = max(1, math.ceil(len(values) / width))
-    if height > ctx.info["GL_MAX_TEXTURE_SIZE"]:
-        raise InputError(f"{what} ({len(values):,} values) exceeds this OpenGL's texture size")
-    data = np.zeros((height * width, 3), np.float32)
-    data[: len(values)] = values
-    texture = ctx.texture((width, height), 3, data.tobytes(), dtype="f4")
-    texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    return texture
+def _store_blocks(fit, solution):
+    """(object name, what, values, row length) of every block the float store holds
+    (``display.store``): per-light coefficients and emitters' visibility of the fit,
+    radiance grids and visibility of the solution; InputError for a row longer than
+    the shaders address (``display.store.MAX_STRIDE``)."""
+    blocks = []
+    for f in fit.objects if fit is not None else ():
+        if f.per_light and f.n_lights:
+            blocks.append((f.name, "per-light coefficients", np.size(f.specular) // 3, f.n_lights))
+        if f.highlight is not None:
+            visibility = np.asarray(f.highlight.visibility)
+            blocks.append((f.name, "emitter visibility", visibility.size, visibility.size // max(len(f.positions), 1)))
+    drawn = {f.name for f in fit.objects} if fit is not None else None  # a solution's objects the fit names
+    for s in solution.objects if solution is not None else ():
+        if drawn is not None and s.name not in drawn:
+            continue
+        blocks.append((s.name, "radiance directions", s.radiance.size // 3, s.radiance.shape[1]))
+        if not s.is_diffuse and solution.emitters and s.visibility is not None:
+            blocks.append((s.name, "emitter visibility", s.visibility.size, s.visibility.size // max(len(s.positions), 1)))
+    for name, what, _, stride in blocks:
+        if stride > MAX_STRIDE:
+            raise InputError(f"object {name!r} has {stride:,} {what} a vertex; the display reads at most {MAX_STRIDE:,}")
+    return blocks
+
+
+def _estimate(fit, solution, layout):
+    """``display.store.Estimate`` of a renderer of ``fit`` and ``solution`` in ``layout``."""
+    buffers, host = 0, 0
+    for model in (fit, solution):
+        for o in model.objects if model is not None else ():
+            buffers += VERTEX_BYTES * len(o.positions) + 12 * len(o.faces)
+            arrays = [getattr(o, key, None) for key in ("positions", "normals", "tangents", "faces", "radiance",
+                                                        "specular", "emitted", "visibility")]
+            host += sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
+            textured = getattr(o, "textured", None)
+            if textured is not None:
+                buffers += np.asarray(textured.texture).size * 4 * 4 // 3
+    # a band of rows; a chunk of a grid: its highlights and their difference (float64), that as
+    # float32, or its float64 copy for the directional mean (_grid_chunks, _directional_mean)
+    chunk = max((min(s.radiance.size // 3, _chunk_vertices(s.radiance) * s.radiance.shape[1])
+                 for s in (solution.objects if solution is not None else ())), default=0)
+    staging = min(STAGING_BYTES, layout.nbytes) + chunk * 3 * (8 + 8 + 4)
+    return Estimate(store=layout.nbytes, buffers=buffers, staging=staging, host=host)
+
+
+def _chunk_vertices(radiance):
+    """Vertices of a grid (V, D, 3) read at a time: CHUNK_VALUES values, at least a vertex."""
+    return max(1, CHUNK_VALUES // max(radiance.shape[1], 1))
+
+
+def _directional_mean(radiance):
+    """(V, 3) float64: each vertex's radiance (V, D, 3) averaged over directions, read a
+    chunk of vertices at a time (as float64, the whole never copied)."""
+    step = _chunk_vertices(radiance)
+    parts = [np.asarray(radiance[i:i + step], np.float64).mean(axis=1) for i in range(0, len(radiance), step)]
+    return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+
+def _grid_chunks(solution, s, split):
+    """Object ``s``'s radiance grids (V, D, 3) a chunk of vertices at a time, less the
+    emitters' highlights where ``split`` (the shader adds them per pixel), as
+    ``display.store.StorePlan`` takes a block's values."""
+    step = _chunk_vertices(s.radiance)
+    for start in range(0, len(s.radiance), step):
+        rows = slice(start, start + step)
+        yield s.radiance[rows] - solution.highlights(s.name, vertices=rows) if split else s.radiance[rows]
 
 
 def light_table(light_pos, light_rgb, shininess):
@@ -225,11 +281,18 @@ class Renderer:
 
     Each object's lights are a (2, K) float texture (``light_table``). Coefficients
     shared by the lights ((V, 3)) are a vertex attribute; per-light ones ((V, K, 3))
-    are one RGB32F texture for all objects, light k of vertex v at texel
-    base + v K + k, read by vertex id: ``gl_VertexID`` for Gouraud, and per pixel the
-    triangle's three ids (flat, from a geometry shader) blended by barycentrics."""
+    are in the float store (``display.store``, with the solution's radiance grids and
+    the emitters' visibility), light k of vertex v at value base + v K + k, read by
+    vertex id: ``gl_VertexID`` for Gouraud, and per pixel the triangle's three ids
+    (flat, from a geometry shader) blended by barycentrics.
 
-    def __init__(self, ctx, fit=None, solution=None, samples=DEFAULT_SAMPLES):
+    Before anything is uploaded the store is laid out and the memory it, the vertex
+    buffers and the upload's staging need (``estimate``) checked against the memory
+    free: InputError (one line) naming the estimate when it does not fit. ``say`` (a
+    function of one line), if given, is told an estimate of a gigabyte or more first
+    (``display.store.check_memory``)."""
+
+    def __init__(self, ctx, fit=None, solution=None, samples=DEFAULT_SAMPLES, *, say=None):
         if fit is None and solution is None:
             raise ValueError("give a fitted model, a solution, or both")
         self.ctx = ctx
@@ -238,11 +301,14 @@ class Renderer:
         self.fit, self.solution = fit, solution
         self.modes = tuple(m for m in MODES if (m != "reference" or solution is not None) and (m != "fitted" or fit is not None))
         source = fit if fit is not None else solution
+        blocks = _store_blocks(fit, solution)
+        self.layout = store_layout(sum(b[2] for b in blocks), *context_limits(ctx))
+        self.estimate = _estimate(fit, solution, self.layout)
+        check_memory(self.estimate, self.layout, say=say)
         self.objects = [_Object(ctx, o.name, o.positions, o.normals, o.faces) for o in source.objects]
         positions = np.concatenate([o.positions for o in self.objects])
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
-        self.radiance = None
-        self.coefficients = None
+        self.store = None
         self.probes = None
         self.emitter_tables = {}  # mode -> the emitter parts' texture
         environment = solution.environment if solution is not None else None
@@ -251,26 +317,22 @@ class Renderer:
         self.environment = environment  # the light from outside the scene, drawn where no object is
         self._environment_texture = None
         self.nodes = {"fitted": DEFAULT_NODES, "reference": DEFAULT_NODES}
-        visibility = []  # (N,) chunks of the visibility texture
+        plan = StorePlan()  # the blocks of the float store, streamed into it once all are known
         if fit is not None:
-            self._upload_fit(fit, visibility)
+            self._upload_fit(fit, plan)
         if solution is not None:
-            self._upload_solution(solution, visibility)
-        values = np.concatenate(visibility) if visibility else np.zeros(1, np.float32)
-        self.visibility = _float_texture(
-            ctx, np.stack([values, np.zeros_like(values), np.zeros_like(values)], axis=1),
-            "the emitters' visibility (vertices x parts)",
-        )
+            self._upload_solution(solution, plan)
+        self.store = Store(ctx, self.layout, plan)
         self._programs = {}
         self._framebuffers = {}
         self._scratch = None
         self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
-    def _highlight(self, mode, obj, parts, visibility, ks, exponent, chunks, *, fresnel=None):
-        """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) appended to
-        the visibility texture's ``chunks``; ``fresnel`` the material's Schlick F0 or None."""
-        base = sum(len(c) for c in chunks)
-        chunks.append(np.asarray(visibility, np.float32).reshape(-1))
+    def _highlight(self, mode, obj, parts, visibility, ks, exponent, plan, *, fresnel=None):
+        """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) a block of the
+        store's ``plan``; ``fresnel`` the material's Schlick F0 or None."""
+        values = np.asarray(visibility, np.float32).reshape(-1)
+        base = plan.add(len(values), lambda: (values,))
         own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
         f0 = (-1.0, -1.0, -1.0) if fresnel is None else tuple(float(v) for v in fresnel)  # < 0: no Fresnel
         obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0)
@@ -281,9 +343,8 @@ class Renderer:
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.emitter_tables[mode] = texture
 
-    def _upload_fit(self, fit, visibility):
+    def _upload_fit(self, fit, plan):
         ctx = self.ctx
-        chunks, base = [], 0
         self.nodes["fitted"] = fit.emitter_nodes
         self._emitter_table("fitted", fit.emitters)
         probes, row = [], 0
@@ -292,7 +353,7 @@ class Renderer:
                 obj.add_textured(ctx, f.textured)
             if f.highlight is not None:
                 h = f.highlight
-                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, visibility, fresnel=h.fresnel)
+                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, plan, fresnel=h.fresnel)
             obj.glossy = obj.glossy or bool(f.n_lights or f.probe is not None or f.highlight is not None)
             weight = np.zeros((obj.n_vertices, 3), np.float32)
             if f.probe is not None:
@@ -308,18 +369,12 @@ class Renderer:
             obj.per_light = bool(f.per_light) and f.n_lights > 0
             obj.specular = np.asarray(f.specular, np.float32)
             if obj.per_light:
-                obj.coefficient_base = base
                 values = obj.specular.reshape(-1, 3)
-                chunks.append(values)
-                base += len(values)
+                obj.coefficient_base = plan.add(len(values), lambda values=values: (values,))
             else:
                 obj.add(ctx, "in_specular", obj.specular.reshape(-1, 3) if f.n_lights else np.zeros((obj.n_vertices, 3)))
             obj.lights = ctx.texture((2, max(f.n_lights, 1)), 4, light_table(*f.lights).tobytes(), dtype="f4")
             obj.lights.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        values = np.concatenate(chunks) if chunks else np.zeros((1, 3), np.float32)
-        self.coefficients = _float_texture(
-            ctx, values, "the fitted model's per-light coefficients (vertices x lights)"
-        )
         if probes:
             width = max(p.shape[1] for p in probes)
             atlas = np.zeros((row, width, 3), np.float32)
@@ -330,12 +385,11 @@ class Renderer:
             self.probes = ctx.texture((width, row), 3, atlas.tobytes(), dtype="f4")
             self.probes.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
-    def _upload_solution(self, solution, visibility):
+    def _upload_solution(self, solution, plan):
         ctx = self.ctx
         self.nodes["reference"] = solution.emitter_nodes
         self._emitter_table("reference", solution.emitters)
         by_name = {o.name: o for o in solution.objects}
-        chunks, base = [], 0
         for obj in self.objects:
             s = by_name.get(obj.name)
             if s is None or len(s.positions) != obj.n_vertices:
@@ -345,39 +399,32 @@ class Renderer:
                 obj.add_textured(ctx, s.textured)
             # the diffuse display: each vertex's radiance averaged over directions (what a
             # diffuse walkthrough of this solution shows)
-            mean = np.asarray(s.radiance, np.float64).mean(axis=1)
+            mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
             if "in_emitted" not in obj.buffers:  # a solution alone
                 obj.add(ctx, "in_emitted", mean)
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
             if "in_probe" not in obj.buffers:
                 obj.add(ctx, "in_probe", np.zeros((obj.n_vertices, 3)))
-            obj.base = base
             obj.grid_n = 0 if s.is_diffuse else s.grid_n
             obj.glossy = obj.glossy or not s.is_diffuse
-            radiance = s.radiance
-            if not s.is_diffuse and solution.emitters and s.visibility is not None:
-                # the grid keeps the rest; the shader draws the highlights per pixel
-                radiance = s.radiance - solution.highlights(s.name)
+            # the grid keeps the rest of the radiance; the shader draws the highlights per pixel
+            split = not s.is_diffuse and bool(solution.emitters) and s.visibility is not None
+            obj.base = plan.add(s.radiance.size // 3, lambda s=s, split=split: _grid_chunks(solution, s, split))
+            if split:
                 m = s.material
                 self._highlight("reference", obj, solution.emitters, s.visibility, m["specular"], m["exponent"],
-                                visibility, fresnel=m.get("fresnel"))
-            values = np.asarray(radiance, np.float32).reshape(-1, 3)
-            chunks.append(values)
-            base += len(values)
-        try:
-            self.radiance = _float_texture(ctx, np.concatenate(chunks), "the solution's radiance")
-        except InputError as exc:
-            raise InputError(f"{exc}; use a coarser --grid or --max-edge") from None
+                                plan, fresnel=m.get("fresnel"))
 
     @property
     def uploaded_bytes(self):
-        """Bytes on the GPU: vertex and index buffers, light tables, coefficient and radiance textures."""
+        """Bytes on the GPU: vertex and index buffers, light tables, the float store (radiance
+        grids, per-light coefficients, visibility), the probes."""
         total = sum(o.bytes for o in self.objects)
         total += sum(o.lights.width * o.lights.height * 16 for o in self.objects if o.lights is not None)
-        for texture in (self.radiance, self.coefficients, self.probes, self.visibility):
-            if texture is not None:
-                total += texture.width * texture.height * 12
+        total += self.store.nbytes
+        if self.probes is not None:
+            total += self.probes.width * self.probes.height * 12
         total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
         return total
 
@@ -387,7 +434,7 @@ class Renderer:
         parts = tuple(p for p in PARTS if p in parts)
         if (key, parts, textured) not in self._programs:
             spec = dict(PROGRAMS[key])
-            extra = spec.pop("defines", ()) + (("VL_TEXTURED",) if textured else ())
+            extra = spec.pop("defines", ()) + (("VL_TEXTURED",) if textured else ()) + (self.store.define,)
             nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
             for name in STAGES:
                 if name in spec:
@@ -429,12 +476,10 @@ class Renderer:
         h = obj.highlight.get(mode) if on else None
         if mode in self.emitter_tables:
             self.emitter_tables[mode].use(location=3)
-        self.visibility.use(location=4)
         self._set(program, "emitter_table", 3)
-        self._set(program, "visibility", 4)
         self._set(program, "n_parts", 0 if h is None else h[1])
         if h is not None:
-            self._set(program, "visibility_base", h[0])
+            self._set(program, "visibility_base", self.layout.address(h[0]))
             self._set(program, "own_parts", h[2])
             self._set(program, "emitter_ks", h[3])
             self._set(program, "emitter_exponent", h[4])
@@ -458,24 +503,21 @@ class Renderer:
         """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights, the ``parts``
         named (in "diffuse" mode: none)."""
         drawn = mode == "fitted"
+        self.store.bind(program)
         self._bind_highlight(program, obj, "fitted", drawn and "emitters" in parts)
         self._bind_probe(program, obj, drawn and "probe" in parts)
         if obj.lights is not None:
             obj.lights.use(location=1)
-        if self.coefficients is not None:
-            self.coefficients.use(location=2)
         self._set(program, "lights", 1)
-        self._set(program, "coefficients", 2)
         self._set(program, "n_lights", n)
         self._set(program, "light_stride", obj.n_lights)
         self._set(program, "per_light", int(obj.per_light))
-        self._set(program, "coefficient_base", obj.coefficient_base)
+        self._set(program, "coefficient_base", self.layout.address(obj.coefficient_base))
 
     def _bind_reference(self, program, obj, parts=PARTS):
+        self.store.bind(program)
         self._bind_highlight(program, obj, "reference", "emitters" in parts)
-        self.radiance.use(location=0)
-        self._set(program, "radiance", 0)
-        self._set(program, "base", obj.base)
+        self._set(program, "base", self.layout.address(obj.base))
         self._set(program, "grid_n", obj.grid_n)
 
     def _draw_background(self, view, size):
@@ -722,8 +764,7 @@ class Renderer:
             o.release()
         for p in self._programs.values():
             p.release()
-        for texture in (self.radiance, self.coefficients, self.probes, self.visibility, self._environment_texture,
-                        *self.emitter_tables.values()):
+        for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values()):
             if texture is not None:
                 texture.release()
         for resource in (self._scratch, *self._full_screens.values()):

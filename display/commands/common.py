@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 
 from display import gl
 from radiosity.formats import InputError
@@ -177,7 +178,8 @@ def rendering(args):
     with headless(args.size, args.samples) as ctx:
         fit, solution = read_model_files(args.file, args.solution)
         mode = args.mode or ("fitted" if fit is not None else "reference")
-        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
+        renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples,
+                            say=lambda line: print(line, file=sys.stderr))  # a large upload's estimate
         try:
             yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
         finally:

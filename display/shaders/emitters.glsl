@@ -1,7 +1,7 @@
 // The emitters' glossy highlights: the same arithmetic as radiosity.formats.emitters
 // (highlight_integral, _culled, the visibility of each part blended from the triangle's
 // vertices); tested against it. Compiles to nothing under VL_NO_EMITTERS.
-// Prepended #defines (display.glsl.defines): VL_TEXTURE_WIDTH, VL_CULL,
+// Prepended #defines (display.glsl.defines; VL_STORE_PAGES the renderer's): VL_TEXTURE_WIDTH, VL_CULL,
 // VL_MAX_POLYGON_VERTICES, and the quadrature of the emitter nodes N
 // (radiosity.formats.emitters.rules): VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W,
 // VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W (the lists comma-separated).
@@ -14,9 +14,11 @@
 //   emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
 //   emitter_exponent  its modified-Phong exponent
 //   emitter_f0        its Schlick F0 (a Fresnel material: ks weighted by F(n.w)); < 0: no Fresnel
-//   visibility        RGB32F texture VL_TEXTURE_WIDTH wide, the value in red: vertex v's
-//                     fraction of part i at texel visibility_base + v * n_parts + i
-//   visibility_base
+//   visibility_base   vertex v's fraction of part i is the red of value visibility_base +
+//                     v * n_parts + i: on the desktop, of the renderer's float store
+//                     (store.glsl; visibility_base an address, (layer, texel)); on the page, of
+//   visibility        an RGB32F texture VL_TEXTURE_WIDTH wide (value i at texel (i % width, i / width))
+#include "store.glsl"
 #ifdef VL_NO_EMITTERS
 vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) { return vec3(0.0); }
 #else
@@ -26,9 +28,13 @@ uniform int own_parts;
 uniform vec3 emitter_ks;
 uniform float emitter_exponent;
 uniform vec3 emitter_f0;
+#ifdef VL_STORE_PAGES
+uniform ivec2 visibility_base;
+#else
 uniform sampler2D visibility;
 uniform int visibility_base;
 const int VISIBILITY_WIDTH = VL_TEXTURE_WIDTH;
+#endif
 const float HALF_PI = 1.5707963267948966;
 const float TWO_PI = 6.283185307179586;
 const float CULL = VL_CULL;
@@ -185,8 +191,12 @@ bool emitter_culled(vec4 bound, vec3 x, vec3 r, float p) {
     return nearest > 0.0 && lobe_cdf(nearest, p) < CULL;
 }
 float visibility_at(int vertex, int part) {
+#ifdef VL_STORE_PAGES
+    return store_value(visibility_base, vertex, n_parts, part).r;
+#else
     int i = visibility_base + vertex * n_parts + part;
     return texelFetch(visibility, ivec2(i % VISIBILITY_WIDTH, i / VISIBILITY_WIDTH), 0).r;
+#endif
 }
 // the emitters' highlights at x (unit normal n, unit w towards the eye), each part's
 // visibility blended from the vertices by weights (per pixel: barycentrics; at a vertex:

@@ -1,18 +1,27 @@
 // The virtual lights of Contract 2's shading formula (fitting.model.FittedObject.shade).
+#include "store.glsl"
 #ifdef VL_NO_LIGHTS
 vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) { return emitted; }
 #else
 uniform int n_lights;          // lights drawn: the object's first n_lights (--lights)
 uniform int light_stride;      // the object's K: per-light coefficients per vertex
-uniform int per_light;         // 1: light k's coefficient of vertex v is texel coefficient_base + v * K + k
-uniform int coefficient_base;
+uniform int per_light;         // 1: light k's coefficient of vertex v is value coefficient_base + v * K + k
 uniform sampler2D lights;      // row k: (light_pos xyzw as GL_POSITION), (rgb, shininess)
+#ifdef VL_STORE_PAGES
+uniform ivec2 coefficient_base;  // an address in the renderer's float store (store.glsl)
+#else
+uniform int coefficient_base;    // the page: a texture VL_TEXTURE_WIDTH wide, value i at texel (i % width, i / width)
 uniform sampler2D coefficients;
 const int COEFFICIENT_WIDTH = VL_TEXTURE_WIDTH;
+#endif
 const float NEGLIGIBLE = 30.0;  // fitting.lobes.NEGLIGIBLE: the lobe is 0 where (1 - c) p > 30
 vec3 coefficient_at(int vertex, int k) {
+#ifdef VL_STORE_PAGES
+    return store_value(coefficient_base, vertex, light_stride, k).rgb;
+#else
     int i = coefficient_base + vertex * light_stride + k;
     return texelFetch(coefficients, ivec2(i % COEFFICIENT_WIDTH, i / COEFFICIENT_WIDTH), 0).rgb;
+#endif
 }
 // light k's lobe times its colour at point x, unit normal n, unit w towards the eye
 vec3 light_term(int k, vec3 n, vec3 x, vec3 w) {

@@ -1,12 +1,10 @@
-// The reference display: a vertex's radiance grid read for a view direction.
-uniform sampler2D radiance;  // every object's radiance, texel base + vertex * D + d
-uniform int base;
+// The reference display: a vertex's radiance grid read for a view direction. The grids
+// are in the renderer's float store (store.glsl): value d of vertex v of the object at
+// store address base + v * D + d (D = grid_n * grid_n; a diffuse object D = 1).
+#include "store.glsl"
+uniform ivec2 base;          // the object's first value: (layer, texel) in the store
 uniform int grid_n;          // 0 for a diffuse object (D = 1)
-const int TEXTURE_WIDTH = VL_TEXTURE_WIDTH;
 const float FOUR_OVER_PI = 1.2732395447351628;
-vec3 fetch(int index) {
-    return texelFetch(radiance, ivec2(index % TEXTURE_WIDTH, index / TEXTURE_WIDTH), 0).rgb;
-}
 vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere_to_square
     w = normalize(w);
     float z = clamp(w.z, 0.0, 1.0);
@@ -21,7 +19,7 @@ vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere
     return clamp(vec2(a, b), -1.0, 1.0);
 }
 vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directions.grid_lookup_weights
-    if (grid_n == 0) return fetch(base + vertex);
+    if (grid_n == 0) return store_value(base, vertex, 1, 0).rgb;
     int D = grid_n * grid_n;
     vec3 bt = cross(n, t);
     vec2 ab = hemisphere_to_square(vec3(dot(w, t), dot(w, bt), dot(w, n)));
@@ -32,8 +30,8 @@ vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directi
     int i1 = clamp(int(f0.x) + 1, 0, grid_n - 1);
     int j0 = clamp(int(f0.y), 0, grid_n - 1);
     int j1 = clamp(int(f0.y) + 1, 0, grid_n - 1);
-    int row = base + vertex * D;
-    vec3 low = mix(fetch(row + j0 * grid_n + i0), fetch(row + j0 * grid_n + i1), f.x);
-    vec3 high = mix(fetch(row + j1 * grid_n + i0), fetch(row + j1 * grid_n + i1), f.x);
+    ivec2 row = store_start(base, vertex, D);   // the vertex's grid, d = j * grid_n + i
+    vec3 low = mix(store_fetch(store_step(row, j0 * grid_n + i0)).rgb, store_fetch(store_step(row, j0 * grid_n + i1)).rgb, f.x);
+    vec3 high = mix(store_fetch(store_step(row, j1 * grid_n + i0)).rgb, store_fetch(store_step(row, j1 * grid_n + i1)).rgb, f.x);
     return mix(low, high, f.y);
 }

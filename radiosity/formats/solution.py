@@ -377,16 +377,20 @@ class Solution:
             **({"environment": self.environment.meta()} if self.environment is not None else {}),
         }
 
-    def highlights(self, name: str) -> np.ndarray:
+    def highlights(self, name: str, vertices: slice = slice(None)) -> np.ndarray:
         """The closed-form emitter highlights (V, D, 3) float64 held in object ``name``'s
-        radiance on its grid (zeros where there are none: diffuse objects, version 1)."""
+        radiance on its grid (zeros where there are none: diffuse objects, version 1);
+        of the ``vertices`` alone (a slice) if given, so that a large grid can be read a
+        chunk of vertices at a time."""
         o = self.object(name)
         if o.is_diffuse or not self.emitters:
-            return np.zeros(o.radiance.shape)
+            return np.zeros(o.radiance[vertices].shape)
         m = o.material
+        visibility = None if o.visibility is None else o.visibility[vertices]
         return emitter_grid(
-            self.emitters, o.positions, o.normals, o.tangents, o.directions, m["specular"], m["exponent"],
-            visibility=o.visibility, nodes=self.emitter_nodes, source=name, fresnel=m.get("fresnel"),
+            self.emitters, o.positions[vertices], o.normals[vertices], o.tangents[vertices], o.directions,
+            m["specular"], m["exponent"], visibility=visibility, nodes=self.emitter_nodes, source=name,
+            fresnel=m.get("fresnel"),
         )
 
     def save(self, path: str | os.PathLike) -> None:
