@@ -4,7 +4,7 @@ at equal quality (issue 25).
 Usage:
     python benchmarks/bench_walkthrough.py [--scenes cornell-teapot,interior] [--triangles 100000]
                                            [--size 256x256] [--frames 3] [--truth-spp 4096]
-                                           [--quality draft] [--draws 20] [--cache DIR] [--keep DIR]
+                                           [--tracer-spp N] [--quality draft] [--draws 20] [--cache DIR] [--keep DIR]
                                            [--mitsuba-python PY] [--mitsuba-variant scalar_rgb] [--quick]
 
 Two scenes: the demo (built-in ``cornell-teapot``) and the closed interior of
