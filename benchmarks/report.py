@@ -355,6 +355,82 @@ def trade_truth(rows):
     return out + [""]
 
 
+
+def frames_text(n):
+    """A break-even number of frames in words."""
+    if n is None:
+        return "never (its frames cost no less)"
+    return f"{n:,.0f}" if n >= 10 else f"{n:.1f}"
+
+
+WALK_PAIRS = (("fitted", "fitted", "path tracer at the fitted FLIP"),
+              ("reference", "reference", "path tracer at the reference FLIP"),
+              ("fitted, Mitsuba", "fitted", "Mitsuba at the fitted FLIP's samples"),
+              ("reference, Mitsuba", "reference", "Mitsuba at the reference FLIP's samples"))
+
+
+def walkthrough(rows):
+    out = [f"## {walkthrough.title}", "", where("bench_walkthrough.py", ["walkthrough.jsonl", "walkthrough.png"]),
+           machine(rows), ""]
+    if rows:
+        r0 = rows[0]
+        out += [f"{r0['size'][0]} x {r0['size'][1]}, {r0['quality']}, {r0['sample_frames']} sample frames along each "
+                f"camera path, each display's FLIP (HDR, whole image) against a {r0['truth_spp']}-spp path-traced truth "
+                "of that frame; the path tracer at the samples per pixel that reach each display's FLIP on that frame. "
+                "A way's total for N frames is its fixed cost + N x its cost per frame (the mean over the sample "
+                "frames); solve and fit are the commands, each in a process of its own.", ""]
+    for s in pick(rows, what="summary"):
+        setup = next(iter(pick(rows, what="setup", scene=s["scene"])), None)
+        heading = f"**{s['scene']}**"
+        if setup:
+            heading += (f" ({setup['triangles']:,} input triangles, {setup['vertices']:,} vertices solved; solve "
+                        f"{num(setup['solve_s'], 1)} s, fit {num(setup['fit_s'], 1)} s):")
+        out += [heading, ""]
+        out += table(["way", "FLIP", "fixed (s)", "per frame (s)", "samples per pixel"],
+                     [[name, num(w.get("flip"), 4), num(w["fixed_s"], 2), num(w["per_frame_s"], 4),
+                       (", ".join(str(n) for n in w["spp"]) + ("" if w["reached"] else " (not reached: a lower bound)"))
+                       if "spp" in w else ""] for name, w in s["ways"].items()])
+        out.append("")
+        for key, method, rival in WALK_PAIRS:
+            if key not in s["break_even_frames"]:
+                continue
+            ratio = s["ratio_of_totals"][key]
+            out.append(f"- {rival[0].upper() + rival[1:]} against the {method} display: break-even at "
+                       f"**{frames_text(s['break_even_frames'][key])}** frames; total {rival.split(' at ')[0]} / "
+                       f"{method} at N = " + ", ".join(f"{int(n):,}" for n in ratio) + ": "
+                       + ", ".join(f"**{num(v, 2)}**" if n == "100" else num(v, 2) for n, v in ratio.items()) + ".")
+        out.append("")
+    frames = pick(rows, what="frame")
+    if frames:
+        out += ["Each sample frame (frame times: median of the draws, drawing only):", ""]
+        mitsuba = {(r["scene"], r["frame"]): r for r in pick(rows, what="mitsuba frame")}
+        body = []
+        for r in frames:
+            m = mitsuba.get((r["scene"], r["frame"]))
+            pt = r["path_tracer"]
+            body.append([r["scene"], r["frame"], num(r["truth_noise_flip"], 4), num(r["fitted"]["flip"], 4),
+                         num(r["fitted"]["frame_s"] * 1000, 1), num(r["reference"]["flip"], 4),
+                         num(r["reference"]["frame_s"] * 1000, 1),
+                         f"{pt['fitted']['spp']}{'' if pt['fitted']['reached'] else '+'} / "
+                         f"{pt['reference']['spp']}{'' if pt['reference']['reached'] else '+'}",
+                         f"{num(pt['fitted']['seconds'], 2)} / {num(pt['reference']['seconds'], 2)}",
+                         f"{num(m['fitted']['seconds'], 2)} / {num(m['reference']['seconds'], 2)}" if m else "",
+                         num(m["fitted"]["flip"], 4) if m else ""])
+        out += table(["scene", "frame", "truth's noise FLIP", "fitted FLIP", "fitted (ms)", "reference FLIP",
+                      "reference (ms)", "path tracer spp (fitted / reference)", "path tracer (s)", "Mitsuba (s)",
+                      "Mitsuba FLIP (fitted's spp)"], body)
+        out += ["", "A + after the samples: the path tracer did not reach the display's FLIP within its progress; its "
+                "cost is then a lower bound. Mitsuba renders the path tracer's samples (its noise per sample is no "
+                "lower than ours), so its time is a lower bound on its time to the same FLIP; its FLIP holds the "
+                "material mapping's difference too."]
+    for r in pick(rows, what="mitsuba"):
+        out.append(f"- Mitsuba: {r['skipped']}.")
+    return out + [""]
+
+
+walkthrough.title = "A walkthrough of N frames"  # the heading, also when the benchmark has not been run
+
+
 def mitsuba(rows):
     out = ["## Against Mitsuba 3 on the same XML", "", where("validate_mitsuba.py", ["mitsuba_validation.jsonl"]),
            machine(rows), ""]
@@ -442,6 +518,7 @@ SECTIONS = (
     ("load.jsonl", load),
     ("textures.jsonl", textures),
     ("scale.jsonl", scale),
+    ("walkthrough.jsonl", walkthrough),
 )
 
 
@@ -465,7 +542,8 @@ def render(results=RESULTS):
         path = results / name
         used.add(name)
         if not path.exists():
-            out += [f"## {section.__name__}", "", f"No `results/{name}`: the benchmark has not been run.", ""]
+            title = getattr(section, "title", section.__name__)
+            out += [f"## {title}", "", f"No `results/{name}`: the benchmark has not been run.", ""]
             continue
         out += section(read_rows(path))
         if name == "fit_speed.jsonl" and by_quality:
