@@ -20,7 +20,7 @@ from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import SolutionFile
 
-from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit
+from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
 from .glossy import MODEL_TARGET
 from .memory import check_fit_memory, cores
 
@@ -154,8 +154,7 @@ def _fit(args):
     with SolutionFile(args.solution) as solution:
         quality, chosen_by = fit_quality(args.quality, solution)
         options = fit_options(args, quality)
-        workers = args.workers or cores()
-        workers = check_fit_memory(solution, workers)
+        workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()))
         model = fit(solution, options, progress=True, workers=workers)
     model = replace(model, settings={**model.settings, "quality": quality, "quality_chosen_by": chosen_by})
     model.save(out)

@@ -29,6 +29,7 @@ METHODS = ("paper", "refined", "per-light")
 MODELS = ("auto", *glossy.MODELS)
 LIGHT_KINDS = mixed.KINDS
 COEFFICIENTS = mixed.COEFFICIENTS
+ONE_OBJECT_SHARE = 0.5  # no worker processes when one glossy object has more than this share of the samples
 PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
 
 
@@ -408,16 +409,17 @@ def _fit_streamed(source, options, place, bar, workers):
             done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if glossy else None, box)
             tick()
 
-    if workers <= 1 or not glossy_names:
+    cost = _costs(source)
+    workers = planned_workers(source, workers, cost)
+    if workers <= 1:
         here(names)
         return [done[n] for n in names]
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    cost = {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in glossy_names}
     order = sorted(glossy_names, key=lambda n: -cost[n])
     threads = max(1, cores() // workers)
-    with ProcessPoolExecutor(max_workers=min(workers, len(order)), mp_context=multiprocessing.get_context("spawn"),
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                              initializer=_worker_start,
                              initargs=(threads, warnings.showwarning, source.path, scene, box)) as pool:
         futures = {pool.submit(_fit_in_worker, name, options): name for name in order}
@@ -426,6 +428,22 @@ def _fit_streamed(source, options, place, bar, workers):
             done[futures[future]] = future.result()
             tick()
     return [done[n] for n in names]
+
+
+def _costs(source):
+    """{glossy object: its samples (vertices x directions)} of a ``SolutionFile``."""
+    return {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in source.names if source.n_directions(n) > 1}
+
+
+def planned_workers(source, workers, costs=None):
+    """The worker processes ``fit`` uses on the ``SolutionFile`` ``source`` when asked
+    for ``workers``: at most one per glossy object, and none (1: this process) when one
+    object has more than ONE_OBJECT_SHARE of the samples (the teapot: the workers would
+    wait for it, having paid their start, about 3 s)."""
+    costs = _costs(source) if costs is None else costs
+    if workers <= 1 or not costs or max(costs.values()) > ONE_OBJECT_SHARE * sum(costs.values()):
+        return 1
+    return min(workers, len(costs))
 
 
 _WORKER = {}  # a worker process's solution file, scene geometry and probe box (``_worker_start``)

@@ -12,7 +12,7 @@ from test_fit_cli import DIFFUSE_MATERIAL, run
 
 from fitting import lobes, mixed
 from fitting.data import fit_data
-from fitting.fit import FitOptions, fit
+from fitting.fit import FitOptions, fit, planned_workers
 from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import ObjectSolution, Solution, SolutionFile, load_solution
@@ -24,7 +24,7 @@ def scene_file(path):
     """Two glossy domes (different lights and lobes: one a probe's, one needing lights)
     and a diffuse floor."""
     objects = []
-    for i, (seed, shininess, grid) in enumerate(((1, 30.0, 6), (2, 300.0, 9))):
+    for i, (seed, shininess, grid) in enumerate(((1, 30.0, 9), (2, 300.0, 9))):  # alike in cost: two workers
         sol, _ = synthetic(np.random.default_rng(seed), lights=2, shininess=shininess, grid=grid, subdivisions=1)
         objects.append(replace(sol.objects[0], name=f"dome_{i}", positions=sol.objects[0].positions + np.float32(3 * i)))
     objects.append(ObjectSolution(
@@ -167,3 +167,17 @@ def test_a_worker_shows_warnings_as_its_parent_does(path):
         _WORKER.pop("source").close()
         _WORKER.clear()
     assert said == ["a sharp lobe"]
+
+
+def test_workers_are_used_only_where_they_pay(path, tmp_path):
+    with SolutionFile(path) as f:
+        assert planned_workers(f, 2) == 2 and planned_workers(f, 8) == 2  # two glossy objects alike
+        assert planned_workers(f, 1) == 1
+        assert planned_workers(f, 2, {"a": 600, "b": 400}) == 1  # one object is most of the work
+        assert planned_workers(f, 4, {"a": 300, "b": 300, "c": 400}) == 3
+        assert planned_workers(f, 4, {}) == 1  # nothing glossy
+    one = tmp_path / "one.npz"
+    whole = load_solution(path)
+    Solution(objects=whole.objects[1:], settings=whole.settings, scene="test").save(one)  # one glossy dome
+    with SolutionFile(one) as f:
+        assert planned_workers(f, 2) == 1
