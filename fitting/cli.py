@@ -152,6 +152,7 @@ def _fit(args):
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
     require_format(args.solution, (SOLUTION,), "solution")
     with SolutionFile(args.solution) as solution:
+        solution.validate()  # a bad object is one line before the estimate, not after it and some work
         quality, chosen_by = fit_quality(args.quality, solution)
         options = fit_options(args, quality)
         workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()))

@@ -181,3 +181,27 @@ def test_workers_are_used_only_where_they_pay(path, tmp_path):
     Solution(objects=whole.objects[1:], settings=whole.settings, scene="test").save(one)  # one glossy dome
     with SolutionFile(one) as f:
         assert planned_workers(f, 2) == 1
+
+
+def test_a_bad_object_anywhere_is_one_line_before_the_estimate(path, tmp_path, capsys):
+    # the file is read an object at a time; a NaN in its last glossy object must still be
+    # refused before the estimate is said or any object fitted
+    import zipfile
+
+    bad = tmp_path / "bad.npz"
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(bad, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info.filename)
+            if info.filename == "dome_1/radiance.npy":
+                import io
+
+                array = np.load(io.BytesIO(data))
+                array[3, 2, 1] = np.nan
+                buf = io.BytesIO()
+                np.save(buf, array)
+                data = buf.getvalue()
+            dst.writestr(info, data)
+    out = tmp_path / "fit.npz"
+    code, stdout, err = run(["fit", str(bad), "-o", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and "dome_1/radiance" in err and "NaN" in err, err
+    assert "fit: about" not in err and not out.exists()
