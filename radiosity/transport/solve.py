@@ -76,7 +76,7 @@ _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
 _LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
 _GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
 _OUTPUT_BYTES = 3 * (8 + 4)  # per vertex and direction: float64 radiance, then its float32 copy
-# the rest, measured (benchmarks/bench_scale.py, draft, 58k and 553k vertices: 2.3 and 1.8 kB a
+# the rest, measured (benchmarks/bench_scale.py, draft, 87k and 553k vertices: 1.2 and 1.8 kB a
 # vertex besides the parts above and the process): the scene, its refined and merged meshes,
 # Embree's BVH, the density estimate's arrays, the solution's arrays as written
 _SCENE_VERTEX_BYTES = 2_500
