@@ -432,7 +432,8 @@ def _fit_streamed(source, options, place, bar, workers):
 
 def _costs(source):
     """{glossy object: its samples (vertices x directions)} of a ``SolutionFile``."""
-    return {n: len(source.geometry(n)[0]) * source.n_directions(n) for n in source.names if source.n_directions(n) > 1}
+    sizes = {n: source.sizes(n) for n in source.names}
+    return {n: v * d for n, (v, d, _) in sizes.items() if d > 1}
 
 
 def planned_workers(source, workers, costs=None):

@@ -36,11 +36,10 @@ def fit_estimate(source, workers):
     ``SolutionFile`` ``source`` with ``workers`` processes."""
     geometry, glossy = 0, []
     for name in source.names:
-        positions, faces = source.geometry(name)
-        geometry += positions.nbytes * 4 + faces.nbytes  # positions, normals, tangents, emitted: float32 (V, 3)
-        d = source.n_directions(name)
+        v, d, mesh = source.sizes(name)
+        geometry += mesh + 3 * v * 3 * 4  # and normals, tangents, emitted: float32 (V, 3)
         if d > 1:
-            glossy.append((len(positions) * d, name, len(positions), d))
+            glossy.append((v * d, name, v, d))
     glossy.sort(reverse=True)
     main = PROCESS_BYTES + 2 * geometry
     if not glossy:

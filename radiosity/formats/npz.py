@@ -115,10 +115,9 @@ def _size(n: int) -> str:
     return f"{n / 2**30:.3g} GiB" if n >= 2**30 else f"{n / 2**20:.3g} MiB" if n >= 2**20 else f"{n} bytes"
 
 
-def _member(npz, key: str, fail) -> np.ndarray:
-    """The array ``key`` of ``npz``, its header checked before any memory is given to
-    it: the bytes its shape and dtype claim must be stored in the member (a header
-    claiming 10^12 rows in a small file is refused) and fit in the free memory."""
+def _member_header(npz, key: str, fail):
+    """(shape, dtype, the header's length, the zip entry) of array ``key`` of ``npz``,
+    from its .npy header alone; ``fail(problem)`` makes the error of an unreadable one."""
     name = key + ".npy"
     try:
         info = npz.zip.getinfo(name)
@@ -130,9 +129,16 @@ def _member(npz, key: str, fail) -> np.ndarray:
                 shape, _, dtype = np.lib.format.read_array_header_2_0(f)
             else:
                 raise ValueError(f"unsupported .npy format version {version[0]}.{version[1]}")
-            header = f.tell()
+            return shape, dtype, f.tell(), info
     except READ_ERRORS as exc:
         raise fail(f"cannot read '{key}': {type(exc).__name__}: {exc}") from None
+
+
+def _member(npz, key: str, fail) -> np.ndarray:
+    """The array ``key`` of ``npz``, its header checked before any memory is given to
+    it: the bytes its shape and dtype claim must be stored in the member (a header
+    claiming 10^12 rows in a small file is refused) and fit in the free memory."""
+    shape, dtype, header, info = _member_header(npz, key, fail)
     if dtype.hasobject:
         raise fail(f"cannot read '{key}': it holds Python objects, and this program reads no pickles")
     count = 1
@@ -204,18 +210,12 @@ class Archive:
     def close(self):
         self.npz.close()
 
-    def shape(self, key: str) -> tuple[int, ...]:
-        """The shape of array ``key`` from its header alone (nothing else is read)."""
+    def header(self, key: str) -> tuple[tuple[int, ...], np.dtype]:
+        """(shape, dtype) of array ``key`` from its header alone (nothing else is read)."""
         if key not in self.keys:
             raise self.fail(f"no '{key}' array")
-        try:
-            with self.npz.zip.open(key + ".npy") as f:
-                major, _ = np.lib.format.read_magic(f)
-                read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
-                shape, _, _ = read(f)
-        except READ_ERRORS as exc:
-            raise InputError(one_line(f"'{self.path}' is not a {self.what} ({key}: {type(exc).__name__}: {exc})")) from None
-        return tuple(int(n) for n in shape)
+        shape, dtype, _, _ = _member_header(self.npz, key, self.fail)
+        return tuple(int(n) for n in shape), dtype
 
     def fail(self, problem: str) -> InputError:
         return InputError(one_line(f"{self.what} '{self.path}': {problem}"))

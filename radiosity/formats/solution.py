@@ -484,7 +484,14 @@ class SolutionFile:
 
     def n_directions(self, name: str) -> int:
         """D of object ``name``'s grid (1: diffuse), from its array's header alone."""
-        return int(self._archive.shape(f"{name}/radiance")[1])
+        return self._archive.header(f"{name}/radiance")[0][1]
+
+    def sizes(self, name: str) -> tuple[int, int, int]:
+        """(V, D, bytes of its positions and faces) of object ``name``, from the arrays'
+        headers alone: what a plan of the work needs, before any array is read."""
+        (v, _), positions = self._archive.header(f"{name}/positions")
+        faces_shape, faces = self._archive.header(f"{name}/faces")
+        return v, self.n_directions(name), v * 3 * positions.itemsize + faces_shape[0] * 3 * faces.itemsize
 
     def load(self) -> Solution:
         """The whole ``Solution``, validated."""
