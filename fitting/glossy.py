@@ -312,13 +312,13 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place
     centre, box, albedo = place
     lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
                           weights=full.weights, positions=full.positions)
+    values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
     first = None
     if not required:
         first = fit_lights(lights_data, lw, exponent, count=1)
         if first.n_lights:
             lights = (first.pos, first.rgb, first.shininess)
             lobes = _lobe_columns(full, lights)
-            values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
             e, s, c = _joint(data, rest, lw, values, lobes, _light_caps(data, lights))
             one = record("probe+lights", chosen.probe.size, True, e, light_fit=(*lights, c), probe_fit=chosen.probe,
                          weight=s, probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c),
@@ -334,7 +334,6 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place
     lights = (fitted.pos, fitted.rgb, fitted.shininess)
     lobes = _lobe_columns(full, lights)
     caps = _light_caps(data, lights)
-    values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     light_term = np.einsum("vdk,vkc->vdc", lobes, c)
     p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, start=(e, s),
