@@ -13,7 +13,10 @@ own, timed, its peak resident memory read from the kernel (``os.wait4``'s rusage
 
     python benchmarks/bench_scale.py [--triangles 10000 100000] [--quality draft]
 
-Writes benchmarks/results/scale.jsonl: one row per size and stage (seconds, peak MB),
+Writes benchmarks/results/scale.jsonl (scale_medium.jsonl, scale_high.jsonl at the other
+qualities; scale_dask.jsonl for a run with the stages solve-dask or fit-dask, solve and fit
+on a Dask LocalCluster of this machine, threads against Dask): one row per size and stage
+(seconds, peak MB),
 and the log-log slope of each stage's time and memory between consecutive sizes (the
 issue's target: <= 1.15 between 10^5 and 10^6).
 """
@@ -189,6 +192,15 @@ def run(args, cwd):
 
 
 STAGES = ("scene-info", "solve", "fit", "render", "export")
+DASK_STAGES = ("solve-dask", "fit-dask")  # the same commands with --scheduler dask: a LocalCluster on this machine
+
+
+def same_arrays(a, b):
+    """Whether two .npz files hold the same arrays, bit for bit (``meta`` aside: times)."""
+    import numpy as np
+
+    with np.load(a) as x, np.load(b) as y:
+        return x.files == y.files and all(np.array_equal(x[k], y[k]) for k in x.files if k != "meta")
 
 
 def uncompressed(path):
@@ -204,11 +216,13 @@ def main(argv=None):
     parser.add_argument("--triangles", type=int, nargs="+", default=[10_000, 100_000])
     parser.add_argument("--quality", default="draft", choices=("draft", "medium", "high"))
     parser.add_argument("--keep", type=Path, help="keep the scenes and outputs in this directory")
-    parser.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES,
-                        help="the stages to run (the others' outputs must be in --keep from an earlier run)")
+    parser.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES + DASK_STAGES,
+                        help="the stages to run (the others' outputs must be in --keep from an earlier run); "
+                        "solve-dask and fit-dask run solve and fit on a Dask LocalCluster (threads against Dask on "
+                        "the same machine) and record whether their output has the same bits")
     args = parser.parse_args(argv)
     record = Recorder(benchmark="scale", quality=args.quality)
-    stages = [s for s in STAGES if s in args.stages]
+    stages = [s for s in STAGES + DASK_STAGES if s in args.stages]
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         directory = args.keep or Path(tmp)
@@ -223,7 +237,12 @@ def main(argv=None):
                 "fit": ["fit", "solution.npz", "--quality", args.quality, "-o", "fit.npz"],
                 "render": ["render", "fit.npz", "--size", "640x360", "-o", "render.png"],
                 "export": ["export", "fit.npz", "-o", "web"],
+                "solve-dask": ["solve", "interior.toml", "--quality", args.quality, "--scheduler", "dask",
+                               "-o", "solution_dask.npz"],
+                "fit-dask": ["fit", "solution.npz", "--quality", args.quality, "--scheduler", "dask",
+                             "-o", "fit_dask.npz"],
             }
+            twins = {"solve-dask": ("solution.npz", "solution_dask.npz"), "fit-dask": ("fit.npz", "fit_dask.npz")}
             info = subprocess.run([sys.executable, "-m", "display", "scene-info", "interior.toml", "--json"], cwd=d,
                                   capture_output=True, text=True, check=True,
                                   env=os.environ | {"PYTHONPATH": str(Path(__file__).resolve().parents[1])})
@@ -234,6 +253,8 @@ def main(argv=None):
                        "seconds": round(seconds, 2), "peak_mb": round(peak, 1), "tree_peak_mb": round(tree, 1)}
                 if stage in ("solve", "fit"):  # the fit's target: its peak <= 2 x the solution's arrays
                     row["solution_mb"] = round(uncompressed(d / "solution.npz") / 2**20, 1)
+                if stage in twins and (d / twins[stage][0]).exists():
+                    row["same_bits_as_threads"] = same_arrays(d / twins[stage][0], d / twins[stage][1])
                 rows[(target, stage)] = record(row)
     targets = list(args.triangles)
     for a, b in zip(targets, targets[1:]):
@@ -243,7 +264,10 @@ def main(argv=None):
             record({"stage": stage, "from": ra["triangles"], "to": rb["triangles"],
                     "time_slope": round(math.log(rb["seconds"] / ra["seconds"]) / ratio, 3),
                     "memory_slope": round(math.log(rb["tree_peak_mb"] / ra["tree_peak_mb"]) / ratio, 3)})
-    record.save("scale.jsonl")
+    if any(s in DASK_STAGES for s in stages):  # threads against Dask: a file of its own, the other left as it is
+        record.save("scale_dask.jsonl")
+    else:
+        record.save("scale.jsonl" if args.quality == "draft" else f"scale_{args.quality}.jsonl")
 
 
 if __name__ == "__main__":

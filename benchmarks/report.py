@@ -481,8 +481,8 @@ def textures(rows):
     return out + [""]
 
 
-def scale(rows):
-    out = ["## Scale", "", where("bench_scale.py", ["scale.jsonl"]), machine(rows), ""]
+def scale(rows, name="scale.jsonl", title="Scale"):
+    out = [f"## {title}", "", where("bench_scale.py", [name]), machine(rows), ""]
     stages = [r for r in rows if "seconds" in r]
     if stages:
         out += [f"A generated closed interior (rooms of full-height walls with doorways, each with a table, a chair, "
@@ -496,6 +496,14 @@ def scale(rows):
                  [[f"{r['triangles']:,}", r["rooms"], r["stage"], num(r["seconds"], 2), num(r["peak_mb"], 1),
                    num(r.get("tree_peak_mb"), 1), num(r.get("solution_mb"), 1)]
                   for r in stages])
+    dask = [r for r in stages if "same_bits_as_threads" in r]
+    if dask:
+        alone = {(r["triangles"], r["stage"]): r["seconds"] for r in stages}
+        out += ["", "On Dask (a LocalCluster on this machine: the -dask stages) against the same command without it "
+                "(threads, and the fit's worker processes), in the same run: "
+                + "; ".join(f"{r['stage']} at {r['triangles']:,}: {num(r['seconds'] / alone[(r['triangles'], r['stage'][:-5])], 2)}"
+                            f" x the time, {'the same bits' if r['same_bits_as_threads'] else 'DIFFERENT BITS'}"
+                            for r in dask if (r["triangles"], r["stage"][:-5]) in alone) + "."]
     slopes = [r for r in rows if "time_slope" in r]
     if slopes:
         out += ["", "Log-log slopes between consecutive sizes:", ""]
@@ -503,6 +511,20 @@ def scale(rows):
                      [[r["stage"], f"{r['from']:,}", f"{r['to']:,}", num(r["time_slope"], 3), num(r["memory_slope"], 3)]
                       for r in slopes])
     return out + [""]
+
+
+def scale_medium(rows):
+    return scale(rows, "scale_medium.jsonl", scale_medium.title)
+
+
+scale_medium.title = "Scale at medium"
+
+
+def scale_dask(rows):
+    return scale(rows, "scale_dask.jsonl", scale_dask.title)
+
+
+scale_dask.title = "Scale: threads against Dask"
 
 
 SECTIONS = (
@@ -518,6 +540,8 @@ SECTIONS = (
     ("load.jsonl", load),
     ("textures.jsonl", textures),
     ("scale.jsonl", scale),
+    ("scale_medium.jsonl", scale_medium),
+    ("scale_dask.jsonl", scale_dask),
     ("walkthrough.jsonl", walkthrough),
 )
 

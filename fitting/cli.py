@@ -9,12 +9,14 @@ explicitly wins), then ``fit`` runs and ``format_report`` prints the errors.
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from radiosity.formats.atomic import check_output
+from radiosity.formats.cluster import check_scheduler, connect
 from radiosity.formats.errors import InputError
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.sniff import SOLUTION, require_format
@@ -22,7 +24,7 @@ from radiosity.formats.solution import SolutionFile
 
 from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
 from .glossy import MODEL_TARGET
-from .memory import check_fit_memory, cores
+from .memory import check_dask_memory, check_fit_memory, cores
 
 
 def _lights(text):
@@ -102,6 +104,10 @@ def register(subparsers, not_built):
     p.add_argument("--workers", type=_workers, default=None, metavar="N",
                    help="processes fitting glossy objects at once, the costliest first; the model is the same "
                    "whatever N (default: one per core)")
+    p.add_argument("--scheduler", default="threads", metavar="WHERE",
+                   help="where the glossy objects are fitted: threads (this machine, --workers processes; default), "
+                   "dask (a Dask LocalCluster sized to this machine) or tcp://HOST:PORT (a running Dask scheduler); "
+                   "the same model, bit for bit, on any (needs pip install \".[dask]\")")
     p.set_defaults(func=_fit)
 
 
@@ -150,17 +156,39 @@ def fit_options_for_quality(quality):
 def _fit(args):
     out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
+    if args.scheduler != "threads":
+        check_scheduler(args.scheduler)
     require_format(args.solution, (SOLUTION,), "solution")
     with SolutionFile(args.solution) as solution:
         solution.validate()  # a bad object is one line before the estimate, not after it and some work
         quality, chosen_by = fit_quality(args.quality, solution)
         options = fit_options(args, quality)
-        workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()))
-        model = fit(solution, options, progress=True, workers=workers)
+        if args.scheduler == "threads":
+            workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()))
+            model = fit(solution, options, progress=True, workers=workers)
+        else:
+            model = _fit_on(args.scheduler, solution, options)
     model = replace(model, settings={**model.settings, "quality": quality, "quality_chosen_by": chosen_by})
     model.save(out)
     print(format_report(model, out))
     return 0
+
+
+def _fit_on(scheduler, solution, options):
+    """``fit`` on the Dask cluster ``scheduler`` names (``radiosity.formats.cluster.connect``):
+    its own memory estimate is of the objects in flight, said like the local one's."""
+    client, cluster = connect(scheduler)
+    try:
+        threads = sum(client.nthreads().values())
+        check_dask_memory(solution, 2 * threads + 1)
+        print(f"fit: on dask {client.scheduler.address} ({threads} threads)", file=sys.stderr)
+        return fit(solution, options, progress=True, client=client)
+    finally:
+        try:
+            client.close()
+        finally:
+            if cluster is not None:
+                cluster.close()
 
 
 def _number(value, width, digits=4):

@@ -22,7 +22,7 @@ from radiosity.formats.solution import SolutionFile
 
 from . import glossy, loss, mixed, paper
 from .data import fit_data, relative_error
-from .memory import cores
+from .memory import cores, costs
 from .model import FittedModel, FittedObject, Highlight, directional
 
 METHODS = ("paper", "refined", "per-light")
@@ -334,16 +334,18 @@ def _auto_lights(problem, options, exponent, log=None):
     return fit, why
 
 
-def fit(solution, options=FitOptions(), progress=False, workers=1):
+def fit(solution, options=FitOptions(), progress=False, workers=1, client=None):
     """The fitted model of every object of ``solution``: a ``Solution``, or a
     ``radiosity.formats.solution.SolutionFile``, read an object at a time so that the
     fit's memory is that of the objects being fitted, not of the whole solution.
     ``workers`` > 1 (a ``SolutionFile`` only) fits the glossy objects in that many
-    processes, the costliest first; the model is the same, bit for bit."""
+    processes, the costliest first; ``client`` (a ``distributed.Client``, a
+    ``SolutionFile`` only) fits them as Dask tasks instead (``fitting.cluster``). The
+    model is the same, bit for bit, whichever runs it."""
     options.check()
     streamed = isinstance(solution, SolutionFile)
-    if workers > 1 and not streamed:
-        raise ValueError("workers > 1 needs a SolutionFile (each process reads its objects from the file)")
+    if (workers > 1 or client is not None) and not streamed:
+        raise ValueError("workers > 1 or a Dask client needs a SolutionFile (objects are read from the file one at a time)")
     if streamed:
         meshes = [(*solution.geometry(n), solution.materials[n]) for n in solution.names]
         scene = mixed.SceneGeometry.of_meshes(meshes)
@@ -358,7 +360,11 @@ def fit(solution, options=FitOptions(), progress=False, workers=1):
 
         bar = tqdm(total=len(solution.names), desc="fit", unit="object", disable=None, dynamic_ncols=True)
     try:
-        if streamed:
+        if client is not None:
+            from .cluster import fit_on_dask
+
+            objects = fit_on_dask(client, solution, options, (scene, box, fit_object), bar)
+        elif streamed:
             objects = _fit_streamed(solution, options, (scene, box), bar, workers)
         else:
             objects = []
@@ -409,7 +415,7 @@ def _fit_streamed(source, options, place, bar, workers):
             done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if glossy else None, box)
             tick()
 
-    cost = _costs(source)
+    cost = costs(source)
     workers = planned_workers(source, workers, cost)
     if workers <= 1:
         here(names)
@@ -430,21 +436,15 @@ def _fit_streamed(source, options, place, bar, workers):
     return [done[n] for n in names]
 
 
-def _costs(source):
-    """{glossy object: its samples (vertices x directions)} of a ``SolutionFile``."""
-    sizes = {n: source.sizes(n) for n in source.names}
-    return {n: v * d for n, (v, d, _) in sizes.items() if d > 1}
-
-
-def planned_workers(source, workers, costs=None):
+def planned_workers(source, workers, samples=None):
     """The worker processes ``fit`` uses on the ``SolutionFile`` ``source`` when asked
     for ``workers``: at most one per glossy object, and none (1: this process) when one
     object has more than ONE_OBJECT_SHARE of the samples (the teapot: the workers would
     wait for it, having paid their start, about 3 s)."""
-    costs = _costs(source) if costs is None else costs
-    if workers <= 1 or not costs or max(costs.values()) > ONE_OBJECT_SHARE * sum(costs.values()):
+    samples = costs(source) if samples is None else samples
+    if workers <= 1 or not samples or max(samples.values()) > ONE_OBJECT_SHARE * sum(samples.values()):
         return 1
-    return min(workers, len(costs))
+    return min(workers, len(samples))
 
 
 _WORKER = {}  # a worker process's solution file, scene geometry and probe box (``_worker_start``)

@@ -19,7 +19,7 @@ import sys
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import available_memory
 
-__all__ = ["SAMPLE_BYTES", "check_fit_memory", "cores", "fit_estimate"]
+__all__ = ["SAMPLE_BYTES", "check_dask_memory", "check_fit_memory", "cores", "costs", "fit_estimate"]
 
 SAMPLE_BYTES = 1_200  # a glossy object's working set per sample (vertex x direction), upper figure measured
 PROCESS_BYTES = 200 * 2**20  # a fitting process before its object: Python, numpy, scipy, numba
@@ -31,16 +31,28 @@ def cores():
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def fit_estimate(source, workers):
-    """(peak bytes, the costliest object's (name, vertices, directions)) of fitting the
-    ``SolutionFile`` ``source`` with ``workers`` processes."""
+def costs(source):
+    """{glossy object: its samples (vertices x directions)} of a ``SolutionFile``."""
+    sizes = {n: source.sizes(n) for n in source.names}
+    return {n: v * d for n, (v, d, _) in sizes.items() if d > 1}
+
+
+def _objects(source):
+    """(bytes of the fitted model's geometry, [(samples, name, V, D) of each glossy
+    object], costliest first) of the ``SolutionFile`` ``source``, from its headers."""
     geometry, glossy = 0, []
     for name in source.names:
         v, d, mesh = source.sizes(name)
         geometry += mesh + 3 * v * 3 * 4  # and normals, tangents, emitted: float32 (V, 3)
         if d > 1:
             glossy.append((v * d, name, v, d))
-    glossy.sort(reverse=True)
+    return geometry, sorted(glossy, reverse=True)
+
+
+def fit_estimate(source, workers):
+    """(peak bytes, the costliest object's (name, vertices, directions)) of fitting the
+    ``SolutionFile`` ``source`` with ``workers`` processes."""
+    geometry, glossy = _objects(source)
     main = PROCESS_BYTES + 2 * geometry
     if not glossy:
         return main, None
@@ -70,3 +82,21 @@ def check_fit_memory(source, workers, available=None, out=None):
     note = f" (fewer than the {workers} asked: memory)" if chosen < workers else ""
     out(f"fit: about {need / GIB:.2f} GB at most{have}, {chosen} worker{'s' if chosen > 1 else ''}{note}{largest}")
     return chosen
+
+
+def check_dask_memory(source, in_flight, available=None, out=None):
+    """Says what a fit on Dask needs: here, the base, the fitted model and the arrays of
+    the ``in_flight`` costliest glossy objects (their radiance, float32 (V, D, 3), on
+    their way to the workers); on each worker, one object's working set (its machine's
+    memory is the cluster's to check). InputError (one line) when this machine cannot
+    hold its part."""
+    out = out or (lambda line: print(line, file=sys.stderr))
+    available = available_memory() if available is None else available
+    geometry, glossy = _objects(source)
+    here = PROCESS_BYTES + 2 * geometry + sum(samples * 12 for samples, *_ in glossy[:in_flight])
+    have = "" if available is None else f" of {available / GIB:.1f} GB available"
+    if available is not None and here > available:
+        raise InputError(f"fit needs about {here / GIB:.1f} GB here{have} to send its objects to Dask; free memory")
+    worker = "" if not glossy else (f"; each Dask worker about {(PROCESS_BYTES + glossy[0][0] * SAMPLE_BYTES) / GIB:.2f} GB "
+                                    f"for the largest glossy object {glossy[0][1]!r}")
+    out(f"fit: about {here / GIB:.2f} GB at most here{have}{worker}")

@@ -180,7 +180,7 @@ class SolveOptions:
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
         if self.scheduler != "threads":
-            from radiosity.transport.distributed import check_scheduler
+            from radiosity.formats.cluster import check_scheduler
 
             check_scheduler(self.scheduler)
         check_seed(self.seed)
@@ -284,7 +284,8 @@ def _runner(opts, settings, client):
     connected now: a bad address fails before any work) or this process's threads."""
     if client is None and opts.scheduler == "threads":
         return ThreadRunner(settings["threads"])
-    from radiosity.transport.distributed import DaskRunner, connect
+    from radiosity.formats.cluster import connect
+    from radiosity.transport.distributed import DaskRunner
 
     if client is not None:
         return DaskRunner(client)

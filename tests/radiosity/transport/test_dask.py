@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from display.cli import main
+from radiosity.formats import cluster as dask_module
 from radiosity.formats import load_solution
 from radiosity.formats.errors import InputError
 from radiosity.scene.environment import Environment
 from radiosity.scene.loaders import load_scene
-from radiosity.transport import distributed as dask_module
 from radiosity.transport import solve as solve_module
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -347,7 +347,7 @@ def test_dasks_sync_cancel_race_is_not_printed_but_other_loop_errors_are(caplog)
     # logged by tornado with a traceback after our one line. Only that record is dropped.
     import logging
 
-    from radiosity.transport.distributed import _quiet_sync_race
+    from radiosity.formats.cluster import _quiet_sync_race
 
     _quiet_sync_race()
     _quiet_sync_race()  # once is enough: no second filter
