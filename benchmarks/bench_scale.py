@@ -2,7 +2,7 @@
 
 The scene (``interior``, written as a TOML file): a closed hall divided into rooms by
 full-height walls with a doorway between neighbours; every room is furnished alike: a
-table (a cube), a chair (a cylinder), a diffuse statue (an icosphere of 5,120
+table (a cube), a chair (a cylinder closed by a disk), a diffuse statue (an icosphere of 5,120
 triangles), a glossy ball on the table (Phong exponent 20, 100 or 1000, room by room)
 and a lamp (an area light under the ceiling). The number of rooms sets the input
 triangles, from about 1.7 x 10^4 (3 rooms) to 10^6 (180 rooms), and the mix of work is
@@ -112,6 +112,9 @@ def objects(nx, nz):
             add(f"table_{k}", "cube", "wood", scale=[1.2, 0.75, 0.8], translate=[x0 + 1.3, 0.375, z0 + 2.0])
             add(f"chair_{k}", "cylinder", "cloth", segments=24, scale=[0.25, 0.45, 0.25],
                 rotate_deg=[-90, 0, 0], translate=[x0 + 2.5, 0.0, z0 + 2.7])
+            # its seat closes it: an open cylinder is black inside in the truth and lit in the displays
+            add(f"seat_{k}", "disk", "cloth", segments=24, scale=[0.25, 0.45, 1.0],
+                rotate_deg=[-90, 0, 0], translate=[x0 + 2.5, 0.25, z0 + 2.7])
             add(f"statue_{k}", "sphere", "stone", subdivisions=STATUE, scale=0.4, translate=[x0 + 3.0, 0.4, z0 + 0.9])
             add(f"ball_{k}", "sphere", f"glossy_{k % len(EXPONENTS)}", subdivisions=BALL, scale=0.25,
                 translate=[x0 + 1.3, 1.0, z0 + 2.0])

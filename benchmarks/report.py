@@ -485,7 +485,7 @@ def scale(rows, name="scale.jsonl", title="Scale"):
     out = [f"## {title}", "", where("bench_scale.py", [name]), machine(rows), ""]
     stages = [r for r in rows if "seconds" in r]
     if stages:
-        out += [f"A generated closed interior (rooms of full-height walls with doorways, each with a table, a chair, "
+        out += [f"A generated closed interior (rooms of full-height walls with doorways, each with a table, a chair (closed by its seat), "
                 f"a diffuse statue, a glossy ball of exponent 20, 100 or 1000 and a lamp), {stages[0]['quality']}, "
                 "each stage the command a user types in a process of its own. Peak memory: the kernel's figure for "
                 "the process, and the process tree's summed proportional set size sampled every 0.1 s (the fit's "
