@@ -53,32 +53,36 @@ def meeting_point(origins, directions, weights=None, min_spread=1e-3):
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _hits(origins, directions, v0, e1, e2, t_min, out_t, out_tri):
-    n_rays, n_tri = origins.shape[0], v0.shape[0]
+def _hits(origins, directions, tri, t_min, out_t, out_tri):
+    n_rays, n_tri = origins.shape[0], tri.shape[0]
     for r in numba.prange(n_rays):
         ox, oy, oz = origins[r, 0], origins[r, 1], origins[r, 2]
         dx, dy, dz = directions[r, 0], directions[r, 1], directions[r, 2]
         best, which = np.inf, -1
         for t in range(n_tri):
-            # Moller-Trumbore, both sides
-            px = dy * e2[t, 2] - dz * e2[t, 1]
-            py = dz * e2[t, 0] - dx * e2[t, 2]
-            pz = dx * e2[t, 1] - dy * e2[t, 0]
-            det = e1[t, 0] * px + e1[t, 1] * py + e1[t, 2] * pz
+            # Moller-Trumbore, both sides; the edges made here, not stored (the scene's
+            # triangles are read as they are: no copy of a million of them per ray)
+            ax, ay, az = tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2]
+            e1x, e1y, e1z = tri[t, 1, 0] - ax, tri[t, 1, 1] - ay, tri[t, 1, 2] - az
+            e2x, e2y, e2z = tri[t, 2, 0] - ax, tri[t, 2, 1] - ay, tri[t, 2, 2] - az
+            px = dy * e2z - dz * e2y
+            py = dz * e2x - dx * e2z
+            pz = dx * e2y - dy * e2x
+            det = e1x * px + e1y * py + e1z * pz
             if abs(det) < 1e-300:
                 continue
             inv = 1.0 / det
-            sx, sy, sz = ox - v0[t, 0], oy - v0[t, 1], oz - v0[t, 2]
+            sx, sy, sz = ox - ax, oy - ay, oz - az
             u = (sx * px + sy * py + sz * pz) * inv
             if u < 0.0 or u > 1.0:
                 continue
-            qx = sy * e1[t, 2] - sz * e1[t, 1]
-            qy = sz * e1[t, 0] - sx * e1[t, 2]
-            qz = sx * e1[t, 1] - sy * e1[t, 0]
+            qx = sy * e1z - sz * e1y
+            qy = sz * e1x - sx * e1z
+            qz = sx * e1y - sy * e1x
             v = (dx * qx + dy * qy + dz * qz) * inv
             if v < 0.0 or u + v > 1.0:
                 continue
-            dist = (e2[t, 0] * qx + e2[t, 1] * qy + e2[t, 2] * qz) * inv
+            dist = (e2x * qx + e2y * qy + e2z * qz) * inv
             if dist > t_min and dist < best:
                 best, which = dist, t
         out_t[r] = best
@@ -87,8 +91,9 @@ def _hits(origins, directions, v0, e1, e2, t_min, out_t, out_tri):
 
 def first_hits(origins, directions, triangles, t_min):
     """Nearest hit along each ray: (distance (N,) with inf for a miss, triangle (N,)
-    with -1). triangles (T, 3, 3) world space; hits nearer than ``t_min`` are ignored
-    (the surface the ray starts on)."""
+    with -1). triangles (T, 3, 3) world space (read in place when float64 and
+    C-contiguous, as ``mixed.SceneGeometry`` holds them); hits nearer than ``t_min``
+    are ignored (the surface the ray starts on)."""
     tri = np.ascontiguousarray(triangles, np.float64)
     o = np.ascontiguousarray(origins, np.float64).reshape(-1, 3)
     d = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
@@ -98,7 +103,5 @@ def first_hits(origins, directions, triangles, t_min):
         out_t[:] = np.inf
         out_tri[:] = -1
         return out_t, out_tri
-    v0 = np.ascontiguousarray(tri[:, 0])
-    _hits(o, d, v0, np.ascontiguousarray(tri[:, 1] - v0), np.ascontiguousarray(tri[:, 2] - v0), float(t_min), out_t,
-          out_tri)
+    _hits(o, d, tri, float(t_min), out_t, out_tri)
     return out_t, out_tri

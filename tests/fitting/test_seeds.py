@@ -44,3 +44,26 @@ def test_first_hits_on_a_quad():
     assert t[0] == np.float64(2.0) and tri[0] in (0, 1)
     assert np.isinf(t[1]) and np.isinf(t[2]) and tri[1] == tri[2] == -1
     assert np.isinf(t[3])  # starting on the quad: ignored within t_min
+
+
+def test_first_hits_are_the_nearest_of_every_triangle(rng):
+    """Against an independent answer: each ray's hits on every triangle found by solving
+    o + t d = a + u (b - a) + v (c - a) with numpy's linear solver; the scene given as
+    float32 and as a strided view, which are read as the float64 array they equal."""
+    tri = rng.uniform(-3, 3, (400, 3, 3))
+    origins = rng.uniform(-1, 1, (40, 3))
+    dirs = rng.normal(size=(40, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    for strided in (tri, np.asfortranarray(tri)):
+        t, which = first_hits(origins, dirs, strided, t_min=1e-9)
+        for r in range(len(origins)):
+            m = np.stack([np.broadcast_to(dirs[r], e1.shape), -e1, -e2], axis=2)  # (T, 3, 3) unknowns (t, u, v)
+            tuv = np.linalg.solve(m, (a - origins[r])[:, :, None])[:, :, 0]
+            ok = (tuv[:, 0] > 1e-9) & (tuv[:, 1] >= 0) & (tuv[:, 2] >= 0) & (tuv.sum(axis=1) - tuv[:, 0] <= 1)
+            if ok.any():
+                k = np.flatnonzero(ok)[np.argmin(tuv[ok, 0])]
+                assert which[r] == k and np.isclose(t[r], tuv[k, 0], rtol=1e-9)
+            else:
+                assert which[r] == -1 and np.isinf(t[r])
+    assert (which >= 0).sum() > 10  # most rays hit something
