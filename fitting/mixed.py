@@ -97,8 +97,10 @@ class MixedFit:
 
 @dataclass(frozen=True, eq=False)
 class SceneGeometry:
-    """The whole scene as seeds see it: triangles (T, 3, 3) world space, the object of
-    each (T,) int, and which objects emit (n_objects,) bool."""
+    """The whole scene as seeds see it: triangles (T, 3, 3) world space (float32 when the
+    meshes' positions are, as a solution's are: half the memory, in every fitting
+    process, and the same values), the object of each (T,) int, and which objects emit
+    (n_objects,) bool."""
 
     triangles: np.ndarray
     triangle_object: np.ndarray
@@ -117,12 +119,17 @@ class SceneGeometry:
     @classmethod
     def of_meshes(cls, meshes):
         """From (positions (V, 3), faces (F, 3), material dict) of every object, in order."""
-        tris, owner, emissive = [], [], []
-        for i, (positions, faces, material) in enumerate(meshes):
-            tris.append(np.asarray(positions, np.float64)[faces])
-            owner.append(np.full(len(faces), i))
-            emissive.append(max(material["emission"]) > 0)
-        return cls(np.concatenate(tris), np.concatenate(owner), np.array(emissive, bool))
+        meshes = [(np.asarray(p), np.asarray(f), m) for p, f, m in meshes]
+        dtype = np.float32 if all(p.dtype == np.float32 for p, _, _ in meshes) else np.float64
+        total = sum(len(f) for _, f, _ in meshes)
+        tris = np.empty((total, 3, 3), dtype)
+        owner = np.empty(total, np.int32 if len(meshes) < 2**31 else np.int64)
+        at = 0
+        for i, (positions, faces, _) in enumerate(meshes):  # filled in place: no second copy of the scene
+            tris[at:at + len(faces)] = positions.astype(dtype, copy=False)[faces]
+            owner[at:at + len(faces)] = i
+            at += len(faces)
+        return cls(tris, owner, np.array([max(m["emission"]) > 0 for _, _, m in meshes], bool))
 
     def spread(self, obj, count, seed=0):
         """``count`` points spread evenly over object ``obj``'s area (k-means of its
@@ -130,7 +137,7 @@ class SceneGeometry:
         in for one area light."""
         from scipy.cluster.vq import kmeans2
 
-        tri = self.triangles[self.triangle_object == obj]
+        tri = self.triangles[self.triangle_object == obj].astype(np.float64)
         centroids = tri.mean(axis=1)
         area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         if len(centroids) <= count:

@@ -62,9 +62,14 @@ def _hits(origins, directions, tri, t_min, out_t, out_tri):
         for t in range(n_tri):
             # Moller-Trumbore, both sides; the edges made here, not stored (the scene's
             # triangles are read as they are: no copy of a million of them per ray)
-            ax, ay, az = tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2]
-            e1x, e1y, e1z = tri[t, 1, 0] - ax, tri[t, 1, 1] - ay, tri[t, 1, 2] - az
-            e2x, e2y, e2z = tri[t, 2, 0] - ax, tri[t, 2, 1] - ay, tri[t, 2, 2] - az
+            # (float32 triangles widened first: the same arithmetic as float64 ones)
+            ax, ay, az = np.float64(tri[t, 0, 0]), np.float64(tri[t, 0, 1]), np.float64(tri[t, 0, 2])
+            e1x = np.float64(tri[t, 1, 0]) - ax
+            e1y = np.float64(tri[t, 1, 1]) - ay
+            e1z = np.float64(tri[t, 1, 2]) - az
+            e2x = np.float64(tri[t, 2, 0]) - ax
+            e2y = np.float64(tri[t, 2, 1]) - ay
+            e2z = np.float64(tri[t, 2, 2]) - az
             px = dy * e2z - dz * e2y
             py = dz * e2x - dx * e2z
             pz = dx * e2y - dy * e2x
@@ -91,10 +96,11 @@ def _hits(origins, directions, tri, t_min, out_t, out_tri):
 
 def first_hits(origins, directions, triangles, t_min):
     """Nearest hit along each ray: (distance (N,) with inf for a miss, triangle (N,)
-    with -1). triangles (T, 3, 3) world space (read in place when float64 and
-    C-contiguous, as ``mixed.SceneGeometry`` holds them); hits nearer than ``t_min``
-    are ignored (the surface the ray starts on)."""
-    tri = np.ascontiguousarray(triangles, np.float64)
+    with -1). triangles (T, 3, 3) world space, float32 or float64 (read in place when
+    C-contiguous, as ``mixed.SceneGeometry`` holds them; the arithmetic is float64
+    either way); hits nearer than ``t_min`` are ignored (the surface the ray starts on)."""
+    tri = np.asarray(triangles)
+    tri = np.ascontiguousarray(tri, tri.dtype if tri.dtype in (np.float32, np.float64) else np.float64)
     o = np.ascontiguousarray(origins, np.float64).reshape(-1, 3)
     d = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
     out_t = np.empty(len(o))

@@ -50,13 +50,16 @@ def test_first_hits_are_the_nearest_of_every_triangle(rng):
     """Against an independent answer: each ray's hits on every triangle found by solving
     o + t d = a + u (b - a) + v (c - a) with numpy's linear solver; the scene given as
     float32 and as a strided view, which are read as the float64 array they equal."""
-    tri = rng.uniform(-3, 3, (400, 3, 3))
+    tri = rng.uniform(-3, 3, (400, 3, 3)).astype(np.float32).astype(np.float64)  # float32 values
     origins = rng.uniform(-1, 1, (40, 3))
     dirs = rng.normal(size=(40, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    for strided in (tri, np.asfortranarray(tri)):
-        t, which = first_hits(origins, dirs, strided, t_min=1e-9)
+    answers = [first_hits(origins, dirs, given, t_min=1e-9)
+               for given in (tri, np.asfortranarray(tri), tri.astype(np.float32))]
+    for t, which in answers[1:]:  # float32 triangles are read as the float64 values they are
+        assert np.array_equal(t, answers[0][0]) and np.array_equal(which, answers[0][1])
+    for t, which in answers[:1]:
         for r in range(len(origins)):
             m = np.stack([np.broadcast_to(dirs[r], e1.shape), -e1, -e2], axis=2)  # (T, 3, 3) unknowns (t, u, v)
             tuv = np.linalg.solve(m, (a - origins[r])[:, :, None])[:, :, 0]
