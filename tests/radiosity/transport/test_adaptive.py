@@ -193,3 +193,21 @@ def load_scene_text(tmp_path, text):
     path = tmp_path / "plain.toml"
     path.write_text(textwrap.dedent(text))
     return load_scene(path)
+
+
+def test_the_estimate_pass_gathers_the_emitters_highlights_and_the_final_solve_has_them(monkeypatch):
+    """The estimate passes want each vertex's mean radiance, which the gather gives with
+    or without the highlights' closed form: they skip it (its shadow rays and grids, 11 s
+    of a million-triangle solve), and the solution still carries it."""
+    calls = []
+    real = adaptive.solve
+
+    def recording(scene, opts, **kw):
+        calls.append(opts.emitter_highlights)
+        return real(scene, opts, **kw)
+
+    monkeypatch.setattr(adaptive, "solve", recording)
+    opts = SolveOptions(photons=20_000, gather_samples=4, light_samples=1, max_edge=150.0, seed=3)
+    solution = solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=1))
+    assert calls == [False, True]
+    assert solution.emitters and solution.object("teapot").visibility is not None
