@@ -186,8 +186,10 @@ def check_export_memory(sizes, available=None, say=None):
     need = export_estimate(sizes)
     have = "" if available is None else f" of {available / GIB:.1f} GB available"
     if available is not None and need > available:
-        raise InputError(f"export needs about {need / GIB:.1f} GB of memory{have} ({len(sizes.objects)} objects"
-                         f"{_largest(sizes)}); free memory, or export on a machine with more")
+        n = len(sizes.objects)
+        raise InputError(f"export needs about {need / GIB:.1f} GB of memory but {available / GIB:.1f} GB is available "
+                         f"({n} object{'s' if n != 1 else ''}{_largest(sizes)}); free memory, or export on a machine "
+                         "with more")
     if need >= SAY_BYTES:
         say(f"export: about {need / GIB:.2f} GB at most{have}")
     return need
@@ -237,6 +239,6 @@ def check_page_textures(sizes, say=None, limit=PAGE_TEXTURE_SIZE):
         owner = "the scene" if t.name is None else f"object {t.name!r}"
         more = f" ({len(large) - 1} more texture{'s' if len(large) > 2 else ''} over {limit})" if len(large) > 1 else ""
         say(f"export: warning: {owner} needs a {t.width} x {t.height} texture on the page for {t.what}{more}; a "
-            f"browser draws it only where MAX_TEXTURE_SIZE is at least {side} (WebGL2 devices make {limit} "
-            "almost all, larger ones about half); elsewhere the page says so and draws nothing")
+            f"browser draws it only where MAX_TEXTURE_SIZE is at least {side} (almost every WebGL2 device makes "
+            f"{limit}, about half more); elsewhere the page refuses it by name")
     return large

@@ -46,8 +46,9 @@
 // M x M (textureNeeds); before any is made, every object's are checked against the
 // GPU's MAX_TEXTURE_SIZE (and the emitter table and the environment's image too), and a
 // texture too large is refused on the page in one line naming the object and the limit
-// (a texture the GPU cannot make would be drawn as zeros, silently wrong). The export
-// warns of objects that need more than 4096 (display/export_limits.py).
+// (WebGL does not make a texture over the limit, INVALID_VALUE, and the shader would read
+// zeros: the object drawn wrong, silently). The export warns of objects that need more
+// than 4096 (display/export_limits.py).
 //
 // Keys: W A S D walk, Q E down / up, Shift faster, mouse look after a click (Esc frees
 // the mouse); M fitted / diffuse-only; L two lights / all lights; 1 2 3 switch the
@@ -580,7 +581,8 @@ function framingView(bounds, fov) {
 }
 
 class Walkthrough {
-    // renderer: makeRenderer(canvas)'s, whose limits loadFit checked the fit against
+    // renderer: the canvas's THREE.WebGLRenderer, made by main before loadFit checked the
+    // fit's textures against its limit
     constructor(canvas, overlay, fit, query, renderer) {
         this.canvas = canvas;
         this.overlay = overlay;

@@ -154,7 +154,7 @@ FACTOR = 1.5  # the estimate is at least the measured peak, and at most this man
 
 @pytest.mark.subprocess
 def test_the_estimate_bounds_the_measured_peak(tmp_path, rng):
-    """The export of 90,000 vertices with 16 per-light coefficients each (130 MB more than
+    """The export of 90,000 vertices with 16 per-light coefficients each (115 MB more than
     the process's own) and of the tiny scene, each measured (peak resident memory):
     each estimate is at least the peak and at most FACTOR times it, and so is the
     estimate of what the large one adds to the tiny one (the bytes a value, apart from
@@ -170,7 +170,7 @@ def test_the_estimate_bounds_the_measured_peak(tmp_path, rng):
     for peak, estimate in zip(peaks, estimates, strict=True):
         assert peak <= estimate <= FACTOR * peak, (peak, estimate)
     more, estimated_more = peaks[1] - peaks[0], estimates[1] - estimates[0]
-    assert more > 100e6  # not vacuous: the values, not the process, make the difference
+    assert more > 60e6  # not vacuous: the values, not the process, make the difference
     assert more <= estimated_more <= FACTOR * more, (more, estimated_more)
 
 
@@ -197,9 +197,9 @@ def test_what_cannot_fit_is_refused():
     with pytest.raises(limits.InputError) as refused:
         check_export_memory(sizes, available=need - 1, say=lambda _: None)
     message = str(refused.value)
-    assert "\n" not in message and f"export needs about {need / GIB:.1f} GB of memory" in message
-    assert f"of {(need - 1) / GIB:.1f} GB available" in message
-    assert "2 objects; largest object 'teapot': 1,000,000 vertices x 8 lights" in message
+    assert "\n" not in message and message.startswith(
+        f"export needs about {need / GIB:.1f} GB of memory but {(need - 1) / GIB:.1f} GB is available (2 objects; "
+        "largest object 'teapot': 1,000,000 vertices x 8 lights)")
 
 
 def test_the_export_command_refuses_what_cannot_fit_and_writes_nothing(tmp_path, cli, rng, monkeypatch):
@@ -212,7 +212,7 @@ def test_the_export_command_refuses_what_cannot_fit_and_writes_nothing(tmp_path,
 
     monkeypatch.setattr(fitting, "load_fit", lambda path: pytest.fail("the fit was loaded before the refusal"))
     before = listing(tmp_path)
-    assert_refused(cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web"), "export needs about", "GB available",
+    assert_refused(cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web"), "export needs about", "GB is available",
                    "largest object", command="export")
     assert listing(tmp_path) == before
     monkeypatch.undo()
