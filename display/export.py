@@ -608,6 +608,7 @@ def _check_fit_file(path):
 
 
 def run_export_command(args):
+    from display.export_limits import check_export_memory, check_page_textures, fit_sizes
     from display.outputs import check_output_dir
     from fitting import load_fit
 
@@ -616,6 +617,10 @@ def run_export_command(args):
         raise InputError("--serve needs the page: drop --no-page")
     files = (FILE, SHADING, *(str(p) for p in page_files())) if args.page else (FILE,)
     out = check_output_dir(args.out, "-o", files=files, inputs=(args.fit,))
+    sizes = fit_sizes(args.fit)  # from the array headers: the estimate and the page's textures before any work
+    check_export_memory(sizes)
+    if args.page:
+        check_page_textures(sizes)
     model = load_fit(args.fit)
     server = None
     if args.serve:

@@ -36,9 +36,19 @@
 //
 // URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
 // exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
-// of the model are not drawn, as `vlights render --off`) file=scene.glb. document.title
-// becomes "rendered" after the first complete frame ("error" if the scene cannot be
-// shown).
+// of the model are not drawn, as `vlights render --off`) file=scene.glb maxtexture=n (the
+// largest texture side the page may use: the GPU's MAX_TEXTURE_SIZE, or n if smaller, to
+// see what a smaller GPU shows). document.title becomes "rendered" after the first
+// complete frame ("error" if the scene cannot be shown).
+//
+// Texture limits: each object's per-light coefficients and its emitters' visibility are
+// textures TEXTURE_WIDTH (4096) wide, a row per 4096 values, its lights 2 x K, its probe
+// M x M (textureNeeds); before any is made, every object's are checked against the
+// GPU's MAX_TEXTURE_SIZE (and the emitter table and the environment's image too), and a
+// texture too large is refused on the page in one line naming the object and the limit
+// (WebGL does not make a texture over the limit, INVALID_VALUE, and the shader would read
+// zeros: the object drawn wrong, silently). The export warns of objects that need more
+// than 4096 (display/export_limits.py).
 //
 // Keys: W A S D walk, Q E down / up, Shift faster, mouse look after a click (Esc frees
 // the mouse); M fitted / diffuse-only; L two lights / all lights; 1 2 3 switch the
@@ -150,6 +160,7 @@ export function parseQuery(search) {
         if (bad !== undefined) throw new Error(`off: want parts among ${PARTS.join(',')}, got '${bad}'`);
         state.off = off;
     }
+    state.maxTexture = num('maxtexture', (v) => Number.isInteger(v) && v >= 1, 'a whole number >= 1');
     state.file = q.get('file') || 'scene.glb';
     return state;
 }
@@ -323,6 +334,49 @@ function diffuseTexture(material, info, where) {
 
 const EMPTY = floatTexture(new Float32Array(4), 1, 1);
 
+// ------------------------------------------------------------------------- texture limits
+
+// The largest texture side this page may use: the GPU's MAX_TEXTURE_SIZE, or the query's
+// maxtexture where that is smaller
+export function textureLimit(gl, query = {}) {
+    const max = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+    return query.maxTexture === undefined ? max : Math.min(max, query.maxTexture);
+}
+
+// The float textures makeObject makes for an object of `vertices` vertices whose
+// highlight draws `parts` emitter parts, as [{ what, width, height }]: its lights
+// (lightTexture), its per-light coefficients and its emitters' visibility (wideTexture:
+// TEXTURE_WIDTH wide, a row per TEXTURE_WIDTH values), its probe (probeTexture);
+// display.export_limits.object_textures lists the same
+export function textureNeeds(info, vertices, parts) {
+    const k = info.lights;
+    const rows = (values) => Math.max(1, Math.ceil(values / TEXTURE_WIDTH));
+    const count = (n) => n.toLocaleString('en-US');
+    const needs = [{ what: `its ${k} lights`, width: 2, height: Math.max(k, 1) }];
+    if (info.per_light && k > 0) {
+        needs.push({ what: `its per-light coefficients (${count(vertices)} vertices x ${k} lights)`, width: TEXTURE_WIDTH, height: rows(vertices * k) });
+    }
+    if (parts > 0) {
+        needs.push({ what: `its emitters' visibility (${count(vertices)} vertices x ${parts} parts)`, width: TEXTURE_WIDTH, height: rows(vertices * parts) });
+    }
+    if (info.probe) needs.push({ what: 'its probe', width: info.probe.size, height: info.probe.size });
+    return needs;
+}
+
+// An Error naming `owner` and the limit for the first of `needs` larger than `max` texels
+// on a side; null if all fit
+export function textureRefusal(owner, needs, max) {
+    const t = needs.find((n) => Math.max(n.width, n.height) > max);
+    if (!t) return null;
+    return new Error(`${owner} needs a ${t.width} x ${t.height} texture for ${t.what}; this browser's textures are `
+        + `at most ${max} x ${max} (MAX_TEXTURE_SIZE), so it cannot be drawn here`);
+}
+
+function checkTextures(owner, needs, max) {
+    const refusal = textureRefusal(owner, needs, max);
+    if (refusal) throw refusal;
+}
+
 // One object's mesh and material: the uniforms and textures display.renderer's
 // _bind_fitted, _bind_highlight and _bind_probe set (each object with its own textures,
 // so every base and row is 0), and for a textured object (VL_TEXTURED) the uniforms of
@@ -469,7 +523,8 @@ function backgroundMesh(environment, shaders, floatLinear) {
 
 // ---------------------------------------------------------------------------------- fit
 
-export async function loadFit(url) {
+// `maxTexture`: the largest texture side the page may use (textureLimit)
+export async function loadFit(url, maxTexture) {
     const gltf = await new GLTFLoader().loadAsync(url);
     const extras = gltf.scene.userData || {};
     if (extras.format !== FORMAT || !VERSIONS.includes(extras.version)) {
@@ -486,15 +541,26 @@ export async function loadFit(url) {
     gltf.scene.traverse((node) => {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
     });
+    // every texture's size checked before any is made
+    checkTextures('the scene', [{ what: `its emitter table (${parts.length} parts)`, width: TABLE_WIDTH, height: Math.max(parts.length, 1) }], maxTexture);
+    for (const name of extras.objects) {
+        const source = sources.get(name);
+        if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
+        const info = source.userData;
+        const vertices = source.geometry.attributes.position ? source.geometry.attributes.position.count : 0;
+        checkTextures(`object '${name}'`, textureNeeds(info, vertices, info.highlight ? parts.length : 0), maxTexture);
+    }
     const textured = [...sources.values()].some((node) => node.userData.textured);
     const environment = extras.version >= 4 && extras.environment ? await readEnvironment(gltf, extras.environment, url) : null;
+    if (environment) {
+        checkTextures('the scene', [{ what: 'its environment', width: environment.width, height: environment.height }], maxTexture);
+    }
     const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders(textured, environment) };
     const scene = new THREE.Scene();
     const objects = [];
     const bounds = new THREE.Box3();
     for (const name of extras.objects) {
         const source = sources.get(name);
-        if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
         objects.push(makeObject(source, source.userData, fit));
         scene.add(objects.at(-1));
         source.geometry.computeBoundingBox();
@@ -515,7 +581,9 @@ function framingView(bounds, fov) {
 }
 
 class Walkthrough {
-    constructor(canvas, overlay, fit, query) {
+    // renderer: the canvas's THREE.WebGLRenderer, made by main before loadFit checked the
+    // fit's textures against its limit
+    constructor(canvas, overlay, fit, query, renderer) {
         this.canvas = canvas;
         this.overlay = overlay;
         this.fit = fit;
@@ -534,16 +602,12 @@ class Walkthrough {
             eye: query.eye || start.eye, look: query.look || start.look_at,
             up: query.up || start.up || [0, 1, 0], fov: query.fov ?? start.fov_y_deg ?? DEFAULT_FOV,
         };
-        this.renderer = new THREE.WebGLRenderer({ canvas, antialias: false, alpha: false, preserveDrawingBuffer: true });
+        this.renderer = renderer;
         this.renderer.setPixelRatio(1);
         this.renderer.setClearColor(0x000000, 0); // background 0, as the renderer's; render() clears
         this.gl = this.renderer.getContext();
         this.background = null; // the environment where no object is (a version 4 file)
-        if (fit.environment) {
-            const max = this.renderer.capabilities.maxTextureSize;
-            if (Math.max(fit.environment.width, fit.environment.height) > max) {
-                throw new Error(`the environment's image is ${fit.environment.width} x ${fit.environment.height}; this GPU's textures are at most ${max} wide`);
-            }
+        if (fit.environment) { // its size checked by loadFit
             this.background = backgroundMesh(fit.environment, fit.shaders, this.renderer.extensions.has('OES_texture_float_linear'));
             fit.scene.add(this.background);
         }
@@ -755,12 +819,17 @@ export async function main() {
     const overlay = document.getElementById('status');
     const canvas = document.getElementById('view');
     const t0 = performance.now();
+    let maxTexture = null;
     try {
         const query = parseQuery(window.location.search);
-        const fit = await loadFit(query.file);
-        const walkthrough = new Walkthrough(canvas, overlay, fit, query);
+        // the renderer first: the fit's textures are checked against its GPU's limit before any is made
+        const renderer = new THREE.WebGLRenderer({ canvas, antialias: false, alpha: false, preserveDrawingBuffer: true });
+        maxTexture = textureLimit(renderer.getContext(), query);
+        const fit = await loadFit(query.file, maxTexture);
+        const walkthrough = new Walkthrough(canvas, overlay, fit, query, renderer);
         window.vlights = {
             walkthrough,
+            maxTexture,
             loadMs: performance.now() - t0,
             state: () => walkthrough.state(),
             benchmark: (n) => walkthrough.benchmark(n),
@@ -769,7 +838,7 @@ export async function main() {
         overlay.textContent = `error: ${err.message}`;
         overlay.classList.add('error');
         document.title = 'error';
-        window.vlights = { error: err.message };
+        window.vlights = { error: err.message, maxTexture };
         console.error(err);
     }
 }
