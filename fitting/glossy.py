@@ -161,11 +161,13 @@ def _light_caps(data, lights):
 
 
 def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fixed=None, rounds=probe.ALTERNATIONS,
-                   start=None):
+                   start=None, with_values=False):
     """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
     ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares;
     ``albedo``: the table of S (``probe.albedo_table``); ``start``: (emitted, weight) to
-    begin from (default: each vertex's least radiance and 1)."""
+    begin from (default: each vertex's least radiance and 1); ``with_values``: and the
+    probe's S P(u) at every sample (V, D, 3), as ``probe.probe_values`` gives them (to
+    rounding: the texels are the stored float32 ones), not evaluated again."""
     rest = target if fixed is None else target - fixed
     v, d = data.n_vertices, data.n_directions
     # the texels from every step-th vertex (at most PROBE_SAMPLES samples: a large
@@ -201,6 +203,7 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fix
         # the scale between P and s is free: keep s near 1 where the object is
         mean = np.sum(data.weights.sum(axis=1)[:, None] * scale, axis=0) / max(data.weights.sum(), 1e-300)
         texels *= np.where(mean > 0, mean, 1.0)
+        texels = texels.astype(np.float32).astype(np.float64)  # what the model stores
         flat = texels.reshape(-1, 3)
         if kept is not None:
             values[:] = np.einsum("sk,skc->sc", kept[1], flat[kept[0]]).reshape(v, d, 3)
@@ -212,7 +215,7 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fix
         emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros((v, d, 0)), None)
     found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
                         np.asarray(albedo, np.float64))
-    return found, emitted, scale
+    return (found, emitted, scale, values) if with_values else (found, emitted, scale)
 
 
 def _model(highlights, emitted, probe_term, light_term):
@@ -276,19 +279,22 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
         best, start = None, None
         for size in sizes:
             # each size after the first starts from the coefficients of the one before
-            p, e, s = fit_probe_part(data, rest, lw, size, centre, box, albedo, start=start,
-                                     rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS)
+            p, e, s, values = fit_probe_part(data, rest, lw, size, centre, box, albedo, start=start,
+                                             rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS, with_values=True)
             start = (e, s)
-            term = s[:, None, :] * probe.probe_values(p, full.positions[:, None, :], full.views, full.normals[:, None, :])
+            term = s[:, None, :] * values
             c = record("probe", size, True, e, probe_fit=p, weight=s, probe_term=term)
             if best is None or c.perceptual < best[0].perceptual * (1 - WITHIN):
-                best = (c, term)
-        chosen, probe_term = best
+                best = (c, term, values)
+            del values
+        chosen, probe_term, chosen_values = best
+        del best
         left = rest - probe_term - chosen.emitted[:, None, :]
         highlight = _shows_highlight(left, full)
         if wanted == "probe+lights" or (automatic and highlight):
-            _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, place=(centre, box, albedo),
-                              exponent=exponent, fit_lights=fit_lights, required=wanted == "probe+lights")
+            _probe_and_lights(record, full, data, rest, lw, (chosen, chosen_values), probe_term,
+                              place=(centre, box, albedo), exponent=exponent, fit_lights=fit_lights,
+                              required=wanted == "probe+lights")
         if automatic and highlight and fits[-1].n_lights:
             # a highlight neither the emitters nor the probe draw: the object keeps lights
             return _choose([f for f in fits if f.n_lights], options.model_target, tried, full)
@@ -299,9 +305,11 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)
 
 
-def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place, exponent, fit_lights, required):
+def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, place, exponent, fit_lights, required):
     """Lights for what the probe leaves, then the probe again with them held, then every
-    per-vertex coefficient together; place = the probe's (centre, box, albedo table).
+    per-vertex coefficient together; probe_fit = (the chosen probe model's
+    ``Components``, its probe's S P(u) at the samples); place = the probe's (centre, box,
+    albedo table).
 
     Unless the lights are ``required`` (--model probe+lights), one light is fitted
     first (with every coefficient), and the others only if it pays: if it lowers the
@@ -310,9 +318,9 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place
     lights' search, most of such an object's fit, is not run. The one-light step is
     in what was tried, marked not kept."""
     centre, box, albedo = place
+    chosen, values = probe_fit
     lights_data = FitData(radiance=np.maximum(rest - probe_term, 0.0), views=full.views, normals=full.normals,
                           weights=full.weights, positions=full.positions)
-    values = probe.probe_values(chosen.probe, full.positions[:, None, :], full.views, full.normals[:, None, :])
     first = None
     if not required:
         first = fit_lights(lights_data, lw, exponent, count=1)
@@ -336,9 +344,8 @@ def _probe_and_lights(record, full, data, rest, lw, chosen, probe_term, *, place
     caps = _light_caps(data, lights)
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     light_term = np.einsum("vdk,vkc->vdc", lobes, c)
-    p2, _, _ = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term, start=(e, s),
-                              rounds=WARM_ROUNDS)
-    values = probe.probe_values(p2, full.positions[:, None, :], full.views, full.normals[:, None, :])
+    p2, _, _, values = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term,
+                                      start=(e, s), rounds=WARM_ROUNDS, with_values=True)
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     record("probe+lights", p2.size, True, e, light_fit=(*lights, c), probe_fit=p2, weight=s,
            probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c))
