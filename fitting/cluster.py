@@ -33,17 +33,19 @@ def fit_on_dask(client, source, options, place, bar):
     (scene geometry, probe box, ``fit.fit_object``); bar: a progress bar (``update``)
     or None."""
     from distributed import as_completed
+    from distributed.comm import get_address_host
 
     from .memory import costs
 
     scene, box, fit_object = place
     cost = costs(source)
     order = sorted(cost, key=lambda n: -cost[n])  # costliest first
-    workers = client.scheduler_info()["workers"]
-    window = 2 * max(1, sum(w["nthreads"] for w in workers.values())) + 1
+    threads = client.nthreads()  # {worker address: its threads}
+    window = 2 * max(1, sum(threads.values())) + 1
     host_threads = {}
-    for w in workers.values():
-        host_threads[w["host"]] = host_threads.get(w["host"], 0) + w["nthreads"]
+    for address, n in threads.items():
+        host = get_address_host(address)
+        host_threads[host] = host_threads.get(host, 0) + n
     [shared] = client.scatter([(scene, box)], broadcast=True, hash=False)
     queue = iter(order)
     names = {}

@@ -58,9 +58,8 @@ def test_at_most_the_window_of_objects_is_in_flight(client, tmp_path, monkeypatc
         objects.append(replace(sol.objects[0], name=f"dome_{i}", positions=sol.objects[0].positions + np.float32(3 * i)))
     path = tmp_path / "five.npz"
     Solution(objects=tuple(objects), settings={"quality": "draft"}, scene="test").save(path)
-    info = client.scheduler_info()
-    one = dict(list(info["workers"].items())[:1])
-    monkeypatch.setattr(client, "scheduler_info", lambda **kw: {**info, "workers": {k: {**w, "nthreads": 1} for k, w in one.items()}})
+    first = sorted(client.nthreads())[0]
+    monkeypatch.setattr(client, "nthreads", lambda *a, **kw: {first: 1})
     out = []
 
     class Bar:
