@@ -98,8 +98,12 @@ class _ThreadPool:
         self.finished.put(None)
 
     def wait_first(self, futures):
+        """Until one of ``futures`` is done; at once when one is, or when there are none
+        (as ``concurrent.futures.wait``): ``in_order`` lists the unfinished ones after
+        seeing the head unfinished, and a job finishing in between leaves the list empty,
+        its queue entry maybe consumed already, nothing more to come."""
         self.held.check()
-        while not any(f.done() for f in futures):
+        while futures and not any(f.done() for f in futures):
             self.finished.get()
             self.held.check()
 

@@ -12,9 +12,12 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
+from concurrent.futures import Future
 
 import pytest
 
+from radiosity.transport import threads
 from radiosity.transport.signals import HeldSignals
 
 STRESS = textwrap.dedent("""
@@ -105,3 +108,40 @@ def test_a_held_signal_with_the_default_action_still_ends_the_process():
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert run.stdout.split() == ["held"] and run.returncode == -signal.SIGTERM
+
+
+class _DoneAtTheSecondLook(Future):
+    """A job's future that is running when first looked at and done from the second look
+    on: the job finishes (its done-callback fed the pool's queue) between ``in_order``'s
+    check of the window's head and the list of unfinished futures it waits for, as a
+    worker thread can at any moment on a loaded machine."""
+
+    def __init__(self, value):
+        super().__init__()
+        self.value, self.looks = value, 0
+
+    def done(self):
+        self.looks += 1
+        if self.looks == 2:
+            self.set_result(self.value)
+        return super().done()
+
+
+class _LateExecutor:
+    def submit(self, fn, job):
+        return _DoneAtTheSecondLook(fn(job))
+
+
+def test_a_job_done_between_two_looks_at_it_does_not_hang_the_run():
+    """One job in flight (a path tracer's one-pixel image has one tile a pass) that
+    finishes after the head check: nothing is left to wait for, and the wait must end
+    (it once blocked forever on the queue, a hang seen in CI under load)."""
+    pool = threads._ThreadPool(_LateExecutor(), lambda job: 10 * job, 2)
+    combined = []
+    for job in (1, 2, 3):  # passes of one job each
+        run = threading.Thread(target=threads.in_order, daemon=True,
+                               args=(pool, [job], combined.append, threads._NullProgress(), [1]))
+        run.start()
+        run.join(10)
+        assert not run.is_alive(), f"in_order hung on job {job}"
+    assert combined == [10, 20, 30]
