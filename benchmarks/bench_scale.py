@@ -9,7 +9,9 @@ triangles, from about 1.7 x 10^4 (3 rooms) to 10^6 (180 rooms), and the mix of w
 the same at every size: glossy balls are about 6 % of the triangles, as the glossy
 objects of a furnished interior. Every stage runs as the command a user types
 (``vlights scene-info``, ``solve``, ``fit``, ``render``, ``export``) in a process of its
-own, timed, its peak resident memory read from the kernel (``os.wait4``'s rusage).
+own, timed, its peak resident memory read from the kernel (``os.wait4``'s rusage),
+after an untimed solve and fit of a small interior (numba's kernels compiled or loaded
+first: no stage's time holds a compile).
 
     python benchmarks/bench_scale.py [--triangles 10000 100000] [--quality draft]
 
@@ -214,6 +216,15 @@ def uncompressed(path):
         return sum(i.file_size for i in z.infolist())
 
 
+def warm_up(directory):
+    """Solve and fit a small interior once, untimed: numba compiles (or loads from its
+    cache) every kernel the stages use, so that no stage's time holds a compile."""
+    write_scene(directory / "warm.toml", 10_000)
+    for args in (["solve", "warm.toml", "--quality", "draft", "--photons", "100000", "-o", "warm.npz"],
+                 ["fit", "warm.npz", "--workers", "1", "-o", "warm_fit.npz"]):
+        run(args, directory)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--triangles", type=int, nargs="+", default=[10_000, 100_000])
@@ -230,6 +241,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         directory = args.keep or Path(tmp)
         directory.mkdir(parents=True, exist_ok=True)
+        warm_up(Path(tmp))
         for target in args.triangles:
             d = directory / f"t{target}"
             d.mkdir(exist_ok=True)
