@@ -492,6 +492,8 @@ def scale(rows, name="scale.jsonl", title="Scale"):
                 "worker processes). Issue 25's targets: 10^6 triangles with solve + fit <= 5 minutes and <= 8 GB; "
                 "each stage's log-log slope <= 1.15 between 10^5 and 10^6; the fit's peak <= 2 x the solution's "
                 "arrays.", ""]
+    notes = sorted({r["note"] for r in stages if r.get("note")})
+    out += [f"Note: {n}.\n" for n in notes]
     out += table(["triangles", "rooms", "stage", "seconds", "peak MB (process)", "peak MB (tree)", "solution MB"],
                  [[f"{r['triangles']:,}", r["rooms"], r["stage"], num(r["seconds"], 2), num(r["peak_mb"], 1),
                    num(r.get("tree_peak_mb"), 1), num(r.get("solution_mb"), 1)]
