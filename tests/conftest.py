@@ -23,3 +23,15 @@ def gl_context():
         pytest.skip(f"no headless OpenGL: {exc}")
     yield ctx
     ctx.release()
+
+
+@pytest.fixture(scope="module")
+def client():
+    """A Dask client of a LocalCluster of two one-thread worker processes (the tests
+    marked ``dask``); skipped where Dask is not installed."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()

@@ -26,15 +26,6 @@ def path(tmp_path_factory):
     return scene_file(tmp_path_factory.mktemp("dask_fit") / "s.npz")
 
 
-@pytest.fixture(scope="module")
-def client():
-    local = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-    c = distributed.Client(local)
-    yield c
-    c.close()
-    local.close()
-
-
 @pytest.mark.dask
 def test_the_model_on_dask_is_the_model_here_bit_for_bit(path, client, tmp_path):
     with SolutionFile(path) as f:

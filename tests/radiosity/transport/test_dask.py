@@ -34,15 +34,6 @@ KNOBS = dict(photons=200_000, gather_samples=16, light_samples=4, max_edge=150.0
 
 
 @pytest.fixture(scope="module")
-def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-    client = distributed.Client(cluster)
-    yield client
-    client.close()
-    cluster.close()
-
-
-@pytest.fixture(scope="module")
 def scene():
     return load_scene("cornell-teapot")
 
