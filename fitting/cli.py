@@ -158,6 +158,9 @@ def _fit(args):
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
     if args.scheduler != "threads":
         check_scheduler(args.scheduler)
+        if args.workers is not None:
+            raise InputError("--workers sets this machine's processes: it does not go with --scheduler "
+                             f"{args.scheduler} (the cluster's workers fit the objects)")
     require_format(args.solution, (SOLUTION,), "solution")
     with SolutionFile(args.solution) as solution:
         solution.validate()  # a bad object is one line before the estimate, not after it and some work

@@ -89,6 +89,12 @@ def test_the_command_refuses_a_bad_scheduler_in_one_line_before_reading(path, tm
     assert not out.exists()
 
 
+def test_workers_do_not_go_with_a_scheduler(path, tmp_path, capsys):
+    code, _, err = run(["fit", str(path), "-o", str(tmp_path / "f.npz"), "--scheduler", "dask", "--workers", "2"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--workers" in err and "--scheduler dask" in err
+    assert not (tmp_path / "f.npz").exists()
+
+
 def test_an_unreachable_scheduler_is_one_line_and_no_file(path, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1.0)
     out = tmp_path / "f.npz"
