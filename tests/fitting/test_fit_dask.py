@@ -140,3 +140,24 @@ def test_the_command_on_a_running_scheduler_writes_the_same_file(path, client, t
     with np.load(here) as a, np.load(there) as b:
         assert a.files == b.files
         assert all(np.array_equal(a[k], b[k]) for k in a.files if k != "meta")
+
+
+@pytest.mark.dask
+@pytest.mark.subprocess
+def test_ctrl_c_during_a_fit_on_dask_is_one_line_and_no_file(path, tmp_path):
+    """SIGINT once the tasks are out: the command cancels them, closes its LocalCluster
+    and says one line; nothing is written."""
+    import signal
+
+    from child_process import Child, vlights
+
+    out = tmp_path / "fit.npz"
+    child = Child(vlights("fit", path, "--scheduler", "dask", "--lights", "8", "--iterations", "5000", "-o", out))
+    child.wait_for(r"fit: on dask tcp://")
+    child.send(signal.SIGINT)
+    code, _, err = child.finish()
+    if code == 0:
+        pytest.skip("the fit finished before the signal came")
+    assert code == 130, err
+    assert err.strip().splitlines()[-1] == "vlights fit: interrupted" and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
