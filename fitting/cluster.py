@@ -6,7 +6,8 @@ What goes where
   - the scene's triangles (the lights' seeds read what a mirror ray hits) and the
     probe's proxy box are scattered to every worker once;
   - each glossy object's task carries the object's arrays and the file's emitters (a
-    one-object ``Solution``, ``SolutionFile.alone``), so the workers need no shared disk.
+    one-object ``Solution``, ``SolutionFile.alone``, without the environment's image,
+    which no object's fit reads), so the workers need no shared disk.
     This process reads them from the solution file one object at a time, costliest
     (vertices x directions) first, and keeps at most 2 x (the cluster's threads) + 1
     objects in flight: its memory is that of a few objects, whatever the scene;
@@ -23,6 +24,8 @@ worker processes show them as the command's one-line warnings).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 __all__ = ["fit_on_dask"]
 
@@ -55,7 +58,8 @@ def fit_on_dask(client, source, options, place, bar):
     def submit():
         name = next(queue, None)
         if name is not None:
-            future = client.submit(_fit_task, fit_object, source.alone(name), options, shared, host_threads, pure=False)
+            alone = replace(source.alone(name), environment=None)  # the fit of an object never reads it
+            future = client.submit(_fit_task, fit_object, alone, options, shared, host_threads, pure=False)
             names[future] = name
             running.add(future)
 
