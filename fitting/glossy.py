@@ -161,13 +161,13 @@ def _light_caps(data, lights):
 
 
 def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fixed=None, rounds=probe.ALTERNATIONS,
-                   start=None, with_values=False):
-    """(Probe, emitted (V, 3), probe weight (V, 3)) for ``target`` (V, D, 3) minus
+                   start=None):
+    """(Probe, emitted (V, 3), probe weight (V, 3), values) for ``target`` (V, D, 3) minus
     ``fixed`` (V, D, 3) (another part of the model, kept), by alternating least squares;
     ``albedo``: the table of S (``probe.albedo_table``); ``start``: (emitted, weight) to
-    begin from (default: each vertex's least radiance and 1); ``with_values``: and the
-    probe's S P(u) at every sample (V, D, 3), as ``probe.probe_values`` gives them (to
-    rounding: the texels are the stored float32 ones), not evaluated again."""
+    begin from (default: each vertex's least radiance and 1). values (V, D, 3): the
+    probe's S P(u) at every sample, as ``probe.probe_values`` gives them (to rounding:
+    the texels are the stored float32 ones), so that no caller evaluates them again."""
     rest = target if fixed is None else target - fixed
     v, d = data.n_vertices, data.n_directions
     # the texels from every step-th vertex (at most PROBE_SAMPLES samples: a large
@@ -215,7 +215,7 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fix
         emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros((v, d, 0)), None)
     found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
                         np.asarray(albedo, np.float64))
-    return (found, emitted, scale, values) if with_values else (found, emitted, scale)
+    return found, emitted, scale, values
 
 
 def _model(highlights, emitted, probe_term, light_term):
@@ -280,7 +280,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
         for size in sizes:
             # each size after the first starts from the coefficients of the one before
             p, e, s, values = fit_probe_part(data, rest, lw, size, centre, box, albedo, start=start,
-                                             rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS, with_values=True)
+                                             rounds=probe.ALTERNATIONS if start is None else WARM_ROUNDS)
             start = (e, s)
             term = s[:, None, :] * values
             c = record("probe", size, True, e, probe_fit=p, weight=s, probe_term=term)
@@ -345,7 +345,7 @@ def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, pl
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     light_term = np.einsum("vdk,vkc->vdc", lobes, c)
     p2, _, _, values = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term,
-                                      start=(e, s), rounds=WARM_ROUNDS, with_values=True)
+                                      start=(e, s), rounds=WARM_ROUNDS)
     e, s, c = _joint(data, rest, lw, values, lobes, caps)
     record("probe+lights", p2.size, True, e, light_fit=(*lights, c), probe_fit=p2, weight=s,
            probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c))

@@ -121,7 +121,7 @@ def test_a_known_probe_is_recovered_from_its_own_reflections():
     weight = 0.5 + 0.5 * rng.random((len(positions), 3))
     radiance = emitted[:, None] + weight[:, None] * probe.probe_values(known, positions[:, None], views, normals[:, None])
     data = FitData(radiance=radiance, views=views, normals=normals, weights=weights, positions=positions)
-    found, e, s = glossy.fit_probe_part(data, radiance, None, m, centre, box, albedo, rounds=12)
+    found, e, s, _ = glossy.fit_probe_part(data, radiance, None, m, centre, box, albedo, rounds=12)
     model = e[:, None] + s[:, None] * probe.probe_values(found, positions[:, None], views, normals[:, None])
     assert np.sqrt(np.mean((model - radiance) ** 2) / np.mean(radiance**2)) < 2e-3
     # the probe itself, up to the free scale between P and s, where the data see it
@@ -142,7 +142,7 @@ def test_unseen_texels_are_finite_and_smooth():
     positions, normals, views, weights = positions[up], normals[up], views[up], weights[up]
     radiance = 0.2 + 0.1 * np.sin(3 * views[..., :1]) + np.zeros(3)
     data = FitData(radiance=radiance, views=views, normals=normals, weights=weights / weights.sum(), positions=positions)
-    found, e, s = glossy.fit_probe_part(data, radiance, None, 16, centre, box, probe.albedo_table(20.0))
+    found, e, s, _ = glossy.fit_probe_part(data, radiance, None, 16, centre, box, probe.albedo_table(20.0))
     t = np.asarray(found.texels, float)
     assert np.isfinite(t).all() and (t >= 0).all()
     u = probe.box_directions(positions[:, None], views, normals[:, None], centre, box).reshape(-1, 3)
@@ -169,7 +169,7 @@ def test_radiance_zero_tiny_and_huge(scale):
 
     def fitted(radiance):
         data = FitData(radiance=radiance, views=views, normals=normals, weights=weights / weights.sum(), positions=positions)
-        found, e, s = glossy.fit_probe_part(data, radiance, None, m, centre, box, albedo)
+        found, e, s, _ = glossy.fit_probe_part(data, radiance, None, m, centre, box, albedo)
         return e[:, None] + s[:, None] * probe.probe_values(found, positions[:, None], views, normals[:, None])
 
     model = fitted(scale * shape)
