@@ -9,16 +9,27 @@ def _stop(signum, _frame):
     raise KeyboardInterrupt(signum)
 
 
+def _status(exc):
+    """The exit status of a run stopped by ``exc``: 128 + the signal's number."""
+    signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
+    return 128 + int(signum)
+
+
 def main(argv=None):
     if hasattr(signal, "SIGTERM"):
         signal.signal(signal.SIGTERM, _stop)
     try:
         from display.cli import main as run
     except KeyboardInterrupt as exc:
-        signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
         print("vlights: interrupted while starting; nothing was written", file=sys.stderr)
-        return 128 + int(signum)
-    return run(argv)
+        return _status(exc)
+    try:
+        return run(argv)
+    except KeyboardInterrupt as exc:  # in the instant between the import and run's own handling
+        status = _status(exc)
+        said = "interrupted" if status == 128 + signal.SIGINT else f"stopped by {signal.Signals(status - 128).name}"
+        print(f"vlights: {said}", file=sys.stderr)
+        return status
 
 
 if __name__ == "__main__":

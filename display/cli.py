@@ -70,16 +70,17 @@ def _raise_terminated(signum, _frame):
     raise Terminated(signum)
 
 
-def _install_signal_handlers():
-    """SIGTERM and SIGHUP unwind like Ctrl-C; only possible from the main thread.
-    Returns the previous handlers, to restore."""
+def _install_signal_handlers(previous):
+    """SIGTERM and SIGHUP unwind like Ctrl-C; only possible from the main thread. Each
+    previous handler goes into ``previous`` as soon as it is replaced, to restore (a
+    signal in between leaves none unrestored)."""
     if threading.current_thread() is not threading.main_thread():
-        return {}
-    previous = {}
+        return
     for name in ("SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
-            previous[getattr(signal, name)] = signal.signal(getattr(signal, name), _raise_terminated)
-    return previous
+            signum = getattr(signal, name)
+            previous[signum] = signal.getsignal(signum)
+            signal.signal(signum, _raise_terminated)
 
 
 def _interruption(exc):
@@ -95,8 +96,9 @@ def _interruption(exc):
 
 
 def main(argv=None):
-    previous = _install_signal_handlers()
+    previous = {}
     try:
+        _install_signal_handlers(previous)
         return _run(argv)
     except KeyboardInterrupt as exc:  # before the command runs: while the parser is built or reads the arguments
         return _interrupted(None, exc)

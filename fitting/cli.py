@@ -184,7 +184,8 @@ def _fit_on(scheduler, solution, options):
     try:
         threads = sum(client.nthreads().values())
         check_dask_memory(solution, 2 * threads + 1)
-        print(f"fit: on dask {client.scheduler.address} ({threads} threads)", file=sys.stderr)
+        # one write: a Ctrl-C cannot come between the line and its end
+        sys.stderr.write(f"fit: on dask {client.scheduler.address} ({threads} threads)\n")
         return fit(solution, options, progress=True, client=client)
     finally:
         try:

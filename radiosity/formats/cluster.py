@@ -277,7 +277,13 @@ def _local_cluster():
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
         try:
             with dask.config.set({"temporary-directory": directory}):  # the scheduler's scratch space too
-                cluster = LocalCluster(dashboard_address=None, silence_logs=logging.ERROR, local_directory=directory)
+                # no dashboard, and the scheduler's own HTTP server (health, metrics) on a
+                # free local port, not 8787 with a warning when that is taken; the
+                # workers' logs silenced below CRITICAL: a failed task reaches this
+                # process as an exception, and what they log as errors is a heartbeat
+                # that fails while the cluster closes under Ctrl-C or SIGTERM
+                cluster = LocalCluster(dashboard_address=None, silence_logs=logging.CRITICAL, local_directory=directory,
+                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         finally:
             if main:
                 signal.signal(signal.SIGINT, previous)
