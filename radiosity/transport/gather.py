@@ -17,7 +17,6 @@ import math
 import numba
 import numpy as np
 
-from radiosity.formats.directions import hemisphere_to_square_nb
 from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import (
     EMISSION,
@@ -47,9 +46,11 @@ from radiosity.transport.sampling import (
 
 LOBE_CUTOFF = 1e-3  # gather: lobe values below this fraction of the peak are skipped (<= 0.1 % of its energy)
 LOBE_TABLE = 2048  # entries of the cos^n table
-# the concentric map shrinks no angle by more than 0.73 (square max-norm units per radian
-# at least 1 / 0.73, measured over 2e6 random pairs; tests check it): 0.7 leaves a margin
-SQUARE_PER_RADIAN = 1.0 / 0.7
+# a lobe this wide (radians from its axis to LOBE_CUTOFF; Phong exponents below about 26)
+# visits every cell: its window (``lobe_window``) would save too few to pay for itself
+WHOLE_GRID_CONE = 0.7
+WINDOW_MARGIN = 1e-9  # square units around a lobe's window: rounding in the map and the grid's directions
+_PI_OVER_4 = math.pi / 4.0
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709: the gather's noise is measured in luminance
 
 
@@ -313,6 +314,60 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def _square_point(t):
+    """The point of the square's boundary [-1, 1]^2 at parameter t (4 / pi times the
+    azimuth, any real: taken modulo 8) as ``hemisphere_to_square`` lays it out."""
+    t = t - 8.0 * math.floor((t + 4.0) / 8.0)
+    if abs(t) < 1.0:
+        return 1.0, t
+    if t >= 1.0 and t <= 3.0:
+        return 2.0 - t, 1.0
+    if t <= -1.0 and t >= -3.0:
+        return 2.0 + t, -1.0
+    if t > 0.0:
+        return -1.0, 4.0 - t
+    return -1.0, -(4.0 + t)
+
+
+@numba.njit(cache=True, nogil=True)
+def lobe_window(rx, ry, rz, cone, grid_n):
+    """(i_lo, i_hi, j_lo, j_hi): the cells of the n x n direction grid whose centres
+    can lie within angle ``cone`` of the unit direction (rx, ry, rz), rz >= 0.
+
+    The cone's directions have polar angles within ``cone`` of the direction's and,
+    when the cone leaves the pole out, azimuths within asin(sin cone / sin theta) of
+    its azimuth. ``hemisphere_to_square`` sends polar angle to the radius
+    r = sqrt(1 - cos theta) (the square point's max-norm) and azimuth to r times a
+    point of the unit square's boundary, linear between its corners; so the image of
+    that polar rectangle, which holds the cone, lies in the box of the images of its
+    ends and of the square's corners it passes, each at the smallest and the largest r."""
+    theta = math.atan2(math.hypot(rx, ry), rz)
+    r_lo = math.sqrt(max(1.0 - math.cos(max(theta - cone, 0.0)), 0.0))
+    r_hi = math.sqrt(max(1.0 - math.cos(min(theta + cone, 0.5 * math.pi)), 0.0))
+    if theta <= cone:  # the pole is inside: every azimuth
+        a_lo, a_hi, b_lo, b_hi = -r_hi, r_hi, -r_hi, r_hi
+    else:
+        spread = math.asin(min(math.sin(cone) / math.sin(theta), 1.0)) / _PI_OVER_4
+        middle = math.atan2(ry, rx) / _PI_OVER_4
+        t, t_end = middle - spread, middle + spread
+        corner = 2.0 * math.floor((t - 1.0) / 2.0) + 3.0  # the first corner (an odd t) past t
+        a_lo, a_hi, b_lo, b_hi = 2.0, -2.0, 2.0, -2.0
+        while True:
+            sa, sb = _square_point(t)
+            a_lo, a_hi = min(a_lo, r_lo * sa, r_hi * sa), max(a_hi, r_lo * sa, r_hi * sa)
+            b_lo, b_hi = min(b_lo, r_lo * sb, r_hi * sb), max(b_hi, r_lo * sb, r_hi * sb)
+            if t >= t_end:
+                break
+            t = min(corner, t_end)
+            corner += 2.0
+    i_lo = max(0, int(math.floor((a_lo - WINDOW_MARGIN + 1.0) * 0.5 * grid_n - 0.5)))
+    i_hi = min(grid_n - 1, int(math.ceil((a_hi + WINDOW_MARGIN + 1.0) * 0.5 * grid_n - 0.5)))
+    j_lo = max(0, int(math.floor((b_lo - WINDOW_MARGIN + 1.0) * 0.5 * grid_n - 0.5)))
+    j_hi = min(grid_n - 1, int(math.ceil((b_hi + WINDOW_MARGIN + 1.0) * 0.5 * grid_n - 0.5)))
+    return i_lo, i_hi, j_lo, j_hi
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _variance_sum(moments, n_light, n_gather):
     """sum over directions of S2 - S1^2 / m of each group (light samples, gather rays)
     from ``moments`` (4, D): light S1, S2, gather S1, S2."""
@@ -337,10 +392,9 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     Each sample adds ks (n + 2) / (2 pi) cos^n(alpha) times its weight (and, with
     Fresnel, times F(wi.h) per channel) to the grid directions within its lobe, alpha measured from its mirror direction; directions
     where the lobe is below LOBE_CUTOFF of its peak are skipped (that loses at most
-    LOBE_CUTOFF of the lobe's energy). The cells to visit come from the grid's square:
-    the concentric map never shrinks angles by more than SQUARE_PER_RADIAN, so a
-    window of that many square units per radian of lobe holds every cell that
-    matters. cos^n comes from a table over the lobe's range of cos alpha, linearly
+    LOBE_CUTOFF of the lobe's energy). The cells to visit are those of the lobe's
+    window in the grid's square (``lobe_window``, exact for the map), or all of them
+    for a lobe of WHOLE_GRID_CONE or wider. cos^n comes from a table over the lobe's range of cos alpha, linearly
     interpolated (relative error ~1e-6 whatever n).
 
     mat : (NCOL,) the object's material row; emission : (3,); diffuse_radiance :
@@ -360,7 +414,8 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     n = mat[EXPONENT]
     norm = (n + 2.0) / (2.0 * math.pi)
     cos_min = math.exp(math.log(LOBE_CUTOFF) / n) if n > 1e-9 else 0.0
-    half = math.acos(cos_min) * SQUARE_PER_RADIAN
+    cone = math.acos(cos_min)
+    whole = cone >= WHOLE_GRID_CONE
     table = np.empty(LOBE_TABLE)
     step = (1.0 - cos_min) / (LOBE_TABLE - 1)
     for k in range(LOBE_TABLE):
@@ -410,11 +465,10 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
             s2 = moments[1] if s < used_light else moments[3]
             y = norm * (lum_ks[0] * weight[s, 0] + lum_ks[1] * weight[s, 1] + lum_ks[2] * weight[s, 2])
             rx, ry, rz = mirror[s, 0], mirror[s, 1], mirror[s, 2]
-            sa_, sb_ = hemisphere_to_square_nb(rx, ry, rz)
-            i_lo = max(0, int(math.floor((sa_ - half + 1.0) * 0.5 * grid_n - 0.5)))
-            i_hi = min(grid_n - 1, int(math.ceil((sa_ + half + 1.0) * 0.5 * grid_n - 0.5)))
-            j_lo = max(0, int(math.floor((sb_ - half + 1.0) * 0.5 * grid_n - 0.5)))
-            j_hi = min(grid_n - 1, int(math.ceil((sb_ + half + 1.0) * 0.5 * grid_n - 0.5)))
+            if whole:
+                i_lo, i_hi, j_lo, j_hi = 0, grid_n - 1, 0, grid_n - 1
+            else:
+                i_lo, i_hi, j_lo, j_hi = lobe_window(rx, ry, rz, cone, grid_n)
             w0, w1, w2 = weight[s, 0], weight[s, 1], weight[s, 2]
             for j in range(j_lo, j_hi + 1):
                 for i in range(i_lo, i_hi + 1):
