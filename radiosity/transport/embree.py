@@ -317,17 +317,20 @@ class RayTracer:
             self.rays_cast += int(rays)
             self.shadow_rays_cast += int(shadow_rays)
 
-    def close(self):
-        """Stop the batched queries' threads. The Embree scene itself is released with
-        the last reference to this tracer (``__del__``): a kernel still tracing with
-        ``embree`` (a task cancelled on a Dask worker, say) holds one through its caller."""
+    def close(self, wait=True):
+        """Stop the batched queries' threads (``wait``: once their queries are done).
+        The Embree scene itself is released with the last reference to this tracer
+        (``__del__``): a kernel still tracing with ``embree`` (a task cancelled on a Dask
+        worker, say) holds one through its caller."""
         if self._pool is not None:
-            self._pool.shutdown()
+            self._pool.shutdown(wait=wait)
             self._pool = None
 
     def __del__(self):
         try:
-            self.close()
+            # no waiting: the garbage collector may run this in any thread, one of the
+            # pool's own or one holding a lock its threads want
+            self.close(wait=False)
             if self._scene is not None:
                 self._lib.rtcReleaseScene(self._scene)
                 self._scene = None

@@ -214,3 +214,24 @@ def test_the_library_is_the_one_inside_the_embreex_wheel():
 
     path = embree.library_path()
     assert "embreex" in path and "libembree4" in path
+
+
+def test_dropping_a_tracer_does_not_wait_for_its_threads():
+    """``__del__`` (which the garbage collector may run in any thread, a pool thread or
+    one holding a lock the pool wants) stops the pool without waiting for a query still
+    running; ``close()`` called by the owner waits."""
+    import threading
+    import time
+
+    tracer = tracer_for([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], threads=2)
+    release = threading.Event()
+    running = tracer._pool.submit(release.wait, 30)
+    start = time.perf_counter()
+    tracer.__del__()
+    assert time.perf_counter() - start < 5 and not running.done()
+    release.set()
+    assert running.result(timeout=30) is True
+    other = tracer_for([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], threads=2)
+    done = other._pool.submit(time.sleep, 0.3)
+    other.close()
+    assert done.done()
