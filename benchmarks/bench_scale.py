@@ -20,7 +20,9 @@ qualities; scale_dask.jsonl for a run with the stages solve-dask or fit-dask, so
 on a Dask LocalCluster of this machine, threads against Dask): one row per size and stage
 (seconds, peak MB),
 and the log-log slope of each stage's time and memory between consecutive sizes (the
-issue's target: <= 1.15 between 10^5 and 10^6).
+issue's target: <= 1.15 between 10^5 and 10^6); and the plot scale.png (scale_medium.png,
+...): each stage's seconds and peak memory against triangles, log-log, slopes labelled, the
+targets drawn (``--plot-only`` draws it again from the results file).
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import Recorder
+from _common import RESULTS, Recorder
 
 ROOM = 4.0  # a room's side (scene units: metres)
 HEIGHT = 3.0
@@ -225,6 +227,57 @@ def warm_up(directory):
         run(args, directory)
 
 
+def plot(rows, path):
+    """Per stage, seconds and the process tree's peak memory against input triangles,
+    log-log, each segment labelled with its slope; the targets drawn: 5 minutes for
+    solve + fit, 8 GB, the fit's 2 x the solution's arrays."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [r for r in rows if "seconds" in r]
+    stages = list(dict.fromkeys(r["stage"] for r in runs))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.6))
+    for stage in stages:
+        sel = sorted((r for r in runs if r["stage"] == stage), key=lambda r: r["triangles"])
+        x = [r["triangles"] for r in sel]
+        for ax, key in ((left, "seconds"), (right, "tree_peak_mb")):
+            y = [r[key] for r in sel]
+            line, = ax.plot(x, y, "o-", label=stage)
+            for (x0, y0), (x1, y1) in zip(zip(x, y), zip(x[1:], y[1:])):
+                slope = math.log(y1 / y0) / math.log(x1 / x0)
+                ax.annotate(f"{slope:.2f}", (math.sqrt(x0 * x1), math.sqrt(y0 * y1)), fontsize=7,
+                            color=line.get_color(), ha="center", va="bottom")
+    both = {}
+    for r in runs:
+        if r["stage"] in ("solve", "fit"):
+            both.setdefault(r["triangles"], []).append(r["seconds"])
+    pairs = sorted((t, sum(v)) for t, v in both.items() if len(v) == 2)
+    if pairs:
+        left.plot(*zip(*pairs), "k--", lw=1, label="solve + fit")
+    left.axhline(300, color="grey", lw=0.8, ls=":")
+    left.text(runs[0]["triangles"], 300, "5 min (solve + fit, 10^6)", fontsize=7, va="bottom", color="grey")
+    right.axhline(8192, color="grey", lw=0.8, ls=":")
+    right.text(runs[0]["triangles"], 8192, "8 GB", fontsize=7, va="bottom", color="grey")
+    fits = sorted((r["triangles"], 2 * r["solution_mb"]) for r in runs if r["stage"] == "fit" and "solution_mb" in r)
+    if fits:
+        right.plot(*zip(*fits), color="grey", lw=0.8, ls="--", label="2 x solution (fit's target)")
+    for ax, label in ((left, "seconds"), (right, "peak MB (process tree)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("input triangles")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+    left.legend(fontsize=7)
+    right.legend(fontsize=7)
+    fig.suptitle(f"bench_scale, {runs[0].get('quality', 'draft')}, {runs[0].get('cores')} cores: "
+                 "each stage against triangles (labels: log-log slopes)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--triangles", type=int, nargs="+", default=[10_000, 100_000])
@@ -234,7 +287,14 @@ def main(argv=None):
                         help="the stages to run (the others' outputs must be in --keep from an earlier run); "
                         "solve-dask and fit-dask run solve and fit on a Dask LocalCluster (threads against Dask on "
                         "the same machine) and record whether their output has the same bits")
+    parser.add_argument("--plot-only", action="store_true",
+                        help="draw the plot again from the results file of --quality, running nothing")
     args = parser.parse_args(argv)
+    name = "scale" if args.quality == "draft" else f"scale_{args.quality}"
+    if args.plot_only:
+        plot([json.loads(line) for line in (RESULTS / f"{name}.jsonl").read_text().splitlines() if line.strip()],
+             RESULTS / f"{name}.png")
+        return
     record = Recorder(benchmark="scale", quality=args.quality)
     stages = [s for s in STAGES + DASK_STAGES if s in args.stages]
     rows = {}
@@ -282,7 +342,8 @@ def main(argv=None):
     if any(s in DASK_STAGES for s in stages):  # threads against Dask: a file of its own, the other left as it is
         record.save("scale_dask.jsonl")
     else:
-        record.save("scale.jsonl" if args.quality == "draft" else f"scale_{args.quality}.jsonl")
+        record.save(f"{name}.jsonl")
+        plot(record.rows, RESULTS / f"{name}.png")
 
 
 if __name__ == "__main__":

@@ -481,8 +481,9 @@ def textures(rows):
     return out + [""]
 
 
-def scale(rows, name="scale.jsonl", title="Scale"):
-    out = [f"## {title}", "", where("bench_scale.py", [name]), machine(rows), ""]
+def scale(rows, name="scale.jsonl", title="Scale", plotted=True):
+    files = [name, name.replace(".jsonl", ".png")] if plotted else [name]  # the plot: time and memory against triangles
+    out = [f"## {title}", "", where("bench_scale.py", files), machine(rows), ""]
     stages = [r for r in rows if "seconds" in r]
     if stages:
         out += [f"A generated closed interior (rooms of full-height walls with doorways, each with a table, a chair (closed by its seat), "
@@ -523,7 +524,7 @@ scale_medium.title = "Scale at medium"
 
 
 def scale_dask(rows):
-    return scale(rows, "scale_dask.jsonl", scale_dask.title)
+    return scale(rows, "scale_dask.jsonl", scale_dask.title, plotted=False)
 
 
 scale_dask.title = "Scale: threads against Dask"
