@@ -352,7 +352,7 @@ def lobe_window(rx, ry, rz, cone, grid_n):
         t, t_end = middle - spread, middle + spread
         corner = 2.0 * math.floor((t - 1.0) / 2.0) + 3.0  # the first corner (an odd t) past t
         a_lo, a_hi, b_lo, b_hi = 2.0, -2.0, 2.0, -2.0
-        while True:
+        for _ in range(8):  # the ends and the corners between them (t spans at most 4): bounded even for a NaN
             sa, sb = _square_point(t)
             a_lo, a_hi = min(a_lo, r_lo * sa, r_hi * sa), max(a_hi, r_lo * sa, r_hi * sa)
             b_lo, b_hi = min(b_lo, r_lo * sb, r_hi * sb), max(b_hi, r_lo * sb, r_hi * sb)
