@@ -176,9 +176,12 @@ def _fitted_words(renderer):
     return "fitted: " + (" + ".join(parts) if parts else "emitted colour")
 
 
+ORBIT_DEGREES = 35.0  # figure 5's views 2 and 3: view 1 turned this much each way
+
+
 def figure5_views(base_view):
-    """Figure 5's three viewpoints: ``base_view`` and it turned 35 degrees each way."""
-    return [base_view, orbit(base_view, -35.0), orbit(base_view, 35.0)]
+    """Figure 5's three viewpoints: ``base_view`` and it turned ORBIT_DEGREES each way."""
+    return [base_view, orbit(base_view, -ORBIT_DEGREES), orbit(base_view, ORBIT_DEGREES)]
 
 
 def truth_numbers(truth, images, exposure, mask):
@@ -305,9 +308,13 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             raise InputError(f"the reference image (the solution seen from view {i + 1}) {BLACK}; is the scene lit, "
                              "and does the camera see it?")
 
-    for i, truth in enumerate(truths):
+    for i, (view, truth) in enumerate(zip(views, truths)):
         if truth is not None and is_black(truth.radiance):
-            raise InputError(f"the path-traced truth of view {i + 1} {BLACK}")
+            eye = ", ".join(f"{c:.4g}" for c in view.eye)
+            where = "" if i == 0 else f", view 1 turned {ORBIT_DEGREES:g} degrees about its look-at point"
+            raise InputError(f"the path-traced truth of view {i + 1} (eye at ({eye}){where}) {BLACK}; is that eye "
+                             "outside the lit space, behind a wall? Views 2 and 3 turn view 1 about its look-at "
+                             "point: an eye nearer to it keeps them inside")
 
     with staged_directory(out_dir) as stage:
         for i, (view, reference, truth) in enumerate(zip(views, references, truths)):

@@ -192,7 +192,16 @@ def test_compare_refuses_a_black_truth_or_one_of_another_size(tmp_path, cli, tin
     # (found once traced: the progress lines come first, then the one line of the refusal)
     code, _, err = cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
                        "--truth-spp", "1")
-    assert code == 2 and err.count("\n") == 1 and "truth of view 1 is black" in err and "Traceback" not in err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert "truth of view 1 (eye at (" in err and ") is black" in err and "turned" not in err, err
+    # a view 2 or 3 that turns behind a wall: the line says where its eye is and why it is there
+    np.save(tmp_path / "lit.npy", np.ones((24, 24, 3), np.float32))
+    np.save(tmp_path / "dark.npy", np.zeros((24, 24, 3), np.float32))
+    code, _, err = cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
+                       "--truth", tmp_path / "lit.npy", tmp_path / "dark.npy")
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert "truth of view 2 (eye at (" in err and "view 1 turned 35 degrees about its look-at point) is black" in err
+    assert "an eye nearer to it keeps them inside" in err
     np.save(tmp_path / "small.npy", np.ones((8, 8, 3), np.float32))
     assert_refused(cli("compare", fit_path, solution_path, "--size", "24x24", "--out", tmp_path / "c",
                        "--truth", tmp_path / "small.npy"), "but the view is 24x24")
