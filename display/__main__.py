@@ -26,10 +26,10 @@ def main(argv=None):
     try:
         return run(argv)
     except KeyboardInterrupt as exc:  # in the instant between the import and run's own handling
-        status = _status(exc)
-        said = "interrupted" if status == 128 + signal.SIGINT else f"stopped by {signal.Signals(status - 128).name}"
-        print(f"vlights: {said}", file=sys.stderr)
-        return status
+        from display.cli import Terminated, _interrupted
+
+        signum = _status(exc) - 128
+        return _interrupted(None, exc if signum == signal.SIGINT else Terminated(signum))
 
 
 if __name__ == "__main__":

@@ -124,3 +124,23 @@ def test_a_bar_caught_half_made_still_ends_its_line(capsys):
         tqdm._instances.discard(half)
     _close_progress_bars()  # no bar left: nothing written
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("signum, status, said", [(signal.SIGINT, 130, "vlights: interrupted"),
+                                                  (signal.SIGTERM, 143, "vlights: stopped by SIGTERM")])
+def test_a_signal_between_the_imports_and_the_commands_handler_is_one_line(monkeypatch, capsys, signum, status, said):
+    """The entry point's own handler (KeyboardInterrupt carrying the signal's number)
+    firing after the imports, before ``display.cli.main`` catches anything."""
+    import display.__main__ as entry
+    import display.cli
+
+    def stopped(argv=None):
+        raise KeyboardInterrupt(int(signum))
+
+    monkeypatch.setattr(display.cli, "main", stopped)
+    previous = signal.getsignal(signal.SIGTERM)  # the entry point installs its own
+    try:
+        assert entry.main(["scene-info", "cornell-teapot"]) == status
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert capsys.readouterr().err.strip().splitlines() == [said]

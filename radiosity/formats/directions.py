@@ -48,6 +48,7 @@ __all__ = [
     "grid_size",
     "hemisphere_to_square",
     "hemisphere_to_square_nb",
+    "square_boundary_nb",
     "square_to_hemisphere",
     "square_to_hemisphere_nb",
 ]
@@ -236,15 +237,22 @@ def hemisphere_to_square_nb(x, y, z):
         radius = math.hypot(x, y) / math.sqrt(1.0 + z)
     else:
         radius = math.sqrt(1.0 - z)
-    t = math.atan2(y, x) * _FOUR_OVER_PI
-    if abs(t) < 1.0:
-        a, b = radius, radius * t
-    elif t >= 1.0 and t <= 3.0:
-        a, b = radius * (2.0 - t), radius
-    elif t <= -1.0 and t >= -3.0:
-        a, b = radius * (2.0 + t), -radius
-    elif t > 0.0:
-        a, b = -radius, radius * (4.0 - t)
-    else:
-        a, b = -radius, -radius * (4.0 + t)
+    sa, sb = square_boundary_nb(math.atan2(y, x) * _FOUR_OVER_PI)
+    a, b = radius * sa, radius * sb
     return min(max(a, -1.0), 1.0), min(max(b, -1.0), 1.0)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def square_boundary_nb(t):
+    """The point of the unit square's boundary at t = 4 / pi times an azimuth, t in
+    [-4, 4]: where ``hemisphere_to_square`` puts that azimuth at radius 1 (the corners
+    at odd t, linear between them)."""
+    if abs(t) < 1.0:
+        return 1.0, t
+    if t >= 1.0 and t <= 3.0:
+        return 2.0 - t, 1.0
+    if t <= -1.0 and t >= -3.0:
+        return 2.0 + t, -1.0
+    if t > 0.0:
+        return -1.0, 4.0 - t
+    return -1.0, -(4.0 + t)

@@ -17,6 +17,7 @@ import math
 import numba
 import numpy as np
 
+from radiosity.formats.directions import square_boundary_nb
 from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import (
     EMISSION,
@@ -313,22 +314,6 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     return rays, shadow
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _square_point(t):
-    """The point of the square's boundary [-1, 1]^2 at parameter t (4 / pi times the
-    azimuth, any real: taken modulo 8) as ``hemisphere_to_square`` lays it out."""
-    t = t - 8.0 * math.floor((t + 4.0) / 8.0)
-    if abs(t) < 1.0:
-        return 1.0, t
-    if t >= 1.0 and t <= 3.0:
-        return 2.0 - t, 1.0
-    if t <= -1.0 and t >= -3.0:
-        return 2.0 + t, -1.0
-    if t > 0.0:
-        return -1.0, 4.0 - t
-    return -1.0, -(4.0 + t)
-
-
 @numba.njit(cache=True, nogil=True)
 def lobe_window(rx, ry, rz, cone, grid_n):
     """(i_lo, i_hi, j_lo, j_hi): the cells of the n x n direction grid whose centres
@@ -353,7 +338,7 @@ def lobe_window(rx, ry, rz, cone, grid_n):
         corner = 2.0 * math.floor((t - 1.0) / 2.0) + 3.0  # the first corner (an odd t) past t
         a_lo, a_hi, b_lo, b_hi = 2.0, -2.0, 2.0, -2.0
         for _ in range(8):  # the ends and the corners between them (t spans at most 4): bounded even for a NaN
-            sa, sb = _square_point(t)
+            sa, sb = square_boundary_nb(t - 8.0 * math.floor((t + 4.0) / 8.0))  # t taken into [-4, 4)
             a_lo, a_hi = min(a_lo, r_lo * sa, r_hi * sa), max(a_hi, r_lo * sa, r_hi * sa)
             b_lo, b_hi = min(b_lo, r_lo * sb, r_hi * sb), max(b_hi, r_lo * sb, r_hi * sb)
             if t >= t_end:
