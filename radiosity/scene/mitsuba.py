@@ -194,6 +194,8 @@ class _Document:
                     raise node.fail("needs 'name' and 'value'")
                 self.params.setdefault(name, value)
         self.elements = self._expand(root.children, 0)
+        if self.major < 2:
+            _upgrade(self.elements)
         self.bitmaps = {}  # id(<texture> element) -> its _Bitmap, each file read once
         self.ids = {}
         for node in self._walk(self.elements):
@@ -254,6 +256,17 @@ class _Document:
         if target.tag not in tags:
             raise node.fail(f"id {ident!r} is a <{target.tag}>, not a {' or '.join(f'<{t}>' for t in tags)}")
         return target
+
+
+_OLD_TAGS = {"lookAt": "lookat"}  # Mitsuba 0.x's scene handler read both spellings as one tag
+
+
+def _upgrade(nodes):
+    """Mitsuba 0.x's spellings of tags in 2-3's, in place (as Mitsuba 3's own
+    ``upgrade_tree`` does for property names)."""
+    for node in nodes:
+        node.tag = _OLD_TAGS.get(node.tag, node.tag)
+        _upgrade(node.children)
 
 
 def _major_version(root):

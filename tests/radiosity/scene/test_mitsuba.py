@@ -794,6 +794,23 @@ def test_sensor_lookat_and_film():
     assert camera.fov_y_deg == pytest.approx(math.degrees(2 * math.atan(math.tan(math.radians(30)) * 6 / 8)))
 
 
+@pytest.mark.parametrize("version, tag, read", [("0.4.0", "lookAt", True), ("0.5.0", "lookAt", True),
+                                                ("0.6.0", "lookat", True), ("3.0.0", "lookAt", False)])
+def test_look_at_spellings(tmp_path, version, tag, read):
+    # Mitsuba 0.4-0.6's scene handler read <lookAt> and <lookat> as one tag; Mitsuba 2-3 know only <lookat>
+    path = write_scene(tmp_path, f"""<sensor type="perspective"><float name="fov" value="40"/>
+        <transform name="toWorld"><scale x="-1"/><scale x="-1"/>
+        <{tag} origin="0, 2, 15" target="0, -2, 2.5" up="0, 1, 0"/></transform></sensor>
+        <shape type="rectangle"/>""", version=version)
+    if not read:
+        assert f"<{tag}>: not a transform step" in refusal(path)
+        return
+    camera = load_quietly(path).camera
+    assert camera.eye == pytest.approx((0, 2, 15)) and camera.up[1] > 0.9
+    forward = np.subtract(camera.look_at, camera.eye)
+    assert forward / np.linalg.norm(forward) == pytest.approx(np.array([0, -4, -12.5]) / math.hypot(4, 12.5))
+
+
 def vertical_fov(fov, spans, height):
     """The vertical field of view of a camera whose ``fov`` spans ``spans`` pixels."""
     return math.degrees(2 * math.atan(math.tan(math.radians(fov) / 2) * height / spans))
