@@ -20,11 +20,29 @@ buffer (the multisampled float colour buffer of the larger image) reaches
 llvmpipe 2048x2048 with 32 samples is a 6144x6144 image of 4 samples a pixel, 2.4 GB
 in one buffer ("framebuffer incomplete"). ``framebuffer_refusals`` turns a framebuffer
 a driver still refuses into the same one line.
+
+Depth (``depth_control``): the renderer draws with reversed Z into a floating-point depth
+buffer, the precision that holds at any scale. Its projection maps the near plane to
+depth 1 and an infinite far plane to 0 (``display.renderer.Depth``); ``glClipControl(
+GL_LOWER_LEFT, GL_ZERO_TO_ONE)`` keeps that mapping as it is (the default, -1 to 1,
+would halve it and add 0.5, losing a float's precision near 0), and the depth buffers
+are GL_DEPTH_COMPONENT32F: a float's relative precision (2^-24) at every distance, so
+two surfaces a millionth of their distance apart stay apart. moderngl exposes neither,
+so ``DepthControl`` gets both entry points from the context's own loader through ctypes
+(EGL's ``eglGetProcAddress`` for the headless context, GLX's or WGL's for a window's)
+and re-specifies the storage of moderngl's depth renderbuffers as GL_DEPTH_COMPONENT32F.
+Where the context has no clip control (OpenGL below 4.5 without ARB_clip_control,
+macOS), ``depth_control`` is None and the renderer falls back to the conventional
+depth range (``display.renderer.Depth``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
+import functools
+import sys
 from typing import NamedTuple
 
 import moderngl
@@ -243,3 +261,110 @@ def check_image_memory(width, height, bytes_per_pixel=RENDER_BYTES_PER_PIXEL, fl
             f"({bytes_per_pixel} bytes a pixel), but only {_size(free)} is free; choose a smaller size"
         )
     return need
+
+
+# ---------------------------------------------------------------------------------- depth
+
+GL_RENDERBUFFER = 0x8D41
+GL_DEPTH_COMPONENT32F = 0x8CAC
+GL_LOWER_LEFT = 0x8CA1
+GL_NEGATIVE_ONE_TO_ONE = 0x935E  # the GL's default depth mode: clip z in [-w, w]
+GL_ZERO_TO_ONE = 0x935F          # clip z in [0, w], depth = z / w as it is
+CLIP_CONTROL_VERSION = 450       # glClipControl is core in OpenGL 4.5 (else GL_ARB_clip_control)
+
+
+@functools.cache
+def _library(*names):
+    """The first of the shared libraries ``names`` (ctypes.util names or file names) that loads, or None."""
+    for name in names:
+        path = ctypes.util.find_library(name) or name
+        try:
+            return ctypes.CDLL(path)
+        except OSError:
+            continue
+    return None
+
+
+def _loader():
+    """The current context's ``GetProcAddress`` (bytes name -> address or 0): EGL's where
+    an EGL context is current (``headless_context``), else GLX's (a window on X), WGL's
+    on Windows; None where there is none (macOS has no clip control anyway)."""
+    egl = _library("EGL", "libEGL.so.1")
+    if egl is not None and hasattr(egl, "eglGetCurrentContext"):
+        egl.eglGetCurrentContext.restype = ctypes.c_void_p
+        if egl.eglGetCurrentContext():
+            egl.eglGetProcAddress.restype = ctypes.c_void_p
+            egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+            return egl.eglGetProcAddress
+    if sys.platform == "win32":
+        wgl = getattr(ctypes, "WinDLL", ctypes.CDLL)("opengl32")
+        wgl.wglGetProcAddress.restype = ctypes.c_void_p
+        wgl.wglGetProcAddress.argtypes = [ctypes.c_char_p]
+        return wgl.wglGetProcAddress
+    glx = _library("GL", "libGL.so.1")
+    if glx is not None and hasattr(glx, "glXGetProcAddressARB"):
+        glx.glXGetProcAddressARB.restype = ctypes.c_void_p
+        glx.glXGetProcAddressARB.argtypes = [ctypes.c_char_p]
+        return glx.glXGetProcAddressARB
+    return None
+
+
+class DepthControl:
+    """Reversed Z for a context whose moderngl exposes no clip control and no float depth
+    buffer: ``glClipControl`` and ``glRenderbufferStorageMultisample`` called through
+    ctypes (``depth_control`` makes one)."""
+
+    def __init__(self, ctx, functions):
+        self.ctx = ctx
+        self._clip_control, self._bind_renderbuffer, self._storage = functions
+
+    def float_depth(self, renderbuffer):
+        """Re-specify moderngl's depth ``renderbuffer`` (its size and samples kept) as
+        GL_DEPTH_COMPONENT32F: float depth, before it is attached to a framebuffer."""
+        width, height = renderbuffer.size
+        self.ctx.error  # noqa: B018 -- reading it clears an error an earlier call left, not this one's
+        self._bind_renderbuffer(GL_RENDERBUFFER, renderbuffer.glo)
+        self._storage(GL_RENDERBUFFER, renderbuffer.samples, GL_DEPTH_COMPONENT32F, width, height)
+        self._bind_renderbuffer(GL_RENDERBUFFER, 0)
+        self._check("glRenderbufferStorageMultisample(GL_DEPTH_COMPONENT32F)")
+
+    @contextlib.contextmanager
+    def zero_to_one(self):
+        """Inside: clip z from 0 to w maps to depth 0 to 1 as it is (glClipControl
+        GL_LOWER_LEFT, GL_ZERO_TO_ONE); after: the GL's default again (-1 to 1), for
+        whatever else draws with the context (a window's text)."""
+        self.ctx.error  # noqa: B018 -- reading it clears an error an earlier call left, not this one's
+        self._clip_control(GL_LOWER_LEFT, GL_ZERO_TO_ONE)
+        self._check("glClipControl")
+        try:
+            yield
+        finally:
+            self._clip_control(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE)
+
+    def _check(self, call):
+        error = self.ctx.error
+        if error != "GL_NO_ERROR":
+            raise RuntimeError(f"{call} failed: {error}")
+
+
+def depth_control(ctx):
+    """A ``DepthControl`` for ``ctx`` (current), or None where it has no clip control
+    (below OpenGL 4.5 without GL_ARB_clip_control) or its entry points are not found."""
+    if ctx.version_code < CLIP_CONTROL_VERSION and "GL_ARB_clip_control" not in ctx.extensions:
+        return None
+    loader = _loader()
+    if loader is None:
+        return None
+    prototypes = (
+        (b"glClipControl", ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint)),
+        (b"glBindRenderbuffer", ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint)),
+        (b"glRenderbufferStorageMultisample",
+         ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_int, ctypes.c_uint, ctypes.c_int, ctypes.c_int)),
+    )
+    functions = []
+    for name, prototype in prototypes:
+        address = loader(name)
+        if not address:
+            return None
+        functions.append(prototype(address))
+    return DepthControl(ctx, functions)

@@ -35,11 +35,27 @@ Antialiasing (``samples`` per pixel, ``display.gl.sample_plan``)
     before any tone mapping. 1 sample is the pixel centre alone. Object masks, triangle
     ids and attributes (``object_mask``, ``render_triangles``, ``render_attributes``)
     are always one sample per pixel.
+Sides and depth
+    Surfaces are one-sided, as the solver and the path tracer have them: a triangle's
+    front (counter-clockwise seen from the eye, as its geometric normal says) shows its
+    radiance, its back is black and absorbs. A two-sided surface is two objects, the
+    front and a reversed copy BACK_OFFSET behind it (``radiosity.scene.model.back_of``).
+    ``draw`` draws every front face first (back faces culled), then every back face
+    black (front faces culled, ``back_fragment.glsl``) with a strict depth test: a back
+    shows only where it is nearer than every front, so a one-sided wall seen from behind
+    is a black occluder, and at (nearly) the same depth the front wins (a two-sided
+    wall's back copy over the front copy's back). Depth (``Depth``): reversed Z into a
+    float depth buffer where the context has clip control (``display.gl.depth_control``),
+    near 1 and an infinite far plane 0, the near plane from the scene's bounds and the
+    eye (``depth_range``): a float's relative precision at every distance, so any scale
+    draws alike; elsewhere the conventional range, -1 to 1 into 24 bits.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+from typing import NamedTuple
 
 import moderngl
 import numpy as np
@@ -48,7 +64,7 @@ from fitting.model import PARTS
 from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
-from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, sample_plan
+from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
 from .glsl import emitter_table, stage
 from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_memory, context_limits, store_layout
 
@@ -77,6 +93,10 @@ PROGRAMS = {
     "reference-feedback": dict(vertex_shader="reference_vertex.glsl", varyings=["v_colour"]),
     "box": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="box_fragment.glsl"),
     "background": dict(vertex_shader="background_vertex.glsl", fragment_shader="background_fragment.glsl"),
+    # a triangle seen from behind: black (and nothing in the attribute targets)
+    "back": dict(vertex_shader="back_vertex.glsl", fragment_shader="back_fragment.glsl"),
+    "back-attributes": dict(vertex_shader="back_vertex.glsl", fragment_shader="back_fragment.glsl",
+                            defines=("VL_ATTRIBUTES",)),
     "tonemap": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="tonemap_fragment.glsl"),
 }
 STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
@@ -88,6 +108,55 @@ def tonemap(hdr, exposure=1.0):
     x = np.clip(np.asarray(hdr, np.float64) * exposure, 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+
+
+NEAR_FRACTION = 1e-5  # the near plane at least this fraction of the distance to the scene's farthest point
+
+
+def depth_range(bounds, eye):
+    """(near, far) of a view from ``eye`` (3,) of a scene inside the box ``bounds`` ((2, 3):
+    min, max corners), in scene units: far the distance to the box's farthest corner, near
+    half the distance to the box (no geometry is nearer), and at least NEAR_FRACTION of
+    far (from inside the box, where geometry may be anywhere)."""
+    lo, hi = np.asarray(bounds, np.float64)
+    eye = np.asarray(eye, np.float64)
+    far = float(np.linalg.norm(np.maximum(np.abs(lo - eye), np.abs(hi - eye))))
+    outside = float(np.linalg.norm(np.maximum(np.maximum(lo - eye, eye - hi), 0.0)))
+    far = max(far, 1e-30)
+    return max(0.5 * outside, NEAR_FRACTION * far), far
+
+
+class Depth(NamedTuple):
+    """The depth convention of a renderer's draws. ``reversed``: reversed Z, the near plane
+    at depth 1 and an infinite far plane at 0 (clip z = near, w = distance along the view:
+    depth = near / distance, computed without cancellation), into a float depth buffer
+    with clip control (``display.gl.DepthControl``); else the conventional projection,
+    near at -1 and far at 1, depth 0 to 1 into 24 bits."""
+
+    reversed: bool
+
+    @property
+    def clear(self):
+        """The depth buffer's value where nothing is drawn: the far plane's."""
+        return 0.0 if self.reversed else 1.0
+
+    @property
+    def nearer(self):
+        """The strict depth test: nearer than what is there."""
+        return ">" if self.reversed else "<"
+
+    @property
+    def far_or_equal(self):
+        """The background's test: at the far plane, where nothing is drawn."""
+        return ">=" if self.reversed else "<="
+
+    def projection(self, view, near, far):
+        """(4, 4) float64 projection of ``view`` (its field of view and aspect from
+        ``Camera.projection_matrix``) with this convention's depth."""
+        m = view.projection_matrix(near, far)
+        if self.reversed:
+            m[2] = (0.0, 0.0, 0.0, near)  # clip z = near, clip w = -z_eye: depth = near / distance
+        return m
 
 
 class _Object:
@@ -117,6 +186,7 @@ class _Object:
         self.probe = None  # (row in the atlas, M, centre, lo, hi, albedo) of the fitted probe
         self.glossy = False  # a glossy object: lights, a probe or highlights in the fit, a grid in the solution
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
+        self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
 
     def add(self, ctx, attribute, values):
         values = np.asarray(values, np.float32)
@@ -156,6 +226,8 @@ class _Object:
         return ctx.vertex_array(program, content, index_buffer=self.index, index_element_size=4)
 
     def release(self):
+        for vao in self.back_vaos.values():
+            vao.release()
         for b in list(self.buffers.values()) + [self.index]:
             b.release()
         if self.lights is not None:
@@ -171,9 +243,10 @@ class _Framebuffers:
     with MSAA its samples are averaged into ``resolved`` (a float texture of its size);
     with supersampling ``output`` (W, H) gets the mean of each factor x factor block.
     ``output`` is the last of them: its colour attachment 0 is the image, a float texture.
-    One sample: ``scene`` alone, ``targets`` float textures."""
+    One sample: ``scene`` alone, ``targets`` float textures. With ``depth_control``
+    (``display.gl.DepthControl``) the depth buffer is float (GL_DEPTH_COMPONENT32F)."""
 
-    def __init__(self, ctx, size, targets, plan):
+    def __init__(self, ctx, size, targets, plan, depth_control=None):
         self.plan = plan
         big = (size[0] * plan.factor, size[1] * plan.factor)
         if plan.msaa > 1:
@@ -181,6 +254,8 @@ class _Framebuffers:
         else:
             colour = [ctx.texture(big, 4, dtype="f4") for _ in range(targets)]
         depth = ctx.depth_renderbuffer(big, samples=plan.msaa if plan.msaa > 1 else 0)  # 0: not multisampled
+        if depth_control is not None:
+            depth_control.float_depth(depth)
         self.scene = ctx.framebuffer(color_attachments=colour, depth_attachment=depth)
         self.resolved = ctx.framebuffer(color_attachments=[ctx.texture(big, 4, dtype="f4")]) if plan.msaa > 1 else None
         self.single = self.scene if self.resolved is None else self.resolved  # the samples averaged, (W factor, H factor)
@@ -296,6 +371,8 @@ class Renderer:
         if fit is None and solution is None:
             raise ValueError("give a fitted model, a solution, or both")
         self.ctx = ctx
+        self.depth_control = depth_control(ctx)  # None: no clip control, the conventional depth range
+        self.depth = Depth(reversed=self.depth_control is not None)
         self.samples = samples  # per pixel, in draw and render unless they are told otherwise
         self.plan = sample_plan(samples, ctx.max_samples)
         self.fit, self.solution = fit, solution
@@ -428,19 +505,20 @@ class Renderer:
         total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
         return total
 
-    def _program(self, key, parts=PARTS, textured=False):
+    def _program(self, key, parts=PARTS, textured=False, extra=()):
         """The program ``key`` (``PROGRAMS``) with the shading code of ``parts`` alone,
-        and a textured object's diffuse term if ``textured``."""
+        a textured object's diffuse term if ``textured``, and the defines ``extra``."""
         parts = tuple(p for p in PARTS if p in parts)
-        if (key, parts, textured) not in self._programs:
+        extra = tuple(extra)
+        if (key, parts, textured, extra) not in self._programs:
             spec = dict(PROGRAMS[key])
-            extra = spec.pop("defines", ()) + (("VL_TEXTURED",) if textured else ()) + (self.store.define,)
+            defines = spec.pop("defines", ()) + (("VL_TEXTURED",) if textured else ()) + (self.store.define,) + extra
             nodes = self.nodes["reference" if key.startswith("reference") else "fitted"]
             for name in STAGES:
                 if name in spec:
-                    spec[name] = stage(spec[name], nodes, parts, extra)
-            self._programs[(key, parts, textured)] = self.ctx.program(**spec)
-        return self._programs[(key, parts, textured)]
+                    spec[name] = stage(spec[name], nodes, parts, defines)
+            self._programs[(key, parts, textured, extra)] = self.ctx.program(**spec)
+        return self._programs[(key, parts, textured, extra)]
 
     def _drawn_parts(self, obj, mode, parts, n_lights):
         """The parts of ``obj``'s model a ``mode`` draws (of ``parts``): what its program holds."""
@@ -452,14 +530,12 @@ class Renderer:
         return tuple(p for p in PARTS if p in parts and have[p])
 
     def _matrices(self, view):
-        eye = np.asarray(view.eye, np.float64)
-        centre = self.bounds.mean(axis=0)
-        radius = 0.5 * np.linalg.norm(self.bounds[1] - self.bounds[0]) + 1e-9
-        distance = np.linalg.norm(centre - eye)
-        far = distance + 2 * radius
-        near = max(far * 1e-5, (distance - radius) * 0.5)
-        mvp = view.projection_matrix(near, far) @ view.view_matrix()
-        return mvp.T.astype(np.float32).tobytes()  # column-major for GLSL
+        """The view's model-view-projection, column-major float32 bytes for GLSL: the
+        depth range from the scene's bounds and the eye (``depth_range``) in the
+        renderer's depth convention (``Depth``)."""
+        near, far = depth_range(self.bounds, view.eye)
+        mvp = self.depth.projection(view, near, far) @ view.view_matrix()
+        return mvp.T.astype(np.float32).tobytes()
 
     def _set(self, program, name, value):
         if name in program:
@@ -530,7 +606,7 @@ class Renderer:
             texture.repeat_x, texture.repeat_y = True, False
             texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self._environment_texture = texture
-        program = self._program("background")
+        program = self._program("background", extra=("VL_REVERSED_Z",) if self.depth.reversed else ())
         right, up, forward = view.basis
         t = math.tan(math.radians(view.fov_y_deg) / 2)
         self._environment_texture.use(location=7)
@@ -542,11 +618,10 @@ class Renderer:
         program["cam_extent"].value = (t * view.width / view.height, t)
         program["viewport"].value = tuple(float(c) for c in size)
         self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.depth_func = "<="
+        self.ctx.depth_func = self.depth.far_or_equal
         if program not in self._full_screens:
             self._full_screens[program] = self.ctx.vertex_array(program, [])
         self._full_screens[program].render(moderngl.TRIANGLES, vertices=3)
-        self.ctx.depth_func = "<"
 
     def _framebuffers_for(self, size, targets, samples):
         """The framebuffers of this size, targets and samples: made on first use, kept for
@@ -557,7 +632,7 @@ class Renderer:
             plan = check_samples(self.ctx, samples, *size, flag="samples")
             if targets > 1 and plan.per_pixel > 1:
                 raise ValueError("several render targets are drawn with one sample per pixel only")
-            self._framebuffers[key] = _Framebuffers(self.ctx, size, targets, plan)
+            self._framebuffers[key] = _Framebuffers(self.ctx, size, targets, plan, self.depth_control)
         return self._framebuffers[key]
 
     def _average(self, fbs):
@@ -615,9 +690,28 @@ class Renderer:
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
         ctx.viewport = (0, 0, *fbs.scene.size)
-        ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)  # one-sided surfaces are still seen from behind
+        with self._depth_convention():
+            ctx.clear(0.0, 0.0, 0.0, 0.0, depth=self.depth.clear)
+            self._draw_objects(view, mode, shading, lights, program_key, mask, parts)
+            if self.environment is not None and mask is None and program_key is None and targets == 1:
+                self._draw_background(view, fbs.scene.size)
+            ctx.depth_func = "<"  # moderngl's default, for whatever draws next with the context
+        return self._average(fbs)
+
+    def _depth_convention(self):
+        """Inside: the renderer's depth convention (``Depth``): clip z from 0 to w where it
+        is reversed (``display.gl.DepthControl.zero_to_one``)."""
+        return self.depth_control.zero_to_one() if self.depth_control is not None else contextlib.nullcontext()
+
+    def _draw_objects(self, view, mode, shading, lights, program_key, mask, parts):
+        """Every object's front faces shaded (back faces culled), then every back face
+        black with a strict depth test (front faces culled): the module's "Sides and
+        depth"."""
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.front_face = "ccw"  # the geometric normal's side: (b - a) x (c - a)
+        ctx.cull_face = "back"
+        ctx.depth_func = self.depth.nearer
         mvp = self._matrices(view)
         eye = tuple(float(v) for v in view.eye)
         ready = set()
@@ -662,9 +756,16 @@ class Renderer:
             vao = obj.vao(ctx, program, attributes, sources=sources)
             vao.render(moderngl.TRIANGLES)
             vao.release()
-        if self.environment is not None and mask is None and program_key is None and targets == 1:
-            self._draw_background(view, fbs.scene.size)
-        return self._average(fbs)
+        # the backs, after every front: black where nearer than every front (strictly)
+        program = self._program("back-attributes" if program_key == "attributes" else "back")
+        program["mvp"].write(mvp)
+        ctx.cull_face = "front"
+        for obj in self.objects:
+            if program not in obj.back_vaos:
+                obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
+            obj.back_vaos[program].render(moderngl.TRIANGLES)
+        ctx.cull_face = "back"
+        ctx.disable(moderngl.CULL_FACE)
 
     def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS):
         """Linear radiance (H, W, 3) float32, row 0 at the top, the background the
