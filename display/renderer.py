@@ -110,20 +110,29 @@ def tonemap(hdr, exposure=1.0):
     return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
 
-NEAR_FRACTION = 1e-5  # the near plane at least this fraction of the distance to the scene's farthest point
+# The near plane, at least this fraction of the distance to the scene's farthest point
+# (from inside the scene's box, where geometry may be anywhere): with reversed Z the near
+# plane costs no precision, only what it clips (1e-5 of a 40 m interior is 0.4 mm; on
+# llvmpipe the test scenes draw right down to 1e-7, a floor clipped behind the eye
+# included); the conventional depth range spends its 24 bits by it (1e-3: the 1 mm gap
+# in a 10 m room right, 1e-4 not).
+NEAR_FRACTION = {True: 1e-5, False: 1e-3}
+# glPolygonOffset of the back faces in the conventional range: 4 of its steps (and one a
+# step of slope) behind their place, so that rounding never brings a two-sided wall's
+# front copy's back before its back copy (BACK_OFFSET apart) where the steps are coarser.
+BACK_FACE_OFFSET = (1.0, 4.0)
 
 
-def depth_range(bounds, eye):
+def depth_range(bounds, eye, near_fraction=NEAR_FRACTION[True]):
     """(near, far) of a view from ``eye`` (3,) of a scene inside the box ``bounds`` ((2, 3):
     min, max corners), in scene units: far the distance to the box's farthest corner, near
-    half the distance to the box (no geometry is nearer), and at least NEAR_FRACTION of
-    far (from inside the box, where geometry may be anywhere)."""
+    half the distance to the box (no geometry is nearer), at least ``near_fraction`` of
+    far (from inside the box)."""
     lo, hi = np.asarray(bounds, np.float64)
     eye = np.asarray(eye, np.float64)
-    far = float(np.linalg.norm(np.maximum(np.abs(lo - eye), np.abs(hi - eye))))
+    far = max(float(np.linalg.norm(np.maximum(np.abs(lo - eye), np.abs(hi - eye)))), 1e-30)
     outside = float(np.linalg.norm(np.maximum(np.maximum(lo - eye, eye - hi), 0.0)))
-    far = max(far, 1e-30)
-    return max(0.5 * outside, NEAR_FRACTION * far), far
+    return max(0.5 * outside, near_fraction * far), far
 
 
 class Depth(NamedTuple):
@@ -144,6 +153,18 @@ class Depth(NamedTuple):
     def nearer(self):
         """The strict depth test: nearer than what is there."""
         return ">" if self.reversed else "<"
+
+    @property
+    def near_fraction(self):
+        """``depth_range``'s least near plane, a fraction of the far distance."""
+        return NEAR_FRACTION[self.reversed]
+
+    @property
+    def back_offset(self):
+        """glPolygonOffset (factor, units) of the back faces: pushed away from the eye
+        where depth is coarse, so that rounding cannot bring a back in front of the
+        front it lies behind; none with reversed Z."""
+        return BACK_FACE_OFFSET if not self.reversed else (0.0, 0.0)
 
     @property
     def far_or_equal(self):
@@ -533,7 +554,7 @@ class Renderer:
         """The view's model-view-projection, column-major float32 bytes for GLSL: the
         depth range from the scene's bounds and the eye (``depth_range``) in the
         renderer's depth convention (``Depth``)."""
-        near, far = depth_range(self.bounds, view.eye)
+        near, far = depth_range(self.bounds, view.eye, self.depth.near_fraction)
         mvp = self.depth.projection(view, near, far) @ view.view_matrix()
         return mvp.T.astype(np.float32).tobytes()
 
@@ -760,10 +781,12 @@ class Renderer:
         program = self._program("back-attributes" if program_key == "attributes" else "back")
         program["mvp"].write(mvp)
         ctx.cull_face = "front"
+        ctx.polygon_offset = self.depth.back_offset
         for obj in self.objects:
             if program not in obj.back_vaos:
                 obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
             obj.back_vaos[program].render(moderngl.TRIANGLES)
+        ctx.polygon_offset = (0.0, 0.0)
         ctx.cull_face = "back"
         ctx.disable(moderngl.CULL_FACE)
 

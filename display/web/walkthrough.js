@@ -34,6 +34,18 @@
 // framebuffer (MSAA, `samples` per pixel), then exposure, clipping and sRGB map it to
 // the screen with tonemap.glsl, the renderer's and the window's (display.renderer.tonemap).
 //
+// Sides and depth, as display.renderer draws them (its docstring, "Sides and depth"):
+// surfaces are one-sided, so each object's front faces are drawn first (FrontSide), then
+// every back face black (back_fragment.glsl, BackSide, renderOrder 1) with a strict depth
+// test ("<"): a one-sided wall seen from behind is a black occluder, and a two-sided
+// wall's back copy wins over its front copy's back. Depth is reversed Z where the
+// browser has EXT_clip_control (three.js's reversedDepthBuffer: near at 1, here an
+// infinite far plane at 0, DepthCamera) into a float depth buffer (a FloatType
+// DepthTexture on the render target: DEPTH_COMPONENT32F), the near plane from the
+// scene's box and the eye (depthRange: display.renderer.depth_range); elsewhere the
+// conventional range into 24 bits, a larger near plane and the back faces pushed back
+// by a polygon offset, as the renderer does without clip control.
+//
 // URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
 // exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
 // of the model are not drawn, as `vlights render --off`) file=scene.glb maxtexture=n (the
@@ -69,6 +81,12 @@ const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
 const DEFAULT_FOV = 39.3; // display.camera.framing_view
+// display.renderer.NEAR_FRACTION and BACK_FACE_OFFSET: the least near plane, a fraction of
+// the far distance, with reversed Z (true) and without; the back faces' polygon offset
+// (factor, units) without
+const NEAR_FRACTION = { true: 1e-5, false: 1e-3 };
+const BACK_FACE_OFFSET = [1, 4];
+export const REVERSED_Z = '#define VL_REVERSED_Z\n'; // the background at depth 0 (background_vertex.glsl)
 
 // -------------------------------------------------------------------------------- shaders
 
@@ -108,20 +126,21 @@ export async function stageSource(name, extra = '') {
     return (await shaderFile('es_header.glsl')) + DEFINES + extra + (await resolveShader(name));
 }
 
-// the fitted model per pixel (as `vlights render --shading pixel`) and the tone map; with
-// `textured`, also the fitted program of textured objects (#define VL_TEXTURED); with
-// `environment`, the background's program
-async function loadShaders(textured, environment) {
-    const [fittedVertex, fittedFragment, screenVertex, tonemapFragment] = await Promise.all(
-        ['web_vertex.glsl', 'fitted_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'].map((n) => stageSource(n)));
-    const shaders = { fittedVertex, fittedFragment, screenVertex, tonemapFragment };
+// the fitted model per pixel (as `vlights render --shading pixel`), the backs' fragment
+// stage (after web_vertex.glsl) and the tone map; with `textured`, also the fitted program
+// of textured objects (#define VL_TEXTURED); with `environment`, the background's program
+// (#define VL_REVERSED_Z where `reversed`)
+async function loadShaders(textured, environment, reversed) {
+    const names = ['web_vertex.glsl', 'fitted_fragment.glsl', 'back_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'];
+    const [fittedVertex, fittedFragment, backFragment, screenVertex, tonemapFragment] = await Promise.all(names.map((n) => stageSource(n)));
+    const shaders = { fittedVertex, fittedFragment, backFragment, screenVertex, tonemapFragment };
     if (textured) {
         [shaders.texturedVertex, shaders.texturedFragment] = await Promise.all(
             ['web_vertex.glsl', 'fitted_fragment.glsl'].map((n) => stageSource(n, TEXTURED)));
     }
     if (environment) {
         [shaders.backgroundVertex, shaders.backgroundFragment] = await Promise.all(
-            ['background_vertex.glsl', 'background_fragment.glsl'].map((n) => stageSource(n)));
+            ['background_vertex.glsl', 'background_fragment.glsl'].map((n) => stageSource(n, reversed ? REVERSED_Z : '')));
     }
     return shaders;
 }
@@ -397,7 +416,8 @@ function makeObject(node, info, fit) {
         glslVersion: THREE.GLSL3,
         vertexShader: textured ? fit.shaders.texturedVertex : fit.shaders.fittedVertex,
         fragmentShader: textured ? fit.shaders.texturedFragment : fit.shaders.fittedFragment,
-        side: THREE.DoubleSide, // one-sided surfaces are still seen from behind
+        side: THREE.FrontSide, // the back faces: its child, black (backMaterial)
+        depthFunc: THREE.LessDepth, // strict, as the renderer's (reversed: ">", three.js turns it)
         uniforms: {
             eye: { value: new THREE.Vector3() },
             flat_colour: { value: new THREE.Vector4(0, 0, 0, 0) }, // w = 0: shaded (the renderer's masks set it)
@@ -433,7 +453,24 @@ function makeObject(node, info, fit) {
     mesh.name = info.name;
     mesh.frustumCulled = false;
     mesh.userData = { ...info, parts, probeSize: probe ? probe.size : 0 };
+    const back = new THREE.Mesh(geometry, fit.backMaterial);
+    back.name = `${info.name}: its back faces`;
+    back.frustumCulled = false;
+    back.renderOrder = 1; // after every front (renderOrder 0)
+    mesh.add(back);
     return mesh;
+}
+
+// The back faces of every object (display.renderer's back pass): black, with a strict
+// depth test after every front, so that a front at the same depth wins; where depth is
+// coarse (no reversed Z) pushed back by BACK_FACE_OFFSET. Its vertex stage is the
+// objects' own (web_vertex.glsl), so that fronts and backs rasterise alike.
+function backMaterial(shaders, reversed) {
+    return new THREE.RawShaderMaterial({
+        glslVersion: THREE.GLSL3, vertexShader: shaders.fittedVertex, fragmentShader: shaders.backFragment,
+        side: THREE.BackSide, depthFunc: THREE.LessDepth,
+        polygonOffset: !reversed, polygonOffsetFactor: BACK_FACE_OFFSET[0], polygonOffsetUnits: BACK_FACE_OFFSET[1],
+    });
 }
 
 // ---------------------------------------------------------------------------- environment
@@ -497,8 +534,9 @@ function fullScreenTriangle() {
 }
 
 // The background (display.renderer.Renderer._draw_background): one triangle at the far
-// plane drawn after the objects (renderOrder), where the depth test "<=" lets it through,
-// writing no depth; its camera uniforms set each frame (Walkthrough.draw).
+// plane drawn after the objects and their backs (renderOrder), where the depth test "<="
+// (reversed: ">=") lets it through, writing no depth; its camera uniforms set each frame
+// (Walkthrough.draw).
 function backgroundMesh(environment, shaders, floatLinear) {
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3, vertexShader: shaders.backgroundVertex, fragmentShader: shaders.backgroundFragment,
@@ -517,14 +555,15 @@ function backgroundMesh(environment, shaders, floatLinear) {
     const mesh = new THREE.Mesh(fullScreenTriangle(), material);
     mesh.name = 'environment';
     mesh.frustumCulled = false;
-    mesh.renderOrder = 1; // after every object (renderOrder 0)
+    mesh.renderOrder = 2; // after every object (renderOrder 0) and every back (1)
     return mesh;
 }
 
 // ---------------------------------------------------------------------------------- fit
 
-// `maxTexture`: the largest texture side the page may use (textureLimit)
-export async function loadFit(url, maxTexture) {
+// `maxTexture`: the largest texture side the page may use (textureLimit); `reversed`:
+// the renderer draws with reversed Z (the background's shader depends on it)
+export async function loadFit(url, maxTexture, reversed = false) {
     const gltf = await new GLTFLoader().loadAsync(url);
     const extras = gltf.scene.userData || {};
     if (extras.format !== FORMAT || !VERSIONS.includes(extras.version)) {
@@ -555,7 +594,8 @@ export async function loadFit(url, maxTexture) {
     if (environment) {
         checkTextures('the scene', [{ what: 'its environment', width: environment.width, height: environment.height }], maxTexture);
     }
-    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders: await loadShaders(textured, environment) };
+    const shaders = await loadShaders(textured, environment, reversed);
+    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders, backMaterial: backMaterial(shaders, reversed) };
     const scene = new THREE.Scene();
     const objects = [];
     const bounds = new THREE.Box3();
@@ -578,6 +618,38 @@ function framingView(bounds, fov) {
     const radius = Math.max(0.5 * bounds.getSize(new THREE.Vector3()).length(), 1e-9);
     const distance = radius / Math.sin(THREE.MathUtils.degToRad(fov) / 2) * 1.05;
     return { eye: [centre.x, centre.y, centre.z - distance], look_at: centre.toArray(), up: [0, 1, 0], fov_y_deg: fov };
+}
+
+// The page's camera: three.js's perspective (its fov and aspect), with the depth of
+// display.renderer.Depth.projection: with reversed Z (three.js's own when the renderer
+// has reversedDepthBuffer) the far plane at infinity, clip z = near, so that depth =
+// near / distance, computed without cancellation; otherwise three.js's near to far.
+export class DepthCamera extends THREE.PerspectiveCamera {
+    updateProjectionMatrix() {
+        super.updateProjectionMatrix();
+        if (this.reversedDepth) {
+            const e = this.projectionMatrix.elements; // column-major: row 2 is e[2], e[6], e[10], e[14]
+            e[10] = 0;
+            e[14] = this.near;
+            this.projectionMatrixInverse.copy(this.projectionMatrix).invert();
+        }
+    }
+}
+
+// display.renderer.depth_range: (near, far) of a view from `eye` (Vector3) of a scene in
+// the box `bounds` (Box3): far the distance to the box's farthest corner, near half the
+// distance to the box, at least `fraction` of far
+export function depthRange(bounds, eye, fraction) {
+    const corner = new THREE.Vector3(
+        Math.max(Math.abs(bounds.min.x - eye.x), Math.abs(bounds.max.x - eye.x)),
+        Math.max(Math.abs(bounds.min.y - eye.y), Math.abs(bounds.max.y - eye.y)),
+        Math.max(Math.abs(bounds.min.z - eye.z), Math.abs(bounds.max.z - eye.z)));
+    const far = Math.max(corner.length(), 1e-30);
+    const outside = new THREE.Vector3(
+        Math.max(bounds.min.x - eye.x, eye.x - bounds.max.x, 0),
+        Math.max(bounds.min.y - eye.y, eye.y - bounds.max.y, 0),
+        Math.max(bounds.min.z - eye.z, eye.z - bounds.max.z, 0)).length();
+    return [Math.max(0.5 * outside, fraction * far), far];
 }
 
 class Walkthrough {
@@ -611,7 +683,8 @@ class Walkthrough {
             this.background = backgroundMesh(fit.environment, fit.shaders, this.renderer.extensions.has('OES_texture_float_linear'));
             fit.scene.add(this.background);
         }
-        this.camera = new THREE.PerspectiveCamera(this.start.fov, 1, 0.1, 10);
+        this.reversed = this.renderer.capabilities.reversedDepthBuffer; // reversed Z (EXT_clip_control)
+        this.camera = new DepthCamera(this.start.fov, 1, 0.1, 10); // three.js marks it reversedDepth at its first frame
 
         this.tonemap = new THREE.RawShaderMaterial({
             glslVersion: THREE.GLSL3, vertexShader: fit.shaders.screenVertex, fragmentShader: fit.shaders.tonemapFragment,
@@ -692,22 +765,21 @@ class Walkthrough {
         return moved;
     }
 
-    // display.renderer.Renderer._matrices: depth range from the scene's bounding sphere
+    // display.renderer.Renderer._matrices: the depth range from the scene's box and the eye
     depthRange() {
-        const centre = this.fit.bounds.getCenter(new THREE.Vector3());
-        const radius = 0.5 * this.fit.bounds.getSize(new THREE.Vector3()).length() + 1e-9;
-        const distance = centre.distanceTo(this.camera.position);
-        const far = distance + 2 * radius;
-        this.camera.near = Math.max(far * 1e-5, (distance - radius) * 0.5);
-        this.camera.far = far;
+        [this.camera.near, this.camera.far] = depthRange(this.fit.bounds, this.camera.position, NEAR_FRACTION[this.reversed]);
     }
 
     target(width, height) {
         if (!this.hdr || this.hdr.width !== width || this.hdr.height !== height || this.hdr.samples !== this.samples) {
             if (this.hdr) this.hdr.dispose();
+            // with reversed Z, float depth: a FloatType depth texture makes three.js's depth
+            // buffer DEPTH_COMPONENT32F (multisampled too), never read (resolveDepthBuffer false)
             this.hdr = new THREE.WebGLRenderTarget(width, height, {
                 type: THREE.FloatType, format: THREE.RGBAFormat, samples: this.samples > 1 ? this.samples : 0,
                 minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter, depthBuffer: true, generateMipmaps: false,
+                depthTexture: this.reversed ? new THREE.DepthTexture(width, height, THREE.FloatType) : null,
+                resolveDepthBuffer: false,
             });
         }
         return this.hdr;
@@ -823,9 +895,11 @@ export async function main() {
     try {
         const query = parseQuery(window.location.search);
         // the renderer first: the fit's textures are checked against its GPU's limit before any is made
-        const renderer = new THREE.WebGLRenderer({ canvas, antialias: false, alpha: false, preserveDrawingBuffer: true });
+        // reversed Z where the browser has EXT_clip_control (capabilities.reversedDepthBuffer says)
+        const renderer = new THREE.WebGLRenderer({ canvas, antialias: false, alpha: false, preserveDrawingBuffer: true,
+                                                   reversedDepthBuffer: true });
         maxTexture = textureLimit(renderer.getContext(), query);
-        const fit = await loadFit(query.file, maxTexture);
+        const fit = await loadFit(query.file, maxTexture, renderer.capabilities.reversedDepthBuffer);
         const walkthrough = new Walkthrough(canvas, overlay, fit, query, renderer);
         window.vlights = {
             walkthrough,
