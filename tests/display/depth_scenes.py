@@ -60,8 +60,8 @@ def room_objects(scale=1.0):
     objects, radiance = [], {}
     for name, (rgb, corner, u, v) in WALLS.items():
         c, u, v = (np.asarray(x, np.float64) * scale for x in (corner, u, v))
-        # split in 4 x 4 cells: the walls' triangles are long, as an interior's are, but not one
-        n = 4
+        # split in 2 x 2 cells: the walls' triangles are long, as an interior's are, but not one
+        n = 2
         s, t = np.meshgrid(np.arange(n + 1) / n, np.arange(n + 1) / n, indexing="ij")
         positions = c + s.reshape(-1, 1) * u + t.reshape(-1, 1) * v
         i = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
@@ -99,39 +99,44 @@ def solution(scale=1.0, environment=False):
             FittedModel(objects=tuple(fitted), source="depth", environment=env))
 
 
+CHUNK = 16384  # rays cast at a time (each against every triangle of an object)
+
+
 def expected(objects, camera, background=(0.0, 0.0, 0.0)):
     """What each pixel's centre sees, by ray casting in float64 against every triangle of
-    ``objects`` (a sequence of ``ObjectSolution`` or ``SceneObject``, whose radiance is
-    ``radiance[name]``, given as (name, positions, faces, rgb) tuples): (image (H, W, 3)
-    float64, row 0 at the top: the nearest triangle's rgb where the ray meets its front,
-    0 where its back, ``background`` where none; what (H, W) int: the nearest object's
-    index, -1 where none; front (H, W) bool)."""
+    ``objects`` ((name, positions (V, 3), faces (F, 3), rgb) tuples: ``casting``): (image
+    (H, W, 3) float64, row 0 at the top: the nearest triangle's rgb where the ray meets
+    its front, 0 where its back, ``background`` where none; what (H, W) int: the nearest
+    object's index, -1 where none; front (H, W) bool)."""
     rays = camera.pixel_rays().reshape(-1, 3)
     eye = np.asarray(camera.eye, np.float64)
     best = np.full(len(rays), np.inf)
     what = np.full(len(rays), -1)
     front = np.zeros(len(rays), bool)
     for index, (_, positions, faces, _) in enumerate(objects):
+        # Moller-Trumbore with the eye fixed: det, u and v are dot products of the ray with
+        # a vector per triangle, a chunk of rays against every triangle in three products
         tri = np.asarray(positions, np.float64)[faces]  # (T, 3, 3)
         a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        normal = np.cross(e1, e2)
-        p = np.cross(rays[:, None, :], e2[None])  # (P, T, 3)
-        det = np.einsum("ptc,tc->pt", p, e1)
-        ok = np.abs(det) > 1e-300
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        s = eye[None, :] - a  # (T, 3)
-        u = np.einsum("ptc,tc->pt", p, s) * inv
-        q = np.cross(s, e1)  # (T, 3)
-        v = np.einsum("pc,tc->pt", rays, q) * inv
-        t = np.einsum("tc,tc->t", e2, q)[None, :] * inv
-        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-        t = np.where(hit, t, np.inf)
-        nearest = t.argmin(axis=1)
-        tn = t[np.arange(len(rays)), nearest]
-        closer = tn < best
-        best[closer] = tn[closer]
-        what[closer] = index
-        front[closer] = np.einsum("pc,pc->p", rays[closer], normal[nearest[closer]]) < 0
+        normal = np.cross(e1, e2)  # det = -d . normal
+        s = eye[None, :] - a
+        w = np.cross(e2, s)  # u det = d . w
+        q = np.cross(s, e1)  # v det = d . q
+        tq = np.einsum("tc,tc->t", e2, q)  # t det
+        for start in range(0, len(rays), CHUNK):
+            d = rays[start:start + CHUNK]
+            det = -(d @ normal.T)  # (P, T)
+            ok = np.abs(det) > 1e-300
+            inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+            u, v, t = (d @ w.T) * inv, (d @ q.T) * inv, tq[None, :] * inv
+            t = np.where(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0), t, np.inf)
+            nearest = t.argmin(axis=1)
+            tn = t[np.arange(len(d)), nearest]
+            closer = tn < best[start:start + CHUNK]
+            rows = np.nonzero(closer)[0] + start
+            best[rows] = tn[closer]
+            what[rows] = index
+            front[rows] = np.einsum("pc,pc->p", d[closer], normal[nearest[closer]]) < 0
     image = np.tile(np.float64(background), (len(rays), 1))
     for index, (_, _, _, rgb) in enumerate(objects):
         image[(what == index) & front] = rgb

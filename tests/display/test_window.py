@@ -157,3 +157,50 @@ def test_a_screenshot_on_a_full_disk_fails_the_run(x_display, tiny_pair, tmp_pat
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr[-800:]
     assert "shot.png" in run.stderr and "No space left on device" in run.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+WINDOW_DEPTH = """
+import moderngl
+from display.gl import depth_control
+ctx = moderngl.create_standalone_context()  # GLX on the X server of DISPLAY, as the window's
+print(ctx.info["GL_VERSION"], depth_control(ctx) is not None)
+"""
+
+
+def test_a_glx_context_gets_clip_control(x_display):
+    """The window's context is GLX's, not EGL's: ``display.gl.depth_control`` finds
+    glClipControl through glXGetProcAddressARB there (Xvfb's Mesa has OpenGL 4.5)."""
+    import sys
+
+    env = dict(os.environ, DISPLAY=x_display)
+    run = subprocess.run([sys.executable, "-c", WINDOW_DEPTH], capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr[-800:]
+    version, found = run.stdout.split()[0], run.stdout.split()[-1]
+    assert found == ("True" if float(version) >= 4.5 else "False"), run.stdout
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+@pytest.mark.parametrize("scale", [1e-3, 1e4])
+def test_the_window_draws_sides_and_depth_right(x_display, tmp_path, scale):
+    """test_depth's room (1 mm gaps, a two-sided partition, the walls seen from behind)
+    in the window, which draws with the same renderer: the screenshot is the tone-mapped
+    answer of the numpy ray caster within 1/255 at every pixel whose neighbours see one
+    surface, below the status line."""
+    from depth_scenes import casting, expected, interior, solution
+    from depth_scenes import view as scene_view
+
+    from display.renderer import tonemap
+
+    sol, fit = solution(scale)
+    fit.save(tmp_path / "fit.npz")
+    for name in ("inside, the partition's back", "inside, the panel's gap", "outside, behind the back wall"):
+        camera = scene_view(name, scale, (320, 240))
+        flags = ["--eye", *map(repr, camera.eye), "--look-at", *map(repr, camera.look_at), "--up", "0", "1", "0",
+                 "--fov", "60", "--samples", "1", "--size", "320x240"]
+        got = view(x_display, tmp_path / "fit.npz", tmp_path, name.replace(" ", "-").replace(",", ""), *flags)
+        want, what, front = expected(casting(sol), camera)
+        checked = interior(what, front)
+        checked[:40] = False  # the status line
+        assert checked.mean() > 0.6, name
+        diff = np.abs(got[..., :3].astype(int) - tonemap(want).astype(int)).max(axis=2)
+        assert (diff[checked] <= 1).all(), (name, int((diff[checked] > 1).sum()))
