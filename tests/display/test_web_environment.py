@@ -108,7 +108,7 @@ def test_page_draws_the_environment_as_render(browser, site_env, tmp_path, mode,
         page.close()
     env = load_fit(fit).environment
     h, w = env.image.shape[:2]
-    assert texture == {"renderOrder": 1, "frustumCulled": False, "depthWrite": False, "depthFunc": True, "objects": 2,
+    assert texture == {"renderOrder": 2, "frustumCulled": False, "depthWrite": False, "depthFunc": True, "objects": 2,
                        "type": True, "format": True, "flipY": False, "wrap": [True, True], "filter": [True, True],
                        "mipmaps": False, "size": [w, h], "rgba": texture["rgba"], "scale": SCALE,
                        "rotation": texture["rotation"]}
@@ -168,16 +168,18 @@ def test_environment_texture_falls_back_to_half_floats(browser, site_env):
 @needs_browser
 @pytest.mark.parametrize("site_env", ["map"], indirect=True)
 def test_the_background_is_the_renderers_shader_files(browser, site_env):
-    """The background's stages are the page's header, the renderer's #define lines and the
+    """The background's stages are the page's header, the renderer's #define lines (with
+    VL_REVERSED_Z where the page draws with reversed Z, as the renderer's) and the
     renderer's own background_vertex.glsl and background_fragment.glsl (display.glsl)."""
     from display.glsl import ES_HEADER, defines, read, resolve
 
     _, _, url = site_env
     page = open_page(browser, url, view_query(), size=(32, 24))
     try:
-        got = page.evaluate("() => { const s = window.vlights.walkthrough.fit.shaders; "
-                            "return [s.backgroundVertex, s.backgroundFragment]; }")
+        got = page.evaluate("() => { const w = window.vlights.walkthrough, s = w.fit.shaders; "
+                            "return [w.reversed, s.backgroundVertex, s.backgroundFragment]; }")
     finally:
         page.close()
-    assert got == [read(ES_HEADER) + defines(8) + resolve(name)
-                   for name in ("background_vertex.glsl", "background_fragment.glsl")]
+    assert got[0]  # chromium has EXT_clip_control
+    assert got[1:] == [read(ES_HEADER) + defines(8, extra=("VL_REVERSED_Z",)) + resolve(name)
+                       for name in ("background_vertex.glsl", "background_fragment.glsl")]
