@@ -48,7 +48,9 @@ Sides and depth
     float depth buffer where the context has clip control (``display.gl.depth_control``),
     near 1 and an infinite far plane 0, the near plane from the scene's bounds and the
     eye (``depth_range``): a float's relative precision at every distance, so any scale
-    draws alike; elsewhere the conventional range, -1 to 1 into 24 bits.
+    draws alike; elsewhere the conventional range, -1 to 1 into 24 bits, with a larger
+    near plane and the backs pushed back by a polygon offset. docs/display-and-web.md
+    has what each draws wrong on test scenes (nothing) and on an interior.
 """
 
 from __future__ import annotations
@@ -140,7 +142,8 @@ class Depth(NamedTuple):
     at depth 1 and an infinite far plane at 0 (clip z = near, w = distance along the view:
     depth = near / distance, computed without cancellation), into a float depth buffer
     with clip control (``display.gl.DepthControl``); else the conventional projection,
-    near at -1 and far at 1, depth 0 to 1 into 24 bits."""
+    near at -1 and far at 1, depth 0 to 1 into 24 bits. The page (walkthrough.js)
+    draws with the same conventions."""
 
     reversed: bool
 

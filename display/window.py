@@ -92,6 +92,8 @@ class Walkthrough(mglw.WindowConfig):
         view = s["view"]
         self.fov = view.fov_y_deg
         radius = float(np.linalg.norm(self.renderer.bounds[1] - self.renderer.bounds[0]))
+        # its projection is unused: the renderer draws with its own depth range and convention
+        # (display.renderer.depth_range, Depth), from the view current_view gives it
         self.camera = KeyboardCamera(self.wnd.keys, fov=self.fov, aspect_ratio=self.wnd.aspect_ratio,
                                      near=radius * 1e-3, far=radius * 10)
         self.camera.velocity = radius * 0.25

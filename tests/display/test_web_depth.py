@@ -144,3 +144,19 @@ def test_the_page_without_clip_control_draws_them_too(browser, room):
     for name in ("inside, the partition's front", "inside, the partition's back", "outside, behind the back wall",
                  "inside, the panel's gap"):
         assert counts[name][0] == 0, (name, counts[name])
+
+
+def test_the_page_mirrors_the_renderers_depth_constants():
+    """walkthrough.js repeats display.renderer's near planes and back-face offset (the page
+    draws the renderer's picture): the same numbers."""
+    import re
+
+    from display.export import WEB
+    from display.renderer import BACK_FACE_OFFSET, NEAR_FRACTION
+
+    script = (WEB / "walkthrough.js").read_text()
+    near = re.search(r"const NEAR_FRACTION = \{ true: ([\d.e+-]+), false: ([\d.e+-]+) \};", script)
+    offset = re.search(r"const BACK_FACE_OFFSET = \[([\d.e+-]+), ([\d.e+-]+)\];", script)
+    assert near and offset
+    assert (float(near[1]), float(near[2])) == (NEAR_FRACTION[True], NEAR_FRACTION[False])
+    assert (float(offset[1]), float(offset[2])) == BACK_FACE_OFFSET
