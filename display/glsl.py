@@ -16,7 +16,9 @@ never code written from Python:
     VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W, VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W
                               the emitter quadrature of N nodes (``rules(N)``)
     VL_NO_LIGHTS, VL_NO_PROBE, VL_NO_EMITTERS    the parts of the model left out
-    VL_TRIANGLE, VL_GOURAUD, VL_OUT    variants of a stage (the files say which)
+    VL_TRIANGLE, VL_GOURAUD, VL_OUT, VL_ATTRIBUTES    variants of a stage (the files say which)
+    VL_REVERSED_Z             the depth convention is reversed Z (the background's far plane
+                              at depth 0: ``display.renderer.Depth``)
 
 The emitters' table (``emitter_table``) is laid out here too, for the renderer and the
 glTF export.
