@@ -120,10 +120,13 @@ def _load_toml(text, base_dir, *, name, where):
     objects_data = data.get("objects")
     if not isinstance(objects_data, list) or not objects_data:
         raise InputError(f"{where}: no [[objects]]: a scene needs at least one object")
-    objects = [
-        _parse_object(entry, i, (materials, textures), base_dir, where) for i, entry in enumerate(objects_data)
-    ]
-    two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
+    parsed = [(_parse_object(entry, i, (materials, textures), base_dir, where), entry)
+              for i, entry in enumerate(objects_data)]
+    parsed = [(o, entry) for o, entry in parsed if o is not None]  # None: every triangle degenerate (warned)
+    if not parsed:
+        raise InputError(f"{where}: every object's triangles are degenerate: nothing is left to draw")
+    objects = [o for o, _ in parsed]
+    two_sided = {o.name for o, entry in parsed if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
     environment = _parse_environment(data["environment"], base_dir, where) if "environment" in data else None
     return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
@@ -448,7 +451,9 @@ def _load_mesh_scene(path):
         name = safe_object_name(str(node))  # '/' separates keys in the solution file; no control characters
         if name in {o.name for o in objects}:
             name = f"{name}#{len(objects)}"
-        objects.append(build_object(name, material, positions, faces, source=where, uvs=uvs, texture=texture))
+        obj = build_object(name, material, positions, faces, source=where, uvs=uvs, texture=texture)
+        if obj is not None:
+            objects.append(obj)
     if not objects:
         raise InputError(f"{where}: no triangle meshes in the file")
     return Scene(name=path.stem, objects=tuple(objects), camera=None, source=where)

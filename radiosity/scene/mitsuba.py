@@ -69,7 +69,7 @@ import re
 import struct
 import warnings
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.parsers import expat
 
@@ -197,6 +197,7 @@ class _Document:
         if self.major < 2:
             _upgrade(self.elements)
         self.bitmaps = {}  # id(<texture> element) -> its _Bitmap, each file read once
+        self.surfaces = {}  # id(<bsdf> element) -> its _Surface, made once for every shape that refers to it
         self.ids = {}
         for node in self._walk(self.elements):
             if "id" in node.attrs and node.tag != "ref":
@@ -456,10 +457,11 @@ def _texture_mean(doc, node):
 
 @dataclass
 class _Bitmap:
-    """A ``bitmap`` texture: ``image`` (H, W, 3) float64 linear RGB, ``wrap`` (one of
+    """A ``bitmap`` texture: ``image`` (H, W, 3) float32 linear RGB, ``wrap`` (one of
     ``textures.WRAP_MODES``), ``to_uv`` (3, 3) the affine map of Mitsuba's (u, v) it
     applies; ``texture`` the image as a reflectance (float32, clipped to [0, 1] with a
-    warning), made once and shared by the shapes that read it as it is."""
+    warning; the image itself where it needs no clipping), made once and shared by the
+    shapes that read it as it is."""
 
     image: np.ndarray
     wrap: str
@@ -470,7 +472,7 @@ class _Bitmap:
 
     @property
     def mean(self):
-        return self.image.reshape(-1, 3).mean(axis=0)
+        return self.image.reshape(-1, 3).mean(axis=0, dtype=np.float64)
 
     @property
     def texture(self):
@@ -479,12 +481,12 @@ class _Bitmap:
             if low < 0.0 or high > 1.0:
                 self.node.warn(f"texture {self.filename!r} holds values in [{low:.4g}, {high:.4g}]: clipped to "
                                "[0, 1] as a reflectance")
-            self._texture = np.clip(self.image, 0.0, 1.0).astype(np.float32)
+            self._texture = self.image if 0.0 <= low and high <= 1.0 else np.clip(self.image, 0.0, 1.0)
         return self._texture
 
     def scaled(self, image):
         """This bitmap with another image (a plastic's texels rescaled)."""
-        return _Bitmap(image, self.wrap, self.to_uv, self.node, self.filename)
+        return _Bitmap(np.asarray(image, np.float32), self.wrap, self.to_uv, self.node, self.filename)
 
     def reading(self, uvs, where):
         """(texture, uvs) for a shape whose (our) texture coordinates are ``uvs``: the
@@ -519,7 +521,7 @@ def _bitmap(doc, node):
     wrap = props.string("wrap_mode", "repeat")
     if wrap not in WRAP_MODES:
         raise node.fail(f"wrap_mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
-    image = _read_image(node, path, raw=props.boolean("raw"))
+    image = _read_image(node, path, raw=props.boolean("raw")).astype(np.float32)  # as every stage keeps textures
     bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename)
     return bitmap
 
@@ -858,7 +860,7 @@ def _analytic(node, props, tessellation, textured=False):
 # -- materials ----------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Surface:
     """A shape's material as the project models it, and what the shape needs."""
 
@@ -887,8 +889,17 @@ def _bitmap_property(doc, props, name):
 
 
 def _surface(doc, node):
-    """The _Surface of a ``<bsdf>`` element (after ``<ref>``)."""
+    """The _Surface of a ``<bsdf>`` element (after ``<ref>``), made once per element:
+    the shapes that refer to one bsdf share its surface and its texture (a plastic's
+    rescaled image is made once, not once per shape)."""
     node = doc.deref(node, ("bsdf",))
+    key = id(node)
+    if key not in doc.surfaces:
+        doc.surfaces[key] = _make_surface(doc, node)
+    return doc.surfaces[key]
+
+
+def _make_surface(doc, node):
     kind = node.attrs.get("type")
     props = _Props(doc, node)
     inner = [c for c in props.unnamed if c.tag == "bsdf"]
@@ -897,9 +908,7 @@ def _surface(doc, node):
             raise node.fail("needs the <bsdf> it makes two-sided")
         if len(inner) > 1:
             node.warn("a different bsdf on each side: the front's is used on both")
-        surface = _surface(doc, inner[0])
-        surface.twosided = True
-        return surface
+        return replace(_surface(doc, inner[0]), twosided=True)
     if kind == "diffuse":
         bitmap = _bitmap_property(doc, props, "reflectance")
         if bitmap is not None:
@@ -1174,6 +1183,9 @@ class _Reader:
                                crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals,
                                uvs=shape.uvs, texture=shape.texture)
                   for shape in self.shapes]
+        fronts = [o for o in fronts if o is not None]  # None: every triangle degenerate (warned), as Mitsuba drops it
+        if not fronts and not self.lamps:
+            raise InputError(f"{self.doc.path}: every shape's triangles are degenerate: nothing is left to draw")
         objects = list(with_backs(fronts, {shape.name for shape in self.shapes if shape.surface.twosided}))
         for node, position, intensity in self.lamps:
             objects.append(self._lamp(node, position, intensity, diagonal))

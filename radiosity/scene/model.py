@@ -262,7 +262,9 @@ def build_object(
     uvs=None,
     texture=None,
 ):
-    """A SceneObject from a raw triangle soup in world space.
+    """A SceneObject from a raw triangle soup in world space, or None when every
+    triangle is degenerate (the object is left out, as Mitsuba leaves it out, with one
+    SceneWarning saying so).
 
     Checks coordinates, welds coincident vertices, drops degenerate triangles (with a
     SceneWarning counting them), and computes crease-split normals and tangents.
@@ -307,10 +309,10 @@ def build_object(
         keep = _not_degenerate(positions, faces)
         dropped = int(len(faces) - keep.sum())
         positions, faces, uvs = geometry.compact(positions, faces[keep], uvs)
+    if len(faces) == 0:
+        return _left_out(where, dropped)
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=2)
-    if len(faces) == 0:
-        raise InputError(f"{where}: every triangle is degenerate (zero area)")
     if uvs is None:
         positions, faces, normals = geometry.crease_normals(positions, faces, crease_angle_deg)
     else:
@@ -326,6 +328,13 @@ def build_object(
         uvs=uvs,
         texture=texture,
     )
+
+
+def _left_out(where, dropped):
+    """None, after the one warning for an object whose ``dropped`` triangles were all degenerate."""
+    warnings.warn(f"{where}: all {dropped} triangle(s) are degenerate (zero area): the object is left out",
+                  SceneWarning, stacklevel=3)
+    return None
 
 
 def _not_degenerate(positions, faces):
@@ -345,10 +354,10 @@ def _with_normals(name, material, positions, faces, normals, *, where, source, w
         raise InputError(f"{where}: {len(normals)} normals for {len(positions)} vertices")
     keep = _not_degenerate(positions, faces)  # as geometry.remove_degenerate
     dropped = int(len(faces) - keep.sum())
+    if not keep.any():
+        return _left_out(where, dropped)
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=3)
-    if not keep.any():
-        raise InputError(f"{where}: every triangle is degenerate (zero area)")
     if uvs is None:
         positions, faces, normals = geometry.compact(positions, faces[keep], normals)
     else:

@@ -794,6 +794,19 @@ def test_sensor_lookat_and_film():
     assert camera.fov_y_deg == pytest.approx(math.degrees(2 * math.atan(math.tan(math.radians(30)) * 6 / 8)))
 
 
+def test_a_shape_of_degenerate_triangles_alone_is_left_out_as_mitsuba_does(tmp_path):
+    (tmp_path / "line.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 3 2 1\n")
+    path = write_scene(tmp_path, """<shape type="obj" id="line"><string name="filename" value="line.obj"/></shape>
+        <shape type="rectangle" id="floor"/>""")
+    scene, messages = load_warned(path)
+    assert [o.name for o in scene.objects] == ["floor"]
+    assert len(messages) == 1 and "object 'line'" in messages[0] and messages[0].endswith(
+        "all 2 triangle(s) are degenerate (zero area): the object is left out")
+    alone = write_scene(tmp_path, '<shape type="obj"><string name="filename" value="line.obj"/></shape>', name="a.xml")
+    with pytest.warns(SceneWarning):
+        assert "every shape's triangles are degenerate" in refusal(alone)
+
+
 @pytest.mark.parametrize("version, tag, read", [("0.4.0", "lookAt", True), ("0.5.0", "lookAt", True),
                                                 ("0.6.0", "lookat", True), ("3.0.0", "lookAt", False)])
 def test_look_at_spellings(tmp_path, version, tag, read):
