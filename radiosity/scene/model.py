@@ -391,8 +391,15 @@ def is_closed(obj):
 def back_of(front, name, offset):
     """The back of a two-sided surface (surfaces are one-sided: the back absorbs): a
     reversed copy ``offset`` behind the front, along its normals, so that light from
-    behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below."""
-    return SceneObject(name=name, material=front.material, positions=front.positions - offset * front.normals,
+    behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below.
+    The back reflects as the front does but emits nothing: a two-sided material makes
+    a surface reflect on both sides, not a lamp shine backwards (Mitsuba's area lights
+    emit from the front alone, whatever their bsdf); its material is then the front's
+    without emission, named "<material> (back)"."""
+    material = front.material
+    if material.is_emitter:
+        material = replace(material, name=f"{material.name} (back)", emission=(0.0, 0.0, 0.0))
+    return SceneObject(name=name, material=material, positions=front.positions - offset * front.normals,
                        normals=-front.normals, tangents=-front.tangents, faces=front.faces[:, ::-1].copy(),
                        source=front.source, uvs=front.uvs, texture=front.texture)
 

@@ -638,6 +638,20 @@ def test_twosided_open_surface_gets_a_back_behind_it(materials):
     assert back.material == front.material and back.material.diffuse == (0.3, 0.3, 0.3)
 
 
+def test_a_twosided_lamp_emits_from_its_front_alone(tmp_path):
+    # Mitsuba's area emitter shines from the front whatever its bsdf: a twosided one reflects on both sides
+    path = write_scene(tmp_path, """<shape type="rectangle" id="lamp">
+        <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.4"/></bsdf></bsdf>
+        <emitter type="area"><rgb name="radiance" value="3, 2, 1"/></emitter></shape>""")
+    scene = load_quietly(path)
+    front, back = scene.object("lamp"), scene.object("lamp (back)")
+    assert front.material.emission == (3, 2, 1) and back.material.emission == (0, 0, 0)
+    assert back.material.diffuse == front.material.diffuse == (0.4, 0.4, 0.4)
+    assert back.material.name == f"{front.material.name} (back)"  # the kernels' table keys materials by name
+    assert [o.name for o in scene.emitters] == ["lamp"]
+    assert scene.materials[back.material.name] is back.material
+
+
 def test_twosided_closed_mesh_gets_no_back(materials):
     scene, _ = materials
     names = [o.name for o in scene.objects]
