@@ -240,11 +240,26 @@ class _Document:
         return out
 
     def resolve(self, node, name):
-        """A file a scene element names, relative to the scene's directory."""
+        """A file a scene element names, relative to the scene's directory; InputError
+        naming it, and every other file the scene names that is missing too."""
         path = self.base / name
         if not path.is_file():
-            raise node.fail(f"file {str(path)!r} not found")
+            others = [n for n in self._missing_files() if n != name]
+            n = len(others)
+            more = f" ({n} more file{'s' * (n > 1)} it names {'are' if n > 1 else 'is'} missing too: " \
+                   f"{', '.join(others)})" if others else ""
+            raise node.fail(f"file {str(path)!r} not found{more}")
         return path
+
+    def _missing_files(self):
+        """The ``filename`` properties of every element that name no file, in document order."""
+        seen = []
+        for node in self._walk(getattr(self, "elements", [])):  # none yet while includes are read
+            name = node.attrs.get("value")
+            if node.tag == "string" and node.attrs.get("name") == "filename" and name and name not in seen \
+                    and not (self.base / name).is_file():
+                seen.append(name)
+        return seen
 
     def deref(self, node, tags):
         """``node`` itself, or the element its ``<ref id>`` names (one of ``tags``)."""

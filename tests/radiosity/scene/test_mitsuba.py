@@ -808,6 +808,20 @@ def test_sensor_lookat_and_film():
     assert camera.fov_y_deg == pytest.approx(math.degrees(2 * math.atan(math.tan(math.radians(30)) * 6 / 8)))
 
 
+def test_a_missing_file_is_named_with_every_other_missing_file(tmp_path):
+    (tmp_path / "here.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    path = write_scene(tmp_path, """<shape type="obj"><string name="filename" value="here.obj"/></shape>
+        <shape type="obj"><string name="filename" value="gone.obj"/></shape>
+        <shape type="obj"><string name="filename" value="also/gone.ply"/></shape>
+        <emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>""")
+    message = refusal(path)
+    assert message.startswith(f"{path}:4: <shape type='obj'>: file '{tmp_path / 'gone.obj'}' not found")
+    assert message.endswith("(2 more files it names are missing too: also/gone.ply, sky.exr)")
+    (tmp_path / "gone.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert refusal(path).endswith(f"file '{tmp_path / 'also' / 'gone.ply'}' not found (1 more file it names is "
+                                  "missing too: sky.exr)")
+
+
 def test_a_shape_of_degenerate_triangles_alone_is_left_out_as_mitsuba_does(tmp_path):
     (tmp_path / "line.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 3 2 1\n")
     path = write_scene(tmp_path, """<shape type="obj" id="line"><string name="filename" value="line.obj"/></shape>
