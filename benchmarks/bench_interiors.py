@@ -9,15 +9,17 @@ $VLIGHTS_SCENES, else /work/scenes).
 
 For each complete scene (``COMPLETE``): ``vlights scene-info``, ``solve``, ``fit``,
 ``render``, ``export`` and ``compare --reference <published render> --truth-spp N`` at
---quality, each the command a user types in a process of its own, timed, its peak memory
+--quality (at the render's size shrunk by a whole factor to --max-side, default 640),
+each the command a user types in a process of its own, timed, its peak memory
 read (the kernel's maxrss and the process tree's summed Pss, sampled every 0.1 s). A step
 that fails is recorded with its exit status and last line, and the scene's later steps
 are skipped. From compare.json: the FLIP and mean ratio (display / image) against the
 published render of the solution display, the fitted display, the diffuse walkthrough
 and the path tracer at N samples per pixel. The pictures side by side, tone-mapped alike:
 results/interiors_<scene>.png (published render, path tracer, solution, fitted, diffuse;
-the FLIP error images below). A scene whose copy has no published render (cbox-spheres,
-whose EXR the copy lacks; cbox-point-light, published without one) is measured against
+the FLIP error images below). A scene whose copy has no converged render (cbox-spheres,
+whose EXR the copy lacks; cbox-point-light, published without one; cbox, whose
+aov_scene.exr was rendered at 4 samples per pixel) is measured against
 Mitsuba 3's render of the same XML (``--mitsuba-spp``; Mitsuba in a venv of its own, as
 ``validate_mitsuba.py`` finds it), which its row says; without Mitsuba it is skipped.
 
@@ -41,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -54,7 +57,7 @@ from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render, run_vligh
 
 # name -> (the scene's XML, its published render or None: Mitsuba 3 renders one)
 COMPLETE = {
-    "cbox": ("cbox/scene.xml", "cbox/aov_scene.exr"),  # Mitsuba 2's render of the same box (its RGB channels)
+    "cbox": ("cbox/scene.xml", None),  # its aov_scene.exr is a 4-spp render (max depth 5): noise, not a reference
     "cbox-spheres": ("cbox-spheres/scene.xml", None),  # the copy lacks its _scene.exr
     "cbox-point-light": ("cbox-point-light/scene.xml", None),
     "veach_mi": ("veach_mi/scene.xml", "veach_mi/mi.exr"),
@@ -68,6 +71,8 @@ DISPLAYS = ("solution", "fitted", "diffuse", "path_tracer")
 MEMORY_LIMIT_MB = 8 * 1024  # every step within 8 GB
 TARGET = 1.2  # the fitted display's FLIP at most this times the path tracer's
 TIMEOUT_S = 4 * 3600  # a step running longer is stopped and recorded as such
+MITSUBA2_ONLY = {"high_quality_edges"}  # the film's Mitsuba 2 option: Mitsuba 3 refuses a property it does not read
+LIBLLVM = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # Debian's libllvm19, for Mitsuba's llvm_* variants
 
 
 def scenes_root(given):
@@ -94,12 +99,21 @@ def published(root, name, work, args, record):
     if image is not None:
         return root / image, "published"
     out = work / "mitsuba_reference.npy"  # compare --reference reads .npy: linear radiance (H, W, 3) float32
-    label = f"Mitsuba {args.mitsuba_version} ({args.mitsuba_spp} spp)"
+    label = f"Mitsuba {args.mitsuba_version} {args.mitsuba_variant} ({args.mitsuba_spp} spp)"
     if out.exists():
         return out, label
     if args.mitsuba_python is None:
         return None, "no published render, and Mitsuba 3 is not installed"
-    seconds, _ = mitsuba_render(args.mitsuba_python, args.mitsuba_variant, root / xml, args.mitsuba_spp, 1, out)
+    copy = (root / xml).with_name("scene.mitsuba3.xml")  # beside the original: its paths are relative to it
+    try:
+        tree = ET.parse(root / xml)
+        parents = {child: parent for parent in tree.iter() for child in parent}
+        for element in [e for e in tree.iter() if e.get("name") in MITSUBA2_ONLY]:
+            parents[element].remove(element)
+        tree.write(copy)
+        seconds, _ = mitsuba_render(args.mitsuba_python, args.mitsuba_variant, copy, args.mitsuba_spp, 1, out)
+    finally:
+        copy.unlink(missing_ok=True)
     record({"scene": name, "step": "mitsuba reference", "seconds": round(seconds, 2), "spp": args.mitsuba_spp})
     return out, label
 
@@ -113,8 +127,20 @@ def commands(xml, reference, args):
         "render": ["render", "fit.npz", "-o", "render.png"],
         "export": ["export", "fit.npz", "-o", "web"],
         "compare": ["compare", "fit.npz", "solution.npz", "--reference", reference, "--truth-spp", args.truth_spp,
-                    "--out", "compare"],
+                    "--out", "compare", *compared_size(reference, args.max_side)],
     }
+
+
+def compared_size(reference, max_side):
+    """compare's --size for ``reference``: its own size shrunk by the least whole factor
+    that brings its longer side to ``max_side`` or below (none where it is already)."""
+    from radiosity.formats.hdr import read_hdr_image
+
+    height, width = read_hdr_image(reference).shape[:2]
+    factor = next(f for f in range(1, max(height, width) + 1)
+                  if height % f == 0 and width % f == 0 and max(height, width) // f <= max_side
+                  or f == math.gcd(height, width))
+    return [] if factor == 1 else ["--size", f"{width // factor}x{height // factor}"]
 
 
 def complete_scene(root, name, args, record):
@@ -162,7 +188,6 @@ def side_by_side(work, reference, name, numbers, source, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from display.metrics import magma
     from display.renderer import tonemap
     from radiosity.formats.hdr import read_hdr_image
 
@@ -192,7 +217,7 @@ def side_by_side(work, reference, name, numbers, source, path):
         top.set_title(label, fontsize=8)
         if measured is not None:
             _, error = metrics(reference_image, image)
-            bottom.imshow(magma(error))
+            bottom.imshow(error)  # FLIP per pixel through magma
         for ax in (top, bottom):
             ax.axis("off")
     fig.suptitle(name, fontsize=10)
@@ -278,9 +303,13 @@ def main(argv=None):
     parser.add_argument("--root", help="the collection's folder (default: $VLIGHTS_SCENES, else /work/scenes)")
     parser.add_argument("--quality", default="draft", choices=("draft", "medium", "high"))
     parser.add_argument("--truth-spp", type=int, default=128, help="the path tracer's samples per pixel (default 128)")
+    parser.add_argument("--max-side", type=int, default=640,
+                        help="compare at the published render's size shrunk by a whole factor to this longest side or "
+                             "less (default 640)")
     parser.add_argument("--keep", type=Path, help="keep every step's files in this folder (default: a temporary one)")
     parser.add_argument("--mitsuba-python", help="the Python of a venv with mitsuba (validate_mitsuba.py's default)")
-    parser.add_argument("--mitsuba-variant", default="scalar_rgb")
+    parser.add_argument("--mitsuba-variant", help="Mitsuba's variant (default: llvm_ad_rgb where $DRJIT_LIBLLVM_PATH or "
+                        f"{LIBLLVM} is, else scalar_rgb)")
     parser.add_argument("--mitsuba-spp", type=int, default=1024, help="a Mitsuba reference's samples (default 1024)")
     parser.add_argument("--plot-only", action="store_true", help="draw interiors.png again from the results file")
     args = parser.parse_args(argv)
@@ -295,6 +324,10 @@ def main(argv=None):
     if unknown:
         raise SystemExit(f"unknown scene {unknown[0]!r}; the collection's: {', '.join([*COMPLETE, *INCOMPLETE])}")
     args.mitsuba_python, args.mitsuba_version = mitsuba_python(args.mitsuba_python)
+    if args.mitsuba_variant is None:
+        if "DRJIT_LIBLLVM_PATH" not in os.environ and Path(LIBLLVM).exists():
+            os.environ["DRJIT_LIBLLVM_PATH"] = LIBLLVM  # Mitsuba's process inherits it
+        args.mitsuba_variant = "llvm_ad_rgb" if "DRJIT_LIBLLVM_PATH" in os.environ else "scalar_rgb"
     record = Recorder(benchmark="interiors", quality=args.quality)
     with tempfile.TemporaryDirectory() as tmp:
         args.keep = (args.keep or Path(tmp)).resolve()
