@@ -30,7 +30,7 @@ def add_command(subparsers):
         "image depends on the seed and the samples alone, not on threads. Prints the time, rays and paths per "
         "second, and the noise floor: FLIP between the two independent halves of the samples (an error "
         "against the truth near it is the truth's own noise). The camera: the flags', else the solution's or scene's "
-        "own (at its film's size, a Mitsuba sensor's, unless --size), else a view framing the scene. A fit.npz "
+        "own (a scene's at its film's size, a Mitsuba sensor's, unless --size), else a view framing the scene. A fit.npz "
         "holds no materials and is refused.",
     )
     p.add_argument("input", help="a solution.npz (its meshes and materials, what its displays show) or a scene: "
