@@ -25,7 +25,7 @@ def add_command(subparsers):
         "environment or 0; -o writes the tone-mapped picture (exposure, then sRGB).",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit.npz")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (--mode reference) next to a fit.npz")
     p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
                    help="fitted: the fitted model, what the walkthrough shows; reference: the solution display, the "
                    "solution drawn directly; diffuse: a diffuse walkthrough (default: fitted for a fit.npz, reference "

@@ -30,7 +30,7 @@ def add_command(subparsers):
         "virtual lights off and on, +/- exposure, P screenshot, ESC quit.",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit.npz")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (mode reference) next to a fit.npz")
     p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
                    help="the display to start with (M cycles them): fitted, the fitted model; reference, the solution "
                    "display (the solution drawn directly); diffuse, a diffuse walkthrough (default: fitted for a "
