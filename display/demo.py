@@ -274,8 +274,9 @@ def verdict_rows(s):
 
 def verdict(s):
     """One line: what the fitted model keeps of the solution's glossy look (its FLIP
-    against the solution over a diffuse walkthrough's, figure 7, against the target), and,
-    with a truth, what it adds to the solution display's error against the truth."""
+    against the solution over the diffuse display's, figure 7, against the target), and,
+    with a truth, how far behind (or ahead of) the solution display it is against the
+    truth, and whether the truth's noise hides the difference."""
     g = s["figures"].get("glossy_flip") or {}
     if not s["objects"]:
         return "no glossy object: the fitted display is the diffuse one"
@@ -283,11 +284,11 @@ def verdict(s):
     if not isinstance(ratio, float) or not math.isfinite(ratio):
         line = "the fit cannot be judged: the diffuse display matches the solution exactly"
     else:
-        said = f"{ratio:.2f}x the diffuse display's FLIP against the solution"
+        said = f"{ratio:.2f}x the diffuse display against the solution"
         if target is not None and ratio <= target:
-            line = f"the fit keeps the glossy look ({said}; target {target:.2f}x)"
+            line = f"the fit keeps the glossy look ({said}, target {target:.2f}x)"
         elif ratio < 1:
-            line = f"the fit keeps part of the glossy look ({said}; target {_fmt(target)}x)"
+            line = f"the fit keeps part of the glossy look ({said}, target {_fmt(target)}x)"
         else:
             line = f"the fit changes nothing a viewer sees ({said})"
     truth = s.get("truth")
@@ -297,11 +298,14 @@ def verdict(s):
 
         more = flip("fitted") - flip("reference")
         if more >= 0.0005:
-            line += f"; {more:.3f} further from the truth than the solution display"
+            line += f"; {more:.3f} behind the solution display against the truth"
         elif more <= -0.0005:
-            line += f"; {-more:.3f} closer to the truth than the solution display"
+            line += f"; {-more:.3f} ahead of the solution display against the truth"
         else:
-            line += "; as close to the truth as the solution display"
+            line += "; level with the solution display against the truth"
+        noise = truth.get("noise_flip")
+        if noise is not None and max(truth["fitted"]["flip_mean"], truth["reference"]["flip_mean"]) <= noise:
+            line += ", within its noise"
     return line
 
 
@@ -390,8 +394,8 @@ def _scene_report(name, s):
     for i in range(1, 4):
         m = f["figure5"][f"view{i}"]
         lines += [f"**Figure 5, view {i}**: the solution display, the fitted display, the FLIP error between them"
-                  + (" (and, in view 1, the truth first and the fitted display's FLIP against it last)" if i == 1 and
-                     s.get("truth") else "") + f". FLIP {m['flip_mean']:.4f} / "
+                  + (" (and the truth first, the fitted display's FLIP against it last)" if i == 1 and s.get("truth")
+                     else "") + f". FLIP {m['flip_mean']:.4f} / "
                   f"{m.get('flip_mean_glossy', float('nan')):.4f} (image / glossy objects), PSNR {m['psnr_db']:.2f} dB",
                   "", f"![figure 5 view {i}]({name}/compare/figure5_view{i}.png)", ""]
     lines += ["**Figure 6**: 2 against all virtual lights", "", f"![figure 6]({name}/compare/figure6.png)", "",
@@ -413,16 +417,21 @@ def _scene_report(name, s):
 def key_numbers(summary, out):
     """What the demo prints at the end: where everything is, then each scene's verdict table."""
     t = summary["times_s"]
+    width = max(len(f"{name}/solution.npz, fit.npz") for name in summary["scenes"])
+
+    def file(name, what):
+        return f"  {name:<{width}}   {what}"
+
     lines = [f"done in {t['total_s']:.1f} s; everything is in {out}/:"]
     for name, s in summary["scenes"].items():
-        lines += [f"  {name}/solution.npz, fit.npz   the solution and its fitted model",
-                  f"  {name}/compare/               the solution display against the fitted display (figures 5, 6, 7)",
-                  f"  {name}/web/                   the walkthrough in a browser: vlights serve {out}/{name}/web"]
+        lines += [file(f"{name}/solution.npz, fit.npz", "the solution and its fitted model"),
+                  file(f"{name}/compare/", "the solution display against the fitted display (figures 5, 6, 7)"),
+                  file(f"{name}/web/", f"the walkthrough in a browser: vlights serve {out}/{name}/web")]
         for obj, o in s["objects"].items():
             lines.append(f"    {obj}: {o['words']}; relative RMS {_fmt(o.get('relative_rms'), 3)}, "
                          f"perceptual {_fmt(o.get('perceptual'), 3)}")
-    lines += ["  models.png                        each glossy object's models: error against floats stored",
-              "  report.md, summary.json           these verdicts with the pictures, times and errors", ""]
+    lines += [file("models.png", "each glossy object's models: error against floats stored"),
+              file("report.md, summary.json", "these verdicts with the pictures, times and errors"), ""]
     for name, s in summary["scenes"].items():
         lines += [verdict_text(name, s), ""]
     truth = (" The truth: path-traced from the scene's camera; an error near its noise floor is its own noise."

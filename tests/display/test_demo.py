@@ -54,7 +54,7 @@ def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_co
     for scene, s in summary["scenes"].items():  # a table per scene, the same in the terminal and the report
         assert verdict_text(scene, s) in printed and "\n".join(verdict_markdown(scene, s)) in report
         assert f"{scene}: {verdict(s)}." in summary["verdict"]
-        assert re.search(r"(further from|closer to|as close to) the truth", verdict(s))
+        assert re.search(r"(behind|ahead of|level with) the solution display against the truth", verdict(s))
     assert printed.count("noise floor (4 spp)") == 2
     assert f"{mesh['vertices_before']:,} -> {mesh['vertices_after']:,} vertices" in report
     assert "Against the truth (view 1" in report

@@ -63,8 +63,8 @@ def test_the_verdict_is_a_table_of_each_display_against_the_solution_and_the_tru
     assert rows["fitted display"][-3:] == ["0.050", "0.171", "0.066"]
     assert rows["diffuse display"][-3:] == ["0.200", "0.409", "0.121"]
     assert rows["noise floor (64 spp)"][-1] == "0.031"
-    assert lines[-1] == ("  verdict: the fit keeps the glossy look (0.25x the diffuse display's FLIP against the solution; "
-                         "target 0.50x); 0.026 further from the truth than the solution display")
+    assert lines[-1] == ("  verdict: the fit keeps the glossy look (0.25x the diffuse display against the solution, "
+                         "target 0.50x); 0.026 behind the solution display against the truth")
     table = lines[1:7]
     assert len({len(line) for line in table[:-1]}) == 1 and max(map(len, table)) <= 80  # aligned, a terminal wide
     for column in ("0.145", "0.171", "0.409"):  # the numbers of a column end where its heading ends
@@ -95,8 +95,7 @@ def test_the_verdict_without_a_truth_has_the_solution_column_alone():
     assert "truth" not in "\n".join(lines) and "noise floor" not in "\n".join(lines)
     whole = summary()
     assert "noise floor" not in key_numbers(whole, "out") and "noise floor" not in _report(whole).split("## What")[0]
-    assert verdict(scene) == "the fit keeps the glossy look (0.25x the diffuse display's FLIP against the solution; " \
-        "target 0.50x)"
+    assert verdict(scene) == "the fit keeps the glossy look (0.25x the diffuse display against the solution, target 0.50x)"
 
 
 def test_the_report_explains_its_numbers():
@@ -109,8 +108,8 @@ def test_the_report_explains_its_numbers():
 
 
 @pytest.mark.parametrize("flip_with, words", [
-    (0.2, "the fit changes nothing a viewer sees (1.00x the diffuse display's FLIP against the solution)"),
-    (0.15, "the fit keeps part of the glossy look (0.75x the diffuse display's FLIP against the solution; target 0.50x)"),
+    (0.2, "the fit changes nothing a viewer sees (1.00x the diffuse display against the solution)"),
+    (0.15, "the fit keeps part of the glossy look (0.75x the diffuse display against the solution, target 0.50x)"),
 ])
 def test_the_verdict_says_what_it_measured_when_the_fit_falls_short(flip_with, words):
     assert verdict(scene_summary(flip_with=flip_with, flip_without=0.2)) == words
@@ -120,9 +119,13 @@ def test_the_verdict_against_the_truth_either_way():
     scene = scene_summary()
     scene["truth"] = truth()
     scene["truth"]["fitted"] = scene["truth"]["fitted"] | {"flip_mean_glossy": 0.135}
-    assert verdict(scene).endswith("; 0.010 closer to the truth than the solution display")
+    assert verdict(scene).endswith("; 0.010 ahead of the solution display against the truth")
     scene["truth"]["fitted"] = scene["truth"]["fitted"] | {"flip_mean_glossy": 0.145}
-    assert verdict(scene).endswith("; as close to the truth as the solution display")
+    assert verdict(scene).endswith("; level with the solution display against the truth")
+    scene["truth"]["noise_flip"] = 0.065  # between the two displays' FLIP over the image: it tells them apart
+    assert "noise" not in verdict(scene)
+    scene["truth"]["noise_flip"] = 0.07  # above both: the truth cannot tell them apart
+    assert verdict(scene).endswith("; level with the solution display against the truth, within its noise")
     scene["truth"]["noise_flip"] = None  # one sample per pixel: no halves to compare
     assert verdict_text("x", scene).splitlines()[6].split()[-1] == "n/a"
 
