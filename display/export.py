@@ -572,17 +572,14 @@ def add_export_command(subparsers):
     """``vlights export fit.npz -o DIR``: DIR/scene.glb."""
     p = subparsers.add_parser(
         "export",
-        help="write a fitted model as a binary glTF (DIR/scene.glb) for other viewers",
-        description="Write fit.npz as DIR/scene.glb: per object its mesh (positions, normals, faces), the emitted "
-        "colour as the vertex attribute _EMITTED and the specular coefficients as _SPECULAR (shared by the "
-        "lights) or _SPECULAR_0 .. _SPECULAR_{K-1} (one per light), the reflection probe's weight as _PROBE and "
-        "the emitters' visibility as _VISIBILITY_0, _VISIBILITY_1, ... (three parts each), float32 as in the fit; "
-        "a textured object's uvs as TEXCOORD_0, its image as the material's base colour texture (PNG, sRGB) and "
-        "the irradiance its diffuse term multiplies as _IRRADIANCE; "
-        "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent), its "
-        "probe (size, centre, box, albedo, texels) and a textured object's kd in the mesh's extras; the format "
-        "marker, the emitter parts, the scene camera and the environment (size, scale, rotation; its image as "
-        "float32 in a bufferView of its own) in the scene's extras.",
+        help="write a fitted model as binary glTF (DIR/scene.glb) with the WebGL walkthrough page beside it",
+        description="Write fit.npz as DIR/scene.glb, binary glTF 2.0 for other viewers: each object's mesh, "
+        "the fitted model's per-vertex arrays as float32 vertex attributes (_EMITTED, _SPECULAR or _SPECULAR_0 "
+        ".., _PROBE, _VISIBILITY_0 .., a textured object's TEXCOORD_0, _IRRADIANCE and its image as the base "
+        "colour texture), its lights, highlight and probe in the mesh's extras, the emitters, camera and "
+        "environment in the scene's (the schema: docs/formats.md); and beside it the WebGL walkthrough "
+        "(index.html, its script, the three.js modules and the shader files), which a browser opens through "
+        "'vlights serve DIR' or --serve.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",

@@ -48,7 +48,8 @@ from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_f
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit, srgb_to_linear
-from radiosity.formats.sniff import FILE_NAMES, input_kind
+from radiosity.formats.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
+from radiosity.formats.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
 from radiosity.scene import builtins, geometry
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
@@ -105,6 +106,28 @@ def load_scene(source):
         f"or a built-in scene ({', '.join(builtins.SCENES)})"
     )
 
+
+# Each suffix ``load_scene`` reads (``radiosity.formats.sniff``'s SCENE_SUFFIXES and
+# MESH_SUFFIXES) as help texts name it
+FORMAT_NAMES = {
+    ".toml": "a TOML scene", ".xml": "a Mitsuba XML scene, versions 0.4-0.6 and 2-3", ".obj": "OBJ/MTL",
+    ".gltf": "glTF", ".glb": "glTF", ".ply": "PLY", ".stl": "STL", ".off": "OFF",
+}
+
+
+def scene_words():
+    """What ``load_scene`` takes, in words, for every help text that takes a scene: built
+    from the tables it reads (``builtins.SCENES``, the sniffer's suffixes), so it cannot
+    leave one out; a suffix missing from ``FORMAT_NAMES`` is a KeyError here."""
+
+    def named(suffixes):
+        groups = {}
+        for suffix in suffixes:
+            groups.setdefault(FORMAT_NAMES[suffix], []).append(suffix)
+        return ", ".join(f"{name} ({', '.join(group)})" for name, group in groups.items())
+
+    return (f"a built-in scene ({', '.join(builtins.SCENES)}), {named(SCENE_SUFFIXES)}, "
+            f"or a mesh file: {named(MESH_FILE_SUFFIXES)}")
 
 # -- TOML ---------------------------------------------------------------------------
 
