@@ -310,7 +310,7 @@ def main(argv=None):
     parser.add_argument("--mitsuba-python", help="the Python of a venv with mitsuba (validate_mitsuba.py's default)")
     parser.add_argument("--mitsuba-variant", help="Mitsuba's variant (default: llvm_ad_rgb where $DRJIT_LIBLLVM_PATH or "
                         f"{LIBLLVM} is, else scalar_rgb)")
-    parser.add_argument("--mitsuba-spp", type=int, default=1024, help="a Mitsuba reference's samples (default 1024)")
+    parser.add_argument("--mitsuba-spp", type=int, default=256, help="a Mitsuba reference's samples (default 256)")
     parser.add_argument("--plot-only", action="store_true", help="draw interiors.png again from the results file")
     args = parser.parse_args(argv)
     name = "interiors.jsonl" if args.quality == "draft" else f"interiors_{args.quality}.jsonl"

@@ -8,8 +8,9 @@ Document
     ``id`` on any element and ``<ref id>`` to it; ``<include filename>``; property
     names in either spelling (``toWorld`` / ``to_world``, ``intIOR`` / ``int_ior``).
     Values: ``float``, ``integer``, ``boolean``, ``string``, ``rgb``, ``srgb`` (hex or
-    numbers, sRGB-decoded), ``spectrum`` (a constant, or wavelength:value pairs
-    averaged over three bands, with a warning), ``point`` / ``vector``.
+    numbers, sRGB-decoded), ``spectrum`` (a constant, or wavelength:value pairs turned
+    to RGB as Mitsuba 3's RGB modes do: ``spectra``, with a warning), ``point`` /
+    ``vector``.
 Transforms
     ``matrix`` (16 or 9 numbers, row-major), ``translate``, ``rotate`` (axis and angle
     in degrees), ``scale``, ``lookat``: each applied after the ones before it.
@@ -84,6 +85,7 @@ from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_parts
+from radiosity.scene.spectra import spectrum_to_rgb
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
 from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 
@@ -313,8 +315,9 @@ def _numbers(node, text, count=None):
     return values
 
 
-def _colour(node):
-    """An RGB triple from ``rgb``, ``srgb`` or ``spectrum`` (linear)."""
+def _colour(node, kind="reflectance"):
+    """An RGB triple from ``rgb``, ``srgb`` or ``spectrum`` (linear); ``kind``: what a
+    sampled spectrum is (``radiosity.scene.spectra.spectrum_to_rgb``)."""
     value = node.attrs.get("value")
     if node.tag == "spectrum" and value is None and "filename" in node.attrs:
         raise node.fail("spectra from files are not read; give an <rgb> instead")
@@ -330,14 +333,14 @@ def _colour(node):
             rgb = _numbers(node, text, (1, 3))
         return tuple(srgb_to_linear(rgb * 3 if len(rgb) == 1 else rgb))
     if node.tag == "spectrum" and ":" in value:
-        return _spectrum_to_rgb(node, value)
+        return _spectrum_to_rgb(node, value, kind)
     rgb = _numbers(node, value, (1, 3))
     return tuple(rgb * 3 if len(rgb) == 1 else rgb)
 
 
-def _spectrum_to_rgb(node, value):
-    """Wavelength:value pairs as RGB: the mean over 600-700, 500-600 and 400-500 nm
-    (linear interpolation), a rough stand-in for spectral rendering."""
+def _spectrum_to_rgb(node, value, kind):
+    """Wavelength:value pairs as linear sRGB, as Mitsuba 3's RGB modes read them
+    (``radiosity.scene.spectra``; ``kind``: "reflectance", "emitted" or "unbounded")."""
     pairs = []
     for item in value.split(","):
         parts = item.split(":")
@@ -346,9 +349,11 @@ def _spectrum_to_rgb(node, value):
         pairs.append(_numbers(node, parts[0], (1,)) + _numbers(node, parts[1], (1,)))
     pairs.sort()
     wavelengths, values = np.array(pairs).T
-    bands = [(600, 700), (500, 600), (400, 500)]
-    rgb = tuple(float(np.interp(np.linspace(a, b, 21), wavelengths, values).mean()) for a, b in bands)
-    node.warn(f"a sampled spectrum taken as RGB {tuple(round(c, 4) for c in rgb)} (band means)")
+    if len(pairs) < 2 or np.any(np.diff(wavelengths) <= 0):
+        raise node.fail("a sampled spectrum needs two or more distinct wavelengths")
+    rgb = tuple(float(c) for c in spectrum_to_rgb(wavelengths, values, kind))
+    node.warn(f"a sampled spectrum taken as RGB {tuple(round(c, 4) for c in rgb)} (CIE 1931 under "
+              f"{'equal-energy light' if kind == 'emitted' else 'daylight'}, as Mitsuba 3's RGB modes)")
     return rgb
 
 
@@ -440,7 +445,8 @@ class _Props:
             raise child.fail("blackbody spectra are not read; give an <rgb> instead")
         if child.tag not in _COLOURS:
             raise child.fail("expected a colour (<rgb>, <srgb>, <spectrum>) or a <texture>")
-        return _colour(child)
+        kind = "emitted" if self.node.tag == "emitter" else "unbounded" if name in ("eta", "k") else "reflectance"
+        return _colour(child, kind)
 
     def transform(self, name):
         item = self._get(name)
