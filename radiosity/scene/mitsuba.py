@@ -85,8 +85,8 @@ from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_parts
-from radiosity.scene.spectra import spectrum_to_rgb
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
+from radiosity.scene.spectra import spectrum_to_rgb
 from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
