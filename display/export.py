@@ -54,7 +54,9 @@ before textures and environments):
 - the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 or 3, "source",
   "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
-  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3);
+  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3's
+  record as fit.npz has it: with ``fov_deg``, ``fov_axis`` and ``film`` when its field
+  of view is along another axis than y, which the page keeps at any window size);
   ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
   texels the shaders read (written so that a viewer need not repeat its arithmetic);
 - a fit with an environment (version 4: the light from outside the scene,
@@ -237,8 +239,7 @@ def scene_extras(model):
     table = emitter_table(model.emitters)[:len(model.emitters)]
     extras["emitter_table"] = table.reshape(len(table), TABLE_WIDTH * 4).astype(np.float64).tolist()
     if model.camera is not None:
-        extras["camera"] = {k: (np.asarray(v, np.float64).tolist() if k != "fov_y_deg" else float(v))
-                            for k, v in model.camera.to_dict().items()}
+        extras["camera"] = model.camera.to_dict()  # fit.npz's record: JSON-ready, its fov along its axis
     return extras
 
 

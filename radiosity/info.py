@@ -87,6 +87,14 @@ def _v(values, fmt="{:.4g}"):
     return " ".join(fmt.format(v) for v in values)
 
 
+def _fov(cam):
+    """The field of view as said: vertical, or along its axis with the vertical one at the film."""
+    if "fov_axis" not in cam:
+        return f"fov {cam['fov_y_deg']:g} deg"
+    w, h = cam["film"]
+    return f"fov {cam['fov_deg']:g} deg along {cam['fov_axis']} (vertical {cam['fov_y_deg']:.4g} deg at {w}x{h})"
+
+
 def format_description(info):
     """The description as aligned text for a terminal."""
     out = [f"scene     {info['scene']}  ({info['source']})"]
@@ -96,7 +104,7 @@ def format_description(info):
     out.append(
         "camera    "
         + (
-            f"eye ({_v(cam['eye'])})  look at ({_v(cam['look_at'])})  up ({_v(cam['up'])})  fov {cam['fov_y_deg']:g} deg"
+            f"eye ({_v(cam['eye'])})  look at ({_v(cam['look_at'])})  up ({_v(cam['up'])})  {_fov(cam)}"
             if cam
             else "none in the scene (views default to one framing the bounds)"
         )

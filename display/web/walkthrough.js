@@ -34,7 +34,8 @@
 // framebuffer (MSAA, `samples` per pixel), then exposure, clipping and sRGB map it to
 // the screen with tonemap.glsl, the renderer's and the window's (display.renderer.tonemap).
 //
-// URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
+// URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg (vertical; without it,
+// the scene camera's field of view, kept along its axis at any window size) mode=fitted|diffuse
 // exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
 // of the model are not drawn, as `vlights render --off`) file=scene.glb maxtexture=n (the
 // largest texture side the page may use: the GPU's MAX_TEXTURE_SIZE, or n if smaller, to
@@ -572,6 +573,16 @@ export async function loadFit(url, maxTexture) {
 
 // ------------------------------------------------------------------------------ the page
 
+// radiosity.formats.camera.fov_y_deg: the vertical field of view of a width x height image
+// whose field of view along axis (x, y, diagonal, smaller, larger: Mitsuba's fov_axis) is fov
+const FOV_AXES = ['x', 'y', 'diagonal', 'smaller', 'larger'];
+function verticalFov(fov, axis, width, height) {
+    if (axis === 'smaller') axis = width < height ? 'x' : 'y';
+    else if (axis === 'larger') axis = width > height ? 'x' : 'y';
+    const ratio = { x: height / width, y: 1, diagonal: height / Math.hypot(width, height) }[axis];
+    return THREE.MathUtils.radToDeg(2 * Math.atan(Math.tan(THREE.MathUtils.degToRad(fov) / 2) * ratio));
+}
+
 // display.camera.framing_view: the box seen from its -z side, whole in frame
 function framingView(bounds, fov) {
     const centre = bounds.getCenter(new THREE.Vector3());
@@ -601,6 +612,10 @@ class Walkthrough {
         this.start = {
             eye: query.eye || start.eye, look: query.look || start.look_at,
             up: query.up || start.up || [0, 1, 0], fov: query.fov ?? start.fov_y_deg ?? DEFAULT_FOV,
+            // the scene camera's fov along its axis (fov_deg, fov_axis: a Mitsuba sensor's), kept at any
+            // window size; fov= in the URL is vertical
+            along: query.fov === undefined && FOV_AXES.includes(start.fov_axis) && start.fov_deg > 0 && start.fov_deg < 180
+                ? { fov: start.fov_deg, axis: start.fov_axis } : null,
         };
         this.renderer = renderer;
         this.renderer.setPixelRatio(1);
@@ -718,6 +733,7 @@ class Walkthrough {
         const height = Math.max(1, this.canvas.clientHeight);
         if (this.canvas.width !== width || this.canvas.height !== height) this.renderer.setSize(width, height, false);
         this.camera.aspect = width / height;
+        if (this.start.along) this.camera.fov = verticalFov(this.start.along.fov, this.start.along.axis, width, height);
         this.depthRange();
         this.camera.updateProjectionMatrix();
         // display.renderer.Renderer.draw and _bind_fitted: the diffuse mode draws the emitted

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, fov_y_deg, pose_from_matrix
+from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit, srgb_to_linear
@@ -275,7 +275,8 @@ def _parse_camera(table, where):
     """(Camera, film (width, height) or None) of a scene's [camera]: a pose (eye or
     position, look_at, up) or a camera-to-world ``matrix`` (Mitsuba's convention:
     looking along +z, +y up); ``fov_y_deg``, or ``fov_deg`` along ``fov_axis`` (x, y,
-    diagonal, smaller, larger); optionally the film's ``width`` and ``height``."""
+    diagonal, smaller, larger; kept along that axis at any image size); optionally the
+    film's ``width`` and ``height``."""
     here = f"{where}: [camera]"
     _check_keys(table, _CAMERA_KEYS, here)
     film = None
@@ -286,15 +287,11 @@ def _parse_camera(table, where):
         film = (w, h)
     width, height = film or (512, 512)
     pose = {k: table[k] for k in ("position", "eye", "look_at", "up") if k in table}
-    if "fov_deg" in table or "fov_axis" in table:
+    if "fov_deg" in table or "fov_axis" in table:  # kept along its axis at any size (Camera)
         if "fov_y_deg" in table:
             raise InputError(f"{here}: give 'fov_y_deg' or 'fov_deg' (with 'fov_axis'), not both")
-        fov = _number(table.get("fov_deg", DEFAULT_FOV_Y_DEG), here, "fov_deg")
-        axis = table.get("fov_axis", "y")
-        try:
-            pose["fov_y_deg"] = fov_y_deg(fov, axis, width, height)
-        except InputError as exc:
-            raise InputError(f"{here}: {str(exc).removeprefix('camera: ')}") from None
+        pose["fov_deg"] = _number(table.get("fov_deg", DEFAULT_FOV_Y_DEG), here, "fov_deg")
+        pose["fov_axis"] = table.get("fov_axis", "y")
     elif "fov_y_deg" in table:
         pose["fov_y_deg"] = table["fov_y_deg"]
     if "matrix" in table:

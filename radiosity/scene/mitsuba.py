@@ -53,7 +53,8 @@ Emitters
     a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
-    ``fov_axis`` (x, y, diagonal, smaller, larger) or 0.6's ``focalLength``, the
+    ``fov_axis`` (x, y, diagonal, smaller, larger; kept along that axis at any image
+    size, as Mitsuba 3 keeps it) or 0.6's ``focalLength`` (a diagonal fov), the
     transform (``lookat`` or a matrix; a mirroring one is drawn unmirrored, with a
     warning), and the film's width and height.
 
@@ -1279,14 +1280,14 @@ def _camera(doc, node):
     else:
         axis = props.string("fov_axis", "x").lower()
     try:
-        fov_y = fov_y_deg(fov, axis, width, height)
+        fov_y_deg(fov, axis, width, height)  # the fov and its axis checked before the transform
     except InputError as exc:
         raise node.fail(str(exc).removeprefix("camera: ")) from None
     eye, look_at, up, mirrored = pose_from_matrix(props.transform("to_world"))
     if mirrored:
         node.warn("the sensor's transform mirrors the image (a negative scale): drawn unmirrored")
-    try:
-        return Camera(eye, look_at, up, fov_y, width, height)
+    try:  # the fov kept along its axis: at another image size, Mitsuba 3's view of the same sensor
+        return Camera(eye, look_at, up, fov, width, height, axis)
     except InputError as exc:
         raise node.fail(str(exc)) from None
 

@@ -29,7 +29,7 @@ from radiosity.formats.solution import ObjectSolution, Solution
 pytestmark = pytest.mark.gl
 
 RTOL, ATOL = 2e-3, 1e-5
-VIEW = Camera(eye=(0.4, 0.6, 3.2), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=96, height=80)
+VIEW = Camera(eye=(0.4, 0.6, 3.2), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=45.0, width=96, height=80)
 EXPONENT = 60.0
 KS = np.array([0.5, 0.45, 0.4])
 
@@ -217,7 +217,7 @@ def test_no_light_counted_twice_a_glossy_floor_under_a_square_lamp(gl_context, t
     sol = solve(scene, SolveOptions(photons=1_000_000, gather_samples=64, light_samples=4, grid=16, max_edge=0.05, seed=3))
     assert [p.source for p in sol.emitters] == ["lamp"]
     model = fit(sol, FitOptions(model="probe", probe_size=8))
-    view = Camera(eye=(0.0, 0.9, 1.4), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0, width=64, height=64)
+    view = Camera(eye=(0.0, 0.9, 1.4), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=64, height=64)
     r = Renderer(gl_context, fit=model, solution=sol, samples=1)
     index, vertices, bary = r.render_triangles(view)
     floor_index = [o.name for o in r.objects].index("floor")

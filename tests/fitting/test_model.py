@@ -63,7 +63,7 @@ def refused(path, *words):
 
 
 def test_round_trip_keeps_everything(rng, tmp_path):
-    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_y_deg=50.0)
+    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_deg=50.0)
     m = model(rng, camera=camera)
     m.save(tmp_path / "fit.npz")
     back = load_fit(tmp_path / "fit.npz")
