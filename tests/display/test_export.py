@@ -156,6 +156,16 @@ def test_scene_extras_hold_the_format_and_the_camera(exported):
                                 "fov_y_deg": 40.0}
 
 
+def test_a_camera_along_x_keeps_its_axis_in_the_extras(tmp_path, cli, rng):
+    camera = dataclasses.replace(CAMERA, fov_deg=70.0, fov_axis="x", width=1280, height=720)
+    lit_model(True, rng, camera=camera).save(tmp_path / "fit.npz")
+    assert cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")[0] == 0
+    extras = glb_header(tmp_path / "web" / FILE)["scenes"][0]["extras"]["camera"]
+    assert extras == camera.to_dict() and extras["fov_axis"] == "x" and extras["film"] == [1280, 720]
+    assert extras["fov_y_deg"] == camera.fov_y_deg  # what a page that knows no axis draws
+    assert load_export(tmp_path / "web" / FILE).camera == camera
+
+
 def test_a_fit_without_a_camera_has_none_in_the_extras(tmp_path, cli, rng):
     lit_model(True, rng, camera=None).save(tmp_path / "fit.npz")
     assert cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")[0] == 0

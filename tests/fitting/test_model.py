@@ -75,6 +75,18 @@ def test_round_trip_keeps_everything(rng, tmp_path):
     assert load_fit(rewrite(tmp_path / "fit.npz", meta=lambda d: d.pop("camera"))).camera is None
 
 
+def test_a_camera_along_x_keeps_its_axis(rng, tmp_path):
+    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_deg=70.0, width=1280, height=720, fov_axis="x")
+    model(rng, camera=camera).save(tmp_path / "fit.npz")
+    back = load_fit(tmp_path / "fit.npz")
+    assert back.camera == camera and back.camera.sized(512, 512).fov_y_deg == pytest.approx(70.0, rel=1e-12)
+    with np.load(tmp_path / "fit.npz", allow_pickle=False) as npz:
+        record = json.loads(str(npz["meta"]))["camera"]
+    assert record["fov_y_deg"] == camera.fov_y_deg and record["fov_axis"] == "x" and record["film"] == [1280, 720]
+    bad = rewrite(tmp_path / "fit.npz", meta=lambda d: d["camera"].update(fov_axis="sideways"))
+    refused(bad, "meta 'camera'", "fov axis must be one of")
+
+
 def test_save_refuses_nan_in_meta_and_writes_nothing(rng, tmp_path):
     m = model(rng, info={"error": {"relative_rms": float("nan")}})
     with pytest.raises(ValueError):

@@ -8,6 +8,7 @@ InputError.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import zipfile
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 
 from radiosity.formats.atomic import atomic_output
+from radiosity.formats.camera import Camera
 from radiosity.formats.directions import DIFFUSE_DIRECTIONS, grid_directions
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
@@ -180,6 +182,27 @@ def test_a_fresnel_material_round_trips_and_files_without_it_have_no_key(tmp_pat
     bad = dict(plastic, fresnel=[0.04, 0.04])
     with pytest.raises(ValueError, match="fresnel must be 3 numbers"):
         make_object("floor", 2, bad, 5)
+
+
+def test_a_camera_along_x_keeps_its_axis_and_its_film_s_vertical_fov(tmp_path, solution):
+    # a Mitsuba sensor's fov 70 along x on a 1280 x 720 film
+    camera = Camera((6.9, 1.65, 2.55), (6.0, 1.65, 2.12), (0.0, 1.0, 0.0), 70.0, 1280, 720, "x")
+    path = tmp_path / "camera.npz"
+    dataclasses.replace(solution, camera=camera).save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        meta = json.loads(str(npz["meta"]))
+    assert meta["version"] == 2  # optional keys: no new version (a version 2 reader reads the file)
+    assert meta["camera"]["fov_y_deg"] == pytest.approx(42.99566, abs=1e-5)  # what an older reader draws the film with
+    assert (meta["camera"]["fov_deg"], meta["camera"]["fov_axis"], meta["camera"]["film"]) == (70.0, "x", [1280, 720])
+    back = load_solution(path).camera
+    assert back == camera and back.sized(1024, 1024).fov_y_deg == pytest.approx(70.0, rel=1e-12)
+    for key in ("fov_deg", "fov_axis", "film"):  # a file without them reads as before: that vertical fov
+        del meta["camera"][key]
+    _, arrays = contents(solution)
+    old = load_solution(write_npz(tmp_path / "old.npz", meta, arrays)).camera
+    assert old.fov_axis == "y" and old.fov_deg == meta["camera"]["fov_y_deg"]
+    meta["camera"] |= {"fov_deg": 70.0, "fov_axis": "x", "film": [1280, 721]}
+    refused(write_npz(tmp_path / "bad.npz", meta, arrays), "meta 'camera'", "is not the vertical field of view")
 
 
 def test_names_with_a_slash_are_refused(tmp_path):
