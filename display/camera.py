@@ -85,5 +85,6 @@ def resolve_camera(args, bounds, default=None):
     )
     if camera.fov_y_deg < MIN_FOV_DEG:
         raise InputError(f"the field of view must be at least {MIN_FOV_DEG:g} degrees for the display, got "
-                         f"{camera.fov_y_deg:g} (a narrower one overflows its float32 projection)")
+                         f"{camera.fov_y_deg:g} (vertical, at {width}x{height}: a narrower one overflows its float32 "
+                         "projection)")
     return camera

@@ -216,7 +216,9 @@ def fov_y_deg(fov_deg, axis, width, height):
         axis = "x" if width < height else "y"
     elif axis == "larger":
         axis = "x" if width > height else "y"
-    ratio = {"x": height / width, "y": 1.0, "diagonal": height / math.hypot(width, height)}[axis]
+    if axis == "y":
+        return float(fov_deg)  # itself, not itself through tan and atan (one rounding off)
+    ratio = {"x": height / width, "diagonal": height / math.hypot(width, height)}[axis]
     return math.degrees(2 * math.atan(math.tan(math.radians(fov_deg) / 2) * ratio))
 
 

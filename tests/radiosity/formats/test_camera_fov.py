@@ -84,7 +84,9 @@ def test_fov_y_deg_is_the_function_of_the_axis_and_size():
     for axis in FOV_AXES:
         for size in SIZES.values():
             assert Camera(EYE, LOOK_AT, UP, 33.0, *size, axis).fov_y_deg == fov_y_deg(33.0, axis, *size)
-    assert Camera(EYE, LOOK_AT, UP, 33.0, 10, 1000).fov_y_deg == 33.0  # the default axis: y, the vertical fov
+    for fov in (33.0, 39.3, 60.0, 0.001, 179.9):  # the default axis, y: the vertical fov itself, to the bit
+        assert Camera(EYE, LOOK_AT, UP, fov, 10, 1000).fov_y_deg == fov
+        assert Camera(EYE, LOOK_AT, UP, fov, 1000, 10, "smaller").fov_y_deg == fov
 
 
 # -- the record (Contract 3's camera) --------------------------------------------------------
