@@ -91,7 +91,7 @@ class Walkthrough(mglw.WindowConfig):
         self.screenshot_path = s["screenshot"]
         self.press = s["press"]
         view = s["view"]
-        self.fov = (view.fov_deg, view.fov_axis)  # kept along its axis as the window is resized
+        self.fov_along = (view.fov_deg, view.fov_axis)  # the field of view, along its axis as the window resizes
         radius = float(np.linalg.norm(self.renderer.bounds[1] - self.renderer.bounds[0]))
         self.camera = KeyboardCamera(self.wnd.keys, fov=view.fov_y_deg, aspect_ratio=self.wnd.aspect_ratio,
                                      near=radius * 1e-3, far=radius * 10)
@@ -113,7 +113,7 @@ class Walkthrough(mglw.WindowConfig):
         forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(pitch), math.sin(yaw) * math.cos(pitch)])
         eye = np.array(self.camera.position, float)
         w, h = self.wnd.buffer_size
-        fov, axis = self.fov
+        fov, axis = self.fov_along
         return Camera(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), fov, max(int(w), 1), max(int(h), 1), axis)
 
     def on_render(self, time_s, frame_time):
@@ -189,7 +189,7 @@ class Walkthrough(mglw.WindowConfig):
         self.camera.rot_state(-dx, -dy)
 
     def on_resize(self, width, height):
-        fov, axis = self.fov
+        fov, axis = self.fov_along
         self.camera.projection.update(aspect_ratio=self.wnd.aspect_ratio,
                                       fov=fov_y_deg(fov, axis, max(int(width), 1), max(int(height), 1)))
 

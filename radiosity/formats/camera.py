@@ -26,8 +26,8 @@ from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import TEXT_BYTES, loads_json, read_input_bytes
 
 __all__ = [
-    "DEFAULT_FOV_Y_DEG", "FOV_AGREEMENT_DEG", "FOV_AXES", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict", "camera_from_meta", "fov_y_deg",
-    "load_views", "pose_from_matrix",
+    "DEFAULT_FOV_Y_DEG", "FOV_AGREEMENT_DEG", "FOV_AXES", "MAX_IMAGE_SIDE", "Camera", "camera_from_dict",
+    "camera_from_meta", "fov_y_deg", "load_views", "pose_from_matrix",
 ]
 
 DEFAULT_FOV_Y_DEG = 39.3
