@@ -72,7 +72,7 @@ def test_the_numbers_mitsuba_3_gives(axis, size, fov_x, fov_y):
     assert camera.fov_y_deg == pytest.approx(fov_y, abs=2e-5)
 
 
-def test_the_published_staircase_case():
+def test_a_16_9_film_with_its_fov_along_x_drawn_square():
     # a 1280 x 720 film with fov 70 along x (Mitsuba's default axis) drawn 1024 x 1024: 70 both ways
     film = Camera(EYE, LOOK_AT, UP, 70.0, 1280, 720, "x")
     assert film.fov_y_deg == pytest.approx(42.99566, abs=1e-5)
