@@ -284,7 +284,8 @@ def _highlight_lines(solution):
         return []
     kinds = {}
     for p in parts:
-        what = "sphere" if p.kind == "sphere" else f"{len(p.points)}-gon"
+        what = {"sphere": "sphere", "polygon": f"{len(p.points)}-gon", "direction": "directional"}.get(
+            p.kind, "spot" if p.spot is not None else "point")
         kinds.setdefault(p.source, []).append(what)
     described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
     if len(kinds) > LISTED:

@@ -298,7 +298,7 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
     Returns {object name: Marks} (objects with none left out)."""
     settings, stats = solution.settings, solution.stats
     emitted = sum(float(np.asarray(o.emitted_power) @ LUMINANCE) for o in scene.emitters)
-    if scene.environment is not None and "energy" in stats:  # the environment's photons too
+    if (scene.environment is not None or scene.lights) and "energy" in stats:  # the environment's and lights' too
         emitted = float(np.asarray(stats["energy"]["emitted"]) @ LUMINANCE)
     photon_power = emitted / max(stats.get("photons", 0), 1)
     values = {o.name: vertex_values(solution.object(o.name)) for o in scene.objects}
