@@ -187,10 +187,10 @@ float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {
     }
     return total / p1;
 }
-float spot_falloff(float cos_theta, float cutoff, float beam) {   // Mitsuba 3's spot profile
-    if (!(cos_theta > cos(cutoff))) return 0.0;
-    if (cos_theta >= cos(beam)) return 1.0;
-    return (cutoff - acos(min(cos_theta, 1.0))) / (cutoff - beam);
+float spot_falloff(float theta, float cutoff, float beam) {   // Mitsuba 3's spot profile at theta from its axis
+    if (!(theta < cutoff)) return 0.0;
+    if (theta <= beam) return 1.0;
+    return (cutoff - theta) / (cutoff - beam);
 }
 // a delta part's J: the lobe and the cosine at its one direction, times 1 / d^2 and the
 // spot's profile for a point (radiosity.formats.emitters.delta_integral)
@@ -205,7 +205,8 @@ float delta_integral(int part, bool direction, vec3 x, vec3 n, vec3 r, float p) 
         wi = to / sqrt(d2);
         scale = 1.0 / d2;
         vec3 spot = emitter_point(part, 2);
-        if (spot.z > 0.0) scale *= spot_falloff(-dot(wi, emitter_point(part, 1)), spot.x, spot.y);
+        vec3 axis = emitter_point(part, 1);
+        if (spot.z > 0.0) scale *= spot_falloff(atan2_(length(cross(wi, axis)), -dot(wi, axis)), spot.x, spot.y);
     }
     float cos_n = dot(wi, n), cos_a = dot(wi, r);
     if (!(cos_n > 0.0 && cos_a > 0.0 && scale > 0.0)) return 0.0;

@@ -70,6 +70,7 @@ __all__ = [
     "highlight_integral",
     "parts_from_meta",
     "pack_parts",
+    "spot_angle",
     "spot_falloff",
 ]
 
@@ -126,12 +127,13 @@ class SpotProfile:
         """(cutoff, beam) in radians."""
         return math.radians(self.cutoff_deg), math.radians(self.beam_deg)
 
-    def falloff(self, cos_theta):
-        """The profile (...) float64 in [0, 1] at cos theta (...) from the axis (``spot_falloff``)."""
+    def falloff(self, theta_deg):
+        """The profile (...) float64 in [0, 1] at the angles ``theta_deg`` (...) from
+        the axis, in degrees (``spot_falloff``)."""
         cutoff, beam = self.radians
-        c = np.asarray(cos_theta, np.float64)
-        out = np.array([spot_falloff(float(v), cutoff, beam) for v in c.ravel()])
-        return out.reshape(c.shape)
+        t = np.radians(np.asarray(theta_deg, np.float64))
+        out = np.array([spot_falloff(float(v), cutoff, beam) for v in t.ravel()])
+        return out.reshape(t.shape)
 
     def solid_angle(self):
         """The integral of the profile over the sphere (sr): 2 pi (1 - (sin c - sin b) / (c - b)),
@@ -615,15 +617,25 @@ def polygon_integral(count, points, x, n, r, exponent, rule_s, rule_w):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def spot_falloff(cos_theta, cutoff, beam):
-    """Mitsuba 3's spot profile (``spot.cpp``, ``falloff_curve``) at cos theta from the
-    spot's axis, its cutoff and beam width in radians: 0 unless cos theta > cos(cutoff),
-    1 where cos theta >= cos(beam), else (cutoff - theta) / (cutoff - beam)."""
-    if not cos_theta > math.cos(cutoff):
+def spot_falloff(theta, cutoff, beam):
+    """Mitsuba 3's spot profile (``spot.cpp``, ``falloff_curve``) at the angle theta
+    from the spot's axis, its cutoff and beam width (all radians): 0 at and beyond the
+    cutoff, 1 within the beam, (cutoff - theta) / (cutoff - beam) between. (Mitsuba
+    compares cosines, cos theta > cos(cutoff) and cos theta >= cos(beam): the same
+    tests; the angles, from ``spot_angle``, keep single precision exact near the axis.)"""
+    if not theta < cutoff:
         return 0.0
-    if cos_theta >= math.cos(beam):
+    if theta <= beam:
         return 1.0
-    return (cutoff - math.acos(min(cos_theta, 1.0))) / (cutoff - beam)
+    return (cutoff - theta) / (cutoff - beam)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def spot_angle(wx, wy, wz, ax, ay, az):
+    """The angle (radians) between unit vectors w and a: atan2(|w x a|, w . a), exact
+    at small angles where acos(w . a) is not."""
+    cx, cy, cz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), wx * ax + wy * ay + wz * az)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -642,7 +654,7 @@ def delta_incidence(kind, points, x):
     wx, wy, wz = dx / dist, dy / dist, dz / dist
     scale = 1.0 / d2
     if points[2, 2] > 0.0:  # a spot: its profile toward x, at -wi from its axis
-        scale *= spot_falloff(-(wx * points[1, 0] + wy * points[1, 1] + wz * points[1, 2]), points[2, 0], points[2, 1])
+        scale *= spot_falloff(spot_angle(-wx, -wy, -wz, points[1, 0], points[1, 1], points[1, 2]), points[2, 0], points[2, 1])
     return (wx, wy, wz), dist, scale
 
 

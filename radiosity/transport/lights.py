@@ -94,7 +94,7 @@ def emit_delta(lights, j, rnd, weight):
         cos_t = 1.0 - rnd[0] * (1.0 - cos_cut)
         ax, ay, az = q[1, 0], q[1, 1], q[1, 2]
         solid = 2.0 * math.pi * (1.0 - cos_cut)
-        falloff = spot_falloff(cos_t, q[2, 0], q[2, 1])
+        falloff = spot_falloff(math.acos(cos_t), q[2, 0], q[2, 1])
     else:
         cos_t = 1.0 - 2.0 * rnd[0]
         ax, ay, az = 0.0, 0.0, 1.0
