@@ -86,6 +86,7 @@ DEFAULT_NODES = 8
 MAX_NODES = 32
 MAX_FILE_PARTS = 31  # a file's parts at most: the displays mark an object's own parts in a 32-bit mask
 MAX_LIGHTS = 1024  # a scene's delta lights at most (a solution's meta "lights")
+UNIT_TOLERANCE = 1e-12  # a direction or a spot's axis this near unit length is kept as given, else normalised
 HALF_PI = 0.5 * math.pi
 CULL = 1e-4  # a part whose bounding sphere sees the lobe below this fraction of its peak reflects nothing
 U_NODE = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre on [0, 1]: 1/2 -+ this, weights 1/2
@@ -113,7 +114,7 @@ class SpotProfile:
         length = float(np.linalg.norm(axis))
         if not (np.isfinite(axis).all() and length > 0):
             raise ValueError("a spot's axis must be a finite, non-zero vector")
-        object.__setattr__(self, "axis", axis / length)
+        object.__setattr__(self, "axis", axis / length if abs(length - 1) > UNIT_TOLERANCE else axis)
         object.__setattr__(self, "cutoff_deg", float(self.cutoff_deg))
         object.__setattr__(self, "beam_deg", float(self.beam_deg))
         if not 0 < self.cutoff_deg <= 180:
@@ -177,7 +178,7 @@ class EmitterPart:
         put(self, "radius", float(self.radius))
         if self.kind == "direction" and len(self.points) == 1 and np.isfinite(self.points).all():
             length = float(np.linalg.norm(self.points[0]))
-            if length > 0:
+            if length > 0 and abs(length - 1) > UNIT_TOLERANCE:  # a unit one as it is: files read back exactly
                 put(self, "points", self.points / length)
         problem = self.problem()
         if problem:
