@@ -253,17 +253,19 @@ def test_parts_are_checked_and_read_back():
 # -- delta parts: a point (with a spot's profile) and a direction ---------------------------------
 
 
-def delta_reference(x, n, w, ks, p, position=None, intensity=None, direction=None, irradiance=None, spot=None,
-                    fresnel=None):
+def delta_reference(x, n, w, lobe, part, fresnel=None):
     """f_s(wi, w) Le cos / d^2 (E cos for a direction) by numpy: the modified-Phong lobe
-    about the mirror of w, ks weighted by Schlick's F(n . w), a spot's profile by its
-    angle from acos (float64)."""
-    if direction is not None:
-        wi, scale, le = -unit(direction), 1.0, np.asarray(irradiance, float)
+    = (ks, p) about the mirror of w, ks weighted by Schlick's F(n . w); a spot's profile
+    by its angle from acos (float64). ``part``: (kind, its point or direction, Le,
+    None or (axis, cutoff, beam))."""
+    kind, where, le, spot = part
+    ks, p = lobe
+    if kind == "direction":
+        wi, scale = -unit(where), 1.0
     else:
-        to = np.asarray(position, float) - x
+        to = np.asarray(where, float) - x
         d = np.linalg.norm(to)
-        wi, scale, le = to / d, 1 / d**2, np.asarray(intensity, float)
+        wi, scale = to / d, 1 / d**2
         if spot is not None:
             axis, cutoff, beam = unit(spot[0]), spot[1], spot[2]
             theta = math.degrees(math.acos(np.clip(-wi @ axis, -1, 1)))
@@ -272,7 +274,7 @@ def delta_reference(x, n, w, ks, p, position=None, intensity=None, direction=Non
     k = np.asarray(ks, float)
     if fresnel is not None:
         k = k * (np.asarray(fresnel) + (1 - np.asarray(fresnel)) * (1 - np.clip(n @ w, 0, 1)) ** 5)
-    return k * (p + 2) / (2 * np.pi) * max(wi @ r, 0) ** p * max(wi @ n, 0) * scale * le
+    return k * (p + 2) / (2 * np.pi) * max(wi @ r, 0) ** p * max(wi @ n, 0) * scale * np.asarray(le, float)
 
 
 @pytest.mark.parametrize("fresnel", [None, (0.04, 0.3, 0.9)])
@@ -291,13 +293,11 @@ def test_delta_parts_highlights_against_numpy(fresnel):
     n = np.tile([0.0, 1.0, 0.0], (400, 1))
     w = np.array([unit(v) for v in rng.normal(size=(400, 3)) * [1, 0.2, 1] + [0, 1.0, 0]])
     got = emitter_radiance(parts, x, n, w, ks, p, fresnel=None if fresnel is None else np.array(fresnel))
-    want = np.array([
-        delta_reference(x[i], n[i], w[i], ks, p, position=parts[0].points[0], intensity=parts[0].radiance, fresnel=fresnel)
-        + delta_reference(x[i], n[i], w[i], ks, p, position=parts[1].points[0], intensity=parts[1].radiance, spot=spot,
-                          fresnel=fresnel)
-        + delta_reference(x[i], n[i], w[i], ks, p, direction=parts[2].points[0], irradiance=parts[2].radiance,
-                          fresnel=fresnel)
-        for i in range(400)])
+    described = [("point", parts[0].points[0], parts[0].radiance, None),
+                 ("point", parts[1].points[0], parts[1].radiance, spot),
+                 ("direction", parts[2].points[0], parts[2].radiance, None)]
+    want = np.array([sum(delta_reference(x[i], n[i], w[i], (ks, p), part, fresnel) for part in described)
+                     for i in range(400)])
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-300)
     # the spot's three regions are all among the points
     angles = np.degrees(np.arccos(np.clip(((x - parts[1].points[0]) / np.linalg.norm(x - parts[1].points[0], axis=1)[:, None])
