@@ -103,7 +103,7 @@ def _light_arrays(scene, positions, triangle_power, epsilon):
         env = no_environment() if scene.environment is None else scene.environment.kernel_arrays(
             center, radius, triangle_power)
         return {"env": env, "lights": delta.no_lights()}
-    light_power = float(delta.power(scene.lights, radius).sum())
+    light_power = float(sum(delta.photon_power(light, center, radius).sum() for light in scene.lights))
     env = no_environment()
     env_power = 0.0
     if scene.environment is not None:

@@ -10,12 +10,17 @@ form (``transport.highlights``).
     pick_light     light j of a uniform number, by power
     arriving       the light from light j at a point: direction, distance, RGB
 
-A point emits from its position, uniformly over the sphere (a spot: uniformly over its
-cone, each photon weighted by the profile there); a direction from a uniform point of
+A point emits from its position, uniformly over the sphere, or, outside the scene's
+bounding sphere (a lamp by the camera, a street light), uniformly over the cone that
+holds that sphere (``reach``: the rest of its light leaves the scene without meeting
+anything, and counts as escaped at once, ``unreached``); a spot uniformly over its
+cone, each photon weighted by the profile there; a direction from a uniform point of
 the disk of the scene's bounding sphere facing it, as the environment's photons do.
 Each photon carries its light's share of the pass's power, so a pass's photons sum to
-the lights' power in expectation (``power``: 4 pi I for a point, I times the profile's
-solid angle for a spot, E pi R^2 for a direction through the disk of radius R).
+the power the lights send into the scene in expectation (``photon_power``; ``power``
+is all they emit: 4 pi I for a point, I times the profile's solid angle for a spot,
+E pi R^2 for a direction through the disk of radius R). Lights are chosen by that
+power, for their photons and their light samples alike.
 """
 
 from __future__ import annotations
@@ -30,7 +35,10 @@ from radiosity.scene.materials import onb
 from radiosity.transport.records import LightArrays
 from radiosity.transport.sampling import cosine_direction, search_cdf
 
-__all__ = ["arriving", "emit_delta", "light_arrays", "no_lights", "pick_light", "power"]
+__all__ = ["arriving", "emit_delta", "light_arrays", "no_lights", "photon_power", "pick_light", "power", "reach",
+           "unreached"]
+
+WHOLE_SPHERE = (0.0, 0.0, 1.0, -1.0)  # a cone of every direction
 
 
 def power(lights, radius):
@@ -39,27 +47,57 @@ def power(lights, radius):
     return sum((light.power(radius) for light in lights), np.zeros(3))
 
 
+def reach(light, center, radius):
+    """(axis x, y, z, cos of the half-angle): the cone a point light (no spot) sends its
+    photons into, the one that holds the bounding sphere (center, radius) from outside
+    it, else every direction (``WHOLE_SPHERE``, as for a spot or a direction)."""
+    if light.kind != "point" or light.spot is not None:
+        return WHOLE_SPHERE
+    to = np.asarray(center, np.float64) - light.points[0]
+    distance = float(np.linalg.norm(to))
+    if not distance > radius * (1 + 1e-6):
+        return WHOLE_SPHERE
+    return (*(to / distance), math.sqrt(1.0 - (radius / distance) ** 2))
+
+
+def photon_power(light, center, radius):
+    """The RGB power (3,) float64 ``light`` sends into the bounding sphere (center,
+    radius), as its photons carry it: I 2 pi (1 - cos) over a point's ``reach``, else
+    all of it (``EmitterPart.power``)."""
+    cone = reach(light, center, radius)
+    if cone[3] == -1.0:
+        return light.power(radius)
+    return light.radiance * 2 * math.pi * (1 - cone[3])
+
+
+def unreached(lights, center, radius):
+    """The RGB power (3,) float64 of ``lights`` their photons do not carry: it leaves the
+    scene without meeting it (``reach``)."""
+    return sum((light.power(radius) - photon_power(light, center, radius) for light in lights), np.zeros(3))
+
+
 def no_lights():
     """``LightArrays`` of a scene without delta lights (never picked)."""
-    return LightArrays(np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
-                       0.0, 0.0, False, np.zeros(3), 0.0)
+    return LightArrays(np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(0),
+                       np.zeros(0), 0.0, 0.0, False, np.zeros(3), 0.0)
 
 
 def light_arrays(lights, center, radius, photon_share, light_share, only):
     """``LightArrays`` of ``lights`` (delta ``EmitterPart`` s, at least one) in a scene
-    whose bounding sphere is (center, radius): each chosen in proportion to its power
-    (the sum of its RGB), photons with probability ``photon_share`` and the path
-    tracer's light samples with ``light_share``; ``only``: the scene has no emitting
-    triangle."""
+    whose bounding sphere is (center, radius): each chosen in proportion to the power
+    it sends into the scene (``photon_power``, the sum of its RGB), photons with
+    probability ``photon_share`` and the path tracer's light samples with
+    ``light_share``; ``only``: the scene has no emitting triangle."""
     packed = PackedParts(lights)
-    weights = np.array([float(light.power(radius).sum()) for light in lights])
+    weights = np.array([float(photon_power(light, center, radius).sum()) for light in lights])
     if not weights.sum() > 0:
         weights = np.ones(len(lights))  # all black: any will do, each brings nothing
     pick = weights / weights.sum()
     cdf = np.cumsum(pick)
     cdf[-1] = 1.0
+    cones = np.array([reach(light, center, radius) for light in lights], np.float64).reshape(len(lights), 4)
     return LightArrays(
-        packed.kinds.copy(), np.ascontiguousarray(packed.points[:, :3]), packed.radiance.copy(), cdf, pick,
+        packed.kinds.copy(), np.ascontiguousarray(packed.points[:, :3]), packed.radiance.copy(), cones, cdf, pick,
         float(photon_share), float(light_share), bool(only), np.asarray(center, np.float64).reshape(3), float(radius),
     )  # fmt: skip
 
@@ -95,10 +133,11 @@ def emit_delta(lights, j, rnd, weight):
         ax, ay, az = q[1, 0], q[1, 1], q[1, 2]
         solid = 2.0 * math.pi * (1.0 - cos_cut)
         falloff = spot_falloff(math.acos(cos_t), q[2, 0], q[2, 1])
-    else:
-        cos_t = 1.0 - 2.0 * rnd[0]
-        ax, ay, az = 0.0, 0.0, 1.0
-        solid = 4.0 * math.pi
+    else:  # uniform over the cone that holds the scene (every direction from inside it)
+        cone = lights.cones[j]
+        cos_t = 1.0 - rnd[0] * (1.0 - cone[3])
+        ax, ay, az = cone[0], cone[1], cone[2]
+        solid = 2.0 * math.pi * (1.0 - cone[3])
         falloff = 1.0
     sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
     tx, ty, tz, bx, by, bz = onb(ax, ay, az)

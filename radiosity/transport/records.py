@@ -36,7 +36,10 @@ class LightArrays(NamedTuple):
                                       point) or unit direction of travel (a direction); a
                                       spot's axis; (cutoff, beam width (radians), 1 for a spot)
     values      : (L, 3) float64      intensity (W/sr; a spot's peak) or irradiance
-    cdf         : (L,) float64        cumulative probability of choosing each, by power
+    cones       : (L, 4) float64      a point's photons' cone (axis, cos of its half-angle:
+                                      -1 every direction; ``lights.reach``)
+    cdf         : (L,) float64        cumulative probability of choosing each, by the
+                                      power it sends into the scene
     pick        : (L,) float64        the probability of each
     photon_share: float               probability that a photon is a delta light's
     light_share : float               probability that a path tracer's light sample picks one
@@ -49,6 +52,7 @@ class LightArrays(NamedTuple):
     kinds: np.ndarray
     points: np.ndarray
     values: np.ndarray
+    cones: np.ndarray
     cdf: np.ndarray
     pick: np.ndarray
     photon_share: float

@@ -360,6 +360,8 @@ def _solve(scene, settings, runner, progress):
         finally:
             bar.close()
     moment0, moment1, tally = photon_sums
+    if refined.lights and lit:  # a point light's power its photons do not carry leaves the scene at once
+        tally[T_ESCAPED:T_ESCAPED + 3] += delta_lights.unreached(refined.lights, sa.lights.center, sa.lights.radius)
     photon_rays = runner.rays_cast - rays_before
     times["photons"] = time.perf_counter() - t0
 

@@ -208,6 +208,24 @@ def test_a_point_light_over_a_diffuse_plane_gives_i_cos_over_d_squared(tmp_path,
     assert np.allclose(energy, point_irradiance(points, spot=spot).sum(axis=0) * 4 / len(points), rtol=0.01)
 
 
+def test_a_point_light_outside_the_scene_sends_its_photons_at_it(tmp_path):
+    """A point light far above a plane (outside its bounding sphere: a lamp by the
+    camera): its photons go into the cone that holds the scene, so most of them land;
+    the irradiance is I cos / d^2 all the same, and the power they leave out counts as
+    escaped, so the tally still closes."""
+    far = (0.5, 4.0, -0.3)
+    scene = plane_scene(tmp_path, f'kind = "point"\nposition = {toml(far)}\nintensity = {toml(INTENSITY * 20)}')
+    solution = solve(scene, SolveOptions(quality="draft", photons=400_000, threads=2, max_edge=0.1))
+    x, e = vertex_irradiance(solution)
+    ratio = e / point_irradiance(x, position=far, intensity=INTENSITY * 20)
+    assert np.allclose(np.median(ratio, axis=0), 1, atol=0.01) and np.percentile(np.abs(ratio - 1), 90) < 0.05
+    stats = solution.stats
+    assert stats["energy"]["photon_hits"] > 0.5 * stats["photons"]  # 4 % would land spread over every direction
+    energy = {k: np.asarray(v) for k, v in stats["energy"].items() if k != "photon_hits"}
+    assert np.allclose(energy["emitted"], 4 * np.pi * INTENSITY * 20, rtol=1e-12)
+    assert np.allclose(energy["emitted"], energy["escaped"] + energy["absorbed"], rtol=0.01)
+
+
 def test_a_directional_light_over_a_diffuse_plane_gives_e_cos(tmp_path):
     scene = plane_scene(tmp_path, DIRECTIONAL)
     solution = solve(scene, SolveOptions(quality="draft", photons=1_000_000, threads=2, max_edge=0.1))
