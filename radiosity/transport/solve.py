@@ -360,8 +360,10 @@ def _solve(scene, settings, runner, progress):
         finally:
             bar.close()
     moment0, moment1, tally = photon_sums
+    unreached = np.zeros(3)
     if refined.lights and lit:  # a point light's power its photons do not carry leaves the scene at once
-        tally[T_ESCAPED:T_ESCAPED + 3] += delta_lights.unreached(refined.lights, sa.lights.center, sa.lights.radius)
+        unreached = delta_lights.unreached(refined.lights, sa.lights.center, sa.lights.radius)
+        tally[T_ESCAPED:T_ESCAPED + 3] += unreached
     photon_rays = runner.rays_cast - rays_before
     times["photons"] = time.perf_counter() - t0
 
@@ -463,6 +465,7 @@ def _solve(scene, settings, runner, progress):
             "terminated": tally[T_TERMINATED:T_TERMINATED + 3].tolist(),
             "incident": tally[T_INCIDENT:T_INCIDENT + 3].tolist(),
             "photon_hits": int(tally[T_HITS]),
+            **({"unreached": unreached.tolist()} if refined.lights else {}),  # of escaped: no photon carried it
         },
     }
     for o, _, radiance in results:

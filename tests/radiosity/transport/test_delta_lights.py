@@ -224,6 +224,16 @@ def test_a_point_light_outside_the_scene_sends_its_photons_at_it(tmp_path):
     energy = {k: np.asarray(v) for k, v in stats["energy"].items() if k != "photon_hits"}
     assert np.allclose(energy["emitted"], 4 * np.pi * INTENSITY * 20, rtol=1e-12)
     assert np.allclose(energy["emitted"], energy["escaped"] + energy["absorbed"], rtol=0.01)
+    distance = np.linalg.norm(far)  # from the plane's centre, its bounding sphere's
+    cone = 2 * np.pi * (1 - np.sqrt(1 - (solution_radius(scene) / distance) ** 2))
+    assert np.allclose(energy["unreached"], INTENSITY * 20 * (4 * np.pi - cone), rtol=1e-4)  # 4 ray offsets wider
+
+
+def solution_radius(scene):
+    """The radius of the disk a solve's directional photons start from (its bounding
+    sphere, a hair larger than the box's: ``batches``)."""
+    lo, hi = scene.bounds
+    return 0.5 * np.linalg.norm(hi - lo) * (1 + 1e-4)
 
 
 def test_a_directional_light_over_a_diffuse_plane_gives_e_cos(tmp_path):
