@@ -284,8 +284,10 @@ def _highlight_lines(solution):
         return []
     kinds = {}
     for p in parts:
-        what = {"sphere": "sphere", "polygon": f"{len(p.points)}-gon", "direction": "directional"}.get(
-            p.kind, "spot" if p.spot is not None else "point")
+        if p.kind == "point":
+            what = "spot" if p.spot is not None else "point"
+        else:
+            what = {"sphere": "sphere", "polygon": f"{len(p.points)}-gon", "direction": "directional"}[p.kind]
         kinds.setdefault(p.source, []).append(what)
     described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
     if len(kinds) > LISTED:
