@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from radiosity.formats.camera import Camera
-from radiosity.formats.emitters import EmitterPart
+from radiosity.formats.emitters import MAX_LIGHTS, EmitterPart
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
@@ -164,6 +164,8 @@ class Scene:
         if not self.objects:
             raise InputError(f"scene {self.name!r} has no objects")
         object.__setattr__(self, "lights", tuple(self.lights))
+        if len(self.lights) > MAX_LIGHTS:
+            raise InputError(f"scene {self.name!r} has {len(self.lights):,} lights; a scene has at most {MAX_LIGHTS:,}")
         for light in self.lights:
             if not (isinstance(light, EmitterPart) and light.is_delta):
                 raise TypeError(f"scene {self.name!r}: a light must be a point or direction EmitterPart, got {light!r}")

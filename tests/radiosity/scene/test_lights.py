@@ -165,3 +165,17 @@ def test_truth_of_a_solution_sees_its_delta_lights(tmp_path, capsys):
         with PathTracer(s, threads=2) as tracer:
             images.append(tracer.render(camera, 16, seed=2).radiance)
     assert np.abs(images[0] - images[1]).max() < 1e-4 * images[0].max() and images[0].max() > 0.05
+
+
+def test_more_lights_than_a_file_holds_are_refused_in_one_line(tmp_path):
+    from radiosity.formats.emitters import MAX_LIGHTS
+
+    many = "".join(f'<emitter type="point"><point name="position" x="{i}" y="1" z="0"/></emitter>\n'
+                   for i in range(MAX_LIGHTS + 1))
+    path = tmp_path / "many.xml"
+    path.write_text(f'<scene version="3.0.0"><shape type="rectangle"><bsdf type="diffuse"/></shape>\n{many}</scene>')
+    with pytest.raises(InputError, match=f"1,025 lights; a scene has at most {MAX_LIGHTS:,}"):
+        load_scene(path)
+    toml = "".join(f'[[lights]]\nkind = "point"\nposition = [{i}, 1, 0]\nintensity = 1\n' for i in range(MAX_LIGHTS + 1))
+    with pytest.raises(InputError, match=f"1025 lights; a scene has at most {MAX_LIGHTS}"):
+        load_scene(write(tmp_path, PLANE + toml))
