@@ -1,15 +1,17 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3 or 4) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3, 4 or 5) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``, the renderer's shader files from
 ``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 4; docs/formats.md). V is an
+Schema (format ``vlights.fit.gltf``, version 5; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
 parts, M an object's probe size. A file is written with the lowest version that holds
-it: 4 with an environment, else 3 with a textured object, else 2 (the same bytes as
-before textures and environments):
+it: 5 with a delta emitter part (a point, a spot, a direction: version 5 adds those
+kinds to ``emitters`` and ``emitter_table``, and may have an environment too), else 4
+with an environment, else 3 with a textured object, else 2 (the same bytes as before
+textures and environments):
 
 - one glTF mesh (and one node, identity transform) per object of the fit, named as
   the object, in the fit's order; one triangle primitive with attributes
@@ -51,7 +53,7 @@ before textures and environments):
   fit's (M, M, 3) array: ``texels[(j * M + i) * 3 + c]`` is texel (i, j) = column i,
   row j of the octahedral map), and ``"textured": {"kd": [r, g, b]}`` (version 3: the
   diffuse colour the texture multiplies, the fit's doubles);
-- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 or 3, "source",
+- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 to 5, "source",
   "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
   "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3's
@@ -77,8 +79,8 @@ written as such.
 The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file (version 4, 3: no environment, 2: no textures either,
-or 1: no emitters and no probes either) back into a ``FittedModel``.
+``load_export`` reads the file (version 5, 4: no delta parts, 3: no environment either,
+2: no textures either, or 1: no emitters and no probes either) back into a ``FittedModel``.
 """
 
 from __future__ import annotations
@@ -94,8 +96,9 @@ __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 4
-READS = (1, 2, 3, 4)
+VERSION = 5
+READS = (1, 2, 3, 4, 5)
+ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delta part
 TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
 UNTEXTURED_VERSION = 2  # the version of a file with neither
 ENVIRONMENT_BUFFER = "vlights/environment"  # the environment image's key among trimesh's buffers (no hash clashes)
@@ -207,10 +210,12 @@ def _check_highlights(model):
 
 
 def file_version(model):
-    """The lowest version of the schema that holds ``model``: 4 with an environment, 3
-    with a textured object, else 2."""
-    if model.environment is not None:
+    """The lowest version of the schema that holds ``model``: 5 with a delta emitter
+    part, 4 with an environment, 3 with a textured object, else 2."""
+    if any(p.is_delta for p in model.emitters):
         return VERSION
+    if model.environment is not None:
+        return ENVIRONMENT_VERSION
     return TEXTURED_VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
 
 
@@ -497,7 +502,7 @@ def _read_textured(info, mesh, v, fail):
 
 
 def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` (version 4, 3, 2 or 1) back into a
+    """Read a ``scene.glb`` written by ``export_glb`` (version 5, 4, 3, 2 or 1) back into a
     ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
     specular is zeros (V, 3); the environment's image exact). InputError if the file is
     not of this schema."""
@@ -505,7 +510,7 @@ def load_export(path):
 
     from fitting.model import FittedModel, FittedObject
     from radiosity.formats.camera import camera_from_dict
-    from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, parts_from_meta
+    from radiosity.formats.emitters import AREA_KINDS, DEFAULT_NODES, KINDS, MAX_NODES, parts_from_meta
 
     shown = repr(str(path))
     header, binary = _chunks(path)
@@ -520,7 +525,8 @@ def load_export(path):
 
     parts, nodes = (), DEFAULT_NODES
     if version >= 2:
-        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"))
+        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"),
+                                KINDS if version >= 5 else AREA_KINDS)
         nodes = extras.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")

@@ -55,7 +55,8 @@ def register(subparsers, not_built):
         help="print how a scene was understood: objects, triangles, materials, emitters, bounds",
         description="Load a scene and print how it was understood: its camera and bounds, materials (kind, "
         "kd, ks, Phong exponent, albedo, emission), objects with their triangles and vertices before and after "
-        "mesh refinement, and emitters with their power. Whatever was approximated or left out on the way in "
+        "mesh refinement, and emitters (lamps, and point, spot and directional lights) with their power. Whatever "
+        "was approximated or left out on the way in "
         "(a material mapped onto the Phong lobe, glass left out, a texture taken as its mean colour, degenerate "
         "triangles dropped) is said in a warning on stderr: read them first when a solution looks wrong. "
         "Quick: nothing is solved.",
@@ -284,7 +285,10 @@ def _highlight_lines(solution):
         return []
     kinds = {}
     for p in parts:
-        what = "sphere" if p.kind == "sphere" else f"{len(p.points)}-gon"
+        if p.kind == "point":
+            what = "spot" if p.spot is not None else "point"
+        else:
+            what = {"sphere": "sphere", "polygon": f"{len(p.points)}-gon", "direction": "directional"}[p.kind]
         kinds.setdefault(p.source, []).append(what)
     described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
     if len(kinds) > LISTED:

@@ -1,5 +1,5 @@
-// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v4, v3,
-// v2 or v1; display/export.py and docs/formats.md hold the schema).
+// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v5, v4,
+// v3, v2 or v1; display/export.py and docs/formats.md hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
@@ -14,14 +14,15 @@
 //     S(n . w) times the box-projected look-up of the octahedral map in the mirror
 //     direction (a texture per object);
 //   - the emitters' glossy highlights: each emitter part (sphere or convex polygon, the
-//     table in the scene's extras) integrated against the object's lobe per pixel,
-//     times the fraction of the part the vertices see (_VISIBILITY_j, a texture);
+//     table in the scene's extras) integrated against the object's lobe per pixel, or
+//     a delta part's (a point, a spot, a direction: a v5 file) lobe at its one
+//     direction, times the fraction of the part the vertices see (_VISIBILITY_j, a texture);
 //   - a textured object's diffuse term (textured.glsl, compiled in with #define
 //     VL_TEXTURED): kd * texture(uv) / pi * E per pixel, uv (TEXCOORD_0) and the
 //     irradiance E (_IRRADIANCE) interpolated, the image the material's base colour
 //     texture (decoded from sRGB by the GPU, bilinear, repeating, mipmapped), in both
 //     modes (the diffuse mode is the emitted colour and this term);
-//   - where no object is, the environment (a version 4 file: the light from outside the
+//   - where no object is, the environment (a version 4 or 5 file: the light from outside the
 //     scene), in both modes: background_vertex.glsl and background_fragment.glsl, the
 //     renderer's (display.renderer.Renderer._draw_background), drawn after the objects
 //     into the same float framebuffer with the depth test "<=" at the far plane, its
@@ -65,7 +66,7 @@ import { PointerLockControls } from 'three/addons/controls/PointerLockControls.j
 import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3, 4]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4, 5]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys

@@ -52,6 +52,7 @@ from radiosity.formats.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
 from radiosity.formats.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
 from radiosity.scene import builtins, geometry
 from radiosity.scene.environment import Environment, read_environment_image
+from radiosity.scene.lights import lights_from_toml
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
@@ -72,7 +73,7 @@ _OBJECT_KEYS = {
     "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
 }
 _CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg", "matrix", "fov_deg", "fov_axis", "width", "height"}
-_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment"}
+_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment", "lights"}
 _ENVIRONMENT_KEYS = {"radiance", "image", "scale", "rotation", "rotate_deg", "transform"}
 
 
@@ -152,8 +153,10 @@ def _load_toml(text, base_dir, *, name, where):
     two_sided = {o.name for o, entry in parsed if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
     environment = _parse_environment(data["environment"], base_dir, where) if "environment" in data else None
-    return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
-                 source=where, film=film, environment=environment)
+    objects = with_backs(objects, two_sided)
+    lights = lights_from_toml(data["lights"], where, {o.name for o in objects}) if "lights" in data else ()
+    return Scene(name=str(data.get("name", name)), objects=objects, camera=camera,
+                 source=where, film=film, environment=environment, lights=lights)
 
 
 def _parse_environment(table, base_dir, where):

@@ -44,13 +44,16 @@ Textures
     reflectance, a roughness, a blend's weight), a ``checkerboard``, or a bitmap on a
     shape without texture coordinates counts with its mean colour (with a warning).
 Emitters
-    ``area`` (a shape's radiance); ``point`` and ``spot`` as a small sphere lamp of
-    the same intensity (a spot's cone is not kept: a warning says so); ``constant``
-    (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit image, sRGB-
-    decoded; scale; to_world, its rotation) become the scene's environment
+    ``area`` (a shape's radiance); ``point`` (``intensity``; ``position`` or
+    ``to_world``'s translation), ``spot`` (``intensity``, ``cutoff_angle`` default 20
+    degrees, ``beam_width`` default 3/4 of it, ``to_world``: at its translation,
+    pointing along its +z; a projected ``texture`` is left out with a warning) and
+    ``directional`` (``irradiance``; ``direction``, the way the light travels, or
+    ``to_world``'s +z) as the scene's delta lights (``radiosity.scene.lights``);
+    ``constant`` (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit
+    image, sRGB-decoded; scale; to_world, its rotation) become the scene's environment
     (``radiosity.scene.environment``; one per scene: a second is left out with a
-    warning); ``directional`` and the sky models are not modelled yet: left out with
-    a warning.
+    warning); the sun and sky models are not modelled yet: left out with a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
     ``fov_axis`` (x, y, diagonal, smaller, larger; kept along that axis at any image
@@ -76,7 +79,6 @@ from pathlib import Path
 from xml.parsers import expat
 
 import numpy as np
-import trimesh
 
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
@@ -84,6 +86,7 @@ from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_i
 from radiosity.formats.material import fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
+from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_parts
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
@@ -93,7 +96,6 @@ from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MOD
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
 MAX_INCLUDES = 16  # nested <include> depth
-POINT_LAMP_RADIUS = 2e-3  # a point or spot light's sphere, as a fraction of the scene's diagonal
 DEFAULT_FILM = (768, 576)  # Mitsuba's hdrfilm
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba 0.6's perspective camera
 
@@ -1076,7 +1078,7 @@ class _Reader:
         self.doc = _Document(path)
         self.tessellation = tessellation
         self.shapes = []
-        self.lamps = []  # (node, position, intensity rgb)
+        self.lights = []  # delta lights (``radiosity.scene.lights``)
         self.camera = None
         self.names = set()
         self.environment = None
@@ -1176,58 +1178,64 @@ class _Reader:
     def _emitter(self, node):
         kind = node.attrs.get("type")
         props = _Props(self.doc, node)
-        if kind in ("point", "spot"):
-            position = props.vector("position")
-            if position is None:
-                position = props.transform("to_world")[:3, 3]
-            intensity = props.colour("intensity", 1.0)
-            if kind == "spot":
-                node.warn("a spot light is taken as a point light: its cone is not kept, light goes every way")
-            self.lamps.append((node, position, intensity))
+        if kind in ("point", "spot", "directional"):
+            self.lights.append(self._light(node, kind, props))
         elif kind in ("constant", "envmap"):
             if self.environment is not None:
                 node.warn("a second environment emitter: left out (the first is the scene's environment)")
             else:
                 self.environment = _environment(self.doc, node, props)
-        elif kind in ("directional", "sunsky", "sky", "sun"):
+        elif kind in ("sunsky", "sky", "sun"):
             node.warn(f"{kind} emitters (light from outside the scene) are not modelled yet: left out")
         elif kind == "area":
             raise node.fail("an area emitter must be inside the <shape> that emits")
         else:
             raise node.fail(f"emitter type {kind!r} is not read")
 
+    def _light(self, node, kind, props):
+        """The delta light (``radiosity.scene.lights``) of a point, spot or directional emitter."""
+        name = self._name(node, f"{kind}_light_{len(self.lights) + 1}")
+        where = node.where
+        if kind == "directional":
+            direction = props.vector("direction")
+            if direction is not None and "to_world" in props.named:
+                raise node.fail("give 'direction' or 'to_world', not both")
+            if direction is None:
+                direction = props.transform("to_world")[:3, :3] @ np.array([0.0, 0.0, 1.0])
+            return directional_light(name, direction, props.colour("irradiance", 1.0), where)
+        to_world = props.transform("to_world")
+        position = props.vector("position") if kind == "point" else None
+        if position is not None and "to_world" in props.named:
+            raise node.fail("give 'position' or 'to_world', not both")
+        if position is None:
+            position = to_world[:3, 3]
+        intensity = props.colour("intensity", 1.0)
+        if kind == "point":
+            return point_light(name, position, intensity, where)
+        if "texture" in props.named:
+            node.warn("a spot light's projected texture is not modelled: left out (the spot is its intensity alone)")
+        linear = to_world[:3, :3]
+        singular = np.linalg.svd(linear, compute_uv=False)
+        if singular.min() > 0 and np.abs(singular / singular.max() - 1).max() > 1e-6:
+            node.warn("the spot's to_world scales unevenly or shears (its cone would be elliptical): only the "
+                      "direction of its +z is kept, the cone stays round")
+        return spot_light(name, position, linear @ np.array([0.0, 0.0, 1.0]), intensity, where,
+                          props.float("cutoff_angle", DEFAULT_CUTOFF_DEG), props.float("beam_width"))
+
     def scene(self, name):
         if not self.shapes:
             raise InputError(f"{self.doc.path}: no shapes this reader can use")
-        everything = np.concatenate([s.positions for s in self.shapes])
-        diagonal = float(np.linalg.norm(np.ptp(everything, axis=0)))
         fronts = [build_object(shape.name, _to_material(shape), shape.positions, shape.faces,
                                crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals,
                                uvs=shape.uvs, texture=shape.texture)
                   for shape in self.shapes]
         fronts = [o for o in fronts if o is not None]  # None: every triangle degenerate (warned), as Mitsuba drops it
-        if not fronts and not self.lamps:
+        if not fronts:
             raise InputError(f"{self.doc.path}: every shape's triangles are degenerate: nothing is left to draw")
         objects = list(with_backs(fronts, {shape.name for shape in self.shapes if shape.surface.twosided}))
-        for node, position, intensity in self.lamps:
-            objects.append(self._lamp(node, position, intensity, diagonal))
         film = None if self.camera is None else (self.camera.width, self.camera.height)
         return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film,
-                     environment=self.environment)
-
-    def _lamp(self, node, position, intensity, diagonal):
-        radius = POINT_LAMP_RADIUS * diagonal
-        sphere = trimesh.creation.icosphere(subdivisions=2, radius=radius)
-        # a sphere of radiance L sends pi L area (4 pi I): by the tessellated sphere's area, the power is exact
-        radiance = tuple(4.0 * float(i) / sphere.area for i in intensity)
-        name = self._name(node, f"{node.attrs['type']}_light_{len(self.names)}")
-        node.warn(f"taken as a sphere lamp of radius {radius:.3g} ({POINT_LAMP_RADIUS:g} of the scene's size) and the "
-                  "same intensity")
-        material = Material(name=name, diffuse=(0.0, 0.0, 0.0), specular=(0.0, 0.0, 0.0), exponent=0.0,
-                            emission=radiance)
-        return build_object(name, material, np.asarray(sphere.vertices) + position, np.asarray(sphere.faces),
-                            crease_angle_deg=180.0, source=node.where)
-
+                     environment=self.environment, lights=tuple(self.lights))
 
 def _environment(doc, node, props):
     """The ``Environment`` of a ``constant`` or ``envmap`` emitter."""

@@ -5,6 +5,7 @@ merged triangle array the ray tracer wants.
       objects : tuple[SceneObject, ...]   one material each, world space
       camera  : Camera | None             the scene's default viewpoint
       environment : Environment | None    light from outside the scene, seen by rays that leave it
+      lights  : tuple[EmitterPart, ...]   delta lights: points (spots) and directions, never seen
 
 A SceneObject's arrays are float64 in the scene's units; ``Scene.merged()`` packs
 all triangles into one float32 array with a triangle-to-object table.
@@ -19,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from radiosity.formats.camera import Camera
+from radiosity.formats.emitters import MAX_LIGHTS, EmitterPart
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
@@ -153,10 +155,25 @@ class Scene:
     source: str = ""
     film: tuple[int, int] | None = None  # the image size the scene asks for (a Mitsuba sensor's film), if any
     environment: Environment | None = None  # light from outside the scene (``radiosity.scene.environment``)
+    # delta lights (``radiosity.formats.emitters`` parts of kind "point", with an optional
+    # spot profile, and "direction"), each named by its ``source``: they light the scene
+    # and its glossy objects reflect them, but nothing sees them
+    lights: tuple[EmitterPart, ...] = ()
 
     def __post_init__(self):
         if not self.objects:
             raise InputError(f"scene {self.name!r} has no objects")
+        object.__setattr__(self, "lights", tuple(self.lights))
+        if len(self.lights) > MAX_LIGHTS:
+            raise InputError(f"scene {self.name!r} has {len(self.lights):,} lights; a scene has at most {MAX_LIGHTS:,}")
+        for light in self.lights:
+            if not (isinstance(light, EmitterPart) and light.is_delta):
+                raise TypeError(f"scene {self.name!r}: a light must be a point or direction EmitterPart, got {light!r}")
+        light_names = [light.source for light in self.lights]
+        clash = sorted({n for n in light_names if light_names.count(n) > 1} | ({o.name for o in self.objects} & set(light_names)))
+        if clash:
+            raise InputError(f"scene {self.name!r}: a light's name must be unique among the lights and objects: "
+                             f"{clash[0]!r} repeats")
         names = [o.name for o in self.objects]
         duplicate = sorted({n for n in names if names.count(n) > 1})
         if duplicate:
@@ -201,7 +218,21 @@ class Scene:
 
     @property
     def emitters(self):
+        """The emitting objects (the delta lights are ``lights``)."""
         return [o for o in self.objects if o.material.is_emitter]
+
+    @property
+    def is_lit(self):
+        """Whether anything emits light: an object, the environment or a delta light."""
+        return bool(self.emitters or self.lights or self.environment is not None)
+
+    @property
+    def bounding_sphere(self):
+        """(centre (3,), radius) of the ball around the scene's bounding box, a little
+        larger (by 1e-4): where a directional light's (and the environment's) photons
+        start from."""
+        lo, hi = self.bounds
+        return 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * (1 + 1e-4)
 
     @property
     def bounds(self):

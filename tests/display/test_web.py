@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from display_fixtures import lit_model
 from PIL import Image
-from test_export import glossy_model, rewrite_json
+from test_export import DELTA_LAMPS, LAMPS, glossy_model, rewrite_json
 from test_export_textures import KDS, textured_model
 
 from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
@@ -458,6 +458,48 @@ def test_version_3_page_equals_render(browser, site_v3, tmp_path, off, gl_contex
         for part in ("emitters", "probe", "lights"):
             without = rendered(tmp_path, fit, off=(part,))
             assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05, part
+
+
+@pytest.fixture(scope="module")
+def site_v5(tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene as a version 5 fit: a sphere
+    lamp and a panel, and a point light, a spot and a directional light (``DELTA_LAMPS``)."""
+    base = tmp_path_factory.mktemp("web-v5")
+    glossy_model(True, np.random.default_rng(9), lamps=LAMPS[:2] + DELTA_LAMPS).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+@needs_browser
+@pytest.mark.gl
+def test_version_5_delta_lights_page_equals_render(browser, site_v5, tmp_path, gl_context):
+    """A point light's, a spot's and a directional light's highlights on the page as
+    ``vlights render`` draws them; and they show (the emitters' highlights off, the
+    picture changes where they are)."""
+    fit, url = site_v5
+    page = open_page(browser, url, view_query())
+    try:
+        got = screenshot(page)
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit)
+    assert_matches(got, want)
+    import dataclasses
+
+    from fitting import load_fit
+
+    model = load_fit(fit)
+    assert [p.kind for p in model.emitters] == ["sphere", "polygon", "point", "point", "direction"]
+    # the same fit without its delta parts: they show on a good part of the picture
+    area = model.emitters[:2]
+    objects = tuple(dataclasses.replace(o, highlight=dataclasses.replace(
+        o.highlight, parts=area, visibility=o.highlight.visibility[:, :2])) for o in model.objects)
+    dataclasses.replace(model, objects=objects, emitters=area).save(tmp_path / "area.npz")
+    without = rendered(tmp_path, tmp_path / "area.npz")
+    assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05
 
 
 @needs_browser

@@ -397,7 +397,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [4, "1", None, True])
+@pytest.mark.parametrize("version", [5, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version
@@ -477,3 +477,51 @@ def test_float64_file_is_read_as_the_contract_dtypes(tmp_path, solution):
     for o in loaded.objects:
         for key, dtype in DTYPES.items():
             assert getattr(o, key).dtype == dtype
+
+
+# ---------------------------------------------------------------------------
+# Version 4: delta lights
+# ---------------------------------------------------------------------------
+
+
+def with_delta_lights(solution: Solution) -> Solution:
+    """``solution`` lit by a spot and a sun, the spot drawn in closed form (a part)."""
+    import dataclasses
+
+    from radiosity.formats.emitters import EmitterPart, SpotProfile
+
+    spot = EmitterPart("point", [[0.5, 2.0, 0.5]], 0.0, [9.0, 8.0, 7.0], "torch", SpotProfile([0, -1, 0], 30, 20))
+    sun = EmitterPart("direction", [[0.3, -1.0, 0.2]], 0.0, [2.0, 2.0, 1.5], "sun")
+    objects = tuple(o if o.is_diffuse else dataclasses.replace(o, visibility=np.ones((o.num_vertices, 1), np.float32))
+                    for o in solution.objects)
+    return dataclasses.replace(solution, objects=objects, emitters=(spot,), lights=(spot, sun))
+
+
+def test_a_solution_with_delta_lights_is_version_4_and_reads_back(tmp_path, solution):
+    lit = with_delta_lights(solution)
+    assert lit.version == 4 and solution.version == 2  # written with the lowest version that holds it
+    lit.save(tmp_path / "s.npz")
+    back = load_solution(tmp_path / "s.npz")
+    meta = json.loads(str(np.load(tmp_path / "s.npz")["meta"]))
+    assert meta["version"] == 4 and meta["emitters"][0]["kind"] == "point" and meta["emitters"][0]["spot"]["cutoff_deg"] == 30
+    assert [p.to_dict() for p in back.lights] == [p.to_dict() for p in lit.lights] == meta["lights"]
+    assert [p.to_dict() for p in back.emitters] == [lit.lights[0].to_dict()]
+    # its highlights on the grid are the closed form's, as any part's
+    assert np.array_equal(back.highlights(GLOSSY_NAME), lit.highlights(GLOSSY_NAME))
+    solution.save(tmp_path / "plain.npz")
+    assert "lights" not in json.loads(str(np.load(tmp_path / "plain.npz")["meta"]))
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_an_older_file_holding_a_delta_part_is_refused(tmp_path, solution, version):
+    meta, arrays = contents(with_delta_lights(solution))
+    meta["version"] = version
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), "meta 'emitters' entry 0", "kind 'point' is not one of sphere, polygon")
+
+
+def test_a_bad_light_is_refused(tmp_path, solution):
+    meta, arrays = contents(with_delta_lights(solution))
+    meta["lights"][1]["direction"] = [0, 0, 0]
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), "meta 'lights' entry 1", "must not be zero")
+    meta["lights"] = [meta["lights"][0] | {"kind": "sphere", "centre": [0, 0, 0], "radius": 1.0}]
+    refused(write_npz(tmp_path / "t.npz", meta, arrays), "meta 'lights' entry 0: kind 'sphere' is not one of point, direction")

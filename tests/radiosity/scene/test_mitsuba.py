@@ -772,29 +772,74 @@ def test_area_emitter_radiance(emitters):
     np.testing.assert_allclose(face_normals(panel), np.tile([0, 0, -1.0], (2, 1)), atol=1e-12)  # turned to face down
 
 
-@pytest.mark.parametrize("name, position, intensity", [("bulb", (0.5, 0.5, 1), (10, 20, 30)),
-                                                       ("spot", (-0.5, -0.5, 1), (3, 3, 3))])
-def test_point_and_spot_lights_are_sphere_lamps_of_the_same_power(emitters, name, position, intensity):
+def test_point_spot_and_directional_emitters_are_the_scenes_delta_lights(emitters):
     scene, _ = emitters
-    lamp = scene.object(name)
-    # a point light of intensity I sends 4 pi I; the lamp's Lambertian sphere pi L area
-    np.testing.assert_allclose(lamp.emitted_power, 4 * np.pi * np.array(intensity), rtol=1e-9)
-    np.testing.assert_allclose(lamp.positions.mean(axis=0), position, atol=1e-12)
-    radius = np.linalg.norm(lamp.positions - position, axis=1)
-    assert np.ptp(radius) < 1e-12 and radius[0] < 0.01 * scene.diagonal
-    assert lamp.material.diffuse == lamp.material.specular == (0, 0, 0)
+    bulb, spot, sun = scene.lights
+    assert (bulb.kind, bulb.source, bulb.spot) == ("point", "bulb", None)
+    np.testing.assert_array_equal(bulb.points, [[0.5, 0.5, 1]])
+    np.testing.assert_array_equal(bulb.radiance, [10, 20, 30])
+    # a spot at its to_world's translation, pointing along its +z, Mitsuba 3's defaults: 20 degrees, 3/4 of it
+    assert (spot.kind, spot.source) == ("point", "spot")
+    np.testing.assert_allclose(spot.points, [[-0.5, -0.5, 1]], atol=1e-12)
+    np.testing.assert_allclose(spot.spot.axis, [0, 0, -1], atol=1e-12)
+    assert (spot.spot.cutoff_deg, spot.spot.beam_deg) == (20, 15)
+    np.testing.assert_array_equal(spot.radiance, [3, 3, 3])
+    # a directional light's direction is the way its light travels
+    assert (sun.kind, sun.source) == ("direction", "sun")
+    np.testing.assert_allclose(sun.points, [[2**-0.5, 0, -(2**-0.5)]], atol=1e-12)
+    np.testing.assert_array_equal(sun.radiance, [2, 3, 4])
+    # none is an object: nothing sees them
+    assert [o.name for o in scene.objects] == ["floor", "panel"]
 
 
 def test_emitter_warnings(emitters):
     scene, messages = emitters
     where = f"{DATA / 'emitters.xml'}"
-    assert any(m.startswith(f"{where}:18: <emitter type='spot'>") and "cone is not kept" in m for m in messages)
+    assert not any(m.startswith((f"{where}:14:", f"{where}:18:", f"{where}:26:")) for m in messages)  # point, spot, sun
     # the constant emitter is the scene's environment; the envmap after it a second one, left out
     assert not any(m.startswith(f"{where}:24:") for m in messages)
     assert scene.environment.constant and np.allclose(scene.environment.radiance([[0, 1, 0], [1, 0, 0]]), 1.0)
     assert any(m.startswith(f"{where}:25: <emitter type='envmap'>") and "second environment" in m and "left out" in m
                for m in messages)
-    assert [o.name for o in scene.objects] == ["floor", "panel", "bulb", "spot"]
+    assert any(m.startswith(f"{where}:30: <emitter type='sun'>") and "left out" in m for m in messages)
+
+
+def test_spot_and_directional_in_0x_spelling_and_by_transform(tmp_path):
+    path = write_scene(tmp_path, """
+        <shape type="rectangle"><bsdf type="diffuse"/></shape>
+        <emitter type="spot">
+            <transform name="toWorld"><lookAt origin="0, 0, 2" target="1, 0, 2"/></transform>
+            <float name="cutoffAngle" value="30"/>
+            <float name="beamWidth" value="10"/>
+            <spectrum name="intensity" value="7"/>
+        </emitter>
+        <emitter type="directional">
+            <transform name="toWorld"><rotate y="1" angle="90"/></transform>
+            <spectrum name="irradiance" value="0.5"/>
+        </emitter>
+    """, version="0.6.0")
+    scene = load_quietly(path)
+    spot, sun = scene.lights
+    np.testing.assert_allclose(spot.spot.axis, [1, 0, 0], atol=1e-12)
+    assert (spot.spot.cutoff_deg, spot.spot.beam_deg) == (30, 10)
+    np.testing.assert_allclose(spot.radiance, [7, 7, 7])
+    np.testing.assert_allclose(sun.points[0], [1, 0, 0], atol=1e-12)  # +z turned about y by 90 degrees
+    np.testing.assert_allclose(sun.radiance, [0.5] * 3)
+
+
+@pytest.mark.parametrize("body, fragment", [
+    ('<emitter type="spot"><float name="cutoff_angle" value="10"/><float name="beam_width" value="12"/></emitter>',
+     "beam width must be in [0, the cutoff angle 10]"),
+    ('<emitter type="spot"><float name="cutoff_angle" value="0"/></emitter>', "cutoff angle must be in (0, 180]"),
+    ('<emitter type="directional"><vector name="direction" value="0, 0, 0"/></emitter>', "must not be zero"),
+    ('<emitter type="point"><rgb name="intensity" value="1, -1, 1"/></emitter>', "must not be negative"),
+    ('<emitter type="directional"><vector name="direction" value="0, 0, 1"/>'
+     '<transform name="to_world"><translate x="1"/></transform></emitter>', "give 'direction' or 'to_world'"),
+])
+def test_bad_lights_are_refused_in_one_line(tmp_path, body, fragment):
+    path = write_scene(tmp_path, f'<shape type="rectangle"><bsdf type="diffuse"/></shape>\n{body}')
+    message = refusal(path)
+    assert fragment in message and f"{path}:4:" in message
 
 
 # -- the sensor --------------------------------------------------------------------------

@@ -55,3 +55,37 @@ def test_out_of_gamut_colours_are_clipped_as_mitsuba_clips_them():
     assert narrow[0] == 0 and narrow[1] > 0
     assert spectrum_to_rgb([360, 830], [3.0, 3.0]).tolist() == [1.0, 1.0, 1.0]  # a reflectance is at most 1
     assert spectrum_to_rgb([360, 830], [3.0, 3.0], "unbounded") == pytest.approx(3.0)
+
+
+MITSUBA_SPECTRA = """
+import json, sys
+import mitsuba as mi
+mi.set_variant("scalar_rgb")
+out = []
+for pairs, emitted in json.loads(sys.argv[1]):
+    value = {"type": "spectrum", "value": [tuple(p) for p in pairs]}
+    plugin = mi.load_dict({"type": "area", "radiance": value} if emitted else {"type": "diffuse", "reflectance": value})
+    out.append(list(mi.traverse(plugin)["radiance.value" if emitted else "reflectance.value"]))
+print(json.dumps(out))
+"""
+
+
+def test_smooth_spectra_against_mitsuba_3_itself(rng):
+    # reflectances and emitters of smooth random spectra (sums of broad bumps), as Mitsuba 3's RGB mode reads them
+    import json
+
+    from mitsuba_oracle import run_mitsuba
+
+    cases = []
+    lam = np.arange(380.0, 781.0, 20.0)
+    for k in range(24):
+        centres, widths = rng.uniform(400, 700, 3), rng.uniform(40, 120, 3)
+        values = 0.05 + sum(rng.uniform(0.1, 0.5) * np.exp(-0.5 * ((lam - c) / w) ** 2) for c, w in zip(centres, widths))
+        emitted = k % 2 == 1
+        cases.append(([[float(a), float(b * (10 if emitted else 1))] for a, b in zip(lam, values)], emitted))
+    answer = run_mitsuba(MITSUBA_SPECTRA, json.dumps(cases)).strip().splitlines()[-1]
+    theirs = np.array(json.loads(answer[answer.index("[["):]))  # after Mitsuba's log colour codes
+    ours = np.array([spectrum_to_rgb([p[0] for p in pairs], [p[1] for p in pairs], "emitted" if emitted else "reflectance")
+                     for pairs, emitted in cases])
+    scale = theirs.max(axis=1, keepdims=True)  # each colour's error relative to its brightest channel
+    assert (np.abs(ours - theirs) / scale).max() < 0.03, np.abs(ours - theirs) / scale
