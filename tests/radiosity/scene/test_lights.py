@@ -159,7 +159,7 @@ def test_truth_of_a_solution_sees_its_delta_lights(tmp_path, capsys):
     solution.save(tmp_path / "s.npz")
     again = scene_of_solution(load_solution(tmp_path / "s.npz"))
     assert [p.to_dict() for p in again.lights] == [p.to_dict() for p in scene.lights]
-    camera = Camera(eye=(0.3, 2.0, 1.5), look_at=(0, 0, 0), up=(0, 1, 0), fov_y_deg=50, width=16, height=12)
+    camera = Camera(eye=(0.3, 2.0, 1.5), look_at=(0, 0, 0), up=(0, 1, 0), fov_deg=50, width=16, height=12)
     images = []
     for s in (scene, again):
         with PathTracer(s, threads=2) as tracer:

@@ -341,7 +341,7 @@ def test_the_gather_finds_a_point_light_in_a_glossy_neighbour(tmp_path):
         return (weight[:, None] * np.asarray(radiance, np.float64)[:, idx]).sum(axis=1).mean(axis=0)
 
     ours = toward_wo(plate.radiance)
-    camera = Camera(eye=tuple(5 * wo), look_at=(0, 0, 0), up=(0, 1, 0), fov_y_deg=0.2, width=2, height=2)
+    camera = Camera(eye=tuple(5 * wo), look_at=(0, 0, 0), up=(0, 1, 0), fov_deg=0.2, width=2, height=2)
     with PathTracer(scene, threads=2) as tracer:
         truth = tracer.render(camera, 4096, seed=3).radiance.reshape(-1, 3).mean(axis=0)
     # most of it is the wall's reflection of the light, which only the gather's light sample finds
@@ -388,7 +388,7 @@ def test_the_path_tracer_against_the_closed_forms(tmp_path, kind):
     extra = "specular = 0.3\n        exponent = 12" if kind == "glossy point" else ""
     scene = plane_scene(tmp_path, light, extra=extra)
     spot = scene.lights[0].spot
-    camera = Camera(eye=(0.3, 2.5, 1.2), look_at=(0, 0, 0), up=(0, 1, 0), fov_y_deg=45, width=24, height=18)
+    camera = Camera(eye=(0.3, 2.5, 1.2), look_at=(0, 0, 0), up=(0, 1, 0), fov_deg=45, width=24, height=18)
 
     def shade(x, wo):
         if kind == "directional":
