@@ -5,7 +5,11 @@ from __future__ import annotations
 import json
 import os
 import platform
+import subprocess
+import sys
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numba
@@ -18,6 +22,85 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 def machine():
     return {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
+
+
+def _children(pid):
+    out = []
+    try:
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{tid}/children") as f:
+                out += [int(c) for c in f.read().split()]
+    except OSError:
+        pass
+    return out
+
+
+def _pss(pid):
+    """Proportional set size of ``pid`` in bytes (shared pages divided among their users)."""
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            for line in f:
+                if line.startswith("Pss:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def tree_memory(pid):
+    """The summed Pss of ``pid`` and all its descendants (a fit's worker processes)."""
+    tree, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        tree.append(p)
+        todo += _children(p)
+    return sum(_pss(p) for p in tree)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One ``vlights`` command run by ``run_vlights``: seconds; peak_mb, the process's
+    peak resident memory as the kernel counts it; tree_mb, its process tree's summed
+    Pss sampled every 0.1 s (with worker processes the kernel's figure is the largest
+    one's); exit_code; stderr, all it printed there."""
+
+    seconds: float
+    peak_mb: float
+    tree_mb: float
+    exit_code: int
+    stderr: str
+
+    @property
+    def last_line(self):
+        lines = self.stderr.strip().splitlines()
+        return lines[-1] if lines else ""
+
+
+def run_vlights(args, cwd, timeout=None):
+    """Run ``vlights ARGS`` (this checkout's) in ``cwd``, in a process of its own, and
+    measure it (``Run``); ``timeout`` seconds, then it is killed (exit code -9)."""
+    env = os.environ | {"PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    start = time.perf_counter()
+    process = subprocess.Popen([sys.executable, "-m", "display", *map(str, args)], cwd=cwd, env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    peak = [0]
+    done = threading.Event()
+
+    def sample():
+        while not done.wait(0.1):
+            peak[0] = max(peak[0], tree_memory(process.pid))
+            if timeout is not None and time.perf_counter() - start > timeout:
+                process.kill()
+
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    stderr = process.stderr.read().decode(errors="replace")  # read while it runs: a full pipe would block it
+    _, status, usage = os.wait4(process.pid, 0)
+    seconds = time.perf_counter() - start
+    done.set()
+    sampler.join()
+    process.stderr.close()
+    return Run(seconds, usage.ru_maxrss / 1024.0, peak[0] / 2**20, os.waitstatus_to_exitcode(status), stderr)
 
 
 class Recorder:
@@ -241,3 +324,35 @@ class SameRays:
 
     def close(self):
         self.tracer.close()
+
+
+# -- Mitsuba 3, in a venv of its own ------------------------------------------------------
+
+MITSUBA_RENDER = """
+import sys, time, numpy as np, mitsuba as mi
+mi.set_variant(sys.argv[1])
+scene = mi.load_file(sys.argv[2])
+start = time.perf_counter()
+image = np.array(mi.render(scene, spp=int(sys.argv[3]), seed=int(sys.argv[4])), dtype=np.float32)[..., :3]
+np.save(sys.argv[5], image)
+print(time.perf_counter() - start)
+"""
+
+
+def mitsuba_python(given):
+    candidates = [given, os.environ.get("VLIGHTS_MITSUBA_PYTHON"), "/work/mitsuba-venv/bin/python"]
+    for python in filter(None, candidates):
+        if Path(python).exists():
+            probe = subprocess.run([python, "-c", "import mitsuba; print(mitsuba.__version__)"],
+                                   capture_output=True, text=True)
+            if probe.returncode == 0:
+                return python, probe.stdout.strip()
+    return None, None
+
+
+def mitsuba_render(python, variant, scene, spp, seed, out):
+    run = subprocess.run([python, "-c", MITSUBA_RENDER, variant, str(scene), str(spp), str(seed), str(out)],
+                         capture_output=True, text=True)
+    if run.returncode != 0:
+        raise SystemExit(f"mitsuba failed on {scene}: {run.stderr.strip().splitlines()[-1:]}")
+    return float(run.stdout.strip().splitlines()[-1]), np.load(out)

@@ -34,10 +34,9 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from _common import RESULTS, Recorder
+from _common import RESULTS, Recorder, run_vlights
 
 ROOM = 4.0  # a room's side (scene units: metres)
 HEIGHT = 3.0
@@ -135,67 +134,13 @@ def write_scene(path, triangles):
     return nx, nz
 
 
-def _children(pid):
-    out = []
-    try:
-        for tid in os.listdir(f"/proc/{pid}/task"):
-            with open(f"/proc/{pid}/task/{tid}/children") as f:
-                out += [int(c) for c in f.read().split()]
-    except OSError:
-        pass
-    return out
-
-
-def _pss(pid):
-    """Proportional set size of ``pid`` in bytes (shared pages divided among their users)."""
-    try:
-        with open(f"/proc/{pid}/smaps_rollup") as f:
-            for line in f:
-                if line.startswith("Pss:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
-
-
-def tree_memory(pid):
-    """The summed Pss of ``pid`` and all its descendants (a fit's worker processes)."""
-    tree, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        tree.append(p)
-        todo += _children(p)
-    return sum(_pss(p) for p in tree)
-
-
 def run(args, cwd):
-    """Run ``vlights ARGS`` in a process of its own: (seconds, peak resident MB of the
-    process as the kernel counts it, peak MB of its whole process tree sampled every 0.1 s
-    as the summed Pss: with worker processes the kernel's figure is the largest one's)."""
-    import threading
-
-    env = os.environ | {"PYTHONPATH": str(Path(__file__).resolve().parents[1])}
-    start = time.perf_counter()
-    process = subprocess.Popen([sys.executable, "-m", "display", *map(str, args)], cwd=cwd, env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    peak = [0]
-    done = threading.Event()
-
-    def sample():
-        while not done.wait(0.1):
-            peak[0] = max(peak[0], tree_memory(process.pid))
-
-    sampler = threading.Thread(target=sample, daemon=True)
-    sampler.start()
-    stderr = process.stderr.read().decode(errors="replace")  # read while it runs: a full pipe would block it
-    _, status, usage = os.wait4(process.pid, 0)
-    seconds = time.perf_counter() - start
-    done.set()
-    sampler.join()
-    process.stderr.close()
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {stderr.strip().splitlines()[-1:]}")
-    return seconds, usage.ru_maxrss / 1024.0, peak[0] / 2**20
+    """``_common.run_vlights`` of ``args`` in ``cwd``, which must succeed: (seconds, peak
+    resident MB of the process, peak MB of its process tree)."""
+    done = run_vlights(args, cwd)
+    if done.exit_code != 0:
+        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {done.last_line}")
+    return done.seconds, done.peak_mb, done.tree_mb
 
 
 STAGES = ("scene-info", "solve", "fit", "render", "export")

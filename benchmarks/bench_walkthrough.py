@@ -558,7 +558,7 @@ def main(argv=None):
         parser.error(f"--scenes: of {', '.join(SCENES)}")
     if args.quick:
         args.size, args.frames, args.truth_spp, args.draws, args.triangles = (64, 64), 2, 256, 3, 10_000
-    from validate_mitsuba import mitsuba_python
+    from _common import mitsuba_python
 
     from display.gl import headless_context
 

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -33,39 +32,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, Recorder  # noqa: E402
+from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render  # noqa: E402
 
 SCENES = sorted((Path(__file__).resolve().parent.parent / "tests" / "data" / "mitsuba").glob("validate_*.xml"))
-RENDER = """
-import sys, time, numpy as np, mitsuba as mi
-mi.set_variant(sys.argv[1])
-scene = mi.load_file(sys.argv[2])
-start = time.perf_counter()
-image = np.array(mi.render(scene, spp=int(sys.argv[3]), seed=int(sys.argv[4])), dtype=np.float32)[..., :3]
-np.save(sys.argv[5], image)
-print(time.perf_counter() - start)
-"""
-
-
-def mitsuba_python(given):
-    candidates = [given, os.environ.get("VLIGHTS_MITSUBA_PYTHON"), "/work/mitsuba-venv/bin/python"]
-    for python in filter(None, candidates):
-        if Path(python).exists():
-            probe = subprocess.run([python, "-c", "import mitsuba; print(mitsuba.__version__)"],
-                                   capture_output=True, text=True)
-            if probe.returncode == 0:
-                return python, probe.stdout.strip()
-    return None, None
-
-
-def mitsuba_render(python, variant, scene, spp, seed, out):
-    run = subprocess.run([python, "-c", RENDER, variant, str(scene), str(spp), str(seed), str(out)],
-                         capture_output=True, text=True)
-    if run.returncode != 0:
-        raise SystemExit(f"mitsuba failed on {scene}: {run.stderr.strip().splitlines()[-1:]}")
-    return float(run.stdout.strip().splitlines()[-1]), np.load(out)
-
-
 def ours(scene, spp, seed, out):
     start = time.perf_counter()
     run = subprocess.run(["vlights", "truth", str(scene), "--spp", str(spp), "--seed", str(seed), "-o",

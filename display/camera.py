@@ -53,10 +53,16 @@ def _read_views(path):
 
 
 def resolve_camera(args, bounds, default=None):
-    """The camera from the flags (``--eye --look-at --up --fov --size``), a named view
-    (``--view NAME --views FILE``), or ``default`` (a Camera, the scene's), else a view
-    framing ``bounds`` ((2, 3): min and max corner)."""
+    """The camera from the flags (``--eye --look-at --up --fov --fov-axis --size``), a
+    named view (``--view NAME --views FILE``), or ``default`` (a Camera, the scene's),
+    else a view framing ``bounds`` ((2, 3): min and max corner), at ``--size``. The
+    field of view stays along its axis (a Mitsuba sensor's ``fov_axis``): the vertical
+    one is the base camera's at that size; ``--fov DEG`` is vertical, or along
+    ``--fov-axis``."""
     width, height = args.size
+    axis = getattr(args, "fov_axis", None)
+    if axis is not None and args.fov is None:
+        raise InputError(f"--fov-axis {axis} says which extent of the image --fov spans; give --fov DEG too")
     if args.view is not None:
         if args.views is None:
             raise InputError("--view needs --views FILE")
@@ -72,11 +78,13 @@ def resolve_camera(args, bounds, default=None):
         tuple(args.eye) if args.eye else base.eye,
         tuple(args.look_at) if args.look_at else base.look_at,
         tuple(args.up) if args.up else base.up,
-        args.fov if args.fov is not None else base.fov_y_deg,
+        args.fov if args.fov is not None else base.fov_deg,
         width,
         height,
+        (axis or "y") if args.fov is not None else base.fov_axis,
     )
     if camera.fov_y_deg < MIN_FOV_DEG:
         raise InputError(f"the field of view must be at least {MIN_FOV_DEG:g} degrees for the display, got "
-                         f"{camera.fov_y_deg:g} (a narrower one overflows its float32 projection)")
+                         f"{camera.fov_y_deg:g} (vertical, at {width}x{height}: a narrower one overflows its float32 "
+                         "projection)")
     return camera

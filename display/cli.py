@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import signal
 import sys
+import textwrap
 import threading
 import warnings
 
@@ -23,8 +24,27 @@ from radiosity.formats import InputError
 PROG = "vlights"
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, wrapped at spaces alone (a name such as cornell-teapot or
+    probe+lights is never cut at its hyphen), a blank line in a description or epilog
+    kept as a paragraph break."""
+
+    def _split_lines(self, text, width):
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+    def _fill_text(self, text, width, indent):
+        paragraphs = [" ".join(p.split()) for p in text.split("\n\n")]
+        return "\n\n".join(textwrap.fill(p, width, initial_indent=indent, subsequent_indent=indent,
+                                          break_on_hyphens=False) for p in paragraphs if p)
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse with a one-line error message."""
+    """argparse with a one-line error message and help wrapped at spaces alone (every
+    subcommand's parser is one of these too)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
@@ -43,8 +63,14 @@ def not_built(command, what):
 def build_parser():
     parser = _Parser(
         prog=PROG,
-        description="virtual-lights: view-independent glossy global illumination, fitted with "
-        "virtual Phong lights for real-time walkthroughs (after Walter et al. 1997).",
+        description="virtual-lights: a view-independent glossy global-illumination solution of a triangle "
+        "scene, and per glossy object a model a plain shader draws in real time (the emitters' highlights, "
+        "a reflection probe, virtual lights), for walkthroughs in a window or a browser; after Walter et al., "
+        "Fitting Virtual Lights for Non-Diffuse Walkthroughs (1997).",
+        epilog="A scene of your own: 'vlights scene-info SCENE' says how it was understood; 'vlights solve "
+        "SCENE -o solution.npz', then 'vlights fit solution.npz -o fit.npz'; then 'vlights view fit.npz', "
+        "'vlights render fit.npz -o picture.png' or 'vlights export fit.npz -o web --serve'; 'vlights compare "
+        "fit.npz solution.npz' measures it. 'vlights COMMAND --help' for each.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     radiosity.cli.register(subparsers, not_built)

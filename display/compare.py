@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -74,7 +74,7 @@ def orbit(view, degrees):
     angle = np.radians(degrees)
     rotated = (offset * np.cos(angle) + np.cross(axis, offset) * np.sin(angle)
                + axis * (axis @ offset) * (1 - np.cos(angle)))
-    return Camera(tuple(centre + rotated), view.look_at, view.up, view.fov_y_deg, view.width, view.height)
+    return replace(view, eye=tuple(centre + rotated))  # its fov along its axis, its size
 
 
 def colour_bar(height, width=BAR_WIDTH):

@@ -127,7 +127,7 @@ def _run(out, ctx, quality, size, log, samples, truth_spp, scenes):
     summary["meaning"] = {"truth": TRUTH_MEANS, "relative_rms": RMS_MEANS, "perceptual": PERCEPTUAL_MEANS, "flip": FLIP_MEANS,
                           "diffuse": "a diffuse walkthrough of the solution: each vertex's radiance averaged over "
                                      "directions (3 floats per vertex)"}
-    summary["verdict"] = " ".join(verdict(name, s) for name, s in summary["scenes"].items())
+    summary["verdict"] = " ".join(f"{name}: {verdict(s)}." for name, s in summary["scenes"].items())
     with atomic_output(out / "summary.json") as f:
         f.write(_compare.json_text(summary).encode())
     with atomic_output(out / "report.md") as f:
@@ -236,36 +236,100 @@ TRUTH_MEANS = ("the first view path-traced (NEE + BRDF sampling by MIS, a box fi
                "between the truth's two independent halves, the level below which an error is its noise")
 
 
-def truth_line(truth):
-    """One sentence: each display's FLIP against the path-traced truth, glossy objects in brackets."""
-    def flip(mode):
-        m = truth[mode]
-        glossy = f" ({m['flip_mean_glossy']:.3f})" if "flip_mean_glossy" in m else ""
-        return f"{m['flip_mean']:.3f}{glossy}"
-
-    noise = "" if truth["noise_flip"] is None else f"; the truth's own noise floor {truth['noise_flip']:.3f}"
-    return (f"Against a path tracer ({truth['spp']} spp), FLIP over the image (glossy objects): reference display "
-            f"{flip('reference')}, fitted {flip('fitted')}, diffuse only {flip('diffuse')}{noise}.")
+DISPLAYS = (("reference", "solution display"), ("fitted", "fitted display"), ("diffuse", "diffuse display"))
 
 
 def _fmt(value, digits=2):
-    return "n/a" if value is None else f"{value:.{digits}f}"
+    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
 
 
-def verdict(name, s):
-    """One sentence per scene: what the model buys a viewer, in FLIP on the glossy objects
-    against a diffuse walkthrough (figure 7) and, with a truth, of every display against it."""
-    g = s["figures"].get("glossy_flip")
-    objects = ", ".join(f"{n} {o['model']}" for n, o in s["objects"].items()) or "no glossy object"
-    line = f"{name} ({objects}):"
-    if g:
-        ratio = g.get("ratio")
-        finite = isinstance(ratio, float) and math.isfinite(ratio)
-        line += (f" FLIP on the glossy objects {_fmt(g['with_virtual_lights'], 3)} fitted against "
-                 f"{_fmt(g['diffuse_only'], 3)} diffuse" + (f" ({ratio:.2f}x) against the solution." if finite else "."))
-    if s.get("truth"):
-        line += " " + truth_line(s["truth"])
+def _objects_words(s):
+    return ", ".join(f"{n} {o['model']}" for n, o in s["objects"].items()) or "no glossy object"
+
+
+def verdict_rows(s):
+    """A scene's verdict as a table: (column headings, rows, the one-line verdict). Per
+    display, its FLIP against the solution (on the glossy objects: figure 7's numbers)
+    and against the path-traced truth (on the glossy objects and over the whole image),
+    then the truth's noise floor; the truth's columns only where there is one."""
+    g = s["figures"].get("glossy_flip") or {}
+    over = "glossy objects" if g.get("over", "glossy objects") == "glossy objects" else "whole image"
+    truth = s.get("truth")
+    against_solution = {"reference": "itself", "fitted": _fmt(g.get("with_virtual_lights"), 3),
+                        "diffuse": _fmt(g.get("diffuse_only"), 3)}
+    headings = [("FLIP against", ""), ("the solution", over)]
+    if truth:
+        headings += [("the truth", over), ("the truth", "whole image")]
+    rows = []
+    for mode, label in DISPLAYS:
+        row = [label, against_solution[mode]]
+        if truth:
+            m = truth[mode]
+            row += [_fmt(m.get("flip_mean_glossy", m["flip_mean"]), 3), _fmt(m["flip_mean"], 3)]
+        rows.append(row)
+    if truth:
+        rows.append([f"noise floor ({truth['spp']} spp)", "", "", _fmt(truth["noise_flip"], 3)])
+    return headings, rows, verdict(s)
+
+
+def verdict(s):
+    """One line: what the fitted model keeps of the solution's glossy look (its FLIP
+    against the solution over the diffuse display's, figure 7, against the target), and,
+    with a truth, how far behind (or ahead of) the solution display it is against the
+    truth, and whether the truth's noise hides the difference."""
+    g = s["figures"].get("glossy_flip") or {}
+    if not s["objects"]:
+        return "no glossy object: the fitted display is the diffuse one"
+    ratio, target = g.get("ratio"), g.get("target_ratio")
+    if not isinstance(ratio, float) or not math.isfinite(ratio):
+        line = "the fit cannot be judged: the diffuse display matches the solution exactly"
+    else:
+        said = f"{ratio:.2f}x the diffuse display against the solution"
+        if target is not None and ratio <= target:
+            line = f"the fit keeps the glossy look ({said}, target {target:.2f}x)"
+        elif ratio < 1:
+            line = f"the fit keeps part of the glossy look ({said}, target {_fmt(target)}x)"
+        else:
+            line = f"the fit changes nothing a viewer sees ({said})"
+    truth = s.get("truth")
+    if truth:
+        def flip(mode):
+            return truth[mode].get("flip_mean_glossy", truth[mode]["flip_mean"])
+
+        more = flip("fitted") - flip("reference")
+        if more >= 0.0005:
+            line += f"; {more:.3f} behind the solution display against the truth"
+        elif more <= -0.0005:
+            line += f"; {-more:.3f} ahead of the solution display against the truth"
+        else:
+            line += "; level with the solution display against the truth"
+        noise = truth.get("noise_flip")
+        if noise is not None and max(truth["fitted"]["flip_mean"], truth["reference"]["flip_mean"]) <= noise:
+            line += ", within its noise"
     return line
+
+
+def verdict_text(name, s):
+    """A scene's verdict for a terminal: a heading, the table's aligned rows, the verdict line."""
+    headings, rows, line = verdict_rows(s)
+    table = [[h[0] for h in headings], [h[1] for h in headings], *rows]
+    widths = [max(len(r[i]) for r in table) for i in range(len(headings))]
+    out = [f"{name} ({_objects_words(s)})"]
+    for r in table:
+        cells = [r[0].ljust(widths[0])] + [c.rjust(w) for c, w in zip(r[1:], widths[1:])]
+        out.append(("  " + "   ".join(cells)).rstrip())
+    out.append(f"  verdict: {line}")
+    return "\n".join(out)
+
+
+def verdict_markdown(name, s):
+    """The same table for report.md."""
+    headings, rows, line = verdict_rows(s)
+    names = [f"{a}, {b}" if b else a for a, b in headings]
+    out = [f"### {name} ({_objects_words(s)})", "", "| " + " | ".join(names) + " |",
+           "|" + "|".join(["---"] + ["---:"] * (len(names) - 1)) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return out + ["", f"**Verdict**: {line}.", ""]
 
 
 def _mesh_words(mesh):
@@ -281,13 +345,23 @@ def _mesh_words(mesh):
 def _report(summary):
     lines = [
         "# virtual-lights demo: " + ", ".join(summary["scenes"]), "",
-        f"**{summary['verdict']}**", "",
+        "## Verdict", "",
+        "Each display's FLIP (0 = identical, lower is better) against the solution (the solution display, what "
+        "the model is fitted to)" + (" and against the truth (path-traced from the scene's camera); an error near "
+                                     "the truth's noise floor is the truth's own noise." if any(
+                                         s.get("truth") for s in summary["scenes"].values()) else "."), "",
+        *(line for name, s in summary["scenes"].items() for line in verdict_markdown(name, s)),
         "## What the numbers mean", "",
         f"- **Relative RMS** ({RMS_MEANS[len('relative RMS: '):]})",
         f"- **Perceptual** ({PERCEPTUAL_MEANS[len('perceptual: '):]})",
         f"- **FLIP** ({FLIP_MEANS[len('FLIP: '):]}) The error images show it per pixel through the magma colour "
         "map, black 0 to pale yellow 1, with the scale beside each.",
-        "- **Diffuse**: " + summary["meaning"]["diffuse"] + ".",
+        "- **Solution display**: the solution drawn directly (each vertex's radiance read in its direction grid, "
+        "the emitters' highlights in closed form): what the fitted model is fitted to, so an error against it is "
+        "the fit's alone. Older outputs, compare.json and `--mode` call it `reference`.",
+        "- **Fitted display**: the fitted model as the walkthrough draws it.",
+        "- **Diffuse display**: " + summary["meaning"]["diffuse"] + ".",
+        "- **Truth**: " + TRUTH_MEANS + ".",
         "- **PSNR** of the tone-mapped pictures: higher is better.", "",
         f"Quality `{summary['quality']}`; figures with {summary['samples']} samples per pixel (antialiasing: their "
         f"mean, a box filter over each pixel). Total {summary['times_s']['total_s']:.1f} s.", "",
@@ -319,35 +393,49 @@ def _scene_report(name, s):
     lines.append("")
     for i in range(1, 4):
         m = f["figure5"][f"view{i}"]
-        lines += [f"**Figure 5, view {i}**: reference, fitted, FLIP error. FLIP {m['flip_mean']:.4f} / "
+        lines += [f"**Figure 5, view {i}**: the solution display, the fitted display, the FLIP error between them"
+                  + (" (and the truth first, the fitted display's FLIP against it last)" if i == 1 and s.get("truth")
+                     else "") + f". FLIP {m['flip_mean']:.4f} / "
                   f"{m.get('flip_mean_glossy', float('nan')):.4f} (image / glossy objects), PSNR {m['psnr_db']:.2f} dB",
                   "", f"![figure 5 view {i}]({name}/compare/figure5_view{i}.png)", ""]
     lines += ["**Figure 6**: 2 against all virtual lights", "", f"![figure 6]({name}/compare/figure6.png)", "",
-              "**Figure 7**: the fitted model against a diffuse walkthrough", "", f"![figure 7]({name}/compare/figure7.png)", ""]
+              "**Figure 7**: the fitted display against a diffuse walkthrough, each with its FLIP against the solution "
+              "display", "", f"![figure 7]({name}/compare/figure7.png)", ""]
     truth = s.get("truth")
     if truth:
         noise = "n/a" if truth["noise_flip"] is None else f"{truth['noise_flip']:.4f}"
         lines += [f"Against the truth (view 1, path-traced, {truth['spp']} samples per pixel; noise floor {noise}):", "",
                   "| display | FLIP | relative MSE | FLIP, glossy | relative MSE, glossy |", "|---|---|---|---|---|"]
-        for mode in ("reference", "fitted", "diffuse"):
+        for mode, label in DISPLAYS:
             m = truth[mode]
-            lines.append(f"| {mode} | {m['flip_mean']:.4f} | {m['relative_mse']:.4g} | "
+            lines.append(f"| {label} | {m['flip_mean']:.4f} | {m['relative_mse']:.4g} | "
                          f"{_fmt(m.get('flip_mean_glossy'), 4)} | {_fmt(m.get('relative_mse_glossy'), 4)} |")
         lines.append("")
     return lines
 
 
 def key_numbers(summary, out):
+    """What the demo prints at the end: where everything is, then each scene's verdict table."""
     t = summary["times_s"]
-    lines = [summary["verdict"], f"done in {t['total_s']:.1f} s; everything is in {out}/:"]
+    width = max(len(f"{name}/solution.npz, fit.npz") for name in summary["scenes"])
+
+    def file(name, what):
+        return f"  {name:<{width}}   {what}"
+
+    lines = [f"done in {t['total_s']:.1f} s; everything is in {out}/:"]
     for name, s in summary["scenes"].items():
-        lines += [f"  {name}/solution.npz, fit.npz   the solution and its fitted model",
-                  f"  {name}/compare/               reference against fitted (figures 5, 6, 7)",
-                  f"  {name}/web/                   the walkthrough in a browser: vlights serve {out}/{name}/web"]
+        lines += [file(f"{name}/solution.npz, fit.npz", "the solution and its fitted model"),
+                  file(f"{name}/compare/", "the solution display against the fitted display (figures 5, 6, 7)"),
+                  file(f"{name}/web/", f"the walkthrough in a browser: vlights serve {out}/{name}/web")]
         for obj, o in s["objects"].items():
             lines.append(f"    {obj}: {o['words']}; relative RMS {_fmt(o.get('relative_rms'), 3)}, "
                          f"perceptual {_fmt(o.get('perceptual'), 3)}")
-    lines += ["  models.png                        each glossy object's models: error against floats stored",
-              "  report.md, summary.json           the verdicts, pictures, times and errors",
-              "  (relative RMS and FLIP: lower is better, 0 = exact; see report.md)"]
+    lines += [file("models.png", "each glossy object's models: error against floats stored"),
+              file("report.md, summary.json", "these verdicts with the pictures, times and errors"), ""]
+    for name, s in summary["scenes"].items():
+        lines += [verdict_text(name, s), ""]
+    truth = (" The truth: path-traced from the scene's camera; an error near its noise floor is its own noise."
+             if any(s.get("truth") for s in summary["scenes"].values()) else "")
+    lines.append("FLIP: 0 = identical, 1 = as different as can be. The solution: the solution display, what the "
+                 "model is fitted to." + truth)
     return "\n".join(lines)

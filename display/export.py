@@ -1,15 +1,17 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3 or 4) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3, 4 or 5) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``, the renderer's shader files from
 ``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 4; docs/formats.md). V is an
+Schema (format ``vlights.fit.gltf``, version 5; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the scene's number of emitter
 parts, M an object's probe size. A file is written with the lowest version that holds
-it: 4 with an environment, else 3 with a textured object, else 2 (the same bytes as
-before textures and environments):
+it: 5 with a delta emitter part (a point, a spot, a direction: version 5 adds those
+kinds to ``emitters`` and ``emitter_table``, and may have an environment too), else 4
+with an environment, else 3 with a textured object, else 2 (the same bytes as before
+textures and environments):
 
 - one glTF mesh (and one node, identity transform) per object of the fit, named as
   the object, in the fit's order; one triangle primitive with attributes
@@ -51,10 +53,12 @@ before textures and environments):
   fit's (M, M, 3) array: ``texels[(j * M + i) * 3 + c]`` is texel (i, j) = column i,
   row j of the octahedral map), and ``"textured": {"kd": [r, g, b]}`` (version 3: the
   diffuse colour the texture multiplies, the fit's doubles);
-- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 or 3, "source",
+- the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 to 5, "source",
   "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
-  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3);
+  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3's
+  record as fit.npz has it: with ``fov_deg``, ``fov_axis`` and ``film`` when its field
+  of view is along another axis than y, which the page keeps at any window size);
   ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
   texels the shaders read (written so that a viewer need not repeat its arithmetic);
 - a fit with an environment (version 4: the light from outside the scene,
@@ -75,8 +79,8 @@ written as such.
 The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file (version 4, 3: no environment, 2: no textures either,
-or 1: no emitters and no probes either) back into a ``FittedModel``.
+``load_export`` reads the file (version 5, 4: no delta parts, 3: no environment either,
+2: no textures either, or 1: no emitters and no probes either) back into a ``FittedModel``.
 """
 
 from __future__ import annotations
@@ -92,8 +96,9 @@ __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 4
-READS = (1, 2, 3, 4)
+VERSION = 5
+READS = (1, 2, 3, 4, 5)
+ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delta part
 TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
 UNTEXTURED_VERSION = 2  # the version of a file with neither
 ENVIRONMENT_BUFFER = "vlights/environment"  # the environment image's key among trimesh's buffers (no hash clashes)
@@ -205,10 +210,12 @@ def _check_highlights(model):
 
 
 def file_version(model):
-    """The lowest version of the schema that holds ``model``: 4 with an environment, 3
-    with a textured object, else 2."""
-    if model.environment is not None:
+    """The lowest version of the schema that holds ``model``: 5 with a delta emitter
+    part, 4 with an environment, 3 with a textured object, else 2."""
+    if any(p.is_delta for p in model.emitters):
         return VERSION
+    if model.environment is not None:
+        return ENVIRONMENT_VERSION
     return TEXTURED_VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
 
 
@@ -237,8 +244,7 @@ def scene_extras(model):
     table = emitter_table(model.emitters)[:len(model.emitters)]
     extras["emitter_table"] = table.reshape(len(table), TABLE_WIDTH * 4).astype(np.float64).tolist()
     if model.camera is not None:
-        extras["camera"] = {k: (np.asarray(v, np.float64).tolist() if k != "fov_y_deg" else float(v))
-                            for k, v in model.camera.to_dict().items()}
+        extras["camera"] = model.camera.to_dict()  # fit.npz's record: JSON-ready, its fov along its axis
     return extras
 
 
@@ -496,7 +502,7 @@ def _read_textured(info, mesh, v, fail):
 
 
 def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` (version 4, 3, 2 or 1) back into a
+    """Read a ``scene.glb`` written by ``export_glb`` (version 5, 4, 3, 2 or 1) back into a
     ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
     specular is zeros (V, 3); the environment's image exact). InputError if the file is
     not of this schema."""
@@ -504,7 +510,7 @@ def load_export(path):
 
     from fitting.model import FittedModel, FittedObject
     from radiosity.formats.camera import camera_from_dict
-    from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, parts_from_meta
+    from radiosity.formats.emitters import AREA_KINDS, DEFAULT_NODES, KINDS, MAX_NODES, parts_from_meta
 
     shown = repr(str(path))
     header, binary = _chunks(path)
@@ -519,7 +525,8 @@ def load_export(path):
 
     parts, nodes = (), DEFAULT_NODES
     if version >= 2:
-        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"))
+        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"),
+                                KINDS if version >= 5 else AREA_KINDS)
         nodes = extras.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
@@ -572,17 +579,14 @@ def add_export_command(subparsers):
     """``vlights export fit.npz -o DIR``: DIR/scene.glb."""
     p = subparsers.add_parser(
         "export",
-        help="write a fitted model as a binary glTF (DIR/scene.glb) for other viewers",
-        description="Write fit.npz as DIR/scene.glb: per object its mesh (positions, normals, faces), the emitted "
-        "colour as the vertex attribute _EMITTED and the specular coefficients as _SPECULAR (shared by the "
-        "lights) or _SPECULAR_0 .. _SPECULAR_{K-1} (one per light), the reflection probe's weight as _PROBE and "
-        "the emitters' visibility as _VISIBILITY_0, _VISIBILITY_1, ... (three parts each), float32 as in the fit; "
-        "a textured object's uvs as TEXCOORD_0, its image as the material's base colour texture (PNG, sRGB) and "
-        "the irradiance its diffuse term multiplies as _IRRADIANCE; "
-        "the object's lights (light_pos, light_rgb, shininess, per_light), its highlight (ks, exponent), its "
-        "probe (size, centre, box, albedo, texels) and a textured object's kd in the mesh's extras; the format "
-        "marker, the emitter parts, the scene camera and the environment (size, scale, rotation; its image as "
-        "float32 in a bufferView of its own) in the scene's extras.",
+        help="write a fitted model as binary glTF (DIR/scene.glb) with the WebGL walkthrough page beside it",
+        description="Write fit.npz as DIR/scene.glb, binary glTF 2.0 for other viewers: each object's mesh, "
+        "the fitted model's per-vertex arrays as float32 vertex attributes (_EMITTED, _SPECULAR or _SPECULAR_0 "
+        ".., _PROBE, _VISIBILITY_0 .., a textured object's TEXCOORD_0, _IRRADIANCE and its image as the base "
+        "colour texture), its lights, highlight and probe in the mesh's extras, the emitters, camera and "
+        "environment in the scene's (the schema: docs/formats.md); and beside it the WebGL walkthrough "
+        "(index.html, its script, the three.js modules and the shader files), which a browser opens through "
+        "'vlights serve DIR' or --serve.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("-o", "--out", required=True, metavar="DIR",

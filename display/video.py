@@ -8,10 +8,11 @@ import os
 import re
 import subprocess
 import tempfile
+from dataclasses import replace
 
 import numpy as np
 
-from radiosity.formats import Camera, InputError
+from radiosity.formats import InputError
 from radiosity.formats.atomic import OutputError, temporary_name
 
 from .renderer import tonemap
@@ -32,7 +33,7 @@ def walkthrough_path(view, frames):
         radial = offset * np.cos(angle) + np.cross(axis, offset) * np.sin(angle) + axis * (axis @ offset) * (1 - np.cos(angle))
         shrink = 1.0 - 0.45 * np.sin(np.pi * t)
         rise = 0.08 * np.linalg.norm(offset) * np.sin(np.pi * t)
-        out.append(Camera(tuple(centre + radial * shrink + axis * rise), view.look_at, view.up, view.fov_y_deg, view.width, view.height))
+        out.append(replace(view, eye=tuple(centre + radial * shrink + axis * rise)))  # its fov, axis and size
     return out
 
 

@@ -34,6 +34,7 @@ import warnings
 import numpy as np
 
 from radiosity.formats import Camera, InputError
+from radiosity.formats.camera import fov_y_deg
 
 from .gl import DEFAULT_SAMPLES
 from .renderer import PARTS, Renderer
@@ -90,11 +91,11 @@ class Walkthrough(mglw.WindowConfig):
         self.screenshot_path = s["screenshot"]
         self.press = s["press"]
         view = s["view"]
-        self.fov = view.fov_y_deg
+        self.fov_along = (view.fov_deg, view.fov_axis)  # the field of view, along its axis as the window resizes
         radius = float(np.linalg.norm(self.renderer.bounds[1] - self.renderer.bounds[0]))
         # its projection is unused: the renderer draws with its own depth range and convention
         # (display.renderer.depth_range, Depth), from the view current_view gives it
-        self.camera = KeyboardCamera(self.wnd.keys, fov=self.fov, aspect_ratio=self.wnd.aspect_ratio,
+        self.camera = KeyboardCamera(self.wnd.keys, fov=view.fov_y_deg, aspect_ratio=self.wnd.aspect_ratio,
                                      near=radius * 1e-3, far=radius * 10)
         self.camera.velocity = radius * 0.25
         self.camera.mouse_sensitivity = 0.15
@@ -114,7 +115,8 @@ class Walkthrough(mglw.WindowConfig):
         forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(pitch), math.sin(yaw) * math.cos(pitch)])
         eye = np.array(self.camera.position, float)
         w, h = self.wnd.buffer_size
-        return Camera(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), self.fov, max(int(w), 1), max(int(h), 1))
+        fov, axis = self.fov_along
+        return Camera(tuple(eye), tuple(eye + forward), (0.0, 1.0, 0.0), fov, max(int(w), 1), max(int(h), 1), axis)
 
     def on_render(self, time_s, frame_time):
         start = time.perf_counter()
@@ -189,7 +191,9 @@ class Walkthrough(mglw.WindowConfig):
         self.camera.rot_state(-dx, -dy)
 
     def on_resize(self, width, height):
-        self.camera.projection.update(aspect_ratio=self.wnd.aspect_ratio)
+        fov, axis = self.fov_along
+        self.camera.projection.update(aspect_ratio=self.wnd.aspect_ratio,
+                                      fov=fov_y_deg(fov, axis, max(int(width), 1), max(int(height), 1)))
 
 
 def _parse_display(name):

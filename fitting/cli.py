@@ -54,7 +54,8 @@ MAX_ITERATIONS = 10_000
 def register(subparsers, not_built):
     p = subparsers.add_parser(
         "fit",
-        help="fit virtual lights to a solution (fit.npz)",
+        help="fit each glossy object's model (emitters' highlights, reflection probe, virtual lights) to a "
+        "solution (fit.npz)",
         description="Fit each glossy object's model: the emitters' own highlights in closed form, a "
         "reflection probe for its surroundings and virtual lights for what remains (each object gets the "
         "cheapest that reaches the error target: --model auto), or virtual lights alone as the paper does "
@@ -63,29 +64,34 @@ def register(subparsers, not_built):
         "paper runs the paper's section 3.2 exactly. Writes fit.npz (its format: docs/formats.md) and "
         "prints each object's model and error.",
     )
-    table = ", ".join(f"{q} {preset(q).fit_lights} / {preset(q).fit_iterations}" for q in QUALITIES)
+    def per_quality(show):
+        return "; ".join(f"{q} {show(preset(q))}" for q in QUALITIES)
+
     p.add_argument("solution", help="a solution.npz from 'vlights solve'")
     p.add_argument("-o", "--output", default="fit.npz", help="output file (default: %(default)s)")
     p.add_argument("--quality", choices=QUALITIES, default=None,
-                   help=f"sets the defaults of --lights / --iterations ({table}); a flag given explicitly wins "
-                   f"(default: the quality the solution was solved at, else {DEFAULT_QUALITY})")
+                   help="sets the defaults of --lights, --iterations and the probe sizes --probe-size auto tries ("
+                   + per_quality(lambda k: f"{k.probe_lights} lights beside a probe, {k.fit_lights} alone, "
+                                 f"{k.fit_iterations} iterations, probes {', '.join(map(str, k.probe_sizes))}")
+                   + f"); a flag given explicitly wins (default: the quality the solution was solved at, else "
+                   f"{DEFAULT_QUALITY})")
     p.add_argument("--lights", default=None, metavar="K",
-                   help="virtual lights per glossy object, or 'auto' (default: the quality preset's: fit_lights for "
-                   "--model lights, probe_lights beside a probe)")
+                   help="virtual lights per glossy object, 0 to 64, or 'auto': as many as --target needs, at most "
+                   "--max-lights (default: the quality's, beside a probe or alone: see --quality)")
     p.add_argument("--model", choices=MODELS, default="auto",
-                   help="what a glossy object's model is made of: auto (the cheapest reaching --target), diffuse, "
-                   "emitters (their highlights in closed form), probe (and a reflection probe), probe+lights (and "
-                   "virtual lights), lights (virtual lights alone on the whole radiance, as the paper; --method paper "
-                   "always is) (default: %(default)s)")
+                   help="what a glossy object's model is made of: auto (the cheapest reaching --model-target), "
+                   "diffuse (one colour per vertex), emitters (and the emitters' highlights in closed form), probe "
+                   "(and a reflection probe), probe+lights (and virtual lights), lights (virtual lights alone on the "
+                   "whole radiance, as the paper; --method paper always is) (default: %(default)s)")
     p.add_argument("--probe-size", type=_probe_size, default="auto", metavar="M",
-                   help="the reflection probe's M x M texels, or auto: the quality preset's sizes tried, the cheapest "
-                   "within reach of the best kept (default: %(default)s)")
+                   help="the reflection probe's M x M texels, or auto: the quality's sizes (see --quality) tried, "
+                   "the cheapest within reach of the best kept (default: %(default)s)")
     p.add_argument("--target", type=float, default=0.1, metavar="E",
                    help="relative RMS error target of --lights auto (default: %(default)s)")
     p.add_argument("--model-target", type=float, default=MODEL_TARGET, metavar="E",
                    help="error target of --model auto: relative RMS in a space near what a viewer sees (radiance to "
                    "the display's gamma, scaled by the object's mean) (default: %(default)s)")
-    p.add_argument("--max-lights", type=int, default=16, metavar="N", help="most lights --lights auto may use (default: %(default)s)")
+    p.add_argument("--max-lights", type=int, default=16, metavar="N", help="most lights --lights auto may use, 1 to 64 (default: %(default)s)")
     p.add_argument("--method", choices=("paper", "refined", "per-light"), default="refined",
                    help="paper: section 3.2 exactly; refined: then non-linear refinement; per-light: refined with an exponent per light (default: %(default)s)")
     p.add_argument("--light-kind", choices=LIGHT_KINDS, default="auto",
@@ -100,7 +106,7 @@ def register(subparsers, not_built):
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",
-                   help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality preset's)")
+                   help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality's: see --quality)")
     p.add_argument("--workers", type=_workers, default=None, metavar="N",
                    help="processes fitting glossy objects at once, the costliest first; the model is the same "
                    "whatever N (default: one per core)")

@@ -21,6 +21,8 @@ version 3 has them (``radiosity.formats.texture``): ``<name>/uvs``,
 and the light from outside the scene, copied from the solution (``meta.environment``,
 ``environment_image``: ``radiosity.formats.environment``), which displays draw where no
 object is. A file is written with the lowest version that holds it (3 without either).
+Version 5 adds delta emitter parts (points, spots, directions) to ``meta.emitters``, as
+the solution's version 4 has them; a file without any is still version 4 or 3.
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -46,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
-from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, emitter_radiance, parts_from_meta
+from radiosity.formats.emitters import AREA_KINDS, DEFAULT_NODES, KINDS, MAX_NODES, emitter_radiance, parts_from_meta
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.npz import open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
@@ -55,8 +57,8 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 4
-READS = (1, 2, 3, 4)
+VERSION = 5
+READS = (1, 2, 3, 4, 5)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -309,8 +311,10 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 4 with a textured object
-        or an environment, else 3."""
+        """The lowest contract version that holds this model: 5 with a delta emitter
+        part, else 4 with a textured object or an environment, else 3."""
+        if any(p.is_delta for p in self.emitters):
+            return 5
         return 4 if self.environment is not None or any(o.textured is not None for o in self.objects) else 3
 
     def meta(self):
@@ -540,7 +544,7 @@ def load_fit(path):
                 raise fail(f"meta '{key}' must be a JSON {'string' if kind is str else 'object'}, got {_json_type(meta[key])}")
         emitters, nodes = (), DEFAULT_NODES
         if meta["version"] >= 3:
-            emitters = parts_from_meta(meta.get("emitters", []), fail)
+            emitters = parts_from_meta(meta.get("emitters", []), fail, KINDS if meta["version"] >= 5 else AREA_KINDS)
             nodes = meta.get("emitter_nodes", DEFAULT_NODES)
             if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
                 raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")

@@ -8,8 +8,9 @@ from pathlib import Path
 
 from radiosity.formats import presets
 from radiosity.formats.atomic import check_output
+from radiosity.formats.emitters import MAX_NODES
 from radiosity.info import describe, format_description
-from radiosity.scene.loaders import load_scene
+from radiosity.scene.loaders import load_scene, scene_words
 
 
 def whole_number(low, high=None):
@@ -29,12 +30,22 @@ def whole_number(low, high=None):
     return parse
 
 
-def add_quality_flag(parser):
+def preset_values(knob, show="{}".format):
+    """A knob's value at each quality, from the presets' one table, for help texts (which
+    then stay true when the table changes): "draft 1, medium 2, high 3", or "1 at every
+    quality"."""
+    values = [show(getattr(presets.preset(q), knob)) for q in presets.QUALITIES]
+    if len(set(values)) == 1:
+        return f"{values[0]} at every quality"
+    return ", ".join(f"{q} {v}" for q, v in zip(presets.QUALITIES, values))
+
+
+def add_quality_flag(parser, what="set every speed/accuracy knob at once"):
     parser.add_argument(
         "--quality",
         choices=presets.QUALITIES,
         default=presets.DEFAULT_QUALITY,
-        help="set every speed/accuracy knob at once (default: %(default)s)",
+        help=f"{what} (default: %(default)s)",
     )
 
 
@@ -42,49 +53,65 @@ def register(subparsers, not_built):
     p = subparsers.add_parser(
         "scene-info",
         help="print how a scene was understood: objects, triangles, materials, emitters, bounds",
-        description="Load a scene and print how it was understood: objects, triangles and "
-        "vertices before and after mesh refinement, materials, emitters and their power, bounds.",
+        description="Load a scene and print how it was understood: its camera and bounds, materials (kind, "
+        "kd, ks, Phong exponent, albedo, emission), objects with their triangles and vertices before and after "
+        "mesh refinement, and emitters (lamps, and point, spot and directional lights) with their power. Whatever "
+        "was approximated or left out on the way in "
+        "(a material mapped onto the Phong lobe, glass left out, a texture taken as its mean colour, degenerate "
+        "triangles dropped) is said in a warning on stderr: read them first when a solution looks wrong. "
+        "Quick: nothing is solved.",
     )
-    p.add_argument("scene", help="a .toml scene, a mesh file (.obj, .gltf, .glb, ...) or a built-in: cornell, cornell-teapot")
-    add_quality_flag(p)
+    p.add_argument("scene", help=scene_words())
+    add_quality_flag(p, "the preset whose mesh refinement is shown: edges no longer than the scene's diagonal / "
+                     + preset_values("max_edge_divisor"))
     p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units); overrides --quality")
     p.add_argument("--json", action="store_true", help="print the description as JSON")
-    add_adaptive_flags(p)
+    add_adaptive_flags(p, shown=True)
     p.set_defaults(func=_scene_info)
 
     p = subparsers.add_parser(
         "solve",
         help="compute the view-independent global-illumination solution (solution.npz)",
-        description="Photon tracing on Embree, local linear density estimation and a directional "
-        "gather at every vertex of each glossy object; writes solution.npz (its format: docs/formats.md). "
+        description="Photon tracing on Embree, local linear density estimation and a directional gather at every "
+        "vertex of each glossy object, on a mesh refined where the light changes; writes solution.npz (its "
+        "format: docs/formats.md) and prints the work done, the time of each phase and the file's size. "
         "--quality sets every knob; each knob's own flag overrides it.",
     )
-    p.add_argument("scene", help="a .toml scene, a mesh file or a built-in: cornell, cornell-teapot")
+    p.add_argument("scene", help=scene_words())
     p.add_argument("-o", "--output", default="solution.npz", help="output file (default: %(default)s)")
     add_quality_flag(p)
-    p.add_argument("--photons", type=int, metavar="N", help="photons emitted in total")
-    p.add_argument("--gather-samples", type=int, metavar="N", help="gather rays per glossy vertex (rounded up to a square)")
-    p.add_argument("--light-samples", type=int, metavar="N", help="light samples per glossy vertex")
-    p.add_argument("--grid", type=int, metavar="N", help="n x n direction grid for every glossy object (default: from each exponent)")
-    p.add_argument("--max-edge", type=float, metavar="L", help="refine to edges no longer than L (scene units): a uniform mesh, unless --adaptive")
+    p.add_argument("--photons", type=int, metavar="N",
+                   help=f"photons emitted in total (default: {preset_values('photons', '{:,}'.format)})")
+    p.add_argument("--gather-samples", type=int, metavar="N",
+                   help="gather rays per glossy vertex, rounded up to a square (default: "
+                   f"{preset_values('gather_samples')})")
+    p.add_argument("--light-samples", type=int, metavar="N",
+                   help=f"the gather's samples of the emitters per glossy vertex (default: {preset_values('light_samples')})")
+    p.add_argument("--grid", type=int, metavar="N",
+                   help="n x n direction grid, 1 to 256, for every glossy object (default: each object's own, 8 to "
+                   "64, from its Phong exponent and the quality)")
+    p.add_argument("--max-edge", type=float, metavar="L",
+                   help="refine to edges no longer than L (scene units): a uniform mesh, unless --adaptive (default: "
+                   f"the scene's diagonal / {preset_values('max_edge_divisor')})")
     p.add_argument(
         "--kernel-rings",
         type=whole_number(0, presets.MAX_KERNEL_RINGS),
         metavar="K",
         help=f"widen each vertex's density kernel by K rings of neighbours, 0 to {presets.MAX_KERNEL_RINGS} "
-        "(less noise, more blur)",
+        f"(less noise, more blur; default: {preset_values('kernel_rings')})",
     )
     p.add_argument(
         "--extra-gather",
         type=float,
         metavar="F",
-        help="further gather passes where the gather is noisy, at most F times the glossy vertices (0: none)",
+        help="further gather passes where the gather is noisy, at most F times the glossy vertices (0: none; "
+        f"default: {preset_values('extra_gather')})",
     )
     p.add_argument(
         "--gather-tolerance",
         type=float,
         metavar="E",
-        help="the relative standard error the extra gather passes aim at",
+        help=f"the relative standard error the extra gather passes aim at (default: {preset_values('gather_tolerance')})",
     )
     p.add_argument(
         "--emitter-highlights",
@@ -97,17 +124,20 @@ def register(subparsers, not_built):
         "--visibility-samples",
         type=int,
         metavar="N",
-        help="shadow rays per glossy vertex and emitter part: how much of each emitter a vertex sees",
+        help="shadow rays per glossy vertex and emitter part: how much of each emitter a vertex sees (default: "
+        f"{preset_values('visibility_samples')})",
     )
     p.add_argument(
         "--emitter-nodes",
         type=int,
         metavar="N",
-        help="quadrature nodes of the emitters' highlights (1-32; more: more exact, slower to draw)",
+        help=f"quadrature nodes of the emitters' highlights, 1 to {MAX_NODES}: more is more exact and slower to "
+        f"draw (default: {preset_values('emitter_nodes')})",
     )
     add_adaptive_flags(p)
-    p.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
-    p.add_argument("--threads", type=int, metavar="T", help="worker threads (default: one per core)")
+    p.add_argument("--seed", type=int, default=1, help="random seed: same seed, same solution (default: %(default)s)")
+    p.add_argument("--threads", type=int, metavar="T",
+                   help="worker threads (default: one per core); the solution does not depend on them")
     p.add_argument(
         "--scheduler",
         default="threads",
@@ -119,21 +149,27 @@ def register(subparsers, not_built):
     p.set_defaults(func=_solve)
 
 
-def add_adaptive_flags(parser):
+def add_adaptive_flags(parser, shown=False):
+    """--adaptive and --vertex-budget; ``shown``: scene-info's, which reports the
+    refinement a solve would do without doing it."""
+    what = ("report the refinement a solve would do where the light changes (on or off, its vertex budget); "
+            "only the solve refines" if shown else
+            "refine the mesh where the light changes: a first pass, then the edges whose light linear "
+            "interpolation does not explain are split, and the solve runs again")
+    on = [q for q in presets.QUALITIES if presets.preset(q).adaptive]
+    default = "every preset" if len(on) == len(presets.QUALITIES) else ", ".join(on) or "no preset"
     parser.add_argument(
         "--adaptive",
         action=argparse.BooleanOptionalAction,
         default=None,
-        help="refine the mesh where the light changes: a first pass, then the edges whose light linear "
-        "interpolation does not explain are split, and the solve runs again (default: the --quality preset; "
-        "off when --max-edge asks for a uniform mesh)",
+        help=f"{what} (default: on at {default}; off when --max-edge asks for a uniform mesh)",
     )
     parser.add_argument(
         "--vertex-budget",
         type=int,
         metavar="N",
-        help="most vertices of the adaptively refined scene (default: the preset's vertex_budget_factor "
-        "times the uniform mesh's)",
+        help="most vertices of the adaptively refined scene (default: "
+        f"the uniform mesh's times {preset_values('vertex_budget_factor', '{:g}'.format)})",
     )
 
 
@@ -249,7 +285,10 @@ def _highlight_lines(solution):
         return []
     kinds = {}
     for p in parts:
-        what = "sphere" if p.kind == "sphere" else f"{len(p.points)}-gon"
+        if p.kind == "point":
+            what = "spot" if p.spot is not None else "point"
+        else:
+            what = {"sphere": "sphere", "polygon": f"{len(p.points)}-gon", "direction": "directional"}[p.kind]
         kinds.setdefault(p.source, []).append(what)
     described = ", ".join(f"{name} ({', '.join(k)})" for name, k in kinds.items())
     if len(kinds) > LISTED:

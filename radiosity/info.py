@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from radiosity.scene.lights import describe as describe_light
 from radiosity.scene.materials import albedo
 
 
@@ -15,7 +16,10 @@ def describe(scene, refined, max_edge, how, adaptive=None):
     """A JSON-ready dict: the scene as loaded and after refinement to ``max_edge``;
     ``adaptive`` (``AdaptiveOptions.resolved``) adds how far the refinement driven by
     the light may go (the solve reports where it went)."""
+    _, radius = scene.bounding_sphere
+    lights = [describe_light(light, radius) for light in scene.lights]
     total_power = sum((o.emitted_power for o in scene.emitters), np.zeros(3))
+    total_power = total_power + sum((np.asarray(light["power"]) for light in lights), np.zeros(3))
     lo, hi = scene.bounds
     materials = {}
     for name, m in scene.materials.items():
@@ -53,6 +57,9 @@ def describe(scene, refined, max_edge, how, adaptive=None):
                 "power_fraction": float(f"{power.sum() / total_power.sum():.4g}"),
             }
         )
+    for light in lights:
+        total = float(total_power.sum())
+        light["power_fraction"] = float(f"{sum(light['power']) / total:.4g}") if total > 0 else 0.0
     return {
         "scene": scene.name,
         "source": scene.source,
@@ -61,6 +68,7 @@ def describe(scene, refined, max_edge, how, adaptive=None):
         "materials": materials,
         "objects": objects,
         "emitters": emitters,
+        "lights": lights,
         "environment": None if scene.environment is None else scene.environment.info(),
         "totals": {
             "objects": len(scene.objects),
@@ -87,6 +95,14 @@ def _v(values, fmt="{:.4g}"):
     return " ".join(fmt.format(v) for v in values)
 
 
+def _fov(cam):
+    """The field of view as said: vertical, or along its axis with the vertical one at the film."""
+    if "fov_axis" not in cam:
+        return f"fov {cam['fov_y_deg']:g} deg"
+    w, h = cam["film"]
+    return f"fov {cam['fov_deg']:g} deg along {cam['fov_axis']} (vertical {cam['fov_y_deg']:.4g} deg at {w}x{h})"
+
+
 def format_description(info):
     """The description as aligned text for a terminal."""
     out = [f"scene     {info['scene']}  ({info['source']})"]
@@ -96,7 +112,7 @@ def format_description(info):
     out.append(
         "camera    "
         + (
-            f"eye ({_v(cam['eye'])})  look at ({_v(cam['look_at'])})  up ({_v(cam['up'])})  fov {cam['fov_y_deg']:g} deg"
+            f"eye ({_v(cam['eye'])})  look at ({_v(cam['look_at'])})  up ({_v(cam['up'])})  {_fov(cam)}"
             if cam
             else "none in the scene (views default to one framing the bounds)"
         )
@@ -136,16 +152,30 @@ def format_description(info):
             if a["enabled"]
             else f"  adaptive  off: the uniform mesh's {a['vertices_before']:,} vertices"
         )
-    out += ["", f"emitters ({len(info['emitters'])})   total power (pi Le A, RGB) {_v(t['emitted_power'])}"]
+    lights = info.get("lights", [])
+    out += ["", f"emitters ({len(info['emitters']) + len(lights)})   total power (RGB) {_v(t['emitted_power'])}"]
     env = info.get("environment")
     if env:
         out.append(f"  environment  {env['kind']} {env['width']}x{env['height']}, scale {env['scale']:g}, "
                    f"mean radiance {_v(env['mean_radiance'])}  ({env['source']})")
-    elif not info["emitters"]:
+    elif not info["emitters"] and not lights:
         out.append("  none: nothing emits light, so a solution will be black")
     for e in info["emitters"]:
         out.append(
             f"  {e['name']:<14} area {e['area']:.4g}  radiance ({_v(e['radiance'], '{:g}')})  "
             f"power ({_v(e['power'])})  {100 * e['power_fraction']:.1f}% of the total"
         )
+    for light in lights:
+        if light["kind"] == "directional":
+            what = f"direction ({_v(light['direction'])})  irradiance ({_v(light['irradiance'], '{:g}')})"
+            through = " through the scene's bounding sphere"
+        else:
+            what = f"at ({_v(light['position'])})  intensity ({_v(light['intensity'], '{:g}')} W/sr)"
+            through = ""
+            if "spot" in light:
+                spot = light["spot"]
+                what += (f"  toward ({_v(spot['axis'])}), cutoff {spot['cutoff_deg']:g} deg, "
+                         f"beam {spot['beam_deg']:g} deg")
+        out.append(f"  {light['name']:<14} {light['kind']} light, {what}  power ({_v(light['power'])}){through}  "
+                   f"{100 * light['power_fraction']:.1f}% of the total")
     return "\n".join(out)

@@ -10,6 +10,7 @@ import sys
 
 from display import gl
 from radiosity.formats import InputError
+from radiosity.formats.camera import FOV_AXES
 
 __all__ = [
     "FIT", "SOLUTION", "add_camera_flags", "add_samples_flag", "check_drawable", "check_model_files", "check_output_file",
@@ -43,11 +44,17 @@ def add_camera_flags(parser, default_size):
     parser.add_argument("--eye", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--look-at", type=float, nargs=3, metavar=("X", "Y", "Z"))
     parser.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"))
-    parser.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view")
+    parser.add_argument("--fov", type=float, metavar="DEG",
+                        help="field of view, vertical unless --fov-axis says otherwise (default: the scene camera's, "
+                        "kept along its own axis, e.g. a Mitsuba sensor's fov_axis, at every --size)")
+    parser.add_argument("--fov-axis", choices=FOV_AXES, metavar="AXIS",
+                        help="the extent of the image --fov spans: x (its width), y (its height), diagonal, smaller "
+                        "or larger (its smaller or larger side), as Mitsuba's fov_axis (default: y)")
     parser.add_argument("--size", type=size, default=default_size, metavar="WxH",
                         help=f"image size (default: {default_size[0]}x{default_size[1]})")
     parser.add_argument("--view", metavar="NAME", help="a named view from --views")
-    parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], "up": [..], "fov_y_deg": d}}')
+    parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], '
+                        '"up": [..], "fov_y_deg": d}} (or "fov_deg": d, "fov_axis": "x" for a fov along the width)')
 
 
 def add_samples_flag(parser):

@@ -26,19 +26,27 @@ __all__ = ["add_command", "run"]
 
 
 def add_command(subparsers):
+    from display.compare import ORBIT_DEGREES
+
     p = subparsers.add_parser(
         "compare",
-        help="the paper's comparison figures with error images and numbers",
-        description="Figures 5 (reference against fitted, three viewpoints), 6 (2 against 8 lights) and 7 "
-        "(with and without virtual lights) as PNG files, each with a FLIP error image, and FLIP mean, PSNR "
-        "and relative MSE in compare.json.",
+        help="the paper's figures 5-7 with FLIP error images and numbers, optionally against a path-traced "
+        "truth or another renderer's image",
+        description="The paper's figures as PNG files into --out, each with a FLIP error image against the "
+        "solution display (the solution drawn directly, what the model was fitted to): 5, the solution display "
+        "against the fitted display from three viewpoints (the scene's camera and it turned "
+        f"{ORBIT_DEGREES:g} degrees each way about its look-at point); 6, 2 virtual lights against all; 7, the fitted display against a diffuse walkthrough. Their "
+        "FLIP, PSNR and relative MSE, over the whole image and the glossy objects alone, go into compare.json "
+        "and a table on stdout. With --truth or --truth-spp every display is also measured against a "
+        "path-traced truth; with --reference, against another renderer's image.",
     )
     p.add_argument("fit", help="fit.npz")
     p.add_argument("solution", help="the solution.npz it was fitted to")
     p.add_argument("--out", default="compare", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
     add_camera_flags(p, (512, 512))
-    p.add_argument("--exposure", type=float, default=1.0, help="default: %(default)s")
-    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
+    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel",
+                   help="gouraud: per vertex, as in 1997; pixel: per pixel (default: %(default)s)")
     add_samples_flag(p)
     p.add_argument("--truth", nargs="+", metavar="FILE.npy",
                    help="path-traced images of figure 5's views, in order (from 'vlights truth --hdr' with the same "
@@ -48,7 +56,7 @@ def add_command(subparsers):
     p.add_argument("--seed", type=int, default=1, help="the path tracer's seed, with --truth-spp (default: %(default)s)")
     p.add_argument("--reference", metavar="IMAGE",
                    help="an image of the scene from its camera (or the camera flags'), linear radiance as OpenEXR "
-                   ".exr, Radiance .hdr, .pfm or .npy, e.g. another renderer's: the reference, fitted and diffuse "
+                   ".exr, Radiance .hdr, .pfm or .npy, e.g. another renderer's: the solution, fitted and diffuse "
                    "displays and, with --truth-spp (which then traces this view alone), the path tracer are measured "
                    "against it at its own size (FLIP, relative MSE, mean ratio), into compare.json and reference/; "
                    "--size may only shrink it by a whole factor; not with --truth")

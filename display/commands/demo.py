@@ -3,6 +3,8 @@ optionally the walkthrough window."""
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from display.gl import check_sample_count
 from radiosity.formats import presets
 
@@ -12,18 +14,25 @@ __all__ = ["add_command", "run"]
 
 
 def add_command(subparsers):
+    from display.demo import ASPECT, SCENES
+
+    scenes = " and ".join(SCENES)
     p = subparsers.add_parser(
         "demo",
-        help="solve, fit and compare the built-in scenes cornell-teapot and plates",
-        description="The whole pipeline on the built-in scenes cornell-teapot and plates: for each, solution.npz, "
-        "fit.npz, the paper's figures 5-7 with error images and numbers against a path-traced truth, and the "
-        "WebGL walkthrough; then a plot of each glossy object's models (error against floats stored), "
-        "report.md and summary.json.",
+        help=f"the whole pipeline on the built-in scenes {scenes}",
+        description=f"The whole pipeline on the built-in scenes {scenes}: for each, solution.npz, fit.npz, the "
+        "path-traced truth of the scene's camera, the paper's figures 5-7 with FLIP error images and numbers, "
+        "and the WebGL walkthrough; then a plot of each glossy object's models (error against floats stored), "
+        "report.md and summary.json. Prints, per scene, a table of each display's FLIP on the glossy objects "
+        "against the solution and against the truth, the truth's noise floor and a verdict, then where "
+        "everything is.",
     )
     p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY, help="every knob of every stage at once (default: %(default)s)")
     p.add_argument("--out", default="vlights-demo", metavar="DIR", help="output directory, created if missing (default: %(default)s)")
-    p.add_argument("--size", type=size, default=(512, 512), metavar="WxH", help="figure size (default: 512x512)")
-    p.add_argument("--view", action="store_true", help="open the walkthrough at the end, where a display exists")
+    wide = "".join(f"; {name}: as wide, {Fraction(h).limit_denominator(64)} of it high" for name, h in ASPECT.items())
+    p.add_argument("--size", type=size, default=(512, 512), metavar="WxH", help=f"figure size (default: 512x512{wide})")
+    p.add_argument("--view", action="store_true",
+                   help=f"open the walkthrough of {SCENES[0]} at the end, where a display exists")
     add_samples_flag(p)
     p.add_argument("--truth-spp", type=int, metavar="N",
                    help="path-trace the first view with N samples per pixel and measure every display against it "

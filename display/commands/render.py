@@ -18,28 +18,33 @@ __all__ = ["add_command", "run"]
 def add_command(subparsers):
     p = subparsers.add_parser(
         "render",
-        help="render a fitted model or a solution to an image",
+        help="a picture (or a video) of a fitted model or a solution",
         description="Draw fit.npz (modes fitted, diffuse) and/or solution.npz (modes reference, diffuse) "
-        "from a camera, headless (EGL). --hdr writes linear radiance (H, W, 3) float32, row 0 at the "
-        "top, background 0; -o writes the tone-mapped picture (exposure, then sRGB).",
+        "from a camera, headless (EGL): by default the scene's camera, else a view framing the scene. --hdr "
+        "writes linear radiance (H, W, 3) float32, row 0 at the top, where no object is the scene's "
+        "environment or 0; -o writes the tone-mapped picture (exposure, then sRGB).",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for --mode reference next to a fit.npz")
-    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"), help="default: fitted for a fit.npz, reference for a solution.npz")
-    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel", help="default: %(default)s")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (--mode reference) next to a fit.npz")
+    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
+                   help="fitted: the fitted model, what the walkthrough shows; reference: the solution display, the "
+                   "solution drawn directly; diffuse: a diffuse walkthrough (default: fitted for a fit.npz, reference "
+                   "for a solution.npz)")
+    p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel",
+                   help="gouraud: per vertex, as in 1997; pixel: per pixel (default: %(default)s)")
     add_camera_flags(p, (800, 800))
     p.add_argument("--hdr", metavar="FILE.npy", help="write linear radiance")
     p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: render.png if no --hdr)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
-    p.add_argument("--lights", type=int, metavar="K", help="use only the first K lights of each object")
+    p.add_argument("--lights", type=int, metavar="K", help="use only the first K virtual lights of each object")
     p.add_argument("--off", nargs="+", default=[], metavar="PART", choices=PARTS,
                    help="draw the model without these parts: emitters (their highlights), probe, lights")
     add_samples_flag(p)
     p.set_defaults(func=run)
 
     p.add_argument("--video", metavar="FILE.mp4", help="instead of one picture, a walkthrough video along a smooth path from the camera")
-    p.add_argument("--frames", type=int, default=120, help="video frames (default: %(default)s)")
-    p.add_argument("--fps", type=int, default=30, help="video frame rate (default: %(default)s)")
+    p.add_argument("--frames", type=int, default=120, help="video frames, 2 to 100,000 (default: %(default)s)")
+    p.add_argument("--fps", type=int, default=30, help="video frame rate, 1 to 240 (default: %(default)s)")
 
 
 def run(args):

@@ -20,22 +20,29 @@ MAX_THREADS = 1024  # a thread pool of more would be reported, not run (the path
 
 
 def add_command(subparsers):
+    from display import pipeline
+
     p = subparsers.add_parser(
         "truth",
         help="path-trace the ground truth of a view (to compare the walkthrough against)",
         description="Path-trace a view of a solution.npz's meshes and materials (or a scene's): next-event "
         "estimation and BRDF sampling combined by MIS, Russian roulette, a box filter over each pixel. The "
         "image depends on the seed and the samples alone, not on threads. Prints the time, rays and paths per "
-        "second, and the noise floor: FLIP between the two independent halves of the samples.",
+        "second, and the noise floor: FLIP between the two independent halves of the samples (an error "
+        "against the truth near it is the truth's own noise). The camera: the flags', else the solution's or scene's "
+        "own (a scene's at its film's size, a Mitsuba sensor's, unless --size), else a view framing the scene. A fit.npz "
+        "holds no materials and is refused.",
     )
-    p.add_argument("input", help="solution.npz, or a scene (TOML, OBJ, glTF, or a built-in name such as cornell-teapot)")
+    p.add_argument("input", help="a solution.npz (its meshes and materials, what its displays show) or a scene: "
+                   + pipeline.scene_words())
     add_camera_flags(p, (512, 512))
     p.add_argument("--spp", type=int, help="samples per pixel (default: the --quality preset's truth_spp)")
     p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY,
                    help="sets --spp: " + ", ".join(f"{q} {presets.preset(q).truth_spp}" for q in presets.QUALITIES)
                    + " (default: %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="default: %(default)s")
-    p.add_argument("--threads", type=int, help="worker threads (default: one per core); the image does not depend on it")
+    p.add_argument("--threads", type=int,
+                   help=f"worker threads, 1 to {MAX_THREADS} (default: one per core); the image does not depend on them")
     p.add_argument("--hdr", metavar="FILE.npy", help="write linear radiance (H, W, 3) float32")
     p.add_argument("-o", "--output", metavar="FILE.png", help="write the tone-mapped picture (default: truth.png if no --hdr)")
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")

@@ -24,16 +24,19 @@ __all__ = ["add_command", "open_window", "run"]
 def add_command(subparsers):
     p = subparsers.add_parser(
         "view",
-        help="walk through a scene in a window",
+        help="the walkthrough window on a fit.npz or a solution.npz (needs a display)",
         description="The walkthrough window: WASD (Q/E down/up) and mouse-look with the left button held; "
         "M mode, G Gouraud/per-pixel, L 2/all lights, 1/2/3 the emitters' highlights/the probe/the "
         "virtual lights off and on, +/- exposure, P screenshot, ESC quit.",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the reference mode next to a fit.npz")
-    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"))
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (mode reference) next to a fit.npz")
+    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
+                   help="the display to start with (M cycles them): fitted, the fitted model; reference, the solution "
+                   "display (the solution drawn directly); diffuse, a diffuse walkthrough (default: fitted for a "
+                   "fit.npz, diffuse for a solution.npz)")
     add_camera_flags(p, (1280, 720))
-    p.add_argument("--exposure", type=float, default=1.0)
+    p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
     p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p 1 2 3) after the first frame")

@@ -7,8 +7,12 @@
 // VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W (the lists comma-separated).
 //
 // Uniforms (textures as display.glsl.emitter_table lays them out):
-//   emitter_table     RGBA32F, row i = part i: texel 0 (kind, vertex count, radius, 0),
-//                     1 (radiance, 0), 2 (bounding centre, bounding radius), 3 + k (vertex k)
+//   emitter_table     RGBA32F, row i = part i: texel 0 (kind: 0 sphere, 1 polygon, 2 point,
+//                     3 direction; vertex count, radius, 0), 1 (radiance; a point's
+//                     intensity, a direction's irradiance; 0), 2 (bounding centre,
+//                     bounding radius), 3 + k (vertex k: a point's position, a
+//                     direction's unit direction of travel at k = 0; a point's spot axis
+//                     at k = 1 and (cutoff, beam width (radians), 1 for a spot) at k = 2)
 //   n_parts           the parts drawn (0: none)
 //   own_parts         bit i set: part i belongs to the object (it does not see itself)
 //   emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
@@ -183,6 +187,31 @@ float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {
     }
     return total / p1;
 }
+float spot_falloff(float theta, float cutoff, float beam) {   // Mitsuba 3's spot profile at theta from its axis
+    if (!(theta < cutoff)) return 0.0;
+    if (theta <= beam) return 1.0;
+    return (cutoff - theta) / (cutoff - beam);
+}
+// a delta part's J: the lobe and the cosine at its one direction, times 1 / d^2 and the
+// spot's profile for a point (radiosity.formats.emitters.delta_integral)
+float delta_integral(int part, bool direction, vec3 x, vec3 n, vec3 r, float p) {
+    vec3 q = emitter_point(part, 0);
+    vec3 wi = -q;
+    float scale = 1.0;
+    if (!direction) {
+        vec3 to = q - x;
+        float d2 = dot(to, to);
+        if (!(d2 > 0.0)) return 0.0;
+        wi = to / sqrt(d2);
+        scale = 1.0 / d2;
+        vec3 spot = emitter_point(part, 2);
+        vec3 axis = emitter_point(part, 1);
+        if (spot.z > 0.0) scale *= spot_falloff(atan2_(length(cross(wi, axis)), -dot(wi, axis)), spot.x, spot.y);
+    }
+    float cos_n = dot(wi, n), cos_a = dot(wi, r);
+    if (!(cos_n > 0.0 && cos_a > 0.0 && scale > 0.0)) return 0.0;
+    return scale * cos_n * pow(min(cos_a, 1.0), p);
+}
 bool emitter_culled(vec4 bound, vec3 x, vec3 r, float p) {
     vec3 c = bound.xyz - x;
     float dist = length(c);
@@ -222,10 +251,15 @@ vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
         if (weights.z != 0.0) v += weights.z * visibility_at(vertices.z, i);
         if (!(v > 0.0)) continue;
         vec4 head = texelFetch(emitter_table, ivec2(0, i), 0);
-        vec4 bound = texelFetch(emitter_table, ivec2(2, i), 0);
-        if (emitter_culled(bound, x, r, p)) continue;
-        float j = head.x < 0.5 ? sphere_integral(emitter_point(i, 0), head.z, x, n, r, p)
-                               : polygon_integral(i, int(head.y + 0.5), x, n, r, p);
+        float j;
+        if (head.x > 1.5) {   // a point or a direction: exact, never culled
+            j = delta_integral(i, head.x > 2.5, x, n, r, p);
+        } else {
+            vec4 bound = texelFetch(emitter_table, ivec2(2, i), 0);
+            if (emitter_culled(bound, x, r, p)) continue;
+            j = head.x < 0.5 ? sphere_integral(emitter_point(i, 0), head.z, x, n, r, p)
+                             : polygon_integral(i, int(head.y + 0.5), x, n, r, p);
+        }
         colour += (j * norm * v) * ks * texelFetch(emitter_table, ivec2(1, i), 0).rgb;
     }
     return colour;

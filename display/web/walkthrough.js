@@ -1,5 +1,5 @@
-// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v4, v3,
-// v2 or v1; display/export.py and docs/formats.md hold the schema).
+// The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v5, v4,
+// v3, v2 or v1; display/export.py and docs/formats.md hold the schema).
 //
 // Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
@@ -14,14 +14,15 @@
 //     S(n . w) times the box-projected look-up of the octahedral map in the mirror
 //     direction (a texture per object);
 //   - the emitters' glossy highlights: each emitter part (sphere or convex polygon, the
-//     table in the scene's extras) integrated against the object's lobe per pixel,
-//     times the fraction of the part the vertices see (_VISIBILITY_j, a texture);
+//     table in the scene's extras) integrated against the object's lobe per pixel, or
+//     a delta part's (a point, a spot, a direction: a v5 file) lobe at its one
+//     direction, times the fraction of the part the vertices see (_VISIBILITY_j, a texture);
 //   - a textured object's diffuse term (textured.glsl, compiled in with #define
 //     VL_TEXTURED): kd * texture(uv) / pi * E per pixel, uv (TEXCOORD_0) and the
 //     irradiance E (_IRRADIANCE) interpolated, the image the material's base colour
 //     texture (decoded from sRGB by the GPU, bilinear, repeating, mipmapped), in both
 //     modes (the diffuse mode is the emitted colour and this term);
-//   - where no object is, the environment (a version 4 file: the light from outside the
+//   - where no object is, the environment (a version 4 or 5 file: the light from outside the
 //     scene), in both modes: background_vertex.glsl and background_fragment.glsl, the
 //     renderer's (display.renderer.Renderer._draw_background), drawn after the objects
 //     into the same float framebuffer with the depth test "<=" at the far plane, its
@@ -46,7 +47,8 @@
 // conventional range into 24 bits, a larger near plane and the back faces pushed back
 // by a polygon offset, as the renderer does without clip control.
 //
-// URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg mode=fitted|diffuse
+// URL query (all optional): eye=x,y,z look=x,y,z up=x,y,z fov=deg (vertical; without it,
+// the scene camera's field of view, kept along its axis at any window size) mode=fitted|diffuse
 // exposure=e lights=n samples=1|2|4 off=emitters,probe,lights (any of them: those parts
 // of the model are not drawn, as `vlights render --off`) file=scene.glb maxtexture=n (the
 // largest texture side the page may use: the GPU's MAX_TEXTURE_SIZE, or n if smaller, to
@@ -76,7 +78,7 @@ import { PointerLockControls } from 'three/addons/controls/PointerLockControls.j
 import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3, 4]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4, 5]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -612,6 +614,16 @@ export async function loadFit(url, maxTexture, reversed = false) {
 
 // ------------------------------------------------------------------------------ the page
 
+// radiosity.formats.camera.fov_y_deg: the vertical field of view of a width x height image
+// whose field of view along axis (x, y, diagonal, smaller, larger: Mitsuba's fov_axis) is fov
+const FOV_AXES = ['x', 'y', 'diagonal', 'smaller', 'larger'];
+function verticalFov(fov, axis, width, height) {
+    if (axis === 'smaller') axis = width < height ? 'x' : 'y';
+    else if (axis === 'larger') axis = width > height ? 'x' : 'y';
+    const ratio = { x: height / width, y: 1, diagonal: height / Math.hypot(width, height) }[axis];
+    return THREE.MathUtils.radToDeg(2 * Math.atan(Math.tan(THREE.MathUtils.degToRad(fov) / 2) * ratio));
+}
+
 // display.camera.framing_view: the box seen from its -z side, whole in frame
 function framingView(bounds, fov) {
     const centre = bounds.getCenter(new THREE.Vector3());
@@ -673,6 +685,10 @@ class Walkthrough {
         this.start = {
             eye: query.eye || start.eye, look: query.look || start.look_at,
             up: query.up || start.up || [0, 1, 0], fov: query.fov ?? start.fov_y_deg ?? DEFAULT_FOV,
+            // the scene camera's fov along its axis (fov_deg, fov_axis: a Mitsuba sensor's), kept at any
+            // window size; fov= in the URL is vertical
+            along: query.fov === undefined && FOV_AXES.includes(start.fov_axis) && start.fov_deg > 0 && start.fov_deg < 180
+                ? { fov: start.fov_deg, axis: start.fov_axis } : null,
         };
         this.renderer = renderer;
         this.renderer.setPixelRatio(1);
@@ -790,6 +806,7 @@ class Walkthrough {
         const height = Math.max(1, this.canvas.clientHeight);
         if (this.canvas.width !== width || this.canvas.height !== height) this.renderer.setSize(width, height, false);
         this.camera.aspect = width / height;
+        if (this.start.along) this.camera.fov = verticalFov(this.start.along.fov, this.start.along.axis, width, height);
         this.depthRange();
         this.camera.updateProjectionMatrix();
         // display.renderer.Renderer.draw and _bind_fitted: the diffuse mode draws the emitted

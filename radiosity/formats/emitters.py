@@ -25,9 +25,19 @@ surrounds r. Both converge to the exact J as N grows; ``tests`` measure the erro
 against brute-force integration (``nodes`` = 8: below 1 % on the cases tested).
 
 Parts
-    sphere   a sphere lamp: centre, radius (seen as the cap it subtends)
-    polygon  a convex planar polygon of 3 to ``MAX_POLYGON_VERTICES`` vertices,
-             counter-clockwise seen from its front (it emits from the front only)
+    sphere    a sphere lamp: centre, radius (seen as the cap it subtends)
+    polygon   a convex planar polygon of 3 to ``MAX_POLYGON_VERTICES`` vertices,
+              counter-clockwise seen from its front (it emits from the front only)
+    point     a point light (delta in position): its position and intensity I (W/sr,
+              RGB), with an optional spot profile (``SpotProfile``: Mitsuba 3's cone)
+    direction a distant light (delta in direction): the unit direction its light
+              travels and its irradiance E (on a surface facing it, RGB)
+
+A delta part has no extent: its highlight is the lobe at its one direction wi, exact
+and without quadrature (``delta_integral``), J = max(0, wi . r)^p max(0, wi . n) / d^2
+times the spot's profile toward x for a point at distance d (Le its intensity), and
+J = max(0, wi . r)^p max(0, wi . n) for a direction (wi = -its direction, Le its
+irradiance); a delta part is never culled (it costs less than the test).
 
 ``highlight_integral`` (numba, scalar) is the reference every display is tested
 against; ``emitter_radiance`` evaluates E for many points (parallel); the GLSL in
@@ -50,37 +60,108 @@ __all__ = [
     "KINDS",
     "MAX_NODES",
     "MAX_POLYGON_VERTICES",
+    "DELTA_KINDS",
     "EmitterPart",
     "PackedParts",
+    "SpotProfile",
     "emitter_grid",
     "emitter_radiance",
+    "delta_integral",
     "highlight_integral",
     "parts_from_meta",
     "pack_parts",
+    "spot_angle",
+    "spot_falloff",
 ]
 
 SPHERE = 0
 POLYGON = 1
-KINDS = ("sphere", "polygon")
+POINT = 2
+DIRECTION = 3
+KINDS = ("sphere", "polygon", "point", "direction")
+DELTA_KINDS = ("point", "direction")  # solution version 4, fit version 5, glTF version 5
+AREA_KINDS = ("sphere", "polygon")  # every version since the parts came (solution 2, fit 3, glTF 2)
 MAX_POLYGON_VERTICES = 8
 DEFAULT_NODES = 8
 MAX_NODES = 32
 MAX_FILE_PARTS = 31  # a file's parts at most: the displays mark an object's own parts in a 32-bit mask
+MAX_LIGHTS = 1024  # a scene's delta lights at most (a solution's meta "lights")
+UNIT_TOLERANCE = 1e-12  # a direction or a spot's axis this near unit length is kept as given, else normalised
 HALF_PI = 0.5 * math.pi
 CULL = 1e-4  # a part whose bounding sphere sees the lobe below this fraction of its peak reflects nothing
 U_NODE = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre on [0, 1]: 1/2 -+ this, weights 1/2
 
 
 @dataclass(frozen=True, eq=False)
+class SpotProfile:
+    """A point light's spot cone, as Mitsuba 3's ``spot`` emitter defines it.
+
+    axis       : (3,) float64 unit: where the spot points (its ``to_world``'s +z)
+    cutoff_deg : the cone's half-angle, beyond which it is black (0 < cutoff <= 180)
+    beam_deg   : the half-angle of its full-intensity core (0 <= beam <= cutoff)
+
+    The intensity toward a direction at angle theta from the axis is I times
+    ``falloff(cos theta)``: 1 inside the beam, (cutoff - theta) / (cutoff - beam)
+    across the transition (linear in the angle), 0 at and beyond the cutoff.
+    """
+
+    axis: np.ndarray
+    cutoff_deg: float
+    beam_deg: float
+
+    def __post_init__(self):
+        axis = np.asarray(self.axis, np.float64).reshape(3)
+        length = float(np.linalg.norm(axis))
+        if not (np.isfinite(axis).all() and length > 0):
+            raise ValueError("a spot's axis must be a finite, non-zero vector")
+        object.__setattr__(self, "axis", axis / length if abs(length - 1) > UNIT_TOLERANCE else axis)
+        object.__setattr__(self, "cutoff_deg", float(self.cutoff_deg))
+        object.__setattr__(self, "beam_deg", float(self.beam_deg))
+        if not 0 < self.cutoff_deg <= 180:
+            raise ValueError(f"a spot's cutoff angle must be in (0, 180] degrees, got {self.cutoff_deg:g}")
+        if not 0 <= self.beam_deg <= self.cutoff_deg:
+            raise ValueError(f"a spot's beam width must be in [0, its cutoff angle {self.cutoff_deg:g}] degrees, "
+                             f"got {self.beam_deg:g}")
+
+    @property
+    def radians(self):
+        """(cutoff, beam) in radians."""
+        return math.radians(self.cutoff_deg), math.radians(self.beam_deg)
+
+    def falloff(self, theta_deg):
+        """The profile (...) float64 in [0, 1] at the angles ``theta_deg`` (...) from
+        the axis, in degrees (``spot_falloff``)."""
+        cutoff, beam = self.radians
+        t = np.radians(np.asarray(theta_deg, np.float64))
+        out = np.array([spot_falloff(float(v), cutoff, beam) for v in t.ravel()])
+        return out.reshape(t.shape)
+
+    def solid_angle(self):
+        """The integral of the profile over the sphere (sr): 2 pi (1 - (sin c - sin b) / (c - b)),
+        2 pi (1 - cos c) for c = b (the power of the spot is I times this)."""
+        cutoff, beam = self.radians
+        if cutoff - beam < 1e-9:
+            return 2 * math.pi * (1 - math.cos(cutoff))
+        return 2 * math.pi * (1 - (math.sin(cutoff) - math.sin(beam)) / (cutoff - beam))
+
+    def to_dict(self):
+        return {"axis": [float(v) for v in self.axis], "cutoff_deg": self.cutoff_deg, "beam_deg": self.beam_deg}
+
+
+@dataclass(frozen=True, eq=False)
 class EmitterPart:
     """One emitter part.
 
-    kind     : "sphere" or "polygon"
-    points   : (1, 3) float64, the centre (sphere), or (K, 3) the vertices (polygon,
-               counter-clockwise seen from the front, convex, planar, 3 <= K <= 8)
-    radius   : the sphere's radius (0 for a polygon)
-    radiance : (3,) float64, emitted radiance (front only)
-    source   : the name of the object it comes from
+    kind     : one of KINDS: "sphere", "polygon", "point" or "direction"
+    points   : (1, 3) float64, the centre (sphere) or the position (point) or the unit
+               direction the light travels (direction), or (K, 3) the vertices
+               (polygon, counter-clockwise seen from the front, convex, planar, 3 <= K <= 8)
+    radius   : the sphere's radius (0 for the others)
+    radiance : (3,) float64, what it emits: the radiance of a sphere or a polygon
+               (front only), the intensity of a point (W/sr; a spot's peak), the
+               irradiance of a direction (on a surface facing it)
+    source   : the name of the object (or the light) it comes from
+    spot     : a point's ``SpotProfile``, or None (it lights every way)
     """
 
     kind: str
@@ -88,12 +169,17 @@ class EmitterPart:
     radius: float
     radiance: np.ndarray
     source: str
+    spot: SpotProfile | None = None
 
     def __post_init__(self):
         put = object.__setattr__
         put(self, "points", np.asarray(self.points, np.float64).reshape(-1, 3))
         put(self, "radiance", np.asarray(self.radiance, np.float64).reshape(3))
         put(self, "radius", float(self.radius))
+        if self.kind == "direction" and len(self.points) == 1 and np.isfinite(self.points).all():
+            length = float(np.linalg.norm(self.points[0]))
+            if length > 0 and abs(length - 1) > UNIT_TOLERANCE:  # a unit one as it is: files read back exactly
+                put(self, "points", self.points / length)
         problem = self.problem()
         if problem:
             raise ValueError(f"emitter part of {self.source!r}: {problem}")
@@ -105,7 +191,15 @@ class EmitterPart:
         if not (np.isfinite(self.points).all() and np.isfinite(self.radiance).all() and math.isfinite(self.radius)):
             return "has a NaN or infinite number"
         if (self.radiance < 0).any():
-            return "has a negative radiance"
+            return f"has a negative {self.quantity}"
+        if self.spot is not None and self.kind != "point":
+            return "only a point light has a spot profile"
+        if self.kind in DELTA_KINDS:
+            if len(self.points) != 1 or self.radius != 0:
+                return f"a {self.kind} has one {'position' if self.kind == 'point' else 'direction'} and no radius"
+            if self.kind == "direction" and not np.linalg.norm(self.points[0]) > 0:
+                return "a direction must not be zero"
+            return None
         if self.kind == "sphere":
             if len(self.points) != 1 or not self.radius > 0:
                 return "a sphere has one centre and a radius > 0"
@@ -126,20 +220,54 @@ class EmitterPart:
         return None
 
     @property
+    def is_delta(self):
+        """A point or a direction: no extent, never seen, only reflected."""
+        return self.kind in DELTA_KINDS
+
+    @property
+    def quantity(self):
+        """The name of what ``radiance`` holds: "radiance", "intensity" or "irradiance"."""
+        return {"point": "intensity", "direction": "irradiance"}.get(self.kind, "radiance")
+
+    @property
     def normal(self):
-        """Unit front normal of a polygon (zeros for a sphere)."""
+        """Unit front normal of a polygon (zeros for the others)."""
         return polygon_normal(self.points)[0] if self.kind == "polygon" else np.zeros(3)
 
     @property
     def area(self):
-        return 4.0 * math.pi * self.radius**2 if self.kind == "sphere" else polygon_normal(self.points)[1]
+        """Its emitting area (0 for a delta part)."""
+        if self.kind == "sphere":
+            return 4.0 * math.pi * self.radius**2
+        return polygon_normal(self.points)[1] if self.kind == "polygon" else 0.0
 
     @property
     def centre(self):
+        """The centroid of its points (a direction's: the direction itself)."""
         return self.points.mean(axis=0)
 
+    def power(self, radius=None):
+        """Power (3,) float64 it emits: pi Le A (a sphere, a polygon), 4 pi I (a point;
+        I times ``SpotProfile.solid_angle`` for a spot), E pi R^2 for a direction
+        through the disk of radius ``radius`` (the scene's bounding sphere: needed)."""
+        if self.kind == "point":
+            return self.radiance * (4 * math.pi if self.spot is None else self.spot.solid_angle())
+        if self.kind == "direction":
+            if radius is None:
+                raise ValueError("a direction's power needs the radius of the disk it crosses")
+            return self.radiance * math.pi * float(radius) ** 2
+        return math.pi * self.radiance * self.area
+
     def to_dict(self):
-        out = {"kind": self.kind, "source": self.source, "radiance": [float(v) for v in self.radiance]}
+        out = {"kind": self.kind, "source": self.source}
+        if self.kind == "point":
+            out |= {"intensity": [float(v) for v in self.radiance], "position": [float(v) for v in self.points[0]]}
+            if self.spot is not None:
+                out["spot"] = self.spot.to_dict()
+            return out
+        if self.kind == "direction":
+            return out | {"irradiance": [float(v) for v in self.radiance], "direction": [float(v) for v in self.points[0]]}
+        out["radiance"] = [float(v) for v in self.radiance]
         if self.kind == "sphere":
             out |= {"centre": [float(v) for v in self.points[0]], "radius": self.radius}
         else:
@@ -156,34 +284,45 @@ def polygon_normal(points):
     return (total / twice if twice > 0 else np.zeros(3)), 0.5 * twice
 
 
-def parts_from_meta(entries, fail):
-    """EmitterParts from the JSON list ``entries``; ``fail(message)`` makes the error
-    to raise (naming the file) for a bad entry."""
+def parts_from_meta(entries, fail, kinds=KINDS, what="emitters", limit=MAX_FILE_PARTS):
+    """EmitterParts from the JSON list ``entries`` (meta ``what``); ``fail(message)``
+    makes the error to raise (naming the file) for a bad entry; ``kinds``: the kinds
+    the file's version holds (``AREA_KINDS`` before the delta parts came); ``limit``:
+    the most it may hold."""
     if not isinstance(entries, list):
-        raise fail("meta 'emitters' must be a list of emitter parts")
-    if len(entries) > MAX_FILE_PARTS:
-        raise fail(f"meta 'emitters' has {len(entries)} parts; a file holds at most {MAX_FILE_PARTS}")
+        raise fail(f"meta '{what}' must be a list of emitter parts")
+    if len(entries) > limit:
+        raise fail(f"meta '{what}' has {len(entries)} parts; a file holds at most {limit}")
     parts = []
     for i, e in enumerate(entries):
-        where = f"meta 'emitters' entry {i}"
+        where = f"meta '{what}' entry {i}"
         if not isinstance(e, dict):
             raise fail(f"{where} must be a JSON object")
         kind = e.get("kind")
         try:
+            if kind not in kinds:
+                raise fail(f"{where}: kind {kind!r} is not one of {', '.join(kinds)}")
+            spot = None
             if kind == "sphere":
-                points, radius = [e["centre"]], e["radius"]
+                points, radius, value = [e["centre"]], e["radius"], e["radiance"]
             elif kind == "polygon":
-                points, radius = e["vertices"], 0.0
+                points, radius, value = e["vertices"], 0.0, e["radiance"]
+            elif kind == "point":
+                points, radius, value = [e["position"]], 0.0, e["intensity"]
+                if "spot" in e:
+                    spot = _spot_from_meta(e["spot"], where, fail)
             else:
-                raise fail(f"{where}: kind {kind!r} is not one of {', '.join(KINDS)}")
-            radiance, source = e["radiance"], e.get("source", "")
+                points, radius, value = [e["direction"]], 0.0, e["irradiance"]
+            source = e.get("source", "")
             if not isinstance(source, str):
                 raise fail(f"{where}: 'source' must be a string")
+            if isinstance(radius, bool) or not isinstance(radius, int | float):
+                raise fail(f"{where}: 'radius' must be a number")
             points = np.asarray(points, np.float64)
-            radiance = np.asarray(radiance, np.float64)
-            if points.ndim != 2 or points.shape[1] != 3 or radiance.shape != (3,):
-                raise fail(f"{where}: points must be [x, y, z] triples and 'radiance' [r, g, b]")
-            parts.append(EmitterPart(kind, points, float(radius), radiance, source))
+            value = np.asarray(value, np.float64)
+            if points.ndim != 2 or points.shape[1] != 3 or value.shape != (3,):
+                raise fail(f"{where}: points must be [x, y, z] triples and the emitted colour [r, g, b]")
+            parts.append(EmitterPart(kind, points, float(radius), value, source, spot))
         except KeyError as exc:
             raise fail(f"{where} has no {exc.args[0]!r}") from None
         except (TypeError, ValueError) as exc:
@@ -193,11 +332,28 @@ def parts_from_meta(entries, fail):
     return tuple(parts)
 
 
+def _spot_from_meta(entry, where, fail):
+    """The ``SpotProfile`` of a point's "spot" entry."""
+    if not isinstance(entry, dict):
+        raise fail(f"{where}: 'spot' must be a JSON object")
+    numbers = [entry[k] for k in ("cutoff_deg", "beam_deg")]
+    if any(isinstance(v, bool) or not isinstance(v, int | float) for v in numbers):
+        raise fail(f"{where}: a spot's 'cutoff_deg' and 'beam_deg' must be numbers")
+    axis = np.asarray(entry["axis"], np.float64)
+    if axis.shape != (3,):
+        raise fail(f"{where}: a spot's 'axis' must be [x, y, z]")
+    return SpotProfile(axis, *numbers)
+
+
 class PackedParts:
     """Parts as the kernels and shaders read them.
 
-    kinds (P,) int64; counts (P,) int64 (polygon vertices, 1 for a sphere);
-    points (P, MAX_POLYGON_VERTICES, 3) float64; radius (P,); radiance (P, 3)
+    kinds (P,) int64 (SPHERE, POLYGON, POINT, DIRECTION); counts (P,) int64 (polygon
+    vertices, 1 for the others); points (P, MAX_POLYGON_VERTICES, 3) float64: a
+    polygon's vertices, a sphere's centre, a point's position, a direction's unit
+    direction of travel in row 0, and for a point, row 1 its spot's axis and row 2
+    (cutoff, beam width (radians), 1) for a spot ((pi, pi, 0) for none);
+    radius (P,); radiance (P, 3) (a point's intensity, a direction's irradiance)
     """
 
     def __init__(self, parts):
@@ -207,14 +363,22 @@ class PackedParts:
         self.points = np.zeros((p, MAX_POLYGON_VERTICES, 3))
         for i, q in enumerate(parts):
             self.points[i, : len(q.points)] = q.points
+            if q.kind == "point":
+                self.points[i, 2] = (math.pi, math.pi, 0.0)
+                if q.spot is not None:
+                    self.points[i, 1] = q.spot.axis
+                    self.points[i, 2] = (*q.spot.radians, 1.0)
         self.radius = np.array([q.radius for q in parts], np.float64)
         self.radiance = np.array([q.radiance for q in parts], np.float64).reshape(p, 3)
         self.sources = [q.source for q in parts]
-        # bounding spheres (the culling test): a sphere itself; a polygon's centroid and
-        # its farthest vertex
-        self.bound_centre = np.array([q.centre for q in parts], np.float64).reshape(p, 3)
+        # bounding spheres (the culling test, not used for delta parts): a sphere itself;
+        # a polygon's centroid and its farthest vertex; a point, radius 0; a direction, 0
+        self.bound_centre = np.array(
+            [np.zeros(3) if q.kind == "direction" else q.centre for q in parts], np.float64
+        ).reshape(p, 3)
         self.bound_radius = np.array(
-            [q.radius if q.kind == "sphere" else float(np.linalg.norm(q.points - q.centre, axis=1).max()) for q in parts],
+            [float(np.linalg.norm(q.points - q.centre, axis=1).max()) if q.kind == "polygon" else q.radius
+             for q in parts],
             np.float64,
         )
 
@@ -453,6 +617,63 @@ def polygon_integral(count, points, x, n, r, exponent, rule_s, rule_w):
     return total / p1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def spot_falloff(theta, cutoff, beam):
+    """Mitsuba 3's spot profile (``spot.cpp``, ``falloff_curve``) at the angle theta
+    from the spot's axis, its cutoff and beam width (all radians): 0 at and beyond the
+    cutoff, 1 within the beam, (cutoff - theta) / (cutoff - beam) between. (Mitsuba
+    compares cosines, cos theta > cos(cutoff) and cos theta >= cos(beam): the same
+    tests; the angles, from ``spot_angle``, keep single precision exact near the axis.)"""
+    if not theta < cutoff:
+        return 0.0
+    if theta <= beam:
+        return 1.0
+    return (cutoff - theta) / (cutoff - beam)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def spot_angle(wx, wy, wz, ax, ay, az):
+    """The angle (radians) between unit vectors w and a: atan2(|w x a|, w . a), exact
+    at small angles where acos(w . a) is not."""
+    cx, cy, cz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), wx * ax + wy * ay + wz * az)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def delta_incidence(kind, points, x):
+    """Where a delta part's light comes from at point x: (unit direction wi toward it
+    (3-tuple), the distance (infinite for a direction; 0: unusable), the factor its
+    Le is weighted by: 1 / d^2 times the spot's profile toward x for a point, 1 for a
+    direction). ``points``: the part's rows of ``PackedParts.points``."""
+    if kind == DIRECTION:
+        return (-points[0, 0], -points[0, 1], -points[0, 2]), math.inf, 1.0
+    dx, dy, dz = points[0, 0] - x[0], points[0, 1] - x[1], points[0, 2] - x[2]
+    d2 = dx * dx + dy * dy + dz * dz
+    if not d2 > 0.0:
+        return (0.0, 0.0, 1.0), 0.0, 0.0
+    dist = math.sqrt(d2)
+    wx, wy, wz = dx / dist, dy / dist, dz / dist
+    scale = 1.0 / d2
+    if points[2, 2] > 0.0:  # a spot: its profile toward x, at -wi from its axis
+        scale *= spot_falloff(spot_angle(-wx, -wy, -wz, points[1, 0], points[1, 1], points[1, 2]), points[2, 0], points[2, 1])
+    return (wx, wy, wz), dist, scale
+
+
+@numba.njit(cache=True, nogil=True)
+def delta_integral(kind, points, x, n, r, exponent):
+    """J of a delta part (POINT or DIRECTION, its rows ``points`` of ``PackedParts``) at
+    point x (unit normal n, unit mirror direction r): max(0, wi . r)^p max(0, wi . n)
+    times ``delta_incidence``'s factor, exact."""
+    (wx, wy, wz), dist, scale = delta_incidence(kind, points, x)
+    if not (dist > 0.0 and scale > 0.0):
+        return 0.0
+    cos_n = wx * n[0] + wy * n[1] + wz * n[2]
+    cos_a = wx * r[0] + wy * r[1] + wz * r[2]
+    if not (cos_n > 0.0 and cos_a > 0.0):
+        return 0.0
+    return scale * cos_n * min(cos_a, 1.0) ** exponent
+
+
 @numba.njit(cache=True, nogil=True)
 def highlight_integral(kind, count, points, radius, where, exponent, rule):
     """J (see the module's docstring) of one part (a row of ``PackedParts``: kind,
@@ -460,6 +681,8 @@ def highlight_integral(kind, count, points, radius, where, exponent, rule):
     mirror direction r); exponent p >= 0; ``rule`` : ``Rules``. Returns J >= 0. (No
     culling: ``_culled`` is the displays' and the solver's test of a negligible part.)"""
     x, n, r = where
+    if kind >= POINT:
+        return delta_integral(kind, points, x, n, r, exponent)
     if kind == SPHERE:
         return sphere_integral(points[0], radius, x, n, r, exponent, rule.sphere_s, rule.sphere_w)
     return polygon_integral(count, points, x, n, r, exponent, rule.sector_s, rule.sector_w)
@@ -501,7 +724,7 @@ def _point_radiance(pk, visibility, own, where, material, rule):
     norm = (exponent + 2.0) / (2.0 * math.pi)
     for i in range(kinds.shape[0]):
         v = visibility[i]
-        if own[i] or not v > 0.0 or _culled(bound_centre[i], bound_radius[i], x, r, exponent):
+        if own[i] or not v > 0.0 or (kinds[i] < POINT and _culled(bound_centre[i], bound_radius[i], x, r, exponent)):
             continue
         j = highlight_integral(kinds[i], counts[i], points[i], radius[i], (x, n, r), exponent, rule) * norm * v
         e0 += j * k0 * radiance[i, 0]

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 
 import numpy as np
 
 from radiosity.formats.camera import MAX_IMAGE_SIDE
-from radiosity.formats.errors import InputError
+from radiosity.formats.errors import InputError, SceneWarning
 
 __all__ = ["HDR_EXTENSIONS", "read_hdr_image"]
 
@@ -41,7 +42,8 @@ def read_hdr_image(path, what="--reference"):
     (.exr), Radiance HDR (.hdr, RGBE), PFM (.pfm) or NumPy (.npy) file, chosen by the
     extension and checked against the file's first bytes.
 
-    Channels: RGB; RGBA (alpha dropped); one channel (grey, copied to R, G and B).
+    Channels: RGB; RGBA (alpha dropped); one channel (grey, copied to R, G and B); an
+    OpenEXR file's layers beside them (channels "layer.X") left, with a warning.
     Refused with InputError, one line naming ``what``, the file and the problem: another
     extension, a file that is not what its extension says, a truncated or corrupt file,
     an empty image, one wider or taller than ``MAX_IMAGE_SIDE``, another channel count,
@@ -71,7 +73,7 @@ def read_hdr_image(path, what="--reference"):
             " (empty)" if not data else f" (it starts with {data[:8]!r})"))
     reader = {".exr": _read_exr, ".hdr": _read_rgbe, ".pfm": _read_pfm, ".npy": _read_npy}[suffix]
     try:
-        image = reader(data)
+        image = reader(data, f"{what} {shown!r}") if reader is _read_exr else reader(data)
     except _Bad as exc:
         raise InputError(f"{what} {shown!r} {exc}") from None
     return _checked_radiance(image, f"{what} {shown!r}")
@@ -140,8 +142,10 @@ def _quiet_output():
             said.append(" ".join(printed.split()))
 
 
-def _read_exr(data):
-    """OpenEXR bytes -> (H, W, C) float: R, G, B (and A), or a single channel."""
+def _read_exr(data, where="the image"):
+    """OpenEXR bytes -> (H, W, C) float: R, G, B (and A), or a single channel; layers
+    beside them (a Mitsuba aov integrator's depth, normals, ...: channels named
+    "layer.X") are left, with a warning naming ``where``."""
     import io
 
     import OpenEXR
@@ -168,14 +172,18 @@ def _read_exr(data):
     if max(w, h) > MAX_IMAGE_SIDE or min(w, h) <= 0:
         raise _Bad(f"is {w}x{h} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
     _, _, channels = open_file(False)
-    names = sorted(channels)
+    names = sorted(c for c in channels if "." not in c)  # the image's own channels
+    layers = sorted({c.rsplit(".", 1)[0] for c in channels if "." in c})  # "layer.X": other images beside it (AOVs)
     if {"R", "G", "B"} <= set(names) and set(names) <= {"R", "G", "B", "A"}:
         order = ["R", "G", "B"]
     elif len(names) == 1:
         order = names
     else:
         raise _Bad(f"has {len(names)} channels ({', '.join(names)}); a reference takes R, G, B (and A, dropped) "
-                   "or a single channel")
+                   "or a single channel" + (f", beside layers ({', '.join(layers)}) it leaves" if layers else ""))
+    if layers:  # a Mitsuba aov integrator's file: the render is R, G, B; depth, normals, ... are layers
+        warnings.warn(f"{where}: its {len(layers)} other layer(s) ({', '.join(layers)}) are not read: the image is "
+                      f"its {', '.join(order)}", SceneWarning, stacklevel=2)
     planes = [channels[name] for name in order]
     if any(p.dtype.kind != "f" for p in planes):
         raise _Bad(f"has channels of {planes[0].dtype} values (an ID or mask image), not radiance")

@@ -22,7 +22,10 @@ version that holds it (2 without a textured object), so tools that read version 
 keep reading every untextured solution. Version 3 also adds the light from outside the
 scene (``radiosity.formats.environment``): ``meta.environment`` and the array
 ``environment_image``; the radiance then includes what it lights, and a display draws
-it where no object is.
+it where no object is. Version 4 adds delta lights (points, spots, directions):
+``meta.lights`` lists them all (``radiosity.formats.emitters`` parts of kind "point" and
+"direction": what lit the scene, which ``vlights truth`` path-traces), and
+``meta.emitters`` may hold them as parts; a file without any is still version 3 or 2.
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -44,7 +47,17 @@ import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.directions import grid_directions
-from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, EmitterPart, emitter_grid, parts_from_meta
+from radiosity.formats.emitters import (
+    AREA_KINDS,
+    DEFAULT_NODES,
+    DELTA_KINDS,
+    KINDS,
+    MAX_LIGHTS,
+    MAX_NODES,
+    EmitterPart,
+    emitter_grid,
+    parts_from_meta,
+)
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
@@ -54,8 +67,8 @@ from radiosity.formats.texture import TexturedDiffuse, read_textured
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 3
-READS = (1, 2, 3)
+VERSION = 4
+READS = (1, 2, 3, 4)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -303,6 +316,8 @@ class Solution:
             (every version 1 file).
         emitter_nodes: N of the rules they were evaluated with.
         environment: the light from outside the scene (version 3), or None.
+        lights: the scene's delta lights (version 4): every point (spot) and direction
+            that lit it, whether or not ``emitters`` holds it as a part.
     """
 
     objects: tuple[ObjectSolution, ...]
@@ -313,6 +328,7 @@ class Solution:
     emitters: tuple[EmitterPart, ...] = ()
     emitter_nodes: int = DEFAULT_NODES
     environment: EnvironmentLight | None = None
+    lights: tuple[EmitterPart, ...] = ()
 
     def __post_init__(self) -> None:
         objects = tuple(self.objects)
@@ -332,6 +348,9 @@ class Solution:
             raise TypeError(f"scene must be a string, got {type(self.scene).__name__}")
         object.__setattr__(self, "objects", objects)
         object.__setattr__(self, "emitters", tuple(self.emitters))
+        object.__setattr__(self, "lights", tuple(self.lights))
+        if not all(isinstance(light, EmitterPart) and light.is_delta for light in self.lights):
+            raise ValueError("lights must be delta emitter parts (points, directions)")
         if not (isinstance(self.emitter_nodes, int) and 1 <= self.emitter_nodes <= MAX_NODES):
             raise ValueError(f"emitter_nodes must be a whole number from 1 to {MAX_NODES}, got {self.emitter_nodes!r}")
         for o in objects:
@@ -345,8 +364,10 @@ class Solution:
                 raise _Invalid(f"object {o.name!r} has a visibility of {o.visibility.shape[1]} parts; there are none")
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 3 with a textured
-        object or an environment, else 2."""
+        """The lowest contract version that holds this solution: 4 with a delta light,
+        else 3 with a textured object or an environment, else 2."""
+        if self.lights or any(p.is_delta for p in self.emitters):
+            return 4
         return 3 if self.environment is not None or any(o.textured is not None for o in self.objects) else 2
 
     @property
@@ -375,6 +396,7 @@ class Solution:
             "emitter_nodes": self.emitter_nodes,
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
             **({"environment": self.environment.meta()} if self.environment is not None else {}),
+            **({"lights": [light.to_dict() for light in self.lights]} if self.lights else {}),
         }
 
     def highlights(self, name: str, vertices: slice = slice(None)) -> np.ndarray:
@@ -447,7 +469,7 @@ class SolutionFile:
         self.materials: dict = h["materials"]
         self.settings, self.stats, self.scene = h["settings"], h["stats"], h["scene"]
         self.camera, self.emitters, self.emitter_nodes = h["camera"], h["emitters"], h["nodes"]
-        self.environment = h["environment"]
+        self.environment, self.lights = h["environment"], h["lights"]
         self.version: int = self._archive.meta["version"]
 
     def __enter__(self) -> SolutionFile:
@@ -503,6 +525,7 @@ class SolutionFile:
             return Solution(
                 objects=objects, settings=h["settings"], stats=h["stats"], scene=h["scene"], camera=h["camera"],
                 emitters=h["emitters"], emitter_nodes=h["nodes"], environment=h["environment"],
+                lights=h["lights"],
             )
         except _Invalid as exc:
             raise self._archive.fail(str(exc)) from None
@@ -530,13 +553,15 @@ def _read_header(archive) -> dict:
             kind_name = "object" if kind is dict else "string"
             raise fail(f"meta '{key}' must be a JSON {kind_name}")
     camera = camera_from_meta(meta, fail)
-    emitters, nodes = (), DEFAULT_NODES
+    emitters, nodes, lights = (), DEFAULT_NODES, ()
     if meta["version"] >= 2:
-        emitters = parts_from_meta(meta.get("emitters", []), fail)
+        emitters = parts_from_meta(meta.get("emitters", []), fail, KINDS if meta["version"] >= 4 else AREA_KINDS)
         nodes = meta.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
     environment = read_environment(archive, meta) if meta["version"] >= 3 else None
+    if meta["version"] >= 4:
+        lights = parts_from_meta(meta.get("lights", []), fail, DELTA_KINDS, "lights", MAX_LIGHTS)
     for name in names:
         if name not in materials:
             raise fail(f"object {name!r} has no entry in meta 'materials'")
@@ -544,7 +569,7 @@ def _read_header(archive) -> dict:
         if missing:
             raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
     return {"names": names, "materials": materials, "settings": settings, "stats": stats, "scene": scene,
-            "camera": camera, "emitters": emitters, "nodes": nodes, "environment": environment}
+            "camera": camera, "emitters": emitters, "nodes": nodes, "environment": environment, "lights": lights}
 
 
 def _read_object(archive, name, header) -> ObjectSolution:

@@ -15,6 +15,11 @@ and stays analytic only if it needs at most ``MAX_OBJECT_PARTS`` parts, and the 
 scene at most ``MAX_PARTS`` (the brightest objects first): the displays evaluate every
 part at every pixel of a glossy object. The emitters left over are not lost: the solver
 gathers their highlights into the direction grid as it always did.
+
+The scene's delta lights (``Scene.lights``: points, spots, directions) are parts as they
+are, one each, and come first within ``MAX_PARTS``: the cheapest to draw (no
+quadrature) and the sharpest highlights. One left over is not lost either: the solver
+still adds its highlight to the grid in closed form.
 """
 
 from __future__ import annotations
@@ -140,11 +145,12 @@ def object_parts(obj):
 
 
 def emitter_parts(scene, max_parts=MAX_PARTS, max_object_parts=MAX_OBJECT_PARTS):
-    """(parts, names of the objects they come from) of ``scene``'s emitters: each
-    emitting object that makes at most ``max_object_parts`` parts, brightest (most
-    power) first, while the scene's total stays within ``max_parts``."""
+    """(parts, names of the objects they come from) of ``scene``'s emitters: its delta
+    lights first (``scene.lights``, one part each, in their order), then each emitting
+    object that makes at most ``max_object_parts`` parts, brightest (most power) first,
+    while the scene's total stays within ``max_parts``."""
     emitters = sorted(scene.emitters, key=lambda o: -float(np.sum(o.emitted_power)))
-    parts, names = [], []
+    parts, names = list(scene.lights[:max_parts]), []
     for obj in emitters:
         mine = object_parts(obj)
         if len(mine) <= max_object_parts and len(parts) + len(mine) <= max_parts:

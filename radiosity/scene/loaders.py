@@ -44,13 +44,15 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, fov_y_deg, pose_from_matrix
+from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
 from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit, srgb_to_linear
-from radiosity.formats.sniff import FILE_NAMES, input_kind
+from radiosity.formats.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
+from radiosity.formats.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
 from radiosity.scene import builtins, geometry
 from radiosity.scene.environment import Environment, read_environment_image
+from radiosity.scene.lights import lights_from_toml
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
@@ -71,7 +73,7 @@ _OBJECT_KEYS = {
     "resolution", "subdivisions", "segments", "crease_angle_deg", "flip", "transform", "twosided",
 }
 _CAMERA_KEYS = {"position", "eye", "look_at", "up", "fov_y_deg", "matrix", "fov_deg", "fov_axis", "width", "height"}
-_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment"}
+_TOP_KEYS = {"camera", "materials", "objects", "name", "description", "units", "environment", "lights"}
 _ENVIRONMENT_KEYS = {"radiance", "image", "scale", "rotation", "rotate_deg", "transform"}
 
 
@@ -106,6 +108,28 @@ def load_scene(source):
     )
 
 
+# Each suffix ``load_scene`` reads (``radiosity.formats.sniff``'s SCENE_SUFFIXES and
+# MESH_SUFFIXES) as help texts name it
+FORMAT_NAMES = {
+    ".toml": "a TOML scene", ".xml": "a Mitsuba XML scene, versions 0.4-0.6 and 2-3", ".obj": "OBJ/MTL",
+    ".gltf": "glTF", ".glb": "glTF", ".ply": "PLY", ".stl": "STL", ".off": "OFF",
+}
+
+
+def scene_words():
+    """What ``load_scene`` takes, in words, for every help text that takes a scene: built
+    from the tables it reads (``builtins.SCENES``, the sniffer's suffixes), so it cannot
+    leave one out; a suffix missing from ``FORMAT_NAMES`` is a KeyError here."""
+
+    def named(suffixes):
+        groups = {}
+        for suffix in suffixes:
+            groups.setdefault(FORMAT_NAMES[suffix], []).append(suffix)
+        return ", ".join(f"{name} ({', '.join(group)})" for name, group in groups.items())
+
+    return (f"a built-in scene ({', '.join(builtins.SCENES)}), {named(SCENE_SUFFIXES)}, "
+            f"or a mesh file: {named(MESH_FILE_SUFFIXES)}")
+
 # -- TOML ---------------------------------------------------------------------------
 
 
@@ -120,14 +144,19 @@ def _load_toml(text, base_dir, *, name, where):
     objects_data = data.get("objects")
     if not isinstance(objects_data, list) or not objects_data:
         raise InputError(f"{where}: no [[objects]]: a scene needs at least one object")
-    objects = [
-        _parse_object(entry, i, (materials, textures), base_dir, where) for i, entry in enumerate(objects_data)
-    ]
-    two_sided = {o.name for o, entry in zip(objects, objects_data, strict=True) if _two_sided(entry, o.name, where)}
+    parsed = [(_parse_object(entry, i, (materials, textures), base_dir, where), entry)
+              for i, entry in enumerate(objects_data)]
+    parsed = [(o, entry) for o, entry in parsed if o is not None]  # None: every triangle degenerate (warned)
+    if not parsed:
+        raise InputError(f"{where}: every object's triangles are degenerate: nothing is left to draw")
+    objects = [o for o, _ in parsed]
+    two_sided = {o.name for o, entry in parsed if _two_sided(entry, o.name, where)}
     camera, film = _parse_camera(data["camera"], where) if "camera" in data else (None, None)
     environment = _parse_environment(data["environment"], base_dir, where) if "environment" in data else None
-    return Scene(name=str(data.get("name", name)), objects=with_backs(objects, two_sided), camera=camera,
-                 source=where, film=film, environment=environment)
+    objects = with_backs(objects, two_sided)
+    lights = lights_from_toml(data["lights"], where, {o.name for o in objects}) if "lights" in data else ()
+    return Scene(name=str(data.get("name", name)), objects=objects, camera=camera,
+                 source=where, film=film, environment=environment, lights=lights)
 
 
 def _parse_environment(table, base_dir, where):
@@ -249,7 +278,8 @@ def _parse_camera(table, where):
     """(Camera, film (width, height) or None) of a scene's [camera]: a pose (eye or
     position, look_at, up) or a camera-to-world ``matrix`` (Mitsuba's convention:
     looking along +z, +y up); ``fov_y_deg``, or ``fov_deg`` along ``fov_axis`` (x, y,
-    diagonal, smaller, larger); optionally the film's ``width`` and ``height``."""
+    diagonal, smaller, larger; kept along that axis at any image size); optionally the
+    film's ``width`` and ``height``."""
     here = f"{where}: [camera]"
     _check_keys(table, _CAMERA_KEYS, here)
     film = None
@@ -260,15 +290,11 @@ def _parse_camera(table, where):
         film = (w, h)
     width, height = film or (512, 512)
     pose = {k: table[k] for k in ("position", "eye", "look_at", "up") if k in table}
-    if "fov_deg" in table or "fov_axis" in table:
+    if "fov_deg" in table or "fov_axis" in table:  # kept along its axis at any size (Camera)
         if "fov_y_deg" in table:
             raise InputError(f"{here}: give 'fov_y_deg' or 'fov_deg' (with 'fov_axis'), not both")
-        fov = _number(table.get("fov_deg", DEFAULT_FOV_Y_DEG), here, "fov_deg")
-        axis = table.get("fov_axis", "y")
-        try:
-            pose["fov_y_deg"] = fov_y_deg(fov, axis, width, height)
-        except InputError as exc:
-            raise InputError(f"{here}: {str(exc).removeprefix('camera: ')}") from None
+        pose["fov_deg"] = _number(table.get("fov_deg", DEFAULT_FOV_Y_DEG), here, "fov_deg")
+        pose["fov_axis"] = table.get("fov_axis", "y")
     elif "fov_y_deg" in table:
         pose["fov_y_deg"] = table["fov_y_deg"]
     if "matrix" in table:
@@ -448,7 +474,9 @@ def _load_mesh_scene(path):
         name = safe_object_name(str(node))  # '/' separates keys in the solution file; no control characters
         if name in {o.name for o in objects}:
             name = f"{name}#{len(objects)}"
-        objects.append(build_object(name, material, positions, faces, source=where, uvs=uvs, texture=texture))
+        obj = build_object(name, material, positions, faces, source=where, uvs=uvs, texture=texture)
+        if obj is not None:
+            objects.append(obj)
     if not objects:
         raise InputError(f"{where}: no triangle meshes in the file")
     return Scene(name=path.stem, objects=tuple(objects), camera=None, source=where)

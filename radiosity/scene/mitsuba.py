@@ -8,8 +8,9 @@ Document
     ``id`` on any element and ``<ref id>`` to it; ``<include filename>``; property
     names in either spelling (``toWorld`` / ``to_world``, ``intIOR`` / ``int_ior``).
     Values: ``float``, ``integer``, ``boolean``, ``string``, ``rgb``, ``srgb`` (hex or
-    numbers, sRGB-decoded), ``spectrum`` (a constant, or wavelength:value pairs
-    averaged over three bands, with a warning), ``point`` / ``vector``.
+    numbers, sRGB-decoded), ``spectrum`` (a constant, or wavelength:value pairs turned
+    to RGB as Mitsuba 3's RGB modes do: ``spectra``, with a warning), ``point`` /
+    ``vector``.
 Transforms
     ``matrix`` (16 or 9 numbers, row-major), ``translate``, ``rotate`` (axis and angle
     in degrees), ``scale``, ``lookat``: each applied after the ones before it.
@@ -43,16 +44,20 @@ Textures
     reflectance, a roughness, a blend's weight), a ``checkerboard``, or a bitmap on a
     shape without texture coordinates counts with its mean colour (with a warning).
 Emitters
-    ``area`` (a shape's radiance); ``point`` and ``spot`` as a small sphere lamp of
-    the same intensity (a spot's cone is not kept: a warning says so); ``constant``
-    (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit image, sRGB-
-    decoded; scale; to_world, its rotation) become the scene's environment
+    ``area`` (a shape's radiance); ``point`` (``intensity``; ``position`` or
+    ``to_world``'s translation), ``spot`` (``intensity``, ``cutoff_angle`` default 20
+    degrees, ``beam_width`` default 3/4 of it, ``to_world``: at its translation,
+    pointing along its +z; a projected ``texture`` is left out with a warning) and
+    ``directional`` (``irradiance``; ``direction``, the way the light travels, or
+    ``to_world``'s +z) as the scene's delta lights (``radiosity.scene.lights``);
+    ``constant`` (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit
+    image, sRGB-decoded; scale; to_world, its rotation) become the scene's environment
     (``radiosity.scene.environment``; one per scene: a second is left out with a
-    warning); ``directional`` and the sky models are not modelled yet: left out with
-    a warning.
+    warning); the sun and sky models are not modelled yet: left out with a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
-    ``fov_axis`` (x, y, diagonal, smaller, larger) or 0.6's ``focalLength``, the
+    ``fov_axis`` (x, y, diagonal, smaller, larger; kept along that axis at any image
+    size, as Mitsuba 3 keeps it) or 0.6's ``focalLength`` (a diagonal fov), the
     transform (``lookat`` or a matrix; a mirroring one is drawn unmirrored, with a
     warning), and the film's width and height.
 
@@ -69,12 +74,11 @@ import re
 import struct
 import warnings
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.parsers import expat
 
 import numpy as np
-import trimesh
 
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
@@ -82,15 +86,16 @@ from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_i
 from radiosity.formats.material import fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
+from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
 from radiosity.scene.materials import Material
 from radiosity.scene.meshfiles import read_mesh_parts
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
+from radiosity.scene.spectra import spectrum_to_rgb
 from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
 MAX_INCLUDES = 16  # nested <include> depth
-POINT_LAMP_RADIUS = 2e-3  # a point or spot light's sphere, as a fraction of the scene's diagonal
 DEFAULT_FILM = (768, 576)  # Mitsuba's hdrfilm
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba 0.6's perspective camera
 
@@ -197,6 +202,7 @@ class _Document:
         if self.major < 2:
             _upgrade(self.elements)
         self.bitmaps = {}  # id(<texture> element) -> its _Bitmap, each file read once
+        self.surfaces = {}  # id(<bsdf> element) -> its _Surface, made once for every shape that refers to it
         self.ids = {}
         for node in self._walk(self.elements):
             if "id" in node.attrs and node.tag != "ref":
@@ -239,11 +245,26 @@ class _Document:
         return out
 
     def resolve(self, node, name):
-        """A file a scene element names, relative to the scene's directory."""
+        """A file a scene element names, relative to the scene's directory; InputError
+        naming it, and every other file the scene names that is missing too."""
         path = self.base / name
         if not path.is_file():
-            raise node.fail(f"file {str(path)!r} not found")
+            others = [n for n in self._missing_files() if n != name]
+            n = len(others)
+            more = f" ({n} more file{'s' * (n > 1)} it names {'are' if n > 1 else 'is'} missing too: " \
+                   f"{', '.join(others)})" if others else ""
+            raise node.fail(f"file {str(path)!r} not found{more}")
         return path
+
+    def _missing_files(self):
+        """The ``filename`` properties of every element that name no file, in document order."""
+        seen = []
+        for node in self._walk(getattr(self, "elements", [])):  # none yet while includes are read
+            name = node.attrs.get("value")
+            if node.tag == "string" and node.attrs.get("name") == "filename" and name and name not in seen \
+                    and not (self.base / name).is_file():
+                seen.append(name)
+        return seen
 
     def deref(self, node, tags):
         """``node`` itself, or the element its ``<ref id>`` names (one of ``tags``)."""
@@ -297,8 +318,9 @@ def _numbers(node, text, count=None):
     return values
 
 
-def _colour(node):
-    """An RGB triple from ``rgb``, ``srgb`` or ``spectrum`` (linear)."""
+def _colour(node, kind="reflectance"):
+    """An RGB triple from ``rgb``, ``srgb`` or ``spectrum`` (linear); ``kind``: what a
+    sampled spectrum is (``radiosity.scene.spectra.spectrum_to_rgb``)."""
     value = node.attrs.get("value")
     if node.tag == "spectrum" and value is None and "filename" in node.attrs:
         raise node.fail("spectra from files are not read; give an <rgb> instead")
@@ -314,14 +336,14 @@ def _colour(node):
             rgb = _numbers(node, text, (1, 3))
         return tuple(srgb_to_linear(rgb * 3 if len(rgb) == 1 else rgb))
     if node.tag == "spectrum" and ":" in value:
-        return _spectrum_to_rgb(node, value)
+        return _spectrum_to_rgb(node, value, kind)
     rgb = _numbers(node, value, (1, 3))
     return tuple(rgb * 3 if len(rgb) == 1 else rgb)
 
 
-def _spectrum_to_rgb(node, value):
-    """Wavelength:value pairs as RGB: the mean over 600-700, 500-600 and 400-500 nm
-    (linear interpolation), a rough stand-in for spectral rendering."""
+def _spectrum_to_rgb(node, value, kind):
+    """Wavelength:value pairs as linear sRGB, as Mitsuba 3's RGB modes read them
+    (``radiosity.scene.spectra``; ``kind``: "reflectance", "emitted" or "unbounded")."""
     pairs = []
     for item in value.split(","):
         parts = item.split(":")
@@ -330,9 +352,11 @@ def _spectrum_to_rgb(node, value):
         pairs.append(_numbers(node, parts[0], (1,)) + _numbers(node, parts[1], (1,)))
     pairs.sort()
     wavelengths, values = np.array(pairs).T
-    bands = [(600, 700), (500, 600), (400, 500)]
-    rgb = tuple(float(np.interp(np.linspace(a, b, 21), wavelengths, values).mean()) for a, b in bands)
-    node.warn(f"a sampled spectrum taken as RGB {tuple(round(c, 4) for c in rgb)} (band means)")
+    if len(pairs) < 2 or np.any(np.diff(wavelengths) <= 0):
+        raise node.fail("a sampled spectrum needs two or more distinct wavelengths")
+    rgb = tuple(float(c) for c in spectrum_to_rgb(wavelengths, values, kind))
+    node.warn(f"a sampled spectrum taken as RGB {tuple(round(c, 4) for c in rgb)} (CIE 1931 under "
+              f"{'equal-energy light' if kind == 'emitted' else 'daylight'}, as Mitsuba 3's RGB modes)")
     return rgb
 
 
@@ -424,7 +448,8 @@ class _Props:
             raise child.fail("blackbody spectra are not read; give an <rgb> instead")
         if child.tag not in _COLOURS:
             raise child.fail("expected a colour (<rgb>, <srgb>, <spectrum>) or a <texture>")
-        return _colour(child)
+        kind = "emitted" if self.node.tag == "emitter" else "unbounded" if name in ("eta", "k") else "reflectance"
+        return _colour(child, kind)
 
     def transform(self, name):
         item = self._get(name)
@@ -456,10 +481,11 @@ def _texture_mean(doc, node):
 
 @dataclass
 class _Bitmap:
-    """A ``bitmap`` texture: ``image`` (H, W, 3) float64 linear RGB, ``wrap`` (one of
+    """A ``bitmap`` texture: ``image`` (H, W, 3) float32 linear RGB, ``wrap`` (one of
     ``textures.WRAP_MODES``), ``to_uv`` (3, 3) the affine map of Mitsuba's (u, v) it
     applies; ``texture`` the image as a reflectance (float32, clipped to [0, 1] with a
-    warning), made once and shared by the shapes that read it as it is."""
+    warning; the image itself where it needs no clipping), made once and shared by the
+    shapes that read it as it is."""
 
     image: np.ndarray
     wrap: str
@@ -470,7 +496,7 @@ class _Bitmap:
 
     @property
     def mean(self):
-        return self.image.reshape(-1, 3).mean(axis=0)
+        return self.image.reshape(-1, 3).mean(axis=0, dtype=np.float64)
 
     @property
     def texture(self):
@@ -479,12 +505,12 @@ class _Bitmap:
             if low < 0.0 or high > 1.0:
                 self.node.warn(f"texture {self.filename!r} holds values in [{low:.4g}, {high:.4g}]: clipped to "
                                "[0, 1] as a reflectance")
-            self._texture = np.clip(self.image, 0.0, 1.0).astype(np.float32)
+            self._texture = self.image if 0.0 <= low and high <= 1.0 else np.clip(self.image, 0.0, 1.0)
         return self._texture
 
     def scaled(self, image):
         """This bitmap with another image (a plastic's texels rescaled)."""
-        return _Bitmap(image, self.wrap, self.to_uv, self.node, self.filename)
+        return _Bitmap(np.asarray(image, np.float32), self.wrap, self.to_uv, self.node, self.filename)
 
     def reading(self, uvs, where):
         """(texture, uvs) for a shape whose (our) texture coordinates are ``uvs``: the
@@ -519,7 +545,7 @@ def _bitmap(doc, node):
     wrap = props.string("wrap_mode", "repeat")
     if wrap not in WRAP_MODES:
         raise node.fail(f"wrap_mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
-    image = _read_image(node, path, raw=props.boolean("raw"))
+    image = _read_image(node, path, raw=props.boolean("raw")).astype(np.float32)  # as every stage keeps textures
     bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename)
     return bitmap
 
@@ -858,7 +884,7 @@ def _analytic(node, props, tessellation, textured=False):
 # -- materials ----------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Surface:
     """A shape's material as the project models it, and what the shape needs."""
 
@@ -887,8 +913,17 @@ def _bitmap_property(doc, props, name):
 
 
 def _surface(doc, node):
-    """The _Surface of a ``<bsdf>`` element (after ``<ref>``)."""
+    """The _Surface of a ``<bsdf>`` element (after ``<ref>``), made once per element:
+    the shapes that refer to one bsdf share its surface and its texture (a plastic's
+    rescaled image is made once, not once per shape)."""
     node = doc.deref(node, ("bsdf",))
+    key = id(node)
+    if key not in doc.surfaces:
+        doc.surfaces[key] = _make_surface(doc, node)
+    return doc.surfaces[key]
+
+
+def _make_surface(doc, node):
     kind = node.attrs.get("type")
     props = _Props(doc, node)
     inner = [c for c in props.unnamed if c.tag == "bsdf"]
@@ -897,9 +932,7 @@ def _surface(doc, node):
             raise node.fail("needs the <bsdf> it makes two-sided")
         if len(inner) > 1:
             node.warn("a different bsdf on each side: the front's is used on both")
-        surface = _surface(doc, inner[0])
-        surface.twosided = True
-        return surface
+        return replace(_surface(doc, inner[0]), twosided=True)
     if kind == "diffuse":
         bitmap = _bitmap_property(doc, props, "reflectance")
         if bitmap is not None:
@@ -1045,7 +1078,7 @@ class _Reader:
         self.doc = _Document(path)
         self.tessellation = tessellation
         self.shapes = []
-        self.lamps = []  # (node, position, intensity rgb)
+        self.lights = []  # delta lights (``radiosity.scene.lights``)
         self.camera = None
         self.names = set()
         self.environment = None
@@ -1145,55 +1178,64 @@ class _Reader:
     def _emitter(self, node):
         kind = node.attrs.get("type")
         props = _Props(self.doc, node)
-        if kind in ("point", "spot"):
-            position = props.vector("position")
-            if position is None:
-                position = props.transform("to_world")[:3, 3]
-            intensity = props.colour("intensity", 1.0)
-            if kind == "spot":
-                node.warn("a spot light is taken as a point light: its cone is not kept, light goes every way")
-            self.lamps.append((node, position, intensity))
+        if kind in ("point", "spot", "directional"):
+            self.lights.append(self._light(node, kind, props))
         elif kind in ("constant", "envmap"):
             if self.environment is not None:
                 node.warn("a second environment emitter: left out (the first is the scene's environment)")
             else:
                 self.environment = _environment(self.doc, node, props)
-        elif kind in ("directional", "sunsky", "sky", "sun"):
+        elif kind in ("sunsky", "sky", "sun"):
             node.warn(f"{kind} emitters (light from outside the scene) are not modelled yet: left out")
         elif kind == "area":
             raise node.fail("an area emitter must be inside the <shape> that emits")
         else:
             raise node.fail(f"emitter type {kind!r} is not read")
 
+    def _light(self, node, kind, props):
+        """The delta light (``radiosity.scene.lights``) of a point, spot or directional emitter."""
+        name = self._name(node, f"{kind}_light_{len(self.lights) + 1}")
+        where = node.where
+        if kind == "directional":
+            direction = props.vector("direction")
+            if direction is not None and "to_world" in props.named:
+                raise node.fail("give 'direction' or 'to_world', not both")
+            if direction is None:
+                direction = props.transform("to_world")[:3, :3] @ np.array([0.0, 0.0, 1.0])
+            return directional_light(name, direction, props.colour("irradiance", 1.0), where)
+        to_world = props.transform("to_world")
+        position = props.vector("position") if kind == "point" else None
+        if position is not None and "to_world" in props.named:
+            raise node.fail("give 'position' or 'to_world', not both")
+        if position is None:
+            position = to_world[:3, 3]
+        intensity = props.colour("intensity", 1.0)
+        if kind == "point":
+            return point_light(name, position, intensity, where)
+        if "texture" in props.named:
+            node.warn("a spot light's projected texture is not modelled: left out (the spot is its intensity alone)")
+        linear = to_world[:3, :3]
+        singular = np.linalg.svd(linear, compute_uv=False)
+        if singular.min() > 0 and np.abs(singular / singular.max() - 1).max() > 1e-6:
+            node.warn("the spot's to_world scales unevenly or shears (its cone would be elliptical): only the "
+                      "direction of its +z is kept, the cone stays round")
+        return spot_light(name, position, linear @ np.array([0.0, 0.0, 1.0]), intensity, where,
+                          props.float("cutoff_angle", DEFAULT_CUTOFF_DEG), props.float("beam_width"))
+
     def scene(self, name):
         if not self.shapes:
             raise InputError(f"{self.doc.path}: no shapes this reader can use")
-        everything = np.concatenate([s.positions for s in self.shapes])
-        diagonal = float(np.linalg.norm(np.ptp(everything, axis=0)))
         fronts = [build_object(shape.name, _to_material(shape), shape.positions, shape.faces,
                                crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals,
                                uvs=shape.uvs, texture=shape.texture)
                   for shape in self.shapes]
+        fronts = [o for o in fronts if o is not None]  # None: every triangle degenerate (warned), as Mitsuba drops it
+        if not fronts:
+            raise InputError(f"{self.doc.path}: every shape's triangles are degenerate: nothing is left to draw")
         objects = list(with_backs(fronts, {shape.name for shape in self.shapes if shape.surface.twosided}))
-        for node, position, intensity in self.lamps:
-            objects.append(self._lamp(node, position, intensity, diagonal))
         film = None if self.camera is None else (self.camera.width, self.camera.height)
         return Scene(name=name, objects=tuple(objects), camera=self.camera, source=str(self.doc.path), film=film,
-                     environment=self.environment)
-
-    def _lamp(self, node, position, intensity, diagonal):
-        radius = POINT_LAMP_RADIUS * diagonal
-        sphere = trimesh.creation.icosphere(subdivisions=2, radius=radius)
-        # a sphere of radiance L sends pi L area (4 pi I): by the tessellated sphere's area, the power is exact
-        radiance = tuple(4.0 * float(i) / sphere.area for i in intensity)
-        name = self._name(node, f"{node.attrs['type']}_light_{len(self.names)}")
-        node.warn(f"taken as a sphere lamp of radius {radius:.3g} ({POINT_LAMP_RADIUS:g} of the scene's size) and the "
-                  "same intensity")
-        material = Material(name=name, diffuse=(0.0, 0.0, 0.0), specular=(0.0, 0.0, 0.0), exponent=0.0,
-                            emission=radiance)
-        return build_object(name, material, np.asarray(sphere.vertices) + position, np.asarray(sphere.faces),
-                            crease_angle_deg=180.0, source=node.where)
-
+                     environment=self.environment, lights=tuple(self.lights))
 
 def _environment(doc, node, props):
     """The ``Environment`` of a ``constant`` or ``envmap`` emitter."""
@@ -1246,14 +1288,14 @@ def _camera(doc, node):
     else:
         axis = props.string("fov_axis", "x").lower()
     try:
-        fov_y = fov_y_deg(fov, axis, width, height)
+        fov_y_deg(fov, axis, width, height)  # the fov and its axis checked before the transform
     except InputError as exc:
         raise node.fail(str(exc).removeprefix("camera: ")) from None
     eye, look_at, up, mirrored = pose_from_matrix(props.transform("to_world"))
     if mirrored:
         node.warn("the sensor's transform mirrors the image (a negative scale): drawn unmirrored")
-    try:
-        return Camera(eye, look_at, up, fov_y, width, height)
+    try:  # the fov kept along its axis: at another image size, Mitsuba 3's view of the same sensor
+        return Camera(eye, look_at, up, fov, width, height, axis)
     except InputError as exc:
         raise node.fail(str(exc)) from None
 

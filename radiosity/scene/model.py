@@ -5,6 +5,7 @@ merged triangle array the ray tracer wants.
       objects : tuple[SceneObject, ...]   one material each, world space
       camera  : Camera | None             the scene's default viewpoint
       environment : Environment | None    light from outside the scene, seen by rays that leave it
+      lights  : tuple[EmitterPart, ...]   delta lights: points (spots) and directions, never seen
 
 A SceneObject's arrays are float64 in the scene's units; ``Scene.merged()`` packs
 all triangles into one float32 array with a triangle-to-object table.
@@ -19,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from radiosity.formats.camera import Camera
+from radiosity.formats.emitters import MAX_LIGHTS, EmitterPart
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
@@ -153,10 +155,25 @@ class Scene:
     source: str = ""
     film: tuple[int, int] | None = None  # the image size the scene asks for (a Mitsuba sensor's film), if any
     environment: Environment | None = None  # light from outside the scene (``radiosity.scene.environment``)
+    # delta lights (``radiosity.formats.emitters`` parts of kind "point", with an optional
+    # spot profile, and "direction"), each named by its ``source``: they light the scene
+    # and its glossy objects reflect them, but nothing sees them
+    lights: tuple[EmitterPart, ...] = ()
 
     def __post_init__(self):
         if not self.objects:
             raise InputError(f"scene {self.name!r} has no objects")
+        object.__setattr__(self, "lights", tuple(self.lights))
+        if len(self.lights) > MAX_LIGHTS:
+            raise InputError(f"scene {self.name!r} has {len(self.lights):,} lights; a scene has at most {MAX_LIGHTS:,}")
+        for light in self.lights:
+            if not (isinstance(light, EmitterPart) and light.is_delta):
+                raise TypeError(f"scene {self.name!r}: a light must be a point or direction EmitterPart, got {light!r}")
+        light_names = [light.source for light in self.lights]
+        clash = sorted({n for n in light_names if light_names.count(n) > 1} | ({o.name for o in self.objects} & set(light_names)))
+        if clash:
+            raise InputError(f"scene {self.name!r}: a light's name must be unique among the lights and objects: "
+                             f"{clash[0]!r} repeats")
         names = [o.name for o in self.objects]
         duplicate = sorted({n for n in names if names.count(n) > 1})
         if duplicate:
@@ -201,7 +218,21 @@ class Scene:
 
     @property
     def emitters(self):
+        """The emitting objects (the delta lights are ``lights``)."""
         return [o for o in self.objects if o.material.is_emitter]
+
+    @property
+    def is_lit(self):
+        """Whether anything emits light: an object, the environment or a delta light."""
+        return bool(self.emitters or self.lights or self.environment is not None)
+
+    @property
+    def bounding_sphere(self):
+        """(centre (3,), radius) of the ball around the scene's bounding box, a little
+        larger (by 1e-4): where a directional light's (and the environment's) photons
+        start from."""
+        lo, hi = self.bounds
+        return 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * (1 + 1e-4)
 
     @property
     def bounds(self):
@@ -262,7 +293,9 @@ def build_object(
     uvs=None,
     texture=None,
 ):
-    """A SceneObject from a raw triangle soup in world space.
+    """A SceneObject from a raw triangle soup in world space, or None when every
+    triangle is degenerate (the object is left out, as Mitsuba leaves it out, with one
+    SceneWarning saying so).
 
     Checks coordinates, welds coincident vertices, drops degenerate triangles (with a
     SceneWarning counting them), and computes crease-split normals and tangents.
@@ -307,10 +340,10 @@ def build_object(
         keep = _not_degenerate(positions, faces)
         dropped = int(len(faces) - keep.sum())
         positions, faces, uvs = geometry.compact(positions, faces[keep], uvs)
+    if len(faces) == 0:
+        return _left_out(where, dropped)
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=2)
-    if len(faces) == 0:
-        raise InputError(f"{where}: every triangle is degenerate (zero area)")
     if uvs is None:
         positions, faces, normals = geometry.crease_normals(positions, faces, crease_angle_deg)
     else:
@@ -326,6 +359,13 @@ def build_object(
         uvs=uvs,
         texture=texture,
     )
+
+
+def _left_out(where, dropped):
+    """None, after the one warning for an object whose ``dropped`` triangles were all degenerate."""
+    warnings.warn(f"{where}: all {dropped} triangle(s) are degenerate (zero area): the object is left out",
+                  SceneWarning, stacklevel=3)
+    return None
 
 
 def _not_degenerate(positions, faces):
@@ -345,10 +385,10 @@ def _with_normals(name, material, positions, faces, normals, *, where, source, w
         raise InputError(f"{where}: {len(normals)} normals for {len(positions)} vertices")
     keep = _not_degenerate(positions, faces)  # as geometry.remove_degenerate
     dropped = int(len(faces) - keep.sum())
+    if not keep.any():
+        return _left_out(where, dropped)
     if dropped and warn_degenerate:
         warnings.warn(f"{where}: dropped {dropped} degenerate triangle(s)", SceneWarning, stacklevel=3)
-    if not keep.any():
-        raise InputError(f"{where}: every triangle is degenerate (zero area)")
     if uvs is None:
         positions, faces, normals = geometry.compact(positions, faces[keep], normals)
     else:
@@ -382,8 +422,15 @@ def is_closed(obj):
 def back_of(front, name, offset):
     """The back of a two-sided surface (surfaces are one-sided: the back absorbs): a
     reversed copy ``offset`` behind the front, along its normals, so that light from
-    behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below."""
-    return SceneObject(name=name, material=front.material, positions=front.positions - offset * front.normals,
+    behind meets it first; the ray tracer's offset (1e-5 of the diagonal) stays below.
+    The back reflects as the front does but emits nothing: a two-sided material makes
+    a surface reflect on both sides, not a lamp shine backwards (Mitsuba's area lights
+    emit from the front alone, whatever their bsdf); its material is then the front's
+    without emission, named "<material> (back)"."""
+    material = front.material
+    if material.is_emitter:
+        material = replace(material, name=f"{material.name} (back)", emission=(0.0, 0.0, 0.0))
+    return SceneObject(name=name, material=material, positions=front.positions - offset * front.normals,
                        normals=-front.normals, tangents=-front.tangents, faces=front.faces[:, ::-1].copy(),
                        source=front.source, uvs=front.uvs, texture=front.texture)
 

@@ -298,8 +298,9 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
     Returns {object name: Marks} (objects with none left out)."""
     settings, stats = solution.settings, solution.stats
     emitted = sum(float(np.asarray(o.emitted_power) @ LUMINANCE) for o in scene.emitters)
-    if scene.environment is not None and "energy" in stats:  # the environment's photons too
-        emitted = float(np.asarray(stats["energy"]["emitted"]) @ LUMINANCE)
+    if (scene.environment is not None or scene.lights) and "energy" in stats:  # the environment's and lights' too
+        energy = stats["energy"]  # less what no photon carried (a point light's light away from the scene)
+        emitted = float((np.asarray(energy["emitted"]) - np.asarray(energy.get("unreached", np.zeros(3)))) @ LUMINANCE)
     photon_power = emitted / max(stats.get("photons", 0), 1)
     values = {o.name: vertex_values(solution.object(o.name)) for o in scene.objects}
     lit = np.concatenate([v for o, v in zip(scene.objects, values.values()) if not o.material.is_emitter] or [np.zeros(1)])

@@ -12,6 +12,7 @@ import numpy as np
 from radiosity.scene.environment import no_environment
 from radiosity.scene.materials import albedo, pack_materials
 from radiosity.scene.textures import atlas
+from radiosity.transport import lights as delta
 from radiosity.transport.gather import gather_outputs, trace_gather
 from radiosity.transport.photons import trace_photons
 from radiosity.transport.records import (
@@ -83,19 +84,38 @@ def scene_arrays(scene, merged, epsilon, analytic=()):
         direct_triangles=direct[1],
         direct_area_pdf=direct[2],
         **_texture_arrays(scene, merged),
-        env=_environment_arrays(scene, positions, float(power.sum()), epsilon),
+        **_light_arrays(scene, positions, float(power.sum()), epsilon),
     )
 
 
-def _environment_arrays(scene, positions, triangle_power, epsilon):
-    """``EnvArrays`` of the scene's environment (``no_environment()`` without one): its
-    photons come from a disk on the bounding sphere of the vertices ``positions``, a
-    little larger than the bounding box's (by 1e-4 of it and 4 ray offsets)."""
-    if scene.environment is None:
-        return no_environment()
+def _light_arrays(scene, positions, triangle_power, epsilon):
+    """The ``SceneArrays`` fields ``env`` and ``lights``: the scene's environment
+    (``no_environment()`` without one) and delta lights (``no_lights()`` without any).
+    The environment's photons and a direction's come from a disk on the bounding
+    sphere of the vertices ``positions``, a little larger than the bounding box's (by
+    1e-4 of it and 4 ray offsets). Photons are shared by power among the environment,
+    the delta lights and the emitting triangles; the path tracer's light samples
+    equally among those of the three that the scene has."""
     lo, hi = positions.min(axis=0), positions.max(axis=0)
-    half = 0.5 * float(np.linalg.norm(hi - lo))
-    return scene.environment.kernel_arrays(0.5 * (lo + hi), half * (1 + 1e-4) + 4 * epsilon, triangle_power)
+    center = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo)) * (1 + 1e-4) + 4 * epsilon
+    if not scene.lights:
+        env = no_environment() if scene.environment is None else scene.environment.kernel_arrays(
+            center, radius, triangle_power)
+        return {"env": env, "lights": delta.no_lights()}
+    light_power = float(sum(delta.photon_power(light, center, radius).sum() for light in scene.lights))
+    env = no_environment()
+    env_power = 0.0
+    if scene.environment is not None:
+        env = scene.environment.kernel_arrays(center, radius, triangle_power + light_power)
+        env_power = float(scene.environment.power(radius).sum()) if env.photon_share > 0 else 0.0
+    total = env_power + light_power + triangle_power
+    kinds = 1 + (env.light_share > 0) + (triangle_power > 0)
+    if env.light_share > 0:
+        env = env._replace(light_share=1.0 / kinds)
+    photon_share = light_power / total if total > 0 else 0.0
+    lights = delta.light_arrays(scene.lights, center, radius, photon_share, 1.0 / kinds, not triangle_power > 0)
+    return {"env": env, "lights": lights}
 
 
 def _texture_arrays(scene, merged):

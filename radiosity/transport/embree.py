@@ -211,17 +211,41 @@ def _set_ray(floats, ints, origin, direction, tfar):
     ints[INST_ID] = INVALID_ID
 
 
+_ONE_ULP_DOWN = np.float32(1.0 - 2.0**-24)  # x * this is the float32 below x (x > 0 normal)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def inside_triangle(u, v):
+    """Barycentrics (u, v) float32 moved into the triangle: u, v >= 0 and u + v <= 1
+    exactly when summed in float64, as every kernel sums them (w = 1 - u - v). Embree's
+    u and v are quotients rounded on their own, so a hit near an edge can have u + v a
+    rounding above 1; w is then about -1e-8, and a value interpolated with it (an
+    irradiance, a texel) is negative where a corner's is 0 and another's is not.
+    Inside the triangle (u, v) is returned as it is."""
+    u = max(u, np.float32(0.0))
+    v = max(v, np.float32(0.0))
+    total = np.float64(u) + np.float64(v)
+    if total > 1.0:
+        u = np.float32(np.float64(u) / total)
+        v = np.float32(1.0 - np.float64(u))
+        while np.float64(u) + np.float64(v) > 1.0:
+            v = v * _ONE_ULP_DOWN
+    return u, v
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def intersect1(rt, rayhit, origin, direction):
     """The closest hit of the ray origin + s direction, s > 0 (3-tuples, stored as
     float32; unit direction): (triangle int, MISS where none; t, u, v float32) as
-    ``Hits``; a miss has t = inf and u = v = 0."""
+    ``Hits``, (u, v) inside the triangle (``inside_triangle``); a miss has t = inf and
+    u = v = 0."""
     floats, ints = rayhit
     _set_ray(floats, ints, origin, direction, FAR)
     rt.intersect(rt.scene, floats.ctypes.data, 0)
     if ints[GEOM_ID] == INVALID_ID:
         return MISS, FAR, np.float32(0.0), np.float32(0.0)
-    return ints[PRIM_ID], floats[TFAR], floats[HIT_U], floats[HIT_V]
+    u, v = inside_triangle(floats[HIT_U], floats[HIT_V])
+    return ints[PRIM_ID], floats[TFAR], u, v
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -33,6 +33,7 @@ from radiosity.scene.materials import (
     schlick,
 )
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
+from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
 from radiosity.transport.sampling import (
     cosine_direction,
@@ -149,6 +150,12 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     sample out (the same expected value, more noise; for tests). An analytic emitter
     part's direct highlight is left out (the solver adds it in closed form).
 
+    And a sample of the delta lights (``sa.lights``: points, spots, directions, which no
+    ray can hit), at every glossy hit whatever ``block.lobe_light``: one chosen by power
+    (numbers from ``STREAM_GATHER + 3``) and its shadow ray, adding f_s cos I / d^2 (E
+    for a direction) over the probability of its choice. The gathering vertex's own
+    direct highlight of a delta light is the solver's, in closed form.
+
     A path's id indexes the block's gather samples (vertex ``block.vertices[id //
     n_gather]``, sample ``id % n_gather``), which also key the random numbers. The
     records are unpacked into locals once (see ``photons.trace_photons``), with the
@@ -185,6 +192,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     rays = shadow
     path_pdf, out_pdf = buffers.pdfs[0], buffers.pdfs[1]
     has_lights = len(emit_triangles) > 0 and lobe_light
+    lights = sa.lights
+    n_delta = len(lights.kinds)
     triangle, hit_u, hit_v = hits.triangle, hits.u, hits.v
     for depth in range(max_depth):
         if n == 0:
@@ -274,6 +283,26 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                                     incoming[target, 0] += values[k, 0] * (ks0 * f0 * materials[lm, EMISSION] * scale)
                                     incoming[target, 1] += values[k, 1] * (ks1 * f1 * materials[lm, EMISSION + 1] * scale)
                                     incoming[target, 2] += values[k, 2] * (ks2 * f2 * materials[lm, EMISSION + 2] * scale)
+            if n_delta > 0:
+                # a delta light at the glossy hit: chosen by power, no ray finds it otherwise
+                j = pick_light(lights.cdf, rand(seed, STREAM_GATHER + 3, item, 0))
+                origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
+                (dx, dy, dz), dist, le = arriving(lights, j, origin)
+                cos_i = dx * nx + dy * ny + dz * nz
+                if dist > epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0 and dx * gx + dy * gy + dz * gz > 0.0:
+                    dn = d[0] * nx + d[1] * ny + d[2] * nz
+                    cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+                    lobe = phong_lobe(min(cos_alpha, 1.0), exponent) if cos_alpha > 0.0 else 0.0
+                    if lobe > 0.0:
+                        traced += 1
+                        if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist - epsilon):
+                            scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / lights.pick[j]
+                            f0, f1, f2 = 1.0, 1.0, 1.0
+                            if fresnel:
+                                f0, f1, f2 = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                            incoming[target, 0] += values[k, 0] * (ks0 * f0 * le[0] * scale)
+                            incoming[target, 1] += values[k, 1] * (ks1 * f1 * le[1] * scale)
+                            incoming[target, 2] += values[k, 2] * (ks2 * f2 * le[2] * scale)
             # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
             # diffuse lobe's light is in the irradiance)
             tx, ty, tz, bx, by, bz = onb(nx, ny, nz)

@@ -14,7 +14,9 @@ spread over its area by the plastic-number (R2) sequence; a sphere's over the ca
 vertex sees, by the same sequence in the cap's solid angle. A point behind the
 vertex's tangent plane or behind the part's front does not count; the vertex's value
 is the fraction of the counted points that are unoccluded (1 where none counts: the
-part's highlight is 0 there anyway). The part's own object does not shadow it.
+part's highlight is 0 there anyway). The part's own object does not shadow it. A delta
+part (a point, a direction) has no extent: one shadow ray, to the point (1e-4 of its
+length short of it) or along -the direction to infinity, and the value is 0 or 1.
 """
 
 from __future__ import annotations
@@ -62,8 +64,18 @@ def _frame(c):
 
 
 def _rays_to_part(part, origins, normals, count):
-    """Shadow rays from ``origins`` (V, 3) to ``count`` points of ``part``: (directions
-    (V, S, 3), lengths (V, S), counted (V, S) bool)."""
+    """Shadow rays from ``origins`` (V, 3) to ``count`` points of ``part`` (one for a
+    delta part): (directions (V, S, 3), lengths (V, S), counted (V, S) bool)."""
+    if part.kind == "direction":
+        directions = np.broadcast_to(-part.points[0], origins.shape)[:, None, :]
+        counted = (normals @ -part.points[0] > 0)[:, None]
+        return directions, np.full(counted.shape, np.inf), counted
+    if part.kind == "point":
+        to = (part.points[0] - origins)[:, None, :]
+        length = np.linalg.norm(to, axis=2)
+        directions = to / np.maximum(length, 1e-300)[..., None]
+        counted = (np.einsum("vsi,vi->vs", directions, normals) > 0) & (length > 0)
+        return directions, length * (1 - RELATIVE_SHORTEN), counted
     if part.kind == "polygon":
         points = polygon_points(part.points, count)
         to = points[None, :, :] - origins[:, None, :]
@@ -99,21 +111,22 @@ def _rays_to_part(part, origins, normals, count):
 
 def visibility(tracer, parts, positions, normals, samples, epsilon, source=None, chunk=1 << 18):
     """(V, P) float32: the fraction of each part that each vertex (positions, unit
-    normals (V, 3)) sees, from ``samples`` shadow rays per part traced on ``tracer``
+    normals (V, 3)) sees, from ``samples`` shadow rays per part (one per delta part) traced on ``tracer``
     (a ``embree.RayTracer`` of the whole scene); ``source`` the vertices' own object
     (its own parts: 0)."""
     positions = np.asarray(positions, np.float64)
     normals = np.asarray(normals, np.float64)
     origins = positions + epsilon * normals
     out = np.ones((len(positions), len(parts)), np.float32)
-    per_chunk = max(1, chunk // max(samples, 1))
     for i, part in enumerate(parts):
+        samples_i = 1 if part.is_delta else samples
+        per_chunk = max(1, chunk // max(samples_i, 1))
         if source is not None and part.source == source:
             out[:, i] = 0.0
             continue
         for start in range(0, len(positions), per_chunk):
             sl = slice(start, start + per_chunk)
-            directions, length, counted = _rays_to_part(part, origins[sl], normals[sl], samples)
+            directions, length, counted = _rays_to_part(part, origins[sl], normals[sl], samples_i)
             o = np.broadcast_to(origins[sl, None, :], directions.shape)[counted]
             blocked = np.zeros(counted.shape, dtype=bool)
             if counted.any():

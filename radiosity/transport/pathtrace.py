@@ -2,7 +2,8 @@
 
 Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
 emitters and the environment (``radiosity.scene.environment``) combined with BRDF sampling by multiple importance sampling (power
-heuristic), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
+heuristic), and on the delta lights (``radiosity.transport.lights``: points, spots,
+directions, which no ray can hit, so their estimate is unweighted), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
 (``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
 as the solver, so both see the same scene the same way: one-sided surfaces (backs
@@ -49,6 +50,7 @@ from radiosity.transport.embree import (
     intersect_rays,
     occluded_rays,
 )
+from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.rng import rand
 from radiosity.transport.sampling import (
     barycentric_point,
@@ -239,7 +241,13 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     tx, ty, tz, bx, by, bz, nx, ny, nz = shading
     if u0 < share:
         return _environment_sample(sa.env, off_surface(point, g, sa.epsilon), g, shading, wo, mat, rnd, throughput)
-    if share > 0.0:
+    delta_share = sa.lights.light_share
+    if delta_share > 0.0:
+        if u0 < share + delta_share:
+            return _delta_sample(sa, off_surface(point, g, sa.epsilon), g, shading, wo, mat,
+                                 min((u0 - share) / delta_share, 1.0), throughput)
+        u0 = (u0 - share - delta_share) / (1.0 - share - delta_share)
+    elif share > 0.0:
         u0 = (u0 - share) / (1.0 - share)
     tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, u0)
     area_pdf = sa.emit_area_pdf[tri]
@@ -259,8 +267,8 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     if wiz <= 0.0:
         return nothing
     p_light = area_pdf * dist * dist / cos_light
-    if share > 0.0:
-        p_light *= 1.0 - share
+    if share > 0.0 or delta_share > 0.0:
+        p_light *= 1.0 - share - delta_share
     p_brdf = brdf_pdf(mat, wo[0], wo[1], wo[2], wix, wiy, wiz)
     ratio = p_brdf / p_light
     weight = 1.0 / (1.0 + ratio * ratio)  # the power heuristic, written so that no square overflows
@@ -273,6 +281,34 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
         throughput[2] * f[2] * le[EMISSION + 2] * scale,
     )
     return True, origin, (dx, dy, dz), dist, value
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _delta_sample(sa, origin, g, shading, wo, mat, u, throughput):
+    """``_light_sample``'s estimate when it picks the delta lights (with probability
+    sa.lights.light_share): one chosen by power with the uniform number u, its shadow
+    ray from ``origin`` (off the surface) to it (``sa.epsilon`` short of a point), and
+    f cos I profile / d^2 (E for a direction) over the probability of the choice."""
+    nothing = (False, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+    lights = sa.lights
+    j = pick_light(lights.cdf, u)
+    (dx, dy, dz), dist, le = arriving(lights, j, origin)
+    if not (dist > sa.epsilon and max(le[0], le[1], le[2]) > 0.0) or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
+        return nothing
+    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
+    wix = dx * tx + dy * ty + dz * tz
+    wiy = dx * bx + dy * by + dz * bz
+    wiz = dx * nx + dy * ny + dz * nz
+    if wiz <= 0.0:
+        return nothing
+    f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
+    scale = wiz / (lights.light_share * lights.pick[j])
+    value = (
+        throughput[0] * f[0] * le[0] * scale,
+        throughput[1] * f[1] * le[1] * scale,
+        throughput[2] * f[2] * le[2] * scale,
+    )
+    return True, origin, (dx, dy, dz), dist - sa.epsilon, value
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -347,6 +383,7 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     row = np.empty(NCOL)  # a textured hit's material row
     env = sa.env
     env_share = env.light_share
+    delta_share = sa.lights.light_share
     for k in range(len(paths.ids)):
         t = hits.triangle[k]
         if t < 0:
@@ -369,8 +406,8 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
             if p_brdf > 0.0:
                 dist = np.float64(hits.t[k])
                 ratio = sa.emit_area_pdf[t] * dist * dist / cos_in / p_brdf  # p_light / p_brdf
-                if env_share > 0.0:
-                    ratio *= 1.0 - env_share
+                if env_share > 0.0 or delta_share > 0.0:
+                    ratio *= 1.0 - env_share - delta_share
                 weight = 1.0 / (1.0 + ratio * ratio)
             for c in range(3):
                 radiance[path, c] += weight * throughput[c] * mat[EMISSION + c]
@@ -647,8 +684,8 @@ class PathTracer:
 
 
 def scene_of_solution(solution):
-    """The ``Scene`` a solution's meshes, materials and textures make (what its displays
-    show)."""
+    """The ``Scene`` a solution's meshes, materials, textures, environment and delta
+    lights make (what its displays show)."""
     objects = []
     for o in solution.objects:
         m = o.material
@@ -671,4 +708,5 @@ def scene_of_solution(solution):
     env = solution.environment
     if env is not None:
         env = Environment(env.image, env.scale, env.rotation, env.constant, env.source)
-    return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera, environment=env)
+    return Scene(name=solution.scene or "solution", objects=tuple(objects), camera=solution.camera, environment=env,
+                 lights=solution.lights)

@@ -35,6 +35,7 @@ from radiosity.scene.materials import (
     textured_row,
 )
 from radiosity.transport.embree import intersect1, new_rayhit
+from radiosity.transport.lights import emit_delta, pick_light
 from radiosity.transport.records import (
     T_ABSORBED,
     T_BACKFACE,
@@ -78,7 +79,9 @@ def trace_photons(rt, sa, batch, acc):
     environment's: a direction w drawn from it (``environment.env_sample``, density
     p(w)), a uniform point on the disk of the scene's bounding sphere (centre c,
     radius R) facing w, the photon starting at that point pushed out by R along w and
-    going along -w, carrying L(w) pi R^2 / (total * share * p(w)). At a
+    going along -w, carrying L(w) pi R^2 / (total * share * p(w)). Or, with
+    probability ``sa.lights.photon_share``, a delta light's (``lights.emit_delta``: one
+    chosen by power, from its position or the disk facing its direction). At a
     front-face hit its incident power is added to the density moments of the
     triangle's three vertices (times ``materials.deposit_weight``: 1 without Fresnel):
     moment0[j] += power * lambda_j and moment1[j] += power
@@ -110,6 +113,8 @@ def trace_photons(rt, sa, batch, acc):
     env_share, env_pixels, env_rotation = env.photon_share, env.pixels, env.rotation
     env_row_cdf, env_column_cdf, env_cell_pdf = env.row_cdf, env.column_cdf, env.cell_pdf
     env_center, env_radius = env.center, env.radius
+    lights = sa.lights
+    lights_share = lights.photon_share
     seed, first_id, count, total, max_depth = batch.seed, batch.first_id, batch.count, batch.total, batch.max_depth
     wave = max(1, min(batch.wave, count))
     moment0, moment1, tally = acc.moment0, acc.moment1, acc.tally
@@ -147,8 +152,20 @@ def trace_photons(rt, sa, batch, acc):
                 ray[i, 2] = env_center[2] + env_radius * (ox * tz + oy * bz + wz)
                 ray[i, 3], ray[i, 4], ray[i, 5] = -wx, -wy, -wz
                 continue
-            if env_share > 0.0:
-                u0 = (u0 - env_share) / (1.0 - env_share)
+            if lights_share > 0.0 and (u0 < env_share + lights_share or lights.only):
+                # from a delta light, chosen by power
+                j = pick_light(lights.cdf, min((u0 - env_share) / lights_share, 1.0))
+                origin, direction, carried = emit_delta(
+                    lights, j, (rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2)),
+                    1.0 / (total * lights_share * lights.pick[j]),
+                )  # fmt: skip
+                for c in range(3):
+                    power[i, c] = carried[c]
+                    ray[i, c] = origin[c]
+                    ray[i, 3 + c] = direction[c]
+                continue
+            if env_share > 0.0 or lights_share > 0.0:
+                u0 = (u0 - env_share - lights_share) / (1.0 - env_share - lights_share)
             tri = pick_emitter(emit_cdf, emit_triangles, u0)
             s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
             u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
@@ -159,8 +176,8 @@ def trace_photons(rt, sa, batch, acc):
             tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
             m = face_material[tri]
             scale = math.pi / (total * emit_area_pdf[tri])
-            if env_share > 0.0:
-                scale /= 1.0 - env_share
+            if env_share > 0.0 or lights_share > 0.0:
+                scale /= 1.0 - env_share - lights_share
             power[i, 0] = materials[m, EMISSION] * scale
             power[i, 1] = materials[m, EMISSION + 1] * scale
             power[i, 2] = materials[m, EMISSION + 2] * scale

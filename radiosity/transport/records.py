@@ -2,6 +2,7 @@
 of them (a kernel unpacks the fields it loops over into locals once).
 
     SceneArrays   the merged scene (vertex and triangle indices of ``Scene.merged()``)
+    LightArrays   its delta lights (points, spots, directions)
     Rays          a batch of rays with an RGB value each: photons or gather paths
     embree.Hits   where each ray of a batch landed (triangle, t, u, v)
     PhotonBatch   which photons a call traces (seed, ids, total, depth, wave size)
@@ -25,6 +26,40 @@ from radiosity.transport.embree import Hits, empty_hits
 T_ESCAPED, T_ABSORBED, T_INCIDENT, T_BACKFACE, T_TERMINATED = 0, 3, 6, 9, 12
 T_HITS, T_LENGTH = 15, 16
 PHOTON_WAVE = 1024  # photons traced together by trace_photons: a wave's rays, then its hits
+
+
+class LightArrays(NamedTuple):
+    """A scene's delta lights as the kernels read them (``radiosity.transport.lights``).
+
+    kinds       : (L,) int64          ``formats.emitters`` POINT or DIRECTION
+    points      : (L, 3, 3) float64   rows 0-2 of ``PackedParts.points``: the position (a
+                                      point) or unit direction of travel (a direction); a
+                                      spot's axis; (cutoff, beam width (radians), 1 for a spot)
+    values      : (L, 3) float64      intensity (W/sr; a spot's peak) or irradiance
+    cones       : (L, 4) float64      a point's photons' cone (axis, cos of its half-angle:
+                                      -1 every direction; ``lights.reach``)
+    cdf         : (L,) float64        cumulative probability of choosing each, by the
+                                      power it sends into the scene
+    pick        : (L,) float64        the probability of each
+    photon_share: float               probability that a photon is a delta light's
+    light_share : float               probability that a path tracer's light sample picks one
+    only        : bool                no emitting triangle: a photon that is not the
+                                      environment's is a delta light's
+    center      : (3,) float64        the scene's bounding sphere: a direction's photons
+    radius      : float               start on the disk of this sphere facing it
+    """
+
+    kinds: np.ndarray
+    points: np.ndarray
+    values: np.ndarray
+    cones: np.ndarray
+    cdf: np.ndarray
+    pick: np.ndarray
+    photon_share: float
+    light_share: float
+    only: bool
+    center: np.ndarray
+    radius: float
 
 
 class SceneArrays(NamedTuple):
@@ -55,6 +90,9 @@ class SceneArrays(NamedTuple):
                      or light sample picks the environment first, with ``env``'s shares
     env            : ``environment.EnvArrays``, the light from outside the scene
                      (``environment.no_environment()`` where there is none)
+    lights         : ``LightArrays``, the delta lights (``lights.no_lights()`` where there
+                     are none): a photon picks the environment first (``env``'s share),
+                     then the delta lights (their share), then a triangle
     """
 
     positions: np.ndarray
@@ -78,6 +116,7 @@ class SceneArrays(NamedTuple):
     texture_offsets: np.ndarray
     texture_sizes: np.ndarray
     env: EnvArrays
+    lights: LightArrays
 
 
 class Rays(NamedTuple):

@@ -4,8 +4,8 @@ alone, never on how work is split into batches, threads or machines.
 
 Streams: STREAM_EMIT (photon emission), STREAM_BOUNCE (photon scattering),
 STREAM_LIGHT (a gather vertex's light samples), STREAM_GATHER (its gather rays;
-STREAM_GATHER + 1 and + 2 the lobe continuation and light sample at glossy hits of
-gather paths). The path tracer's stream is its own (``pathtrace.STREAM_PATH``).
+STREAM_GATHER + 1, + 2 and + 3 the lobe continuation, the light sample and the
+delta light's sample at glossy hits of gather paths). The path tracer's stream is its own (``pathtrace.STREAM_PATH``).
 """
 
 from __future__ import annotations

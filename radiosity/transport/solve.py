@@ -44,6 +44,7 @@ from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.formats.texture import TexturedDiffuse
 from radiosity.scene.emitters import emitter_parts
 from radiosity.transport import density, highlights, regather
+from radiosity.transport import lights as delta_lights
 from radiosity.transport.batches import (  # noqa: F401 (the units of work, importable from the solver too)
     ALBEDO_TABLE_SIZE,
     MAX_GATHER_DEPTH,
@@ -301,9 +302,10 @@ def solve(scene, opts=SolveOptions(), progress=False, client=None):
     warns (SceneWarning) if nothing emits light.
     """
     settings = opts.resolved(scene)
-    if not scene.emitters and scene.environment is None:
+    if not scene.is_lit:
         warnings.warn(
-            f"scene {scene.name!r} has no emitters (no material with emission > 0, no environment): every radiance is 0",
+            f"scene {scene.name!r} has no emitters (no material with emission > 0, no light, no environment): "
+            "every radiance is 0",
             SceneWarning,
             stacklevel=2,
         )
@@ -324,6 +326,9 @@ def _solve(scene, settings, runner, progress):
     merged = refined.merged()
     # parts from the scene as given: refinement would add vertices off a sphere lamp
     parts, analytic = emitter_parts(scene) if settings["emitter_highlights"] else ((), ())
+    # every delta light's direct highlight is in closed form (exact, and nothing else can find
+    # it), drawn per pixel where it is a part, else kept in the grid
+    closed = parts + tuple(light for light in scene.lights if not any(light is p for p in parts))
     sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic)
     seed = settings["seed"]
     runner.start(merged, sa, seed)
@@ -337,9 +342,11 @@ def _solve(scene, settings, runner, progress):
     emitted = np.zeros(3)
     for o in refined.emitters:
         emitted += o.emitted_power
-    lit = bool(refined.emitters) or sa.env.photon_share > 0
+    lit = bool(refined.emitters) or sa.env.photon_share > 0 or sa.lights.photon_share > 0
     if sa.env.photon_share > 0:
         emitted += refined.environment.power(sa.env.radius)
+    if refined.lights:
+        emitted += delta_lights.power(refined.lights, sa.lights.radius)
     rays_before = runner.rays_cast
 
     def combine_photons(result):
@@ -353,6 +360,10 @@ def _solve(scene, settings, runner, progress):
         finally:
             bar.close()
     moment0, moment1, tally = photon_sums
+    unreached = np.zeros(3)
+    if refined.lights and lit:  # a point light's power its photons do not carry leaves the scene at once
+        unreached = delta_lights.unreached(refined.lights, sa.lights.center, sa.lights.radius)
+        tally[T_ESCAPED:T_ESCAPED + 3] += unreached
     photon_rays = runner.rays_cast - rays_before
     times["photons"] = time.perf_counter() - t0
 
@@ -392,13 +403,14 @@ def _solve(scene, settings, runner, progress):
     t0 = time.perf_counter()
     visible = {}
     shadow_rays = 0
-    if parts and glossy:
+    if closed and glossy:
         tracer = RayTracer(merged.positions, merged.faces)
         for o, _, dirs in glossy:
-            visible[o.name] = highlights.visibility(
-                tracer, parts, o.positions, o.normals, settings["visibility_samples"], sa.epsilon, source=o.name
+            seen = highlights.visibility(
+                tracer, closed, o.positions, o.normals, settings["visibility_samples"], sa.epsilon, source=o.name
             )
-            gathered[o.name] += highlights.grid_highlights(parts, o, dirs, visible[o.name], settings["emitter_nodes"])
+            gathered[o.name] += highlights.grid_highlights(closed, o, dirs, seen, settings["emitter_nodes"])
+            visible[o.name] = np.ascontiguousarray(seen[:, :len(parts)])
         shadow_rays = tracer.rays_cast
         tracer.close()
     times["highlights"] = time.perf_counter() - t0
@@ -432,7 +444,8 @@ def _solve(scene, settings, runner, progress):
         "photon_rays": int(photon_rays),
         "gather_rays": int(gather_rays),
         "visibility_rays": int(shadow_rays),
-        "emitter_parts": {name: sum(p.source == name for p in parts) for name in analytic},
+        "emitter_parts": {name: sum(p.source == name for p in parts) for name in (*analytic, *(
+            p.source for p in parts if p.is_delta))},
         "time_s": {k: round(v, 4) for k, v in times.items()},
         "photon_rays_per_s": photon_rays / times["photons"] if times["photons"] > 0 else 0.0,
         "gather_rays_per_s": gather_rays / times["gather"] if times["gather"] > 0 else 0.0,
@@ -452,6 +465,7 @@ def _solve(scene, settings, runner, progress):
             "terminated": tally[T_TERMINATED:T_TERMINATED + 3].tolist(),
             "incident": tally[T_INCIDENT:T_INCIDENT + 3].tolist(),
             "photon_hits": int(tally[T_HITS]),
+            **({"unreached": unreached.tolist()} if refined.lights else {}),  # of escaped: no photon carried it
         },
     }
     for o, _, radiance in results:
@@ -480,6 +494,7 @@ def _solve(scene, settings, runner, progress):
     return Solution(
         objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
         emitters=parts, emitter_nodes=int(settings["emitter_nodes"]), environment=scene.environment,
+        lights=scene.lights,
     )
 
 

@@ -98,7 +98,7 @@ def listing(path):
     return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
 
 
-CAMERA = Camera(eye=(0.5, 0.25, -6.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0)
+CAMERA = Camera(eye=(0.5, 0.25, -6.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0)
 
 
 def lit_model(per_light, rng, camera=CAMERA):

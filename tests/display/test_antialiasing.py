@@ -48,7 +48,7 @@ from radiosity.formats import Camera, InputError
 WALL, TILE = 0.25, 2.0
 ANGLE = 2.0  # degrees: the edge moves 0.035 pixel a row, so the rows see every sub-pixel position
 DELTA = 0.01
-VIEW = Camera(eye=(0.0, 0.0, -5.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0, width=64, height=48)
+VIEW = Camera(eye=(0.0, 0.0, -5.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=64, height=48)
 MODES = [("fitted", "pixel"), ("fitted", "gouraud"), ("reference", "pixel"), ("reference", "gouraud")]
 
 

@@ -4,6 +4,7 @@ is matched by the path tracer (exactly with the same seed, within its noise with
 another); a reference twice as bright halves every display's mean ratio; bad
 references and flags are refused in one line before any work."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -12,7 +13,7 @@ from display_fixtures import assert_refused, listing
 
 from display.compare import reference_at, reference_files
 from display.metrics import mean_ratio
-from radiosity.formats import InputError
+from radiosity.formats import Camera, InputError, load_solution
 
 OpenEXR = pytest.importorskip("OpenEXR")
 
@@ -179,3 +180,33 @@ def test_the_path_tracers_own_exr_is_matched_by_the_path_tracer(tmp_path, cli, c
     half = reference_numbers(tmp_path / "half")
     assert half["width"] == 16 and half["downsampled_by"] == 2 and "box-averaged by 2" in stdout
     assert half["mean"] == pytest.approx(runs["6"]["mean"], rel=1e-5)
+
+
+@pytest.mark.gl
+def test_a_reference_of_another_aspect_keeps_the_fov_along_its_axis(tmp_path, cli, cornell_pair, gl_context):
+    """A Mitsuba sensor's fov along x on a 16:9 film, and a square reference image: every
+    display and the path tracer draw it with that fov along x (the vertical fov of a square
+    image), not with the film's vertical fov."""
+    fit_path, solution_path = cornell_pair
+    solution = load_solution(solution_path)
+    scene = solution.camera
+    dataclasses.replace(solution, camera=Camera(scene.eye, scene.look_at, scene.up, 39.3, 64, 36, "x")).save(
+        tmp_path / "solution.npz")
+    flags = ["--eye", *map(repr, scene.eye), "--look-at", *map(repr, scene.look_at), "--up", *map(repr, scene.up),
+             "--fov", "39.3", "--size", "32x32"]  # that view, said with a vertical fov
+    traced, drawn = tmp_path / "traced.npy", tmp_path / "drawn.npy"
+    code, _, err = cli("truth", solution_path, *flags, "--spp", "16", "--seed", "5", "--hdr", traced)
+    assert code == 0, err
+    code, _, err = cli("render", solution_path, "--mode", "reference", *flags, "--hdr", drawn)
+    assert code == 0, err
+    out = tmp_path / "c"
+    code, _, err = cli("compare", fit_path, tmp_path / "solution.npz", "--out", out, "--truth-spp", "16", "--seed", "5",
+                       "--reference", write_exr(tmp_path / "square.exr", np.load(traced)))
+    assert code == 0, err
+    numbers = reference_numbers(out)
+    camera = numbers["camera"]
+    assert (camera["fov_deg"], camera["fov_axis"], camera["film"]) == (39.3, "x", [32, 32])
+    assert camera["fov_y_deg"] == pytest.approx(39.3, rel=1e-12)  # not the film's 22.6
+    tracer = numbers["displays"]["path_tracer"]
+    assert tracer["flip_mean"] == 0.0 and tracer["mean_ratio"] == 1.0  # the same view, bit for bit
+    np.testing.assert_allclose(np.load(out / "reference" / "reference_display.npy"), np.load(drawn), rtol=1e-6)

@@ -2,10 +2,12 @@
 
 import dataclasses
 import json
+import re
 
 import pytest
 
 from display.cli import main
+from display.demo import verdict, verdict_markdown, verdict_text
 from display.export import load_export
 from fitting import load_fit
 from radiosity.formats import presets
@@ -48,9 +50,14 @@ def test_demo_writes_everything_and_reports(tmp_path, capsys, monkeypatch, gl_co
     mesh = summary["scenes"]["cornell-teapot"]["mesh"]  # the draft preset refines where the light changes
     assert mesh["enabled"] and mesh["vertices_before"] < mesh["vertices_after"] <= mesh["vertex_budget"]
     report = (out / "report.md").read_text()
-    assert report.splitlines()[2] == f"**{summary['verdict']}**" and "lower is better" in report
+    assert report.splitlines()[2] == "## Verdict" and "lower is better" in report
+    for scene, s in summary["scenes"].items():  # a table per scene, the same in the terminal and the report
+        assert verdict_text(scene, s) in printed and "\n".join(verdict_markdown(scene, s)) in report
+        assert f"{scene}: {verdict(s)}." in summary["verdict"]
+        assert re.search(r"(behind|ahead of|level with) the solution display against the truth", verdict(s))
+    assert printed.count("noise floor (4 spp)") == 2
     assert f"{mesh['vertices_before']:,} -> {mesh['vertices_after']:,} vertices" in report
-    assert "Against the truth (view 1" in report and "Against a path tracer (4 spp)" in summary["verdict"]
+    assert "Against the truth (view 1" in report
     for picture in ("models.png", "cornell-teapot/compare/figure5_view1.png", "plates/compare/figure7.png"):
         assert picture in report and (out / picture).exists()
 
@@ -66,7 +73,8 @@ def test_demo_without_truth(tmp_path, capsys, monkeypatch, gl_context):
     summary = json.loads((out / "summary.json").read_text())
     for s in summary["scenes"].values():
         assert s["truth"] is None and "truth_s" not in s["times_s"]
-    assert "Against a path tracer" not in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "noise floor" not in printed and printed.count("verdict: the fit") == 2
     assert main(["demo", "--out", str(out), "--truth-spp", "-1"]) == 2
     assert "--truth-spp must be" in capsys.readouterr().err
 

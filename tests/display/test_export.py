@@ -25,7 +25,7 @@ from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table
 from radiosity.formats import InputError
-from radiosity.formats.emitters import EmitterPart
+from radiosity.formats.emitters import EmitterPart, SpotProfile
 
 # Emitter parts in front of the tiny scene, each seen in it from test_web's camera: a
 # sphere lamp in the tile, a square panel and a triangle in the wall, and a sphere that
@@ -40,23 +40,34 @@ LAMPS = (
 )
 
 
-def glossy_model(per_light, rng, camera=CAMERA, nodes=8):
-    """``lit_model`` as a version 3 fit: both objects reflect the emitter parts ``LAMPS``
-    (the tile not its own), each part's visibility random per vertex, and each has
-    a reflection probe (4 x 4 and 8 x 8 random texels, random per-vertex weights)."""
+# Delta parts in front of the tiny scene (a version 5 fit): a point light and a spot
+# whose highlights show on the wall and the tile from test_web's camera (the spot's
+# cone cutting across the wall's), and a directional light.
+DELTA_LAMPS = (
+    EmitterPart("point", [[0.4, 0.3, -2.5]], 0.0, [3.0, 2.5, 2.0], "bulb"),
+    EmitterPart("point", [[-0.6, 0.5, -2.2]], 0.0, [4.0, 4.0, 6.0], "torch", SpotProfile([-0.3, -0.5, 2.2], 16.0, 9.0)),
+    EmitterPart("direction", [[-0.15, -0.1, 1.0]], 0.0, [0.8, 0.6, 0.4], "sun"),
+)
+
+
+def glossy_model(per_light, rng, camera=CAMERA, nodes=8, lamps=LAMPS):
+    """``lit_model`` as a version 3 fit: both objects reflect the emitter parts ``lamps``
+    (default ``LAMPS``; the tile not its own), each part's visibility random per vertex,
+    and each has a reflection probe (4 x 4 and 8 x 8 random texels, random per-vertex
+    weights). With ``DELTA_LAMPS`` among the parts, a version 5 fit."""
     base = lit_model(per_light, rng, camera)
     objects = []
     for o, (ks, exponent, m, f0) in zip(base.objects, (((0.3, 0.3, 0.25), 20.0, 4, None),
                                                        ((0.5, 0.45, 0.4), 30.0, 8, np.array([0.04, 0.3, 0.9]))),
                                         strict=True):  # the second a Fresnel material's
         v = len(o.positions)
-        highlight = Highlight(LAMPS, nodes, np.array(ks), exponent,
-                              rng.uniform(0.3, 1.0, (v, len(LAMPS))).astype(np.float32), f0)
+        highlight = Highlight(lamps, nodes, np.array(ks), exponent,
+                              rng.uniform(0.3, 1.0, (v, len(lamps))).astype(np.float32), f0)
         probe = Probe(rng.uniform(0, 2, (m, m, 3)).astype(np.float32), np.array([0.0, 0.0, -0.8]),
                       np.array([[-1.5, -1.5, -2.5], [1.5, 1.5, 0.3]]), albedo_table(exponent))
         objects.append(dataclasses.replace(o, highlight=highlight, probe=probe,
                                            probe_weight=rng.uniform(0, 0.6, (v, 3)).astype(np.float32)))
-    return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=camera, emitters=LAMPS,
+    return FittedModel(objects=tuple(objects), source="test", model="mixed", camera=camera, emitters=lamps,
                        emitter_nodes=nodes)
 
 
@@ -147,13 +158,23 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 4
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 5
     assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object, no environment: the version before them
     assert "environment" not in extras
     assert extras["objects"] == list(model.names)
     assert extras["emitters"] == [] and extras["emitter_table"] == [] and extras["emitter_nodes"] == 8
     assert extras["camera"] == {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
                                 "fov_y_deg": 40.0}
+
+
+def test_a_camera_along_x_keeps_its_axis_in_the_extras(tmp_path, cli, rng):
+    camera = dataclasses.replace(CAMERA, fov_deg=70.0, fov_axis="x", width=1280, height=720)
+    lit_model(True, rng, camera=camera).save(tmp_path / "fit.npz")
+    assert cli("export", tmp_path / "fit.npz", "-o", tmp_path / "web")[0] == 0
+    extras = glb_header(tmp_path / "web" / FILE)["scenes"][0]["extras"]["camera"]
+    assert extras == camera.to_dict() and extras["fov_axis"] == "x" and extras["film"] == [1280, 720]
+    assert extras["fov_y_deg"] == camera.fov_y_deg  # what a page that knows no axis draws
+    assert load_export(tmp_path / "web" / FILE).camera == camera
 
 
 def test_a_fit_without_a_camera_has_none_in_the_extras(tmp_path, cli, rng):
@@ -298,16 +319,49 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2, 3, 4)
+    assert READS == (1, 2, 3, 4, 5)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=5))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3 or 4 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=6))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4 or 5 file"):
         load_export(path)
+
+
+def test_delta_parts_make_a_version_5_file_that_round_trips(tmp_path, rng):
+    """A point, a spot and a direction among the emitter parts: version 5 (the lowest
+    that holds them), their entries and table rows as display.glsl lays them out, and
+    load_export gives the fit back, shading the same; the same file said to be version 4
+    is refused (a version 4 file holds no delta part); without them, version 2 still."""
+    from display.glsl import TABLE_WIDTH, emitter_table
+
+    lamps = LAMPS[:2] + DELTA_LAMPS
+    model = glossy_model(True, rng, lamps=lamps)
+    path = tmp_path / FILE
+    path.write_bytes(export_glb(model))
+    _, extras = read_with_trimesh(path)
+    assert extras["version"] == VERSION == 5
+    assert extras["emitters"] == [part.to_dict() for part in lamps]
+    assert extras["emitters"][3]["spot"] == {"axis": list(DELTA_LAMPS[1].spot.axis), "cutoff_deg": 16.0, "beam_deg": 9.0}
+    table = np.asarray(extras["emitter_table"], np.float32).reshape(len(lamps), TABLE_WIDTH, 4)
+    assert bits_equal(table, emitter_table(lamps)[:len(lamps)])
+    assert table[2:, 0, 0].tolist() == [2, 2, 3]  # point, point, direction
+    assert table[3, 5, :3].tolist() == pytest.approx([np.radians(16), np.radians(9), 1.0])  # the spot's angles
+    back = load_export(path)
+    assert [p.to_dict() for p in back.emitters] == [p.to_dict() for p in lamps]
+    w = rng.normal(size=(len(model.objects[1].positions), 4, 3))
+    w /= np.linalg.norm(w, axis=-1, keepdims=True)
+    for a, b in zip(model.objects, back.objects, strict=True):
+        ww = w if len(a.positions) == len(w) else w[:len(a.positions)]
+        assert np.array_equal(b.shade(ww), a.shade(ww))
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=4))
+    with pytest.raises(InputError, match="kind 'point' is not one of sphere, polygon"):
+        load_export(path)
+    path.write_bytes(export_glb(glossy_model(True, rng)))
+    assert read_with_trimesh(path)[1]["version"] == UNTEXTURED_VERSION == 2
 
 
 def test_a_probe_without_its_weight_is_refused(tmp_path, rng):

@@ -18,7 +18,14 @@ from scipy.spatial.transform import Rotation
 from test_export import bits_equal, glossy_model, rewrite_json, validate
 from test_export_textures import chunks, textured_model, uv_tolerance
 
-from display.export import FILE, TEXTURED_VERSION, UNTEXTURED_VERSION, VERSION, export_glb, load_export
+from display.export import (
+    ENVIRONMENT_VERSION,
+    FILE,
+    TEXTURED_VERSION,
+    UNTEXTURED_VERSION,
+    export_glb,
+    load_export,
+)
 from fitting import load_fit
 from radiosity.formats import InputError
 from radiosity.formats.environment import EnvironmentLight
@@ -71,7 +78,7 @@ def test_the_environment_round_trips(tmp_path, rng, kind):
         assert [p.to_dict() for p in back.emitters] == [p.to_dict() for p in model.emitters]
         assert all(o.probe is not None and o.highlight is not None for o in back.objects)
     header, _ = chunks(tmp_path / FILE)
-    assert header["scenes"][0]["extras"]["version"] == VERSION == 4  # with an environment, whatever else
+    assert header["scenes"][0]["extras"]["version"] == ENVIRONMENT_VERSION == 4  # with an environment, no delta part
 
 
 def test_the_environment_byte_by_byte(tmp_path, rng):

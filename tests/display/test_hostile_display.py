@@ -399,6 +399,8 @@ FLAG_CASES = (
     + [(c, ["--samples", v]) for c in ("render", "video", "compare", "demo", "view") for v in NUMBERS]
     + [(c, ["--fov", v]) for c in ("render", "video", "compare", "truth", "view")
        for v in ("0", "-1", "1e-300", "1e-4", "180", "1e9", "nan", "inf", "x")]
+    + [(c, ["--fov-axis", *v]) for c in ("render", "video", "compare", "truth", "view")
+       for v in (["z"], [""], ["X", "--fov", "40"], ["x"])]  # not an axis, or no --fov to span
     + [(c, [flag, *v]) for c in ("render", "video", "compare", "truth", "view") for flag in ("--eye", "--look-at", "--up")
        for v in (["nan", "0", "0"], ["inf", "0", "0"], ["1e308", "1e308", "1e308"], ["x", "0", "0"], ["0", "0"])]
     + [(c, ["--eye", "0", "0", "0", "--look-at", "0", "0", "0"]) for c in ("render", "video", "compare", "truth", "view")]
@@ -454,6 +456,12 @@ def views_file(kind, directory):
         path.write_bytes(b"\xff\xfe\x00")
     elif kind == "a view of the wrong type":
         path.write_text(json.dumps({"a": {"eye": "x", "look_at": [0, 0, 0]}}))
+    elif kind == "two fields of view":
+        path.write_text(json.dumps({"a": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_y_deg": 40, "fov_deg": 60}}))
+    elif kind == "a fov axis that is none":
+        path.write_text(json.dumps({"a": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_deg": 60, "fov_axis": "z"}}))
+    elif kind == "a film of no size":
+        path.write_text(json.dumps({"a": {"eye": [0, 0, -5], "look_at": [0, 0, 0], "fov_deg": 60, "film": [0, 9]}}))
     elif kind == "nested 100,000 deep":
         path.write_text('{"a": ' + "[" * 100_000 + "]" * 100_000 + "}")
     elif kind == "huge":
@@ -473,7 +481,9 @@ def views_file(kind, directory):
 VIEWS = {"not JSON": "is not JSON", "a JSON list": "must map view names", "empty": "is not JSON",
          "not UTF-8": "is not JSON", "a view of the wrong type": "eye must be 3 numbers",
          "nested 100,000 deep": "nested too deep", "huge": "bytes", "a FIFO": "not a regular file",
-         "a directory": "directory", "a symlink to /dev/zero": "not a regular file", "missing": "not found"}
+         "a directory": "directory", "a symlink to /dev/zero": "not a regular file", "missing": "not found",
+         "two fields of view": "not both", "a fov axis that is none": "fov axis must be one of",
+         "a film of no size": "'film' must be"}
 
 
 @pytest.mark.parametrize("kind", sorted(VIEWS))

@@ -11,6 +11,7 @@ import pytest
 
 from display.images import read_hdr_image
 from radiosity.formats import InputError
+from radiosity.formats.errors import SceneWarning
 
 OpenEXR = pytest.importorskip("OpenEXR")
 
@@ -54,6 +55,22 @@ def test_exr_separate_channels_half_and_alpha(tmp_path):
     path = write_exr(tmp_path / "m.exr", {"R": half[..., 0], "G": half[..., 1], "B": half[..., 2],
                                           "A": np.full((4, 5), 0.25, np.float16)})
     np.testing.assert_array_equal(read_hdr_image(path), half.astype(np.float32))
+
+
+def test_exr_of_an_aov_integrator_is_its_r_g_b_and_its_layers_are_left_with_a_warning(tmp_path):
+    # Mitsuba's aov integrator writes the render as R, G, B (and A) and each AOV as a layer: "nn.X", "dd.y", ...
+    layers = {"nn.X": KNOWN[..., 0], "nn.Y": KNOWN[..., 1], "nn.Z": KNOWN[..., 2], "dd.y": KNOWN[..., 0],
+              "_arg_0.R": KNOWN[..., 1]}
+    path = write_exr(tmp_path / "aov.exr", {"R": KNOWN[..., 0], "G": KNOWN[..., 1], "B": KNOWN[..., 2],
+                                            "A": np.ones((4, 5), np.float32), **layers})
+    with pytest.warns(SceneWarning) as caught:
+        image = read_hdr_image(path)
+    np.testing.assert_array_equal(image, KNOWN)
+    (message,) = [str(w.message) for w in caught]
+    assert message == (f"--reference {str(path)!r}: its 3 other layer(s) (_arg_0, dd, nn) are not read: the image is "
+                       "its R, G, B")
+    write_exr(tmp_path / "layers.exr", layers)  # layers alone: no image
+    refused(tmp_path / "layers.exr", "has 0 channels", "beside layers (_arg_0, dd, nn)")
 
 
 def test_exr_single_channel_is_grey(tmp_path):

@@ -70,7 +70,7 @@ def first_lights(obj, k):
                         shininess=obj.shininess[:k])
 
 
-VIEW = Camera(eye=(0.3, 0.4, 3.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=96, height=80)
+VIEW = Camera(eye=(0.3, 0.4, 3.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=45.0, width=96, height=80)
 
 
 def expected_pixels(renderer, obj, view, lights=None):
@@ -214,7 +214,7 @@ def grid_object(name, n, half, height, rng, per_light, light_pos, shininess=10.0
     )
 
 
-ABOVE = Camera(eye=(0.0, 2.0, 1.5), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=60.0, width=64, height=48)
+ABOVE = Camera(eye=(0.0, 2.0, 1.5), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=60.0, width=64, height=48)
 
 
 @pytest.mark.parametrize("per_light", [False, True])
@@ -260,7 +260,7 @@ def test_objects_with_shared_and_per_light_coefficients_in_one_frame(gl_context,
     ball = ball_model(rng, kinds="pdp", per_light=True).objects[0]
     top = grid_object("top", 5, 0.6, 1.2, rng, True, [[0.0, 0.6, 0.8, 0.0], [0.2, 2.0, 1.0, 1.0]])
     model = FittedModel(objects=(floor, ball, top))
-    view = Camera(eye=(0.5, 2.5, 3.5), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=60.0, width=96, height=80)
+    view = Camera(eye=(0.5, 2.5, 3.5), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=60.0, width=96, height=80)
     r = Renderer(gl_context, fit=model, samples=1)
     for lights in (None, 1):
         image = r.render(view, "fitted", "pixel", lights)
@@ -336,7 +336,7 @@ def test_reference_returns_the_stored_radiance_at_cell_centres(gl_context, rng, 
     w = world(obj, vertex, directions.grid_directions(6)[cell])
     eye = obj.positions[vertex].astype(float) + 3.0 * w
     view = Camera(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
-                fov_y_deg=30.0, width=8, height=8)
+                fov_deg=30.0, width=8, height=8)
     got = r.vertex_colours(view, "quad", "reference")[vertex]
     # float32 atan/sqrt on the GPU move the bilinear weights by ~1e-5: neighbours leak in that much
     assert np.allclose(got, obj.radiance[vertex, cell], rtol=1e-3), (got, obj.radiance[vertex, cell])
@@ -354,7 +354,7 @@ def test_reference_interpolates_between_centres(gl_context, rng):
         expected = (weight[:, None] * obj.radiance[vertex, idx]).sum(axis=0)
         eye = obj.positions[vertex].astype(float) + 2.0 * world(obj, vertex, local)
         view = Camera(eye=tuple(eye), look_at=tuple(obj.positions[vertex].astype(float)), up=(0.3, 0.2, 0.9),
-                    fov_y_deg=30.0, width=8, height=8)
+                    fov_deg=30.0, width=8, height=8)
         got = r.vertex_colours(view, "quad", "reference")[vertex]
         assert np.allclose(got, expected, rtol=1e-3), (a, b, got, expected)
     r.release()
@@ -363,7 +363,7 @@ def test_reference_interpolates_between_centres(gl_context, rng):
 def test_reference_per_pixel_matches_a_numpy_lookup(gl_context, rng):
     solution = quad_solution(rng, grid=8)
     obj = solution.objects[0]
-    view = Camera(eye=(0.4, 1.5, 2.2), look_at=(0.0, 0.0, 0.0), fov_y_deg=60.0, width=40, height=30)
+    view = Camera(eye=(0.4, 1.5, 2.2), look_at=(0.0, 0.0, 0.0), fov_deg=60.0, width=40, height=30)
     r = Renderer(gl_context, solution=solution, samples=1)
     image = r.render(view, "reference", "pixel")
     # numpy: intersect each pixel's ray with the plane y = 0, blend the three vertices' lookups

@@ -35,7 +35,7 @@ def test_the_background_is_the_environment(gl_context, rng, mode, turned):
     solution = Solution(objects=(square(),), scene="test", environment=env)
     model = fit(solution, FitOptions.for_quality("draft"))
     assert model.environment is env
-    camera = Camera((0.3, 0.2, 3.0), (0.0, 0.1, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=100, width=48, height=32)
+    camera = Camera((0.3, 0.2, 3.0), (0.0, 0.1, 0.0), up=(0.0, 1.0, 0.0), fov_deg=100, width=48, height=32)
     renderer = Renderer(gl_context, fit=model, solution=solution, samples=1)
     image = renderer.render(camera, mode=mode).astype(np.float64)
     rays = camera.pixel_rays()
@@ -53,6 +53,6 @@ def test_the_background_is_the_environment(gl_context, rng, mode, turned):
 
 def test_without_an_environment_the_background_is_black(gl_context):
     solution = Solution(objects=(square(),), scene="test")
-    camera = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), fov_y_deg=90, width=16, height=16)
+    camera = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), fov_deg=90, width=16, height=16)
     image = Renderer(gl_context, solution=solution, samples=1).render(camera, mode="reference")
     assert image[0, 0].tolist() == [0.0, 0.0, 0.0]

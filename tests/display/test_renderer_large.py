@@ -32,7 +32,7 @@ from radiosity.scene import geometry
 pytestmark = pytest.mark.gl
 
 RTOL, ATOL = 2e-3, 1e-5  # float32 on the GPU (atan, sqrt, the highlight's quadrature) against float64
-VIEW = Camera(eye=(0.3, 0.8, 3.5), look_at=(0.0, 0.0, -0.3), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=120, height=80)
+VIEW = Camera(eye=(0.3, 0.8, 3.5), look_at=(0.0, 0.0, -0.3), up=(0.0, 1.0, 0.0), fov_deg=45.0, width=120, height=80)
 GLOSSY = {"diffuse": [0.1, 0.1, 0.1], "specular": [0.5, 0.45, 0.4], "exponent": 40.0, "emission": [0.0, 0.0, 0.0]}
 DIFFUSE = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
 
@@ -394,7 +394,7 @@ def test_a_solution_of_more_than_ten_to_the_eight_samples_draws(gl_context):
     assert samples > 10**8
     r = Renderer(gl_context, solution=solution)
     assert r.layout.values == samples and r.layout.layers >= 2  # more rows than one texture has
-    view = Camera(eye=(0.0, 1.0, 7.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0, width=640,
+    view = Camera(eye=(0.0, 1.0, 7.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=640,
                   height=360)
     image = r.render(view, "reference", "pixel")
     covered = image.max(axis=2) > 0

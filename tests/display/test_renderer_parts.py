@@ -23,13 +23,13 @@ from fitting import FittedModel, FittedObject
 from fitting.model import Highlight
 from fitting.probe import Probe, albedo_table, decode
 from radiosity.formats import Camera
-from radiosity.formats.emitters import EmitterPart, emitter_grid, emitter_radiance
+from radiosity.formats.emitters import EmitterPart, SpotProfile, emitter_grid, emitter_radiance
 from radiosity.formats.solution import ObjectSolution, Solution
 
 pytestmark = pytest.mark.gl
 
 RTOL, ATOL = 2e-3, 1e-5
-VIEW = Camera(eye=(0.4, 0.6, 3.2), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45.0, width=96, height=80)
+VIEW = Camera(eye=(0.4, 0.6, 3.2), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=45.0, width=96, height=80)
 EXPONENT = 60.0
 KS = np.array([0.5, 0.45, 0.4])
 
@@ -43,7 +43,17 @@ def parts():
     return (lamp, ball, own)
 
 
-def ball_model(rng, probe=True, highlight=True, lights=2, fresnel=None):
+def delta_parts():
+    """A point, a spot whose cone's edge and transition cross the ball, and a direction
+    (radiosity.formats.emitters' delta parts)."""
+    point = EmitterPart("point", [[1.2, 1.4, 1.8]], 0.0, [2.0, 1.5, 1.0], "bulb")
+    spot = EmitterPart("point", [[-0.8, 1.2, 2.6]], 0.0, [3.0, 3.0, 4.0], "torch",
+                       SpotProfile([0.924, -1.099, -1.649], 10.0, 6.0))
+    sun = EmitterPart("direction", [[-0.3, -1.0, -0.6]], 0.0, [0.8, 0.7, 0.5], "sun")
+    return (point, spot, sun)
+
+
+def ball_model(rng, probe=True, highlight=True, lights=2, fresnel=None, emitters=None):
     s = trimesh.creation.icosphere(subdivisions=3)
     positions = np.asarray(s.vertices, np.float32)
     normals = (positions / np.linalg.norm(positions, axis=1, keepdims=True)).astype(np.float32)
@@ -55,13 +65,13 @@ def ball_model(rng, probe=True, highlight=True, lights=2, fresnel=None):
     k = lights
     light_pos = np.array([[0.3, 0.8, 0.5, 0.0], [1.0, 1.5, 2.0, 1.0]][:k], np.float32)
     light_pos[:, :3][light_pos[:, 3] == 0] /= np.linalg.norm(light_pos[:, :3][light_pos[:, 3] == 0], axis=1, keepdims=True)
-    pp = parts()
+    pp = parts() if emitters is None else emitters
     obj = FittedObject(
         name="ball", positions=positions, normals=normals, faces=np.asarray(s.faces, np.int32),
         emitted=rng.uniform(0, 0.1, (v, 3)).astype(np.float32),
         specular=rng.uniform(0.1, 0.5, (v, k, 3)).astype(np.float32), light_pos=light_pos,
         light_rgb=np.ones((k, 3), np.float32), shininess=np.array([20.0, 150.0][:k], np.float32),
-        highlight=Highlight(pp, 8, KS, EXPONENT, rng.uniform(0.3, 1.0, (v, 3)).astype(np.float32), fresnel)
+        highlight=Highlight(pp, 8, KS, EXPONENT, rng.uniform(0.3, 1.0, (v, len(pp))).astype(np.float32), fresnel)
         if highlight else None,
         probe=Probe(texels, np.zeros(3), np.array([[-3.0, -1.0, -3.0], [3.0, 4.0, 4.0]]), albedo_table(EXPONENT))
         if probe else None,
@@ -137,6 +147,39 @@ def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl
     assert np.abs(rp.render(VIEW, "fitted", "pixel", parts=("emitters",)) - image).max() > 0.01
     r.release()
     rp.release()
+
+
+@pytest.mark.parametrize("fresnel", [None, (0.04, 0.3, 0.9)])
+def test_delta_parts_highlights_per_pixel_and_at_the_vertices_equal_the_formula(gl_context, rng, fresnel):
+    """A point, a spot and a direction: their highlights (the lobe at their one
+    direction, 1 / d^2 and the spot's profile for the point lights) on the GPU as in
+    radiosity.formats.emitters, per pixel and Gouraud; each shows on the ball, and the
+    spot's edge crosses it."""
+    pp = delta_parts()
+    model = ball_model(rng, probe=False, lights=1, fresnel=None if fresnel is None else np.array(fresnel), emitters=pp)
+    obj = model.objects[0]
+    r = Renderer(gl_context, fit=model, samples=1)
+    image = r.render(VIEW, "fitted", "pixel", parts=("emitters",))
+    expected, covered = expected_pixels(r, obj, VIEW, ("emitters",))
+    assert covered.sum() > 500 and expected.max() > 0.05
+    diff = np.abs(image[covered] - expected)
+    assert (diff <= RTOL * np.abs(expected) + ATOL).all(), diff.max()
+    w = np.asarray(VIEW.eye) - obj.positions.astype(np.float64)
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    assert np.allclose(r.vertex_colours(VIEW, "ball"), obj.shade(w), rtol=RTOL, atol=ATOL)
+    # not vacuous: each part lights some of the ball's pixels, and the spot's transition crosses its highlight
+    h = obj.highlight
+    alone = []
+    for i, part in enumerate(pp):
+        one = dataclasses.replace(obj, highlight=dataclasses.replace(h, parts=(part,), visibility=h.visibility[:, i:i + 1]))
+        alone.append(expected_pixels(r, one, VIEW, ("emitters",))[0] - expected_pixels(r, one, VIEW, ())[0])
+        assert (alone[-1].max(axis=1) > 1e-3).sum() > 20, part.source
+    unspotted = dataclasses.replace(pp[1], spot=None)
+    one = dataclasses.replace(obj, highlight=dataclasses.replace(h, parts=(unspotted,), visibility=h.visibility[:, 1:2]))
+    full = expected_pixels(r, one, VIEW, ("emitters",))[0] - expected_pixels(r, one, VIEW, ())[0]
+    partly = (alone[1] > 0.05 * full) & (alone[1] < 0.95 * full) & (full > 1e-3)
+    assert partly.all(axis=1).sum() > 10
+    r.release()
 
 
 def test_gouraud_vertex_colours_equal_the_formula_at_the_vertices(gl_context, rng):
@@ -217,7 +260,7 @@ def test_no_light_counted_twice_a_glossy_floor_under_a_square_lamp(gl_context, t
     sol = solve(scene, SolveOptions(photons=1_000_000, gather_samples=64, light_samples=4, grid=16, max_edge=0.05, seed=3))
     assert [p.source for p in sol.emitters] == ["lamp"]
     model = fit(sol, FitOptions(model="probe", probe_size=8))
-    view = Camera(eye=(0.0, 0.9, 1.4), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=40.0, width=64, height=64)
+    view = Camera(eye=(0.0, 0.9, 1.4), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=64, height=64)
     r = Renderer(gl_context, fit=model, solution=sol, samples=1)
     index, vertices, bary = r.render_triangles(view)
     floor_index = [o.name for o in r.objects].index("floor")

@@ -21,7 +21,7 @@ from radiosity.formats.texture import TexturedDiffuse, lookup
 pytestmark = pytest.mark.gl
 
 KD = (0.9, 0.7, 0.5)
-CAMERA = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=45, width=40, height=40)
+CAMERA = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=45, width=40, height=40)
 RTOL, ATOL = 2e-4, 1e-5
 
 
@@ -104,7 +104,7 @@ def test_an_untextured_object_beside_it_is_untouched(gl_context, texture):
     plain = ObjectSolution(name="plain", positions=o.positions * [2, 2, 1] + [0, 0, -0.5], normals=o.normals, tangents=o.tangents,
                            faces=o.faces, directions=o.directions, radiance=o.radiance * 0 + 0.3, material=o.material)
     both = Solution(objects=(o, plain), scene="test")
-    wide = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_deg=80, width=40, height=40)
+    wide = Camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=80, width=40, height=40)
     image = Renderer(gl_context, solution=both, samples=1).render(wide, mode="reference")
     d = wide.pixel_rays()
     p = np.asarray(wide.eye) + (-(wide.eye[2] + 0.5) / d[..., 2])[..., None] * d

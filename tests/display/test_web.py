@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from display_fixtures import lit_model
 from PIL import Image
-from test_export import glossy_model, rewrite_json
+from test_export import DELTA_LAMPS, LAMPS, glossy_model, rewrite_json
 from test_export_textures import KDS, textured_model
 
 from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
@@ -364,6 +364,57 @@ def test_mouse_look_and_orbit(browser, site):
     assert np.linalg.norm(orbited - target) == pytest.approx(np.linalg.norm(eye - target), rel=1e-4)
 
 
+# ------------------------------------------------------- the scene camera's fov along its axis
+
+AXIS_CAMERA = {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_deg": 24.0,
+               "fov_axis": "x", "width": 64, "height": 36}  # a Mitsuba-like sensor: fov along x of a 16:9 film
+
+
+@pytest.fixture(scope="module")
+def site_axis(tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny lit scene whose camera's fov is along x."""
+    from radiosity.formats import Camera
+
+    base = tmp_path_factory.mktemp("web-axis")
+    lit_model(True, np.random.default_rng(11), camera=Camera(**AXIS_CAMERA)).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+@needs_browser
+@pytest.mark.gl
+@pytest.mark.parametrize("size", [(160, 120), (90, 160)], ids=["wider", "taller"])
+def test_the_page_keeps_the_scene_fov_along_its_axis_as_render_does(browser, site_axis, tmp_path, size, gl_context):
+    from display.cli import main
+    from radiosity.formats.camera import fov_y_deg
+
+    fit, url = site_axis
+    page = open_page(browser, url, f"mode=fitted&exposure={EXPOSURE}", size=size)  # the start camera: the fit's
+    try:
+        got = screenshot(page)
+        fov = page.evaluate("window.vlights.walkthrough.camera.fov")
+    finally:
+        page.close()
+    assert fov == pytest.approx(fov_y_deg(24.0, "x", *size), rel=1e-9)
+    out = tmp_path / "render.png"  # the renderer's default camera: the fit's, at --size
+    assert main(["render", str(fit), "--shading", "pixel", "--mode", "fitted", "--exposure", str(EXPOSURE),
+                 "--size", f"{size[0]}x{size[1]}", "-o", str(out)]) == 0
+    want = np.asarray(Image.open(out).convert("RGB"), np.float64)
+    assert got.shape == want.shape == (size[1], size[0], 3)
+    diff = np.abs(got - want)
+    assert diff.mean() <= 2.0, diff.mean()
+    assert np.mean(diff.max(axis=2) > 16) < 0.02
+    assert np.mean(want.max(axis=2) > 10) > 0.3  # not vacuous: the scene is in the frame
+    page = open_page(browser, url, "fov=33", size=size)  # a fov in the URL is vertical
+    try:
+        assert page.evaluate("window.vlights.walkthrough.camera.fov") == 33
+    finally:
+        page.close()
+
+
 # ------------------------------------------------------------------ version 3: emitters, probes
 
 def assert_matches(got, want):
@@ -407,6 +458,48 @@ def test_version_3_page_equals_render(browser, site_v3, tmp_path, off, gl_contex
         for part in ("emitters", "probe", "lights"):
             without = rendered(tmp_path, fit, off=(part,))
             assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05, part
+
+
+@pytest.fixture(scope="module")
+def site_v5(tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene as a version 5 fit: a sphere
+    lamp and a panel, and a point light, a spot and a directional light (``DELTA_LAMPS``)."""
+    base = tmp_path_factory.mktemp("web-v5")
+    glossy_model(True, np.random.default_rng(9), lamps=LAMPS[:2] + DELTA_LAMPS).save(base / "fit.npz")
+    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    with start(base / "web") as server:
+        yield base / "fit.npz", server.url
+
+
+@needs_browser
+@pytest.mark.gl
+def test_version_5_delta_lights_page_equals_render(browser, site_v5, tmp_path, gl_context):
+    """A point light's, a spot's and a directional light's highlights on the page as
+    ``vlights render`` draws them; and they show (the emitters' highlights off, the
+    picture changes where they are)."""
+    fit, url = site_v5
+    page = open_page(browser, url, view_query())
+    try:
+        got = screenshot(page)
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit)
+    assert_matches(got, want)
+    import dataclasses
+
+    from fitting import load_fit
+
+    model = load_fit(fit)
+    assert [p.kind for p in model.emitters] == ["sphere", "polygon", "point", "point", "direction"]
+    # the same fit without its delta parts: they show on a good part of the picture
+    area = model.emitters[:2]
+    objects = tuple(dataclasses.replace(o, highlight=dataclasses.replace(
+        o.highlight, parts=area, visibility=o.highlight.visibility[:, :2])) for o in model.objects)
+    dataclasses.replace(model, objects=objects, emitters=area).save(tmp_path / "area.npz")
+    without = rendered(tmp_path, tmp_path / "area.npz")
+    assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05
 
 
 @needs_browser

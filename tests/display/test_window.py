@@ -204,3 +204,22 @@ def test_the_window_draws_sides_and_depth_right(x_display, tmp_path, scale):
         assert checked.mean() > 0.6, name
         diff = np.abs(got[..., :3].astype(int) - tonemap(want).astype(int)).max(axis=2)
         assert (diff[checked] <= 1).all(), (name, int((diff[checked] > 1).sum()))
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_the_window_keeps_the_scene_fov_along_its_axis_as_render_does(x_display, tmp_path):
+    # the scene camera's fov along x of a 16:9 film, the window 4:3: the window draws what render draws
+    from display_fixtures import lit_model
+
+    from display.cli import main
+    from radiosity.formats import Camera
+
+    camera = Camera((0.5, 0.25, -6.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 24.0, 64, 36, "x")
+    model_path = tmp_path / "fit.npz"
+    lit_model(True, np.random.default_rng(11), camera=camera).save(model_path)
+    shot = view(x_display, model_path, tmp_path, "axis").astype(np.float64)
+    assert main(["render", str(model_path), "--size", "160x120", "-o", str(tmp_path / "render.png")]) == 0
+    want = np.asarray(Image.open(tmp_path / "render.png").convert("RGB"), np.float64)
+    diff = np.abs(shot[40:] - want[40:])  # below the status line
+    assert diff.mean() <= 1.0 and np.mean(diff.max(axis=2) > 16) < 0.01, diff.mean()
+    assert np.mean(want[40:].max(axis=2) > 10) > 0.3  # not vacuous: the scene is in the frame

@@ -63,7 +63,7 @@ def refused(path, *words):
 
 
 def test_round_trip_keeps_everything(rng, tmp_path):
-    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_y_deg=50.0)
+    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_deg=50.0)
     m = model(rng, camera=camera)
     m.save(tmp_path / "fit.npz")
     back = load_fit(tmp_path / "fit.npz")
@@ -73,6 +73,18 @@ def test_round_trip_keeps_everything(rng, tmp_path):
     assert b.info == a.info and back.settings == m.settings and back.source == m.source and back.model == m.model
     assert back.camera.eye == camera.eye and back.camera.fov_y_deg == camera.fov_y_deg
     assert load_fit(rewrite(tmp_path / "fit.npz", meta=lambda d: d.pop("camera"))).camera is None
+
+
+def test_a_camera_along_x_keeps_its_axis(rng, tmp_path):
+    camera = Camera(eye=(1, 2, 3), look_at=(0, 0, 0), fov_deg=70.0, width=1280, height=720, fov_axis="x")
+    model(rng, camera=camera).save(tmp_path / "fit.npz")
+    back = load_fit(tmp_path / "fit.npz")
+    assert back.camera == camera and back.camera.sized(512, 512).fov_y_deg == pytest.approx(70.0, rel=1e-12)
+    with np.load(tmp_path / "fit.npz", allow_pickle=False) as npz:
+        record = json.loads(str(npz["meta"]))["camera"]
+    assert record["fov_y_deg"] == camera.fov_y_deg and record["fov_axis"] == "x" and record["film"] == [1280, 720]
+    bad = rewrite(tmp_path / "fit.npz", meta=lambda d: d["camera"].update(fov_axis="sideways"))
+    refused(bad, "meta 'camera'", "fov axis must be one of")
 
 
 def test_save_refuses_nan_in_meta_and_writes_nothing(rng, tmp_path):
@@ -106,7 +118,7 @@ META_CASES = {
     "zero objects": (_set("objects", {}), ["meta 'objects' is empty"]),
     "lights miscounted": (_set_info({"lights": 3}), [f"object {NAME!r}", "3 lights", "hold 2"]),
     "bad camera": (_set("camera", {"eye": [0, 0, 0]}), ["meta 'camera'", "look_at"]),
-    "wrong version": (_set("version", 5), ["version 5"]),
+    "wrong version": (_set("version", 6), ["version 6"]),
     "wrong format": (_set("format", "vlights.solution"), ["format 'vlights.solution'"]),
 }
 
@@ -203,3 +215,29 @@ def test_shade_refuses_shapes_that_do_not_fit(hundred, shape):
 def test_shade_refuses_a_single_vertex_index(hundred):
     with pytest.raises(ValueError, match="vertices"):
         shade(hundred, NAME, np.ones((1, 3)), vertices=3)
+
+
+def test_a_fit_with_delta_parts_is_version_5_and_an_older_one_holding_them_is_refused(rng, tmp_path):
+    """A point light's and a direction's highlights: the file is version 5 (the lowest
+    that holds them), reads back shading the same; said to be version 4, refused."""
+    import dataclasses
+
+    from fitting.model import Highlight
+    from radiosity.formats.emitters import EmitterPart, SpotProfile
+
+    lamps = (EmitterPart("point", [[0.0, 3.0, 0.0]], 0.0, [5.0, 4.0, 3.0], "torch", SpotProfile([0, -1, 0], 40, 30)),
+             EmitterPart("direction", [[0.2, -1.0, 0.1]], 0.0, [1.0, 1.0, 1.0], "sun"))
+    m = model(rng)
+    obj = m.object(NAME)
+    highlight = Highlight(lamps, 8, np.array([0.4, 0.4, 0.4]), 20.0, np.ones((len(obj.positions), 2), np.float32))
+    m = dataclasses.replace(m, objects=(dataclasses.replace(obj, highlight=highlight),), emitters=lamps)
+    assert m.version == 5 and model(rng).version == 3
+    m.save(tmp_path / "fit.npz")
+    back = load_fit(tmp_path / "fit.npz")
+    assert [p.to_dict() for p in back.emitters] == [p.to_dict() for p in lamps]
+    n = obj.normals.astype(np.float64)
+    toward = -lamps[1].points[0]
+    w = 2 * (n @ toward)[:, None] * n - toward  # each vertex seen where it mirrors the sun
+    assert np.array_equal(back.object(NAME).shade(w), m.object(NAME).shade(w))
+    assert np.abs(back.object(NAME).shade(w, parts=("emitters",)) - back.object(NAME).shade(w, parts=())).max() > 0.1
+    refused(rewrite(tmp_path / "fit.npz", meta=_set("version", 4)), "kind 'point' is not one of sphere, polygon")

@@ -37,6 +37,7 @@ from radiosity.scene.materials import (
     schlick,
 )
 from radiosity.transport.embree import occluded1
+from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.records import (
     T_ABSORBED,
     T_BACKFACE,
@@ -304,6 +305,11 @@ def shade_paths(tracing, sa, irradiance, block, depth, wave, samples, out):
                 (rt, rayhit), sa, (point, g, n, d), (exponent, ks, sa.materials[m]), _light_numbers(block.seed, item),
                 paths.values[k], samples.incoming[target],
             )  # fmt: skip
+        if len(sa.lights.kinds) > 0:
+            shadow += _glossy_delta_sample(
+                (rt, rayhit), sa, (point, g, n, d), (exponent, ks, sa.materials[m]),
+                rand(block.seed, STREAM_GATHER + 3, item, 0), paths.values[k], samples.incoming[target],
+            )  # fmt: skip
         nx, ny, nz = n
         tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
         wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
@@ -387,4 +393,38 @@ def _glossy_light_sample(tracing, sa, where, lobe, rnd, throughput, incoming):
             ks = (ks[0] * f[0], ks[1] * f[1], ks[2] * f[2])
         for c in range(3):
             incoming[c] += throughput[c] * (ks[c] * sa.materials[lm, EMISSION + c] * scale)
+    return 1
+
+
+@numba.njit(cache=True, inline="always")
+def _glossy_delta_sample(tracing, sa, where, lobe, u, throughput, incoming):
+    """The delta light's sample at a glossy hit where = (point, g, shading normal n,
+    arrival direction d): light j of ``sa.lights`` chosen by power with the uniform
+    number u, adding f_s cos I / d^2 (E for a direction) over the probability of the
+    choice to ``incoming`` (3,) when its shadow ray is clear; returns the shadow rays
+    traced (0 or 1)."""
+    rt, rayhit = tracing
+    point, g, n, d = where
+    exponent, ks, mat = lobe
+    lights = sa.lights
+    j = pick_light(lights.cdf, u)
+    origin = off_surface(point, g, sa.epsilon)
+    (dx, dy, dz), dist, le = arriving(lights, j, origin)
+    nx, ny, nz = n
+    cos_i = dx * nx + dy * ny + dz * nz
+    if not (dist > sa.epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0
+            and dx * g[0] + dy * g[1] + dz * g[2] > 0.0):
+        return 0
+    dn = d[0] * nx + d[1] * ny + d[2] * nz
+    cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+    value = phong_lobe(min(cos_alpha, 1.0), exponent) if cos_alpha > 0.0 else 0.0
+    if value <= 0.0:
+        return 0
+    if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist - sa.epsilon):
+        scale = (exponent + 2.0) / (2.0 * math.pi) * value * cos_i / lights.pick[j]
+        f = (1.0, 1.0, 1.0)
+        if mat[HAS_FRESNEL] > 0.0:
+            f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+        for c in range(3):
+            incoming[c] += throughput[c] * (ks[c] * f[c] * le[c] * scale)
     return 1

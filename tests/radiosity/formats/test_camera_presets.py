@@ -18,7 +18,7 @@ def test_camera_validates_once_for_every_source():
     bad = [
         dict(eye=(0, 0, 0), look_at=(0, 0, 0)),
         dict(eye=(0, 0, 1), look_at=(0, 0, 0), up=(0, 0, 1)),
-        dict(eye=(0, 0, 1), look_at=(0, 0, 0), fov_y_deg=180),
+        dict(eye=(0, 0, 1), look_at=(0, 0, 0), fov_deg=180),
         dict(eye=(0, 0, float("nan")), look_at=(0, 0, 0)),
         dict(eye=(0, 0, 1e300), look_at=(0, 0, 0)),
         dict(eye=(0, 0, 1), look_at=(0, 0, 0), width=0),

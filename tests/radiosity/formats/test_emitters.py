@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from radiosity.formats.emitters import (
+    AREA_KINDS,
     EmitterPart,
     PackedParts,
+    SpotProfile,
     emitter_grid,
     emitter_radiance,
     highlight_integral,
@@ -243,6 +245,118 @@ def test_parts_are_checked_and_read_back():
         ([{"kind": "sphere", "centre": [0, 0], "radius": 1, "radiance": [1, 1, 1]}], "triples"),
         ([{"kind": "polygon", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "radiance": [-1, 1, 1]}], "negative"),
         ("parts", "must be a list"),
+    ):
+        with pytest.raises(InputError, match=words):
+            parts_from_meta(bad, fail)
+
+
+# -- delta parts: a point (with a spot's profile) and a direction ---------------------------------
+
+
+def delta_reference(x, n, w, lobe, part, fresnel=None):
+    """f_s(wi, w) Le cos / d^2 (E cos for a direction) by numpy: the modified-Phong lobe
+    = (ks, p) about the mirror of w, ks weighted by Schlick's F(n . w); a spot's profile
+    by its angle from acos (float64). ``part``: (kind, its point or direction, Le,
+    None or (axis, cutoff, beam))."""
+    kind, where, le, spot = part
+    ks, p = lobe
+    if kind == "direction":
+        wi, scale = -unit(where), 1.0
+    else:
+        to = np.asarray(where, float) - x
+        d = np.linalg.norm(to)
+        wi, scale = to / d, 1 / d**2
+        if spot is not None:
+            axis, cutoff, beam = unit(spot[0]), spot[1], spot[2]
+            theta = math.degrees(math.acos(np.clip(-wi @ axis, -1, 1)))
+            scale *= 1.0 if theta <= beam else (max(cutoff - theta, 0.0) / (cutoff - beam))
+    r = 2 * (n @ w) * n - w
+    k = np.asarray(ks, float)
+    if fresnel is not None:
+        k = k * (np.asarray(fresnel) + (1 - np.asarray(fresnel)) * (1 - np.clip(n @ w, 0, 1)) ** 5)
+    return k * (p + 2) / (2 * np.pi) * max(wi @ r, 0) ** p * max(wi @ n, 0) * scale * np.asarray(le, float)
+
+
+@pytest.mark.parametrize("fresnel", [None, (0.04, 0.3, 0.9)])
+def test_delta_parts_highlights_against_numpy(fresnel):
+    """A point, a spot (inside its beam, across its transition, outside its cone) and a
+    direction: E at random points and views against the formula in numpy."""
+    rng = np.random.default_rng(3)
+    spot = ([0.2, -1.0, 0.1], 30.0, 18.0)
+    parts = [
+        EmitterPart("point", [[0.3, 1.2, -0.2]], 0.0, [3.0, 2.0, 1.0], "bulb"),
+        EmitterPart("point", [[-0.1, 1.5, 0.3]], 0.0, [5.0, 5.0, 2.0], "torch", SpotProfile(*spot)),
+        EmitterPart("direction", [[0.4, -1.0, 0.3]], 0.0, [1.0, 0.8, 0.5], "sun"),
+    ]
+    ks, p = np.array([0.6, 0.5, 0.4]), 25.0
+    x = np.column_stack([rng.uniform(-1, 1, 400), np.zeros(400), rng.uniform(-1, 1, 400)])
+    n = np.tile([0.0, 1.0, 0.0], (400, 1))
+    w = np.array([unit(v) for v in rng.normal(size=(400, 3)) * [1, 0.2, 1] + [0, 1.0, 0]])
+    got = emitter_radiance(parts, x, n, w, ks, p, fresnel=None if fresnel is None else np.array(fresnel))
+    described = [("point", parts[0].points[0], parts[0].radiance, None),
+                 ("point", parts[1].points[0], parts[1].radiance, spot),
+                 ("direction", parts[2].points[0], parts[2].radiance, None)]
+    want = np.array([sum(delta_reference(x[i], n[i], w[i], (ks, p), part, fresnel) for part in described)
+                     for i in range(400)])
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-300)
+    # the spot's three regions are all among the points
+    angles = np.degrees(np.arccos(np.clip(((x - parts[1].points[0]) / np.linalg.norm(x - parts[1].points[0], axis=1)[:, None])
+                                          @ unit(spot[0]), -1, 1)))
+    assert (angles < 18).sum() > 10 and ((angles > 18) & (angles < 30)).sum() > 10 and (angles > 30).sum() > 10
+    # visibility scales, a part's own object skips it, one part alone is its term alone
+    half = emitter_radiance(parts, x, n, w, ks, p, visibility=[0.5, 0.5, 0.5],
+                            fresnel=None if fresnel is None else np.array(fresnel))
+    np.testing.assert_allclose(half, 0.5 * got, rtol=1e-12)
+    alone = emitter_radiance(parts, x, n, w, ks, p, source="torch", fresnel=None if fresnel is None else np.array(fresnel))
+    assert np.abs(alone - got).max() > 0 and np.all(alone <= got + 1e-15)
+
+
+def test_delta_parts_are_exact_behind_below_and_at_the_light():
+    """Nothing from behind the surface or below the lobe's horizon; a point exactly at x
+    gives nothing (not a NaN); huge and tiny distances stay finite."""
+    n = np.array([[0.0, 0.0, 1.0]])
+    w = np.array([[0.0, 0.0, 1.0]])
+    below = EmitterPart("point", [[0.0, 0.0, -1.0]], 0.0, [1.0, 1.0, 1.0], "under")
+    at = EmitterPart("point", [[0.0, 0.0, 0.0]], 0.0, [1.0, 1.0, 1.0], "at")
+    up = EmitterPart("direction", [[0.0, 0.0, 1.0]], 0.0, [1.0, 1.0, 1.0], "from below")  # travels up: lights the back
+    e = emitter_radiance([below, at, up], [[0.0, 0.0, 0.0]], n, w, [0.5] * 3, 10.0)
+    assert np.all(e == 0)
+    for d in (1e-6, 1e6):
+        far = EmitterPart("point", [[0.0, 0.0, d]], 0.0, [1.0, 1.0, 1.0], "lamp")
+        e = emitter_radiance([far], [[0.0, 0.0, 0.0]], n, w, [0.5] * 3, 10.0)
+        assert e[0, 0] == pytest.approx(0.5 * 12 / (2 * np.pi) / d**2, rel=1e-12)
+
+
+def test_delta_parts_are_checked_and_read_back_in_the_versions_that_hold_them():
+    def fail(message):
+        return InputError(f"file: {message}")
+
+    spot = EmitterPart("point", [[1, 2, 3]], 0.0, [4, 5, 6], "torch", SpotProfile([0, 0, -2], 25, 10))
+    sun = EmitterPart("direction", [[0, -3, 4]], 0.0, [1, 1, 1], "sun")
+    assert sun.points[0].tolist() == [0, -0.6, 0.8]  # unit
+    assert spot.to_dict() == {"kind": "point", "source": "torch", "intensity": [4, 5, 6], "position": [1, 2, 3],
+                              "spot": {"axis": [0, 0, -1], "cutoff_deg": 25, "beam_deg": 10}}
+    assert sun.to_dict() == {"kind": "direction", "source": "sun", "irradiance": [1, 1, 1], "direction": [0, -0.6, 0.8]}
+    back = parts_from_meta([spot.to_dict(), sun.to_dict()], fail)
+    assert [b.to_dict() for b in back] == [spot.to_dict(), sun.to_dict()]
+    assert spot.power() == pytest.approx(np.array([4, 5, 6]) * spot.spot.solid_angle())
+    assert sun.power(2.0) == pytest.approx(np.pi * 4 * np.ones(3))
+    with pytest.raises(InputError, match="kind 'point' is not one of sphere, polygon"):
+        parts_from_meta([spot.to_dict()], fail, AREA_KINDS)
+    with pytest.raises(ValueError, match="beam width"):
+        SpotProfile([0, 0, 1], 10, 12)
+    with pytest.raises(ValueError, match="cutoff angle"):
+        SpotProfile([0, 0, 1], 0, 0)
+    with pytest.raises(ValueError, match="only a point light has a spot"):
+        EmitterPart("direction", [[0, 0, 1]], 0.0, [1, 1, 1], "x", SpotProfile([0, 0, 1], 10, 5))
+    for bad, words in (
+        ([{"kind": "point", "position": [0, 0, 0]}], "no 'intensity'"),
+        ([{"kind": "point", "position": [0, 0, 0], "intensity": [1, 1, 1], "spot": {"axis": [0, 0, 1]}}],
+         "no 'cutoff_deg'"),
+        ([{"kind": "point", "position": [0, 0, 0], "intensity": [1, 1, 1],
+           "spot": {"axis": [0, 0, 0], "cutoff_deg": 10, "beam_deg": 5}}], "axis"),
+        ([{"kind": "direction", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}], "must not be zero"),
+        ([{"kind": "direction", "direction": [0, 0, 1], "irradiance": [1, -1, 1]}], "negative irradiance"),
     ):
         with pytest.raises(InputError, match=words):
             parts_from_meta(bad, fail)

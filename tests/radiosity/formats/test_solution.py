@@ -8,6 +8,7 @@ InputError.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import zipfile
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 
 from radiosity.formats.atomic import atomic_output
+from radiosity.formats.camera import Camera
 from radiosity.formats.directions import DIFFUSE_DIRECTIONS, grid_directions
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import Material
@@ -180,6 +182,27 @@ def test_a_fresnel_material_round_trips_and_files_without_it_have_no_key(tmp_pat
     bad = dict(plastic, fresnel=[0.04, 0.04])
     with pytest.raises(ValueError, match="fresnel must be 3 numbers"):
         make_object("floor", 2, bad, 5)
+
+
+def test_a_camera_along_x_keeps_its_axis_and_its_film_s_vertical_fov(tmp_path, solution):
+    # a Mitsuba sensor's fov 70 along x on a 1280 x 720 film
+    camera = Camera((6.9, 1.65, 2.55), (6.0, 1.65, 2.12), (0.0, 1.0, 0.0), 70.0, 1280, 720, "x")
+    path = tmp_path / "camera.npz"
+    dataclasses.replace(solution, camera=camera).save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        meta = json.loads(str(npz["meta"]))
+    assert meta["version"] == 2  # optional keys: no new version (a version 2 reader reads the file)
+    assert meta["camera"]["fov_y_deg"] == pytest.approx(42.99566, abs=1e-5)  # what an older reader draws the film with
+    assert (meta["camera"]["fov_deg"], meta["camera"]["fov_axis"], meta["camera"]["film"]) == (70.0, "x", [1280, 720])
+    back = load_solution(path).camera
+    assert back == camera and back.sized(1024, 1024).fov_y_deg == pytest.approx(70.0, rel=1e-12)
+    for key in ("fov_deg", "fov_axis", "film"):  # a file without them reads as before: that vertical fov
+        del meta["camera"][key]
+    _, arrays = contents(solution)
+    old = load_solution(write_npz(tmp_path / "old.npz", meta, arrays)).camera
+    assert old.fov_axis == "y" and old.fov_deg == meta["camera"]["fov_y_deg"]
+    meta["camera"] |= {"fov_deg": 70.0, "fov_axis": "x", "film": [1280, 721]}
+    refused(write_npz(tmp_path / "bad.npz", meta, arrays), "meta 'camera'", "is not the vertical field of view")
 
 
 def test_names_with_a_slash_are_refused(tmp_path):
@@ -374,7 +397,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [4, "1", None, True])
+@pytest.mark.parametrize("version", [5, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version
@@ -454,3 +477,51 @@ def test_float64_file_is_read_as_the_contract_dtypes(tmp_path, solution):
     for o in loaded.objects:
         for key, dtype in DTYPES.items():
             assert getattr(o, key).dtype == dtype
+
+
+# ---------------------------------------------------------------------------
+# Version 4: delta lights
+# ---------------------------------------------------------------------------
+
+
+def with_delta_lights(solution: Solution) -> Solution:
+    """``solution`` lit by a spot and a sun, the spot drawn in closed form (a part)."""
+    import dataclasses
+
+    from radiosity.formats.emitters import EmitterPart, SpotProfile
+
+    spot = EmitterPart("point", [[0.5, 2.0, 0.5]], 0.0, [9.0, 8.0, 7.0], "torch", SpotProfile([0, -1, 0], 30, 20))
+    sun = EmitterPart("direction", [[0.3, -1.0, 0.2]], 0.0, [2.0, 2.0, 1.5], "sun")
+    objects = tuple(o if o.is_diffuse else dataclasses.replace(o, visibility=np.ones((o.num_vertices, 1), np.float32))
+                    for o in solution.objects)
+    return dataclasses.replace(solution, objects=objects, emitters=(spot,), lights=(spot, sun))
+
+
+def test_a_solution_with_delta_lights_is_version_4_and_reads_back(tmp_path, solution):
+    lit = with_delta_lights(solution)
+    assert lit.version == 4 and solution.version == 2  # written with the lowest version that holds it
+    lit.save(tmp_path / "s.npz")
+    back = load_solution(tmp_path / "s.npz")
+    meta = json.loads(str(np.load(tmp_path / "s.npz")["meta"]))
+    assert meta["version"] == 4 and meta["emitters"][0]["kind"] == "point" and meta["emitters"][0]["spot"]["cutoff_deg"] == 30
+    assert [p.to_dict() for p in back.lights] == [p.to_dict() for p in lit.lights] == meta["lights"]
+    assert [p.to_dict() for p in back.emitters] == [lit.lights[0].to_dict()]
+    # its highlights on the grid are the closed form's, as any part's
+    assert np.array_equal(back.highlights(GLOSSY_NAME), lit.highlights(GLOSSY_NAME))
+    solution.save(tmp_path / "plain.npz")
+    assert "lights" not in json.loads(str(np.load(tmp_path / "plain.npz")["meta"]))
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_an_older_file_holding_a_delta_part_is_refused(tmp_path, solution, version):
+    meta, arrays = contents(with_delta_lights(solution))
+    meta["version"] = version
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), "meta 'emitters' entry 0", "kind 'point' is not one of sphere, polygon")
+
+
+def test_a_bad_light_is_refused(tmp_path, solution):
+    meta, arrays = contents(with_delta_lights(solution))
+    meta["lights"][1]["direction"] = [0, 0, 0]
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), "meta 'lights' entry 1", "must not be zero")
+    meta["lights"] = [meta["lights"][0] | {"kind": "sphere", "centre": [0, 0, 0], "radius": 1.0}]
+    refused(write_npz(tmp_path / "t.npz", meta, arrays), "meta 'lights' entry 0: kind 'sphere' is not one of point, direction")

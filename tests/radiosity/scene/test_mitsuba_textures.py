@@ -12,16 +12,14 @@ own random colour), so a flipped, mirrored, rotated or shifted mapping fails.
 """
 
 import json
-import os
 import struct
-import subprocess
 import warnings
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from mitsuba_oracle import require_mitsuba, run_mitsuba
 from PIL import Image
 from scipy.spatial import cKDTree
 
@@ -31,13 +29,6 @@ from radiosity.scene.mitsuba import Tessellation, load_mitsuba
 from radiosity.scene.textures import as_repeating, lookup, srgb_to_linear, wrapped_lookup
 
 FINE = Tessellation(segments=512, sphere_levels=6)
-
-
-def _mitsuba_python():
-    for python in (os.environ.get("VLIGHTS_MITSUBA_PYTHON"), "/work/mitsuba-venv/bin/python"):
-        if python and Path(python).exists():
-            return python
-    return None
 
 
 def _image(shape=(5, 7), seed=3):
@@ -166,9 +157,7 @@ def _ours(obj, points):
 
 @pytest.fixture(scope="module")
 def oracle(tmp_path_factory):
-    python = _mitsuba_python()
-    if python is None:
-        pytest.skip("Mitsuba 3 is not installed (/work/mitsuba-venv or $VLIGHTS_MITSUBA_PYTHON)")
+    require_mitsuba()
     directory = tmp_path_factory.mktemp("mitsuba_textures")
     image = _image()
     Image.fromarray(image).save(directory / "t.png")
@@ -180,9 +169,7 @@ def oracle(tmp_path_factory):
         origins, targets = _rays(name, rng)
         cases[name] = (str(_scene_file(directory, name)), origins.tolist(), targets.tolist())
     (directory / "cases.json").write_text(json.dumps(cases))
-    run = subprocess.run([python, "-c", ORACLE, str(directory / "cases.json"), str(directory / "out.json")],
-                         capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr[-2000:]
+    run_mitsuba(ORACLE, directory / "cases.json", directory / "out.json")
     return directory, json.loads((directory / "out.json").read_text())
 
 

@@ -269,6 +269,23 @@ def load_scene_text(text, tmp_dir=None):
         return load_scene(path)
 
 
+def test_an_object_of_degenerate_triangles_alone_is_left_out_with_one_warning(tmp_path):
+    write(tmp_path / "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 0 0\nf 1 2 3\nf 1 2 4\n")
+    write(tmp_path / "good.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    objects = "".join(f'[[objects]]\nname = "{n}"\nmesh = "{n}.obj"\nmaterial = "m"\n' for n in ("flat", "good"))
+    scene_file = write(tmp_path / "s.toml", '[materials.m]\ndiffuse = 0.5\n' + objects)
+    with pytest.warns(SceneWarning) as caught:
+        scene = load_scene(scene_file)
+    messages = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+    assert messages == [f"object 'flat' ({tmp_path / 'flat.obj'}): all 2 triangle(s) are degenerate (zero area): "
+                        "the object is left out"]
+    assert [o.name for o in scene.objects] == ["good"]
+    only = write(tmp_path / "only.toml", '[materials.m]\ndiffuse = 0.5\n[[objects]]\nname = "flat"\n'
+                 'mesh = "flat.obj"\nmaterial = "m"\n')
+    with pytest.warns(SceneWarning), pytest.raises(InputError, match="every object's triangles are degenerate"):
+        load_scene(only)
+
+
 def test_degenerate_triangles_are_dropped_with_a_count(tmp_path):
     write(
         tmp_path / "bad.obj",

@@ -225,7 +225,25 @@ def test_the_wave_size_changes_only_the_rounding(teapot, wave):
 
 
 def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot):
-    scene, merged, sa, tracer, reference = teapot
+    gather_block_against_the_oracle(rng, *teapot)
+
+
+def test_a_gather_block_with_delta_lights_gives_the_same_bits_as_the_embreex_wavefront(rng):
+    """The delta lights' sample at the glossy hits (a point, a spot, a sun) too."""
+    from radiosity.formats.emitters import EmitterPart, SpotProfile
+
+    lights = (EmitterPart("point", [[278.0, 450.0, 280.0]], 0.0, [4e4, 3e4, 2e4], "bulb"),
+              EmitterPart("point", [[100.0, 500.0, 100.0]], 0.0, [9e4] * 3, "torch", SpotProfile([1, -2, 1], 35, 20)),
+              EmitterPart("direction", [[0.2, -1.0, 0.3]], 0.0, [1.0, 1.0, 1.0], "sun"))
+    scene = dataclasses.replace(load_scene("cornell-teapot").refined(150.0), lights=lights)
+    merged = scene.merged()
+    sa = solve.scene_arrays(scene, merged, origin_offset(merged.positions))
+    assert len(sa.lights.kinds) == 3
+    with RayTracer(merged.positions, merged.faces, threads=2) as tracer:
+        gather_block_against_the_oracle(rng, scene, merged, sa, tracer, EmbreexTracer(merged.positions, merged.faces))
+
+
+def gather_block_against_the_oracle(rng, scene, merged, sa, tracer, reference):
     index = [o.name for o in scene.objects].index("teapot")
     teapot_object = scene.objects[index]
     first = merged.vertex_offset[index]

@@ -8,7 +8,7 @@ import pytest
 
 from radiosity.scene.materials import Material
 from radiosity.scene.model import Scene, build_object
-from radiosity.transport.embree import MISS, RayTracer, origin_offset
+from radiosity.transport.embree import MISS, RayTracer, inside_triangle, origin_offset
 
 
 def tracer_for(positions, faces, threads=1):
@@ -235,3 +235,38 @@ def test_dropping_a_tracer_does_not_wait_for_its_threads():
     done = other._pool.submit(time.sleep, 0.3)
     other.close()
     assert done.done()
+
+
+# -- barycentrics inside the triangle ---------------------------------------------------
+
+
+def test_inside_triangle_moves_a_rounding_over_the_edge_back_and_leaves_the_inside_alone(rng):
+    f32 = np.float32
+    over = (f32(0.3), f32(np.nextafter(f32(0.7), f32(1))))  # u + v a float32 rounding above 1
+    assert float(over[0]) + float(over[1]) > 1.0
+    for u, v in [over, (f32(0.5), f32(0.5000001)), (f32(-1e-9), f32(0.4)), (f32(0.2), f32(-0.0)),
+                 (f32(1.0000001), f32(0.0)), (f32(0.99999994), f32(1e-7))]:
+        iu, iv = inside_triangle(u, v)
+        assert float(np.float32(iu)) == iu and float(np.float32(iv)) == iv  # float32 values
+        assert iu >= 0 and iv >= 0 and float(iu) + float(iv) <= 1.0
+        assert abs(float(iu) - max(float(u), 0.0)) < 1e-6 and abs(float(iv) - max(float(v), 0.0)) < 1e-6
+    inside = rng.random((2000, 2)).astype(np.float32) * f32(0.5)
+    for u, v in inside:
+        assert inside_triangle(u, v) == (u, v)
+
+
+def test_hits_along_a_shared_edge_weigh_no_corner_negatively(rng):
+    # rays at the diagonal of a quad (two triangles sharing it), slanted and far from the origin:
+    # Embree's rounded u and v can sum above 1 there; the interpolation weights w = 1 - u - v must not go negative
+    corners = np.array([[0, 0, 0], [1, 0, 0.3], [1, 1, 0.7], [0, 1, 0.4]], np.float64) * 7.3 + [101.7, -55.2, 13.1]
+    tracer = tracer_for(corners, [[0, 1, 2], [0, 2, 3]])
+    t = rng.random(20000)
+    on_edge = corners[0] + t[:, None] * (corners[2] - corners[0])
+    normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+    normal /= np.linalg.norm(normal)
+    origins = (on_edge + 3.0 * normal + rng.normal(scale=1e-6, size=on_edge.shape)).astype(np.float32)
+    hits = tracer.intersect(origins, np.broadcast_to(-normal, origins.shape).astype(np.float32))
+    hit = hits.triangle != MISS
+    assert hit.mean() > 0.99
+    u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+    assert (u >= 0).all() and (v >= 0).all() and (1.0 - u - v >= 0).all()

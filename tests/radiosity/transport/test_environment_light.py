@@ -92,7 +92,7 @@ def test_sphere_of_albedo_rho_under_constant_light(tmp_path):
     assert np.allclose(radiance.mean(), 1.2, rtol=0.015)
     assert np.abs(radiance / 1.2 - 1).max() < 0.3
     energy_closes(solution.stats)
-    camera = Camera(eye=(0, 0, 4), look_at=(0, 0, 0), up=(0, 1, 0), fov_y_deg=30, width=24, height=24)
+    camera = Camera(eye=(0, 0, 4), look_at=(0, 0, 0), up=(0, 1, 0), fov_deg=30, width=24, height=24)
     with PathTracer(scene, threads=2) as tracer:
         image = tracer.render(camera, 32, seed=2)
     on_sphere = np.zeros((24, 24), bool)
@@ -106,7 +106,7 @@ def test_path_tracer_quad_and_background(tmp_path):
     """kd L on the quad, within Monte Carlo error; and the background is the map (an
     asymmetric one: a pixel's mean over its area, from the numpy reference)."""
     scene = scene_from(tmp_path, QUAD.format(extra=""))
-    camera = Camera(eye=(0, 3, 0.001), look_at=(0, 0, 0), up=(0, 0, -1), fov_y_deg=12, width=12, height=12)
+    camera = Camera(eye=(0, 3, 0.001), look_at=(0, 0, 0), up=(0, 0, -1), fov_deg=12, width=12, height=12)
     with PathTracer(scene, threads=2) as tracer:
         image = tracer.render(camera, 64, seed=3)
     z = (image.radiance - KD * L) / np.maximum(image.standard_error, 1e-12)
@@ -117,7 +117,7 @@ def test_path_tracer_quad_and_background(tmp_path):
     env = Environment.from_image(sky, 2.0)
     np.save(tmp_path / "sky.npy", sky)
     scene = scene_from(tmp_path, QUAD.format(extra="").replace('radiance = [1.0, 2.0, 0.5]', 'image = "sky.npy"\nscale = 2'))
-    camera = Camera(eye=(0, -2, 0), look_at=(1, -2.5, 0.3), up=(0, 1, 0), fov_y_deg=90, width=8, height=6)
+    camera = Camera(eye=(0, -2, 0), look_at=(1, -2.5, 0.3), up=(0, 1, 0), fov_deg=90, width=8, height=6)
     with PathTracer(scene, threads=2) as tracer:
         image = tracer.render(camera, 64, seed=5)
     # the numpy reference: each pixel's mean of the map over its area (a fine grid of points)
@@ -181,7 +181,7 @@ def test_path_tracer_mis_glossy_quad_under_a_sun(tmp_path):
     """)
     env = scene.environment
     eye = np.array([0.0, 40.0, 60.0])
-    camera = Camera(eye=tuple(eye), look_at=(0, 0, 0), up=(0, 1, 0), fov_y_deg=0.5, width=4, height=4)
+    camera = Camera(eye=tuple(eye), look_at=(0, 0, 0), up=(0, 1, 0), fov_deg=0.5, width=4, height=4)
     wo = eye / np.linalg.norm(eye)
     expected = reflected(env, 0.3, 0.6, 300.0, np.array([0.0, 1.0, 0.0]), wo)
     with PathTracer(scene, threads=2) as tracer:

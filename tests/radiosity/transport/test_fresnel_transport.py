@@ -103,7 +103,7 @@ def test_fresnel_quad_in_an_emitting_enclosure_shows_its_true_albedo(tmp_path, e
     glossy = Material("glossy", diffuse=(kd, 0.5 * kd, 0.2), specular=(1.0,) * 3, exponent=exponent,
                       fresnel=(F0, F0, 0.5))
     scene = with_material(scene, "glossy", glossy)
-    camera = Camera((0, 0.6, -1.0), (0, 0, 0.6), fov_y_deg=80, width=16, height=16)
+    camera = Camera((0, 0.6, -1.0), (0, 0, 0.6), fov_deg=80, width=16, height=16)
     with PathTracer(scene) as tracer:
         image = tracer.render(camera, 256, seed=3)
     right, up, forward = camera.basis
@@ -169,7 +169,7 @@ def test_solver_and_path_tracer_agree_on_a_grazing_glossy_floor(tmp_path):
             frame = np.stack([obj.tangents[vert], obj.bitangents[vert], obj.normals[vert]]).astype(float)
             w = obj.directions[d].astype(float) @ frame  # world direction towards the viewer
             p = obj.positions[vert].astype(float)
-            camera = Camera(tuple(p + 0.3 * w), tuple(p), fov_y_deg=0.05, width=1, height=1)
+            camera = Camera(tuple(p + 0.3 * w), tuple(p), fov_deg=0.05, width=1, height=1)
             image = tracer.render(camera, 4096, seed=10 + k)
             solver.append(obj.radiance[vert, d])
             traced.append(image.radiance[0, 0])

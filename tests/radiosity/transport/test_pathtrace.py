@@ -59,7 +59,7 @@ def test_lambert_furnace_is_le_over_one_minus_rho(tmp_path):
         material = "wall"
         """,
     )
-    camera = Camera((0, 0, 0), (0, 0, 1), fov_y_deg=90, width=16, height=16)
+    camera = Camera((0, 0, 0), (0, 0, 1), fov_deg=90, width=16, height=16)
     image = render(scene, camera, 1024)  # paths of geometric length: their spread needs many samples to be known
     expected = np.full(image.radiance.shape, 1.0 / (1.0 - 0.5))
     assert_within_monte_carlo_error(image, expected, np.ones(image.radiance.shape[:2], bool))
@@ -108,7 +108,7 @@ def test_glossy_quad_in_an_emitting_enclosure_shows_its_true_albedo(tmp_path, ex
     """A convex surface lit by uniform radiance 1 from every direction reflects its
     directional albedo rho(theta_o), which falls towards grazing for the specular lobe."""
     scene = scene_from(tmp_path, ENCLOSED_QUAD.format(exponent=exponent))
-    camera = Camera((0, 0.6, -1.0), (0, 0, 0.6), fov_y_deg=80, width=24, height=24)
+    camera = Camera((0, 0.6, -1.0), (0, 0, 0.6), fov_deg=80, width=24, height=24)
     image = render(scene, camera, 256)
     points, d, s = plane_hits(camera, sub=8)  # the box filter: 64 points of each pixel
     on_quad = (np.abs(points[..., 0]) < 2) & (np.abs(points[..., 2]) < 2) & (s > 0)
@@ -133,7 +133,7 @@ def test_glossy_quad_in_an_emitting_enclosure_shows_its_true_albedo(tmp_path, ex
 
 def test_square_light_over_a_plane_gives_the_closed_form_irradiance(tmp_path):
     scene = scene_from(tmp_path, SQUARE_LIGHT)
-    camera = Camera((0, 0.3, -0.7), (0, 0, 0.05), fov_y_deg=60, width=32, height=32)
+    camera = Camera((0, 0.3, -0.7), (0, 0, 0.05), fov_deg=60, width=32, height=32)
     image = render(scene, camera, 256, seed=4)
     points, _, s = plane_hits(camera, sub=4)  # the box filter: 16 points of each pixel
     on_floor = (np.abs(points[..., 0]) < 0.5) & (np.abs(points[..., 2]) < 0.5) & (s > 0)
@@ -178,7 +178,7 @@ def test_four_times_the_samples_halve_the_error():
     # the diffuse box, the light out of view: no caustics or light-edge pixels, whose
     # heavy-tailed samples make an RMS over a few hundred pixels a noisy measure
     scene = load_scene("cornell")
-    camera = Camera(scene.camera.eye, (278, 0, 0), fov_y_deg=39.3, width=24, height=24)
+    camera = Camera(scene.camera.eye, (278, 0, 0), fov_deg=39.3, width=24, height=24)
     with PathTracer(scene) as tracer:
         reference = tracer.render(camera, 1024, seed=1).radiance.astype(np.float64)
         rms = [
@@ -197,9 +197,9 @@ def test_scene_scale_does_not_change_the_image(tmp_path, scale):
     text = text.replace("scale = 0.5", f"scale = {0.5 * scale}").replace(
         "translate = [0.1, 0.4, 0.05]", f"translate = [{0.1 * scale}, {0.4 * scale}, {0.05 * scale}]"
     )
-    camera = Camera((0, 0.22, -1.2), (0, 0, 0), fov_y_deg=45, width=16, height=16)
+    camera = Camera((0, 0.22, -1.2), (0, 0, 0), fov_deg=45, width=16, height=16)
     base = render(scene_from(tmp_path, SQUARE_LIGHT), camera, 16, seed=3).radiance
-    scaled_camera = Camera((0, 0.22 * scale, -1.2 * scale), (0, 0, 0), fov_y_deg=45, width=16, height=16)
+    scaled_camera = Camera((0, 0.22 * scale, -1.2 * scale), (0, 0, 0), fov_deg=45, width=16, height=16)
     scaled = render(scene_from(tmp_path, text), scaled_camera, 16, seed=3).radiance
     assert np.isfinite(scaled).all()
     assert abs(scaled.sum() / base.sum() - 1) < 0.01
@@ -207,7 +207,7 @@ def test_scene_scale_does_not_change_the_image(tmp_path, scale):
 
 def test_bright_lights_and_a_single_sample_stay_finite(tmp_path):
     scene = scene_from(tmp_path, SQUARE_LIGHT.replace("emission = 1.0", "emission = 1e8"))
-    camera = Camera((0, 0.22, -1.2), (0, 0, 0), fov_y_deg=45, width=6, height=5)
+    camera = Camera((0, 0.22, -1.2), (0, 0, 0), fov_deg=45, width=6, height=5)
     image = render(scene, camera, 1)
     assert image.radiance.shape == (5, 6, 3)
     assert np.isfinite(image.radiance).all() and image.radiance.max() > 1e6

@@ -38,7 +38,7 @@ ENCLOSED_TEXTURED_QUAD = """
     material = "picture"
 """
 
-CAMERA = Camera((0, 3.0, -0.01), (0, 0, 0), up=(0, 0, -1), fov_y_deg=70, width=32, height=32)
+CAMERA = Camera((0, 3.0, -0.01), (0, 0, 0), up=(0, 0, -1), fov_deg=70, width=32, height=32)
 
 
 def write_png(path, rgb8):
@@ -102,7 +102,7 @@ def test_a_texture_that_changes_nothing_changes_no_bit(tmp_path, value):
     plain = scene_from(tmp_path, ENCLOSED_TEXTURED_QUAD.replace("scale = 20", "scale = 5").replace(
         'diffuse = [0.9, 0.8, 0.7]\n    diffuse_texture = "t.png"', f"diffuse = [{kd}]"))
     assert plain.object("quad").texture is None and textured.object("quad").texture is not None
-    camera = Camera((0, 1.5, -2.5), (0, 0, 0), fov_y_deg=60, width=16, height=12)
+    camera = Camera((0, 1.5, -2.5), (0, 0, 0), fov_deg=60, width=16, height=12)
     one, two = render(textured, camera, 8, seed=3), render(plain, camera, 8, seed=3)
     assert np.array_equal(one.radiance, two.radiance)
     assert np.array_equal(one.standard_error, two.standard_error)
@@ -142,7 +142,7 @@ def test_a_texture_lights_its_surroundings_with_its_colour(tmp_path):
     """)
     (tmp_path / "s.toml").write_text(text)
     scene = load_scene(tmp_path / "s.toml")
-    camera = Camera((0, 2.05, -2.5), (0, 2.05, 1), fov_y_deg=10, width=16, height=16)
+    camera = Camera((0, 2.05, -2.5), (0, 2.05, 1), fov_deg=10, width=16, height=16)
     image = render(scene, camera, 64)
     wall = image.radiance.reshape(-1, 3).mean(axis=0)  # the wall above the lamp sees the lamp's back only
     assert wall[0] > 0.002 and wall[1] == 0 and wall[2] == 0  # only the floor's red reaches it
