@@ -196,7 +196,7 @@ def truth_numbers(truth, images, exposure, mask):
 REFERENCE_DIR = "reference"  # compare --reference's files, inside --out
 REFERENCE_STEMS = {"reference": "reference_display", "fitted": "fitted_display", "diffuse": "diffuse_display",
                    "path_tracer": "path_tracer"}
-_REFERENCE_LABELS = {"reference": "reference display (solution)", "fitted": "fitted display",
+DISPLAY_LABELS = {"reference": "solution display", "fitted": "fitted display",
                      "diffuse": "diffuse display", "path_tracer": "path tracer"}
 
 
@@ -262,7 +262,7 @@ def _against_reference(reference, images, exposure, mask, stage):
         write_npy(stem.with_suffix(".npy"), np.asarray(image, np.float32))
         write_png(folder / f"{REFERENCE_STEMS[mode]}_flip.png", error)
         _panel_row([shown, tonemap(image, exposure), error],
-                   ["reference image", _REFERENCE_LABELS[mode],
+                   ["reference image", DISPLAY_LABELS[mode],
                     f"FLIP {measured['flip_mean']:.3f}, ratio {measured['mean_ratio']:.3f}"],
                    stem.with_suffix(".png"), errors=(2,))
     return numbers
@@ -323,7 +323,7 @@ def compare(renderer, out_dir, base_view, exposure=1.0, shading="pixel", views=N
             numbers, error = metrics(reference, fitted, exposure, mask)
             results["figure5"][f"view{i + 1}"] = numbers | {"eye": list(view.eye)}
             panels = [tonemap(reference, exposure), tonemap(fitted, exposure), error]
-            labels = ["reference (solution)", _fitted_words(renderer),
+            labels = ["solution display", _fitted_words(renderer),
                       f"FLIP error (0 = identical), mean {numbers['flip_mean']:.3f}"]
             errors = (2,)
             if truth is not None:

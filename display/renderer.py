@@ -71,6 +71,10 @@ from .glsl import emitter_table, stage
 from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_memory, context_limits, store_layout
 
 MODES = ("fitted", "diffuse", "reference")
+# each mode's name as users type and read it: the solution drawn directly is the "solution display" (its id,
+# here and in compare.json, is its first name, "reference", which --mode still reads)
+MODE_WORDS = {"fitted": "fitted", "reference": "solution", "diffuse": "diffuse"}
+MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "reference"}
 SHADINGS = ("gouraud", "pixel")
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
@@ -700,14 +704,15 @@ class Renderer:
         with the renderer). ``samples`` per pixel (None: the renderer's). With ``mask`` (a
         set of object names) every object is drawn flat: 1 for those named, 0 for the others.
         ``parts``: the parts of the model drawn (of ``PARTS``: "lights", "probe", "emitters";
-        the reference display has the emitters' highlights only)."""
+        the solution display has the emitters' highlights only)."""
         unknown = set(parts) - set(PARTS)
         if unknown:
             raise InputError(f"unknown part {sorted(unknown)[0]!r} of the model; the parts are {', '.join(PARTS)}")
         if "lights" not in parts:
             lights = 0
         if mode not in self.modes:
-            raise InputError(f"mode {mode!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; this input has {', '.join(self.modes)}")
+            raise InputError(f"mode {MODE_WORDS.get(mode, mode)!r} needs {'a solution' if mode == 'reference' else 'a fitted model'}; "
+                             f"this input has {', '.join(MODE_WORDS[m] for m in self.modes)}")
         if shading not in SHADINGS:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx

@@ -7,7 +7,7 @@ display/shaders/tonemap.glsl, the tone map the web page uses too). moderngl-wind
 KeyboardCamera does the walking (WASD, Q/E down/up, mouse-look while the left button
 is held). Keys:
 
-    M  cycle mode (fitted, diffuse, reference)     G  Gouraud / per-pixel shading
+    M  cycle mode (fitted, diffuse, solution)     G  Gouraud / per-pixel shading
     L  2 lights / all lights (the paper's figure 6)   + / -  exposure x 2 / x 0.5
     1  the emitters' highlights on / off          2  the reflection probe on / off
     3  the virtual lights on / off                P  screenshot (PNG, tone-mapped)
@@ -37,7 +37,7 @@ from radiosity.formats import Camera, InputError
 from radiosity.formats.camera import fov_y_deg
 
 from .gl import DEFAULT_SAMPLES
-from .renderer import PARTS, Renderer
+from .renderer import MODE_WORDS, PARTS, Renderer
 
 with warnings.catch_warnings():  # moderngl-window imports PyGLM by its old name, which warns
     warnings.simplefilter("ignore", PendingDeprecationWarning)
@@ -126,7 +126,7 @@ class Walkthrough(mglw.WindowConfig):
         self.wnd.use()
         self.renderer.show(fbo, self.exposure)  # exposure and sRGB: tonemap.glsl
         off = [p for p in PARTS if p not in self.parts]
-        self.text.text = (f"{self.mode} | {self.shading} | lights {'all' if self.all_lights else 2} | "
+        self.text.text = (f"{MODE_WORDS[self.mode]} | {self.shading} | lights {'all' if self.all_lights else 2} | "
                           + (f"off: {', '.join(off)} | " if off else "")
                           + f"exposure {self.exposure:g} | {self.renderer.samples} spp | {self.last_frame_ms:.1f} ms")
         self.text.draw((10, self.wnd.buffer_size[1] - 24), size=14)

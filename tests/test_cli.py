@@ -223,6 +223,11 @@ def test_render_writes_hdr_and_png(small_solution, small_fit, tmp_path, capsys, 
     views.write_text('{"side": {"eye": [50, 300, -300], "look_at": [278, 200, 280], "fov_y_deg": 50}}')
     assert main(["render", str(small_fit), "--solution", str(small_solution), "--mode", "reference",
                  "--views", str(views), "--view", "side", "--hdr", str(ref), "--size", "32x32"]) == 0
+    # the solution display by its name, and by its first name ("reference"): the same picture
+    named = tmp_path / "n.npy"
+    assert main(["render", str(small_fit), "--solution", str(small_solution), "--mode", "solution",
+                 "--views", str(views), "--view", "side", "--hdr", str(named), "--size", "32x32"]) == 0
+    assert np.array_equal(np.load(named), np.load(ref))
 
 
 @pytest.mark.parametrize(
@@ -230,6 +235,8 @@ def test_render_writes_hdr_and_png(small_solution, small_fit, tmp_path, capsys, 
     [
         (["--size", "10by10"], "WIDTHxHEIGHT"),
         (["--mode", "reference"], "needs a solution"),
+        (["--mode", "solution"], "needs a solution"),
+        (["--mode", "truth"], "'truth' is not a display: choose fitted, solution or diffuse"),
         (["--view", "x"], "--views"),
         (["--exposure", "0"], "--exposure"),
         (["-o", "x.jpg"], ".png"),

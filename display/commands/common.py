@@ -21,6 +21,15 @@ FIT, SOLUTION = "vlights.fit", "vlights.solution"
 _FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
 
 
+
+def display_mode(name):
+    """argparse's type of --mode: a display's name (``display.renderer.MODE_NAMES``) -> its id."""
+    from display.renderer import MODE_NAMES
+
+    if name not in MODE_NAMES:
+        raise argparse.ArgumentTypeError(f"{name!r} is not a display: choose fitted, solution or diffuse")
+    return MODE_NAMES[name]
+
 def size(text):
     """The argparse type of --size: "WIDTHxHEIGHT" -> (width, height), at least 1x1."""
     try:

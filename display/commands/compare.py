@@ -181,6 +181,8 @@ def _row(m):
 
 def print_results(results, samples, out):
     """The table of compare.json's numbers, on stdout."""
+    from display.compare import DISPLAY_LABELS
+
     print(f"wrote figures 5, 6, 7 and compare.json to {out}/ ({samples} samples per pixel)")
     print(f"  {'':<32} {'whole image':^28} {'glossy objects only':^28}")
     print(f"  {'':<32} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10} {'FLIP':>8} {'PSNR dB':>8} {'rel.MSE':>10}")
@@ -196,18 +198,20 @@ def print_results(results, samples, out):
         source = f"{t['spp']} spp" if t["spp"] else "from a file"
         print(f"  against the path-traced truth, {name.replace('view', 'view ')} ({source}{noise}):")
         for mode in ("reference", "fitted", "diffuse"):
-            print(f"    {mode + ' display':<30} {_row(t[mode])}")
+            print(f"    {DISPLAY_LABELS[mode]:<30} {_row(t[mode])}")
     if "reference_image" in results:
         print_reference(results["reference_image"], out)
 
 
 def print_reference(numbers, out):
     """The table of compare.json's "reference_image", on stdout."""
+    from display.compare import DISPLAY_LABELS
+
     shrunk = f", box-averaged by {numbers['downsampled_by']}" if numbers["downsampled_by"] > 1 else ""
     print(f"  against the reference image {numbers['file']} ({numbers['width']}x{numbers['height']}{shrunk}); "
           f"renders and FLIP images in {out}/reference/:")
     print(f"    {'':<30} {'FLIP':>8} {'rel.MSE':>10} {'mean ratio':>11}")
     for mode, m in numbers["displays"].items():
-        label = {"path_tracer": f"path tracer ({m.get('spp')} spp)"}.get(mode, f"{mode} display")
+        label = f"path tracer ({m.get('spp')} spp)" if mode == "path_tracer" else DISPLAY_LABELS[mode]
         noise = "" if m.get("noise_flip") is None else f"   (its noise floor: FLIP {m['noise_flip']:.4f})"
         print(f"    {label:<30} {m['flip_mean']:>8.4f} {m['relative_mse']:>10.4g} {m['mean_ratio']:>11.4f}{noise}")

@@ -10,7 +10,7 @@ from fitting.model import PARTS
 from radiosity.formats import InputError
 from radiosity.formats.limits import check_exposure
 
-from .common import add_camera_flags, add_samples_flag, check_output_file, rendering
+from .common import add_camera_flags, add_samples_flag, check_output_file, display_mode, rendering
 
 __all__ = ["add_command", "run"]
 
@@ -19,17 +19,17 @@ def add_command(subparsers):
     p = subparsers.add_parser(
         "render",
         help="a picture (or a video) of a fitted model or a solution",
-        description="Draw fit.npz (modes fitted, diffuse) and/or solution.npz (modes reference, diffuse) "
+        description="Draw fit.npz (modes fitted, diffuse) and/or solution.npz (modes solution, diffuse) "
         "from a camera, headless (EGL): by default the scene's camera, else a view framing the scene. --hdr "
         "writes linear radiance (H, W, 3) float32, row 0 at the top, where no object is the scene's "
         "environment or 0; -o writes the tone-mapped picture (exposure, then sRGB).",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (--mode reference) next to a fit.npz")
-    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
-                   help="fitted: the fitted model, what the walkthrough shows; reference: the solution display, the "
-                   "solution drawn directly; diffuse: a diffuse walkthrough (default: fitted for a fit.npz, reference "
-                   "for a solution.npz)")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (--mode solution) next to a fit.npz")
+    p.add_argument("--mode", type=display_mode, metavar="{fitted,solution,diffuse}",
+                   help="fitted: the fitted model, what the walkthrough shows; solution: the solution display, the "
+                   "solution drawn directly ('reference', its first name, is read too); diffuse: a diffuse "
+                   "walkthrough (default: fitted for a fit.npz, solution for a solution.npz)")
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel",
                    help="gouraud: per vertex, as in 1997; pixel: per pixel (default: %(default)s)")
     add_camera_flags(p, (800, 800))

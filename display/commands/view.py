@@ -14,6 +14,7 @@ from .common import (
     add_samples_flag,
     check_model_files,
     check_output_file,
+    display_mode,
     read_model_files,
     resolve_view,
 )
@@ -30,11 +31,11 @@ def add_command(subparsers):
         "virtual lights off and on, +/- exposure, P screenshot, ESC quit.",
     )
     p.add_argument("file", help="fit.npz or solution.npz")
-    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (mode reference) next to a fit.npz")
-    p.add_argument("--mode", choices=("fitted", "reference", "diffuse"),
-                   help="the display to start with (M cycles them): fitted, the fitted model; reference, the solution "
-                   "display (the solution drawn directly); diffuse, a diffuse walkthrough (default: fitted for a "
-                   "fit.npz, diffuse for a solution.npz)")
+    p.add_argument("--solution", metavar="FILE", help="also a solution.npz, for the solution display (mode solution) next to a fit.npz")
+    p.add_argument("--mode", type=display_mode, metavar="{fitted,solution,diffuse}",
+                   help="the display to start with (M cycles them): fitted, the fitted model; solution, the solution "
+                   "display (the solution drawn directly; 'reference', its first name, is read too); diffuse, a "
+                   "diffuse walkthrough (default: fitted for a fit.npz, diffuse for a solution.npz)")
     add_camera_flags(p, (1280, 720))
     p.add_argument("--exposure", type=float, default=1.0, help="multiplies radiance before sRGB (default: %(default)s)")
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames and close (scripted runs)")
