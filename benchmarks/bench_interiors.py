@@ -89,6 +89,7 @@ def displays_of(compare_json):
     found = compare_json["reference_image"]["displays"]
     named = {"reference": "solution"}
     return {named.get(k, k): {"flip": v["flip_mean"], "mean_ratio": v["mean_ratio"],
+                              **({"flip_glossy": v["flip_mean_glossy"]} if "flip_mean_glossy" in v else {}),
                               **({"spp": v["spp"], "noise_flip": v.get("noise_flip")} if "spp" in v else {})}
             for k, v in found.items()}
 

@@ -450,6 +450,51 @@ def mitsuba(rows):
     return out + [""]
 
 
+def interiors(rows):
+    out = ["## The field's interiors", "", where("bench_interiors.py", ["interiors.jsonl", "interiors.png",
+                                                                       "interiors_<scene>.png"]), machine(rows), ""]
+    summaries = [r for r in rows if r.get("summary")]
+    steps = [r for r in rows if "step" in r and r["step"] != "mitsuba reference"]
+    if summaries:
+        r0 = next((r for r in summaries if "displays" in r), summaries[0])
+        out += [f"Each scene from its own XML at {r0.get('quality', 'draft')}; every display and the path tracer "
+                f"({r0.get('truth_spp')} spp) against the scene's published render (or Mitsuba 3's, where the copy "
+                "has none), FLIP and mean ratio (display / image). Targets: the path tracer's mean within 5 %, the "
+                "fitted display's FLIP at most 1.2 x the path tracer's, every step within 8 GB.", ""]
+        cell = lambda d: f"{num(d['flip'])} ({num(d['mean_ratio'], 3)})"  # noqa: E731
+        out += table(["scene", "against", "path tracer", "solution", "fitted", "diffuse", "fitted / path tracer",
+                      "largest step (GB)"],
+                     [[r["scene"], r["reference"], *(cell(r["displays"][k]) for k in ("path_tracer", "solution",
+                                                                                        "fitted", "diffuse")),
+                       num(r["fitted_over_path_tracer"], 2), num(max(r["peak_mb"].values()) / 1024, 2)]
+                      if "displays" in r else [r["scene"], r["reference"], f"stopped at {r['stopped_at']}", "", "", "",
+                                               "", ""]
+                      for r in summaries])
+        out += [""]
+    if steps:
+        names = list(dict.fromkeys(r["scene"] for r in steps))
+        order = [s for s in ("scene-info", "solve", "fit", "render", "export", "compare")]
+        by = {(r["scene"], r["step"]): r for r in steps}
+        out += ["Each step's seconds and peak memory (GB; the process tree's, a fit's workers included), exit "
+                "status where it failed:", ""]
+        out += table(["scene", *order],
+                     [[n, *(("" if (n, s) not in by else
+                             f"{num(by[n, s]['seconds'], 1)} s, {num(max(by[n, s]['peak_mb'], by[n, s]['tree_mb']) / 1024, 2)}"
+                             + (f", exit {by[n, s]['exit']}" if by[n, s]["exit"] else "")) for s in order)]
+                      for n in names])
+        out += [""]
+    incomplete = [r for r in rows if r.get("incomplete")]
+    if incomplete:
+        out += ["The copies that lack files: the refusal's one line names the missing file; with the elements that "
+                "name missing files left out of a copy of the XML, scene-info on the rest.", ""]
+        out += table(["scene", "missing files", "refusal names one", "left out", "the rest: exit, s, GB"],
+                     [[r["scene"], len(r["missing"]), "yes" if r["refusal_names_file"] else "no", r["left_out"],
+                       f"{r['rest_exit']}, {num(r['rest_seconds'], 1)}, {num(r['rest_peak_mb'] / 1024, 2)}"]
+                      for r in incomplete])
+        out += [""]
+    return out
+
+
 def load(rows):
     out = ["## Loading scenes", "", where("bench_load.py", ["load.jsonl"]), machine(rows), "",
            "A generated Mitsuba XML scene (OBJ, PLY and serialized meshes, tessellated spheres, transforms, bsdfs) "
@@ -546,6 +591,7 @@ SECTIONS = (
     ("scale_medium.jsonl", scale_medium),
     ("scale_dask.jsonl", scale_dask),
     ("walkthrough.jsonl", walkthrough),
+    ("interiors.jsonl", interiors),
 )
 
 
