@@ -464,12 +464,10 @@ def _pick(fits, target):
 
 def _choose(fits, target, tried, full, floor=None, reason="", unfloored=None):
     """Error per stored float (``_pick``), among the ``fits`` no worse than the diffuse
-    walkthrough (``floor``: the "diffuse" candidate, always eligible); the kept one says
-    why (``Components.why``), and whether the floor changed the choice: what would be
-    kept without it (``_pick`` of ``unfloored``, default ``fits``)."""
-    eligible = [f for f in fits if not _above(f, floor)]
-    if floor is not None and not any(f is floor for f in eligible):
-        eligible.append(floor)
+    walkthrough (``floor``: the "diffuse" candidate, kept when no fit is eligible); the
+    kept one says why (``Components.why``), and whether the floor changed the choice:
+    what would be kept without it (``_pick`` of ``unfloored``, default ``fits``)."""
+    eligible = [f for f in fits if not _above(f, floor)] or [floor]
     chosen, best = _pick(eligible, target)
     without, _ = _pick(fits if unfloored is None else unfloored, target)
     return _with_tried(chosen, tried, full, _why(chosen, without, (target, best), floor, tried, reason))

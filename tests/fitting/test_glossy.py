@@ -227,3 +227,40 @@ def test_the_living_rooms_noisy_objects_get_a_model_nearer_an_independent_solve(
     assert held_out(kept) < 0.9 * perceptual_error(db, mean)
     assert held_out(kept) < 0.95 * held_out(relative)
     assert kept.info["error"]["perceptual"] <= next(t for t in kept.info["tried"] if t["model"] == "diffuse")["perceptual"]
+
+
+def stub(model, perceptual, floats, n_lights=0):
+    """A ``glossy.Components`` of one vertex with this error and size (for ``_choose``)."""
+    from fitting.glossy import Components
+
+    lights = (np.zeros((n_lights, 4)), np.ones((n_lights, 3)), np.ones(n_lights))
+    return Components(model=model, emitters=False, emitted=np.zeros((1, 3)), lights=lights,
+                      specular=np.zeros((1, n_lights, 3)), probe=None, probe_weight=None, error=perceptual,
+                      floats=floats, perceptual=perceptual)
+
+
+def test_choose_keeps_no_model_above_the_floor_and_says_why():
+    from fitting import glossy
+
+    full = fit_data(solution_of(*plane(3), lambda v, n, p: np.ones(v.shape)).objects[0])
+    floor = stub("diffuse", 0.50, 10)
+    worse = [stub("probe", 0.52, 20), stub("probe+lights", 0.51, 30, n_lights=2)]
+    tried = [{"model": "diffuse", "perceptual": 0.50}] + [
+        {"model": f.model, "perceptual": f.perceptual, "above_floor": True} for f in worse]
+    kept = glossy._choose([floor, *worse], 0.03, tried, full, floor)
+    assert kept.model == "diffuse" and kept.why.startswith("kept diffuse: every other model was worse")
+    # a highlight's lights, when one is no worse than the walkthrough: lights are kept, even
+    # with the walkthrough within reach (it is not among the candidates of that branch)
+    lights = [stub("probe+lights", 0.495, 30, n_lights=2), stub("probe+lights", 0.60, 40, n_lights=4)]
+    kept = glossy._choose(lights, 0.03, tried, full, floor, reason="a highlight")
+    assert kept.n_lights == 2 and kept.why.startswith("a highlight")
+    # the floor turns down what would have been kept, and says which
+    kept = glossy._choose([floor, stub("emitters", 0.505, 10), stub("probe", 0.40, 20)], 0.45, tried, full, floor)
+    assert kept.model == "probe" and "not emitters" not in kept.why
+    fits = [stub("emitters", 0.504, 5), floor, stub("probe", 0.49, 20)]
+    tried = [{"model": "diffuse", "perceptual": 0.50}, {"model": "emitters", "perceptual": 0.504, "above_floor": True},
+             {"model": "probe", "perceptual": 0.49}]
+    kept = glossy._choose(fits, 0.03, tried, full, floor)
+    assert kept.model == "diffuse"
+    assert kept.why == ("the cheapest within 3% of the best (0.49); not emitters (perceptual 0.504): worse than the "
+                        "diffuse walkthrough (0.5)")
