@@ -188,7 +188,7 @@ def _scene(out, name, ctx, quality, size, samples, truth_spp, say):
             "model": o.info.get("model"), "words": model_words(o), "lights": o.n_lights,
             "probe_size": o.probe.size if o.probe is not None else 0, "emitters": o.highlight is not None,
             "floats_per_vertex": o.floats_per_vertex, "floats": o.floats, "shininess": o.info["shininess"],
-            "tried": o.info.get("tried", []), "time_s": o.info.get("time_s"), **o.info["error"],
+            "loss": o.info.get("loss"), "tried": o.info.get("tried", []), "time_s": o.info.get("time_s"), **o.info["error"],
         }
         for o in model.objects if o.info.get("model") not in (None, "diffuse") or o.n_lights
     }
@@ -216,8 +216,10 @@ def _plot_models(scenes, path):
         ax.axis("off")
     for ax, (scene, name, o) in zip(axes.ravel(), panels):
         for t in o["tried"]:
-            label = t["model"] + (f" {t['probe_size']}" if t["probe_size"] else "") + (f" {t['lights']}L" if t["lights"] else "")
-            kept = t["model"] == o["model"] and t["probe_size"] == o["probe_size"] and t["lights"] == o["lights"]
+            label = (t["model"] + (f" {t['probe_size']}" if t["probe_size"] else "") + (f" {t['lights']}L" if t["lights"] else "")
+                     + (f" ({t['loss']})" if t.get("loss") else ""))
+            kept = (t["model"] == o["model"] and t["probe_size"] == o["probe_size"] and t["lights"] == o["lights"]
+                    and t.get("loss", o.get("loss")) == o.get("loss") and t.get("kept", True))
             ax.plot(t["floats"], t["perceptual"], "o", color="C1" if kept else "C0", ms=9 if kept else 6)
             ax.annotate(label, (t["floats"], t["perceptual"]), fontsize=7, xytext=(4, 4), textcoords="offset points")
         ax.set_xscale("log")

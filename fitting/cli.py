@@ -101,8 +101,10 @@ def register(subparsers, not_built):
                    help="per-light: a specular coefficient per light at each vertex (3 + 3K numbers a vertex); shared: one "
                    "for all lights, the paper's model (6 numbers a vertex) (refined methods; default: %(default)s)")
     p.add_argument("--loss", choices=("auto", "linear", "relative"), default="auto",
-                   help="error measure to minimise: linear least squares, or relative to the radiance; auto: relative "
-                   "for the models with a probe (it won in pictures), linear for lights alone (default: %(default)s)")
+                   help="error measure to minimise: linear least squares, or relative to the radiance; auto: --model "
+                   "auto fits both and keeps the one the perceptual error prefers (relative keeps dim reflections, "
+                   "linear does not fit a noisy solution's near-zero samples), another --model relative for the "
+                   "models with a probe, linear for lights alone (default: %(default)s)")
     p.add_argument("--exponent-bounds", type=float, nargs=2, default=(1.0, 1e4), metavar=("LOW", "HIGH"),
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",
@@ -232,12 +234,21 @@ def format_report(model, path):
         if len(tried) > 1:
             alternatives = ", ".join(
                 f"{t['model']}{' ' + str(t['probe_size']) if t['probe_size'] else ''}"
-                f"{' ' + str(t['lights']) + 'L' if t['lights'] else ''} {t['perceptual']:.3g} ({t['floats'] / 1000:.0f}k)"
+                f"{' ' + str(t['lights']) + 'L' if t['lights'] else ''}{' ' + t['loss'][:3] if t.get('loss') else ''}"
+                f"{'*' if t.get('above_floor') else ''} {t['perceptual']:.3g} ({t['floats'] / 1000:.0f}k)"
                 for t in tried
             )
-            lines.append(f"{'':<14} tried (perceptual error, floats): {alternatives}")
+            lines.append(f"{'':<14} tried (perceptual error, floats; rel/lin: the loss; *: worse than the diffuse "
+                         f"walkthrough): {alternatives}")
         if "not reached" in o.info.get("chosen_by", ""):
             lines.append(f"{'':<14} {o.info['chosen_by']}")
+        if "diffuse walkthrough" in o.info.get("why_kept", ""):  # the floor decided
+            lines.append(f"{'':<14} {o.info['why_kept']}")
+    floored = [o for o in model.objects if o.info.get("why_kept", "").startswith("kept diffuse")]
+    if floored:
+        lines.append(f"kept diffuse: every other model was worse than the diffuse walkthrough on {len(floored)} of "
+                     f"{sum(1 for o in model.objects if 'tried' in o.info)} glossy objects "
+                     f"({', '.join(o.name for o in floored[:6])}{', ...' if len(floored) > 6 else ''})")
     size = Path(path).stat().st_size
     settings = model.settings
     how = f"model {settings.get('model', 'lights')}, method {settings['method']}, loss {settings['loss']}"

@@ -45,10 +45,12 @@ class FitOptions:
                       require), "directional", "positional" (refined methods)
     coefficients    : "per-light" (a specular coefficient per light at each vertex) or
                       "shared" (one per vertex, the paper's model) (refined methods)
-    loss            : "linear", "relative" (see ``loss.loss_weights``), or "auto": relative
-                      for the models with a probe (the teapot's reflections won in pictures:
-                      glossy FLIP against the truth 0.171 / 0.172 / 0.162 in three views,
-                      linear 0.185 / 0.187 / 0.179), linear for virtual lights alone
+    loss            : "linear", "relative" (see ``loss.loss_weights``), or "auto": with
+                      model "auto" both, the one with the lower perceptual error kept
+                      (``glossy.AUTO_LOSSES``); otherwise relative for the models with a
+                      probe (the teapot's reflections won in pictures: glossy FLIP against
+                      the truth 0.171 / 0.172 / 0.162 in three views, linear 0.185 / 0.187 /
+                      0.179), linear for virtual lights alone
     exponent_bounds : the exponent search's range
     iterations      : L-BFGS iterations of the refinement
     model           : what a glossy object's model is made of (``fitting.glossy``):
@@ -266,7 +268,7 @@ def _fit_components(obj, options, scene, progress, solution, box):
     info = {
         "model": c.model,
         "method": options.method,
-        "loss": options.loss_for("probe"),
+        "loss": c.loss or "none",
         "chosen_by": ("--model " + options.model) + (f"; lights: {chosen_by[-1]}" if chosen_by and c.n_lights else ""),
         "coefficients": "per-light" if per_light else ("shared" if c.n_lights else "none"),
         "kinds": ["positional" if w == 1 else "directional" for w in np.asarray(c.lights[0])[:, 3]],
@@ -278,6 +280,7 @@ def _fit_components(obj, options, scene, progress, solution, box):
         },
         "floats": int(c.floats),
         "tried": c.tried,
+        **({"why_kept": c.why} if c.why else {}),
         "time_s": round(time.perf_counter() - t0, 4),
     }
     specular = c.specular if c.n_lights else np.zeros((obj.num_vertices, 3))

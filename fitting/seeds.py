@@ -11,10 +11,14 @@ is far away: it stays directional.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
 __all__ = ["first_hits", "meeting_point", "mirror"]
+
+AGREE = math.radians(20)  # a ray agrees on a meeting point it points at within this (a grid cell is 10-20 degrees)
 
 
 def mirror(normals, views):
@@ -25,11 +29,15 @@ def mirror(normals, views):
     return m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-300)
 
 
-def meeting_point(origins, directions, weights=None, min_spread=1e-3):
+def meeting_point(origins, directions, weights=None, min_spread=1e-3, agree=AGREE):
     """The point nearest, in weighted least squares, to the rays (origins (N, 3),
     unit directions (N, 3)) and in front of them; None when the rays are too close to
     parallel to fix a point (the smallest eigenvalue of sum w (I - d d^T), relative to
-    the largest, below ``min_spread``) or the point lies behind most of them.
+    the largest, below ``min_spread``), the point lies behind most of them, or the rays
+    do not agree on it: less than half of their weight points at it within ``agree``
+    (radians). Two bundles of parallel rays (two distant lights' highlights) have a
+    least-squares point where they cross, among their origins, that neither points
+    at; so have rays in random directions (a noisy residual's peaks).
 
     Returns (point (3,), spread): spread in [0, 1] says how well the rays pin it down.
     """
@@ -46,8 +54,12 @@ def meeting_point(origins, directions, weights=None, min_spread=1e-3):
     if spread < min_spread:
         return None, spread
     point = np.linalg.solve(A, b)
-    ahead = np.einsum("ni,ni->n", point[None] - o, d) > 0
-    if np.sum(w * ahead) < 0.5 * np.sum(w):
+    to_point = point[None] - o
+    along = np.einsum("ni,ni->n", to_point, d)
+    if np.sum(w * (along > 0)) < 0.5 * np.sum(w):
+        return None, spread
+    aligned = along > math.cos(agree) * np.linalg.norm(to_point, axis=1)
+    if np.sum(w * aligned) < 0.5 * np.sum(w):
         return None, spread
     return point, spread
 

@@ -29,6 +29,26 @@ def test_parallel_rays_say_directional(rng):
     assert point is None and spread < 1e-3
 
 
+def test_two_bundles_of_parallel_rays_do_not_make_a_point(rng):
+    """Two distant lights' highlights on a plane: each vertex's strongest ray points at
+    one or the other. Their least-squares point lies among the origins, where the
+    bundles cross, and no ray points at it: no point light."""
+    origins = np.column_stack([rng.uniform(-1, 1, 40), rng.uniform(-1, 1, 40), np.zeros(40)])
+    a, b = np.array([0.6, 0.2, 0.77]), np.array([-0.5, -0.4, 0.77])
+    dirs = np.where((np.arange(40) % 2 == 0)[:, None], a / np.linalg.norm(a), b / np.linalg.norm(b))
+    point, spread = meeting_point(origins, dirs)
+    assert point is None and spread > 1e-3  # not parallel: refused because no ray points at it
+
+
+def test_rays_in_random_directions_do_not_make_a_point(rng):
+    origins = np.column_stack([rng.uniform(-1, 1, 50), rng.uniform(-1, 1, 50), np.zeros(50)])
+    dirs = rng.normal(size=(50, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    point, _ = meeting_point(origins, dirs)
+    assert point is None
+
+
 def test_a_point_behind_the_rays_is_refused():
     origins = np.array([[-1.0, 0, 0], [1.0, 0, 0]])
     dirs = np.array([[-0.6, 0.8, 0], [0.6, 0.8, 0]])  # diverging: they meet behind
