@@ -207,16 +207,22 @@ def browser():
         b.close()
 
 
-@pytest.fixture(scope="module", params=["per-light", "shared"])
-def site(request, tmp_path_factory):
-    """(fit.npz, the served export's URL) of the tiny lit scene."""
-    base = tmp_path_factory.mktemp(f"web-{request.param}")
-    lit_model(request.param == "per-light", np.random.default_rng(11)).save(base / "fit.npz")
+def exported_and_served(base):
+    """Export ``base``/fit.npz with the ``vlights export`` command, serve it, and yield
+    (fit.npz, the page's URL) while it is served: every page fixture's body."""
     out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     with start(base / "web") as server:
         yield base / "fit.npz", server.url
+
+
+@pytest.fixture(scope="module", params=["per-light", "shared"])
+def site(request, tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny lit scene."""
+    base = tmp_path_factory.mktemp(f"web-{request.param}")
+    lit_model(request.param == "per-light", np.random.default_rng(11)).save(base / "fit.npz")
+    yield from exported_and_served(base)
 
 
 def open_page(browser, url, query, size=SIZE):
@@ -377,11 +383,7 @@ def site_axis(tmp_path_factory):
 
     base = tmp_path_factory.mktemp("web-axis")
     lit_model(True, np.random.default_rng(11), camera=Camera(**AXIS_CAMERA)).save(base / "fit.npz")
-    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
-                         capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    with start(base / "web") as server:
-        yield base / "fit.npz", server.url
+    yield from exported_and_served(base)
 
 
 @needs_browser
@@ -430,11 +432,7 @@ def site_v3(request, tmp_path_factory):
     """(fit.npz, the served export's URL) of the tiny scene as a version 3 fit."""
     base = tmp_path_factory.mktemp(f"web-v3-{request.param}")
     glossy_model(request.param == "per-light", np.random.default_rng(5)).save(base / "fit.npz")
-    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
-                         capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    with start(base / "web") as server:
-        yield base / "fit.npz", server.url
+    yield from exported_and_served(base)
 
 
 @needs_browser
@@ -466,11 +464,7 @@ def site_v5(tmp_path_factory):
     lamp and a panel, and a point light, a spot and a directional light (``DELTA_LAMPS``)."""
     base = tmp_path_factory.mktemp("web-v5")
     glossy_model(True, np.random.default_rng(9), lamps=LAMPS[:2] + DELTA_LAMPS).save(base / "fit.npz")
-    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
-                         capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    with start(base / "web") as server:
-        yield base / "fit.npz", server.url
+    yield from exported_and_served(base)
 
 
 @needs_browser
@@ -643,11 +637,7 @@ def site_textured(request, tmp_path_factory):
     (``test_export_textures.textured_model``), as ``TEXTURED_CASES`` says."""
     base = tmp_path_factory.mktemp(f"web-textured-{request.param}")
     textured_model(rng=np.random.default_rng(3), **TEXTURED_CASES[request.param]).save(base / "fit.npz")
-    out = subprocess.run([sys.executable, "-m", "display", "export", str(base / "fit.npz"), "-o", str(base / "web")],
-                         capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    with start(base / "web") as server:
-        yield base / "fit.npz", server.url
+    yield from exported_and_served(base)
 
 
 def with_textures(fit, tmp_path, name, change):
