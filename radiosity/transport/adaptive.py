@@ -152,6 +152,7 @@ def solve_adaptive(scene, opts=None, adaptive=None, progress=False, client=None)
         t0 = time.perf_counter()
         estimate = solve(current, cheap, progress=progress, client=client)
         marks = mark_edges(current, estimate, knobs["tolerance"], max_edge, weights)
+        del estimate  # its radiance is the size of the final solve's: not held through it
         # each pass may spend its share of what is left, so later passes (which see the
         # features the earlier ones began to resolve) still have vertices to place
         share = current.n_vertices + (budget - current.n_vertices) // (knobs["passes"] - k)

@@ -211,3 +211,28 @@ def test_the_estimate_pass_gathers_the_emitters_highlights_and_the_final_solve_h
     solution = solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=1))
     assert calls == [False, True]
     assert solution.emitters and solution.object("teapot").visibility is not None
+
+
+def test_no_estimate_pass_is_held_through_the_final_solve(monkeypatch):
+    """An estimate pass's radiance is as large as the final solve's (a 447,000-vertex
+    bathroom: 13 GB each): once its marks are taken it is let go, so the final solve
+    runs with no earlier pass alive and the peak is one solve's, not two."""
+    import gc
+    import weakref
+
+    passes, alive_at_final = [], []
+    real = adaptive.solve
+
+    def recording(scene, opts, **kw):
+        if opts.emitter_highlights:  # the final solve (the estimates skip the highlights)
+            gc.collect()
+            alive_at_final.extend(ref() is not None for ref in passes)
+        out = real(scene, opts, **kw)
+        if not opts.emitter_highlights:
+            passes.append(weakref.ref(out))
+        return out
+
+    monkeypatch.setattr(adaptive, "solve", recording)
+    opts = SolveOptions(photons=20_000, gather_samples=4, light_samples=1, max_edge=150.0, seed=3)
+    solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=2))
+    assert len(passes) >= 1 and alive_at_final == [False] * len(passes)
