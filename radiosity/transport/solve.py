@@ -76,7 +76,7 @@ MAX_VISIBILITY_SAMPLES = 4096
 _PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
 _LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
 _GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
-_OUTPUT_BYTES = 3 * (8 + 4)  # per vertex and direction: float64 radiance, then its float32 copy
+_OUTPUT_BYTES = 3 * 4  # per vertex and direction: float32 radiance, summed and written in place
 # the rest, measured (benchmarks/bench_scale.py, draft, 87k and 553k vertices: 1.2 and 1.8 kB a
 # vertex besides the parts above and the process): the scene, its refined and merged meshes,
 # Embree's BVH, the density estimate's arrays, the solution's arrays as written
@@ -499,7 +499,7 @@ def _solve(scene, settings, runner, progress):
 
 
 def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
-    """Radiance {name: (V, D, 3) float64} of the glossy objects ``glossy`` [(object,
+    """Radiance {name: (V, D, 3) float32} of the glossy objects ``glossy`` [(object,
     offset of its vertices in the merged scene, its grid directions)], and what the
     extra passes did: {name: {"regathered", "extra_passes", "max_passes", "tolerance"}}.
 
@@ -509,11 +509,16 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
     noisy everywhere but masked by their own detail, took it from the satin's flat
     faces, where noise shows), and pass
     k (seed ``regather.pass_seed(seed, k)``) gathers the vertices with more than k. The
-    result is the mean of each vertex's passes."""
+    result is the mean of each vertex's passes.
+
+    The sums are kept in float32, the file's precision: a few passes' sum loses 1e-7 of
+    its value, far below their noise, and a float64 sum of every glossy object (then
+    its float32 copy) was most of a large scene's peak (a staircase of 572,000 vertices:
+    6.4 GB of sums and 3.2 GB of copies, 12.5 GB in all)."""
     n_light = settings["light_samples"] if sa.direct_area_pdf.any() else 0
     strata = math.isqrt(settings["gather_samples"])
     block = _gather_block_size(n_light, settings["gather_samples"])
-    radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3)) for o, _, dirs in glossy}
+    radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3), np.float32) for o, _, dirs in glossy}
     variance = {o.name: np.zeros(o.n_vertices) for o, _, _ in glossy}
 
     dirs64 = {o.name: np.asarray(dirs, dtype=np.float64) for o, _, dirs in glossy}

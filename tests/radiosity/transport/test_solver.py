@@ -401,7 +401,7 @@ def test_memory_estimate_grows_with_each_knob():
     glossy = [("pot", 5000, 17)]
     parts = solve_module.memory_estimate(base, 10_000, glossy)
     assert set(parts) == {"scene", "photons", "gather buffers", "gather output"}
-    assert parts["gather output"] == 5000 * 17**2 * 3 * (8 + 4)
+    assert parts["gather output"] == 5000 * 17**2 * 3 * 4
     assert parts["scene"] == solve_module._PROCESS_BYTES + 10_000 * solve_module._SCENE_VERTEX_BYTES
     for change, part in (
         (dict(threads=8), "photons"),
