@@ -220,6 +220,29 @@ class Archive:
     def fail(self, problem: str) -> InputError:
         return InputError(one_line(f"{self.what} '{self.path}': {problem}"))
 
+    def stored_as(self, key: str) -> tuple[int, int]:
+        """(CRC-32, size) of array ``key`` as the zip stores it: members that differ in
+        either differ in content (equal ones may still differ: compare to be sure)."""
+        info = self.npz.zip.getinfo(f"{key}.npy")
+        return info.CRC, info.file_size
+
+    def shared(self, key: str, read):
+        """``read(key)``, or the very array an earlier ``shared`` call returned for a
+        member of the same content: a scene's objects that share a texture store it
+        once each, and each copy read apart would be its own array in memory (a
+        staircase's 4.9 GB of textures, of a few distinct images). A candidate of the
+        same CRC-32 and size is compared whole before it is shared; the arrays handed
+        out are read-only."""
+        cache = self.__dict__.setdefault("_shared", {})
+        stamp = self.stored_as(key)
+        array = read(key)
+        for earlier in cache.get(stamp, ()):
+            if earlier.shape == array.shape and earlier.dtype == array.dtype and np.array_equal(earlier, array):
+                return earlier
+        array.flags.writeable = False
+        cache.setdefault(stamp, []).append(array)
+        return array
+
     def array(self, key: str, kinds: str | None = None, shape: tuple | None = None) -> np.ndarray:
         """The array ``key``; ``kinds`` its allowed dtype kinds ("f", "iu", ...),
         ``shape`` its shape with None for any length. InputError naming the key."""

@@ -160,6 +160,16 @@ class TexturedDiffuse:
         return self.uvs.nbytes + self.irradiance.nbytes + self.texture.nbytes
 
 
+def _linear_texture(archive, key):
+    """Texture ``key`` of an open archive as float32 linear reflectance."""
+    texture = archive.array(key, "fiu", (None, None, 3))
+    if texture.dtype == np.uint8:
+        return _srgb8_table()[texture]
+    if texture.dtype.kind != "f":
+        raise archive.fail(f"'{key}' has dtype {texture.dtype}, expected uint8 (sRGB) or float32 (linear)")
+    return np.ascontiguousarray(texture, dtype=np.float32)
+
+
 def read_textured(archive, name, n_vertices, kd):
     """Object ``name``'s ``TexturedDiffuse`` from an open archive
     (``radiosity.formats.npz``), or None if it has none; the archive's one-line
@@ -172,11 +182,7 @@ def read_textured(archive, name, n_vertices, kd):
         raise archive.fail(f"object {name!r} has '{name}/{present[0]}' but no '{name}/{missing}': a textured object has all of {', '.join(KEYS)}")
     uvs = archive.array(f"{name}/uvs", "fiu", (n_vertices, 2))
     irradiance = archive.array(f"{name}/irradiance", "fiu", (n_vertices, 3))
-    texture = archive.array(f"{name}/texture", "fiu", (None, None, 3))
-    if texture.dtype == np.uint8:
-        texture = _srgb8_table()[texture]
-    elif texture.dtype.kind != "f":
-        raise archive.fail(f"'{name}/texture' has dtype {texture.dtype}, expected uint8 (sRGB) or float32 (linear)")
+    texture = archive.shared(f"{name}/texture", lambda key: _linear_texture(archive, key))
     try:
         return TexturedDiffuse(uvs=uvs, irradiance=irradiance, texture=texture, kd=kd)
     except ValueError as exc:

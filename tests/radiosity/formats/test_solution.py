@@ -525,3 +525,48 @@ def test_a_bad_light_is_refused(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "meta 'lights' entry 1", "must not be zero")
     meta["lights"] = [meta["lights"][0] | {"kind": "sphere", "centre": [0, 0, 0], "radius": 1.0}]
     refused(write_npz(tmp_path / "t.npz", meta, arrays), "meta 'lights' entry 0: kind 'sphere' is not one of point, direction")
+
+
+# ---------------------------------------------------------------------------
+# Textures that objects share are one array in memory
+# ---------------------------------------------------------------------------
+
+
+def textured_solution(textures):
+    """A solution of one diffuse quad grid per texture of ``textures``, each textured."""
+    from radiosity.formats.texture import TexturedDiffuse
+
+    objects = []
+    for k, texture in enumerate(textures):
+        o = make_object(f"wall{k}", 0, WHITE, 10 + k)
+        t = TexturedDiffuse(uvs=o.positions[:, :2] / 2, irradiance=np.ones((9, 3)), texture=texture, kd=(0.7, 0.7, 0.7))
+        objects.append(dataclasses.replace(o, textured=t))
+    return Solution(objects=tuple(objects), settings={"quality": "draft"}, stats={"photons": 1}, scene="walls")
+
+
+def test_objects_sharing_a_texture_read_it_as_one_array_and_others_apart(tmp_path):
+    """A scene's walls that share an image store it once each; read, they hold one
+    array (not a copy each: a staircase's textures were 4.9 GB so), equal to what was
+    written, read-only; a different image of the same size stays its own."""
+    rng = np.random.default_rng(4)
+    tiles, wood = rng.random((8, 6, 3)).astype(np.float32), rng.random((8, 6, 3)).astype(np.float32)
+    path = tmp_path / "solution.npz"
+    textured_solution([tiles, tiles.copy(), wood, tiles]).save(path)
+    got = [o.textured.texture for o in load_solution(path).objects]
+    assert got[0] is got[1] is got[3] and got[2] is not got[0]
+    assert np.array_equal(got[0], tiles) and np.array_equal(got[2], wood)
+    assert not got[0].flags.writeable
+
+
+def test_two_textures_whose_stamps_agree_are_still_compared_whole(tmp_path, monkeypatch):
+    """Sharing is decided by the content: members whose CRC-32 and size agree (forced
+    here) but whose arrays differ are read apart."""
+    from radiosity.formats import npz
+
+    rng = np.random.default_rng(5)
+    a, b = rng.random((4, 4, 3)).astype(np.float32), rng.random((4, 4, 3)).astype(np.float32)
+    path = tmp_path / "solution.npz"
+    textured_solution([a, b]).save(path)
+    monkeypatch.setattr(npz.Archive, "stored_as", lambda self, key: (0, 0))
+    got = [o.textured.texture for o in load_solution(path).objects]
+    assert got[0] is not got[1] and np.array_equal(got[0], a) and np.array_equal(got[1], b)
