@@ -227,6 +227,13 @@ def start_paths(cam, tile, out):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def _in_frame(shading, dx, dy, dz):
+    """Direction (dx, dy, dz) in the shading frame ``shading`` = (t, b, n), 9 floats."""
+    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
+    return dx * tx + dy * ty + dz * tz, dx * bx + dy * by + dz * bz, dx * nx + dy * ny + dz * nz
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     """Next-event estimate at ``point`` (front normal g, shading frame ``shading`` =
     (t, b, n) as a 9-tuple, outgoing ``wo`` local), with the uniform numbers rnd = (u0,
@@ -238,7 +245,6 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
     nothing = (False, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
     share = sa.env.light_share
     u0 = rnd[0]
-    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
     if u0 < share:
         return _environment_sample(sa.env, off_surface(point, g, sa.epsilon), g, shading, wo, mat, rnd, throughput)
     delta_share = sa.lights.light_share
@@ -261,9 +267,7 @@ def _light_sample(sa, point, g, shading, wo, mat, rnd, throughput):
         return nothing
     if cos_light <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return nothing
-    wix = dx * tx + dy * ty + dz * tz
-    wiy = dx * bx + dy * by + dz * bz
-    wiz = dx * nx + dy * ny + dz * nz
+    wix, wiy, wiz = _in_frame(shading, dx, dy, dz)
     if wiz <= 0.0:
         return nothing
     p_light = area_pdf * dist * dist / cos_light
@@ -295,10 +299,7 @@ def _delta_sample(sa, origin, g, shading, wo, mat, u, throughput):
     (dx, dy, dz), dist, le = arriving(lights, j, origin)
     if not (dist > sa.epsilon and max(le[0], le[1], le[2]) > 0.0) or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return nothing
-    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
-    wix = dx * tx + dy * ty + dz * tz
-    wiy = dx * bx + dy * by + dz * bz
-    wiz = dx * nx + dy * ny + dz * nz
+    wix, wiy, wiz = _in_frame(shading, dx, dy, dz)
     if wiz <= 0.0:
         return nothing
     f = brdf_eval(mat, wix, wiy, wiz, wo[0], wo[1], wo[2])
@@ -321,10 +322,7 @@ def _environment_sample(env, origin, g, shading, wo, mat, rnd, throughput):
     (dx, dy, dz), pdf = env_sample(env.rotation, env.row_cdf, env.column_cdf, env.cell_pdf, rnd[1], rnd[2])
     if pdf <= 0.0 or dx * g[0] + dy * g[1] + dz * g[2] <= 0.0:
         return nothing
-    tx, ty, tz, bx, by, bz, nx, ny, nz = shading
-    wix = dx * tx + dy * ty + dz * tz
-    wiy = dx * bx + dy * by + dz * bz
-    wiz = dx * nx + dy * ny + dz * nz
+    wix, wiy, wiz = _in_frame(shading, dx, dy, dz)
     if wiz <= 0.0:
         return nothing
     p_light = env.light_share * pdf
