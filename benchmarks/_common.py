@@ -24,6 +24,18 @@ def machine():
     return {"cores": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version()}
 
 
+def git_commit():
+    """The checkout's short commit, with "+" where its tracked files differ from it
+    (None outside a git checkout): which code a row of results measured."""
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True)
+        dirty = subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=here).returncode != 0
+    except OSError:
+        return None
+    return head.stdout.strip() + ("+" if dirty else "") if head.returncode == 0 else None
+
+
 def _children(pid):
     out = []
     try:

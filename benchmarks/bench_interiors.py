@@ -28,7 +28,7 @@ line must name the missing file), and ``scene-info`` of a copy of the XML with e
 element naming a missing file left out (a shape, an emitter or a texture), written beside
 the original (its paths are relative to it) and removed after.
 
-    python benchmarks/bench_interiors.py [--scenes cbox,veach_mi,...] [--quality draft] [--truth-spp 128]
+    python benchmarks/bench_interiors.py [--scenes cbox,veach_mi,...] [--merge] [--quality draft] [--truth-spp 128]
                                          [--root DIR] [--keep DIR] [--mitsuba-python PY]
     python benchmarks/bench_interiors.py --plot-only
 
@@ -47,13 +47,14 @@ import math
 import os
 import sys
 import tempfile
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render, run_vlights  # noqa: E402
+from _common import RESULTS, Recorder, git_commit, mitsuba_python, mitsuba_render, run_vlights  # noqa: E402
 
 # name -> (the scene's XML, its published render or None: Mitsuba 3 renders one)
 COMPLETE = {
@@ -313,6 +314,9 @@ def main(argv=None):
                         f"{LIBLLVM} is, else scalar_rgb)")
     parser.add_argument("--mitsuba-spp", type=int, default=256, help="a Mitsuba reference's samples (default 256)")
     parser.add_argument("--plot-only", action="store_true", help="draw interiors.png again from the results file")
+    parser.add_argument("--merge", action="store_true",
+                        help="keep the results file's rows of the scenes not run now (each row says its commit and "
+                             "date); default: the file holds this run alone")
     args = parser.parse_args(argv)
     name = "interiors.jsonl" if args.quality == "draft" else f"interiors_{args.quality}.jsonl"
     if args.plot_only:
@@ -329,7 +333,8 @@ def main(argv=None):
         if "DRJIT_LIBLLVM_PATH" not in os.environ and Path(LIBLLVM).exists():
             os.environ["DRJIT_LIBLLVM_PATH"] = LIBLLVM  # Mitsuba's process inherits it
         args.mitsuba_variant = "llvm_ad_rgb" if "DRJIT_LIBLLVM_PATH" in os.environ else "scalar_rgb"
-    record = Recorder(benchmark="interiors", quality=args.quality)
+    record = Recorder(benchmark="interiors", quality=args.quality, commit=git_commit(),
+                      date=time.strftime("%Y-%m-%d %H:%M", time.gmtime()))
     with tempfile.TemporaryDirectory() as tmp:
         args.keep = (args.keep or Path(tmp)).resolve()
         for scene in wanted:
@@ -337,6 +342,12 @@ def main(argv=None):
                 complete_scene(root, scene, args, record)
             else:
                 incomplete_scene(root, scene, args, record)
+    if args.merge and (RESULTS / name).exists():
+        with open(RESULTS / name) as f:
+            earlier = [json.loads(line) for line in f if line.strip()]
+        order = {scene: k for k, scene in enumerate([*COMPLETE, *INCOMPLETE])}
+        rows = [r for r in earlier if r.get("scene") not in wanted] + record.rows
+        record.rows = sorted(rows, key=lambda r: order.get(r.get("scene"), len(order)))  # stable: a scene's steps in order
     record.save(name)
     plot(record.rows, RESULTS / name.replace(".jsonl", ".png"))
     return 0

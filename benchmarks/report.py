@@ -452,7 +452,16 @@ def mitsuba(rows):
 
 def interiors(rows):
     out = ["## The field's interiors", "", where("bench_interiors.py", ["interiors.jsonl", "interiors.png",
-                                                                       "interiors_<scene>.png"]), machine(rows), ""]
+                                                                       "interiors_<scene>.png"]), machine(rows)]
+    runs = {}
+    for r in rows:
+        runs.setdefault((r.get("date") or "", r.get("commit")), []).append(r["scene"])
+    if len(runs) > 1:  # a --merge of runs: say which scenes each measured
+        out += ["Rows of more than one run: " + "; ".join(
+            f"{', '.join(dict.fromkeys(scenes))} "
+            + (f"at commit {commit} ({date})" if commit else "by an earlier run (its commit not recorded)")
+            for (date, commit), scenes in sorted(runs.items(), key=str))]
+    out += [""]
     summaries = [r for r in rows if r.get("summary")]
     steps = [r for r in rows if "step" in r and r["step"] != "mitsuba reference"]
     if summaries:
