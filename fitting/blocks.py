@@ -15,8 +15,8 @@ stored model (per-vertex coefficients):
 
 An object of at most ``search_samples`` samples is fitted in one piece, as before:
 the same model, bit for bit. The grids the solver writes hold at most 128 x 128
-directions, so a block always holds at least a whole vertex (``vertex_blocks`` gives
-one vertex a block where a vertex alone exceeds the budget).
+directions, so a block always holds whole vertices (``vertex_blocks`` gives two
+vertices a block where one alone exceeds the budget).
 """
 
 from __future__ import annotations
@@ -33,16 +33,20 @@ BLOCK_SAMPLES = 1 << 18  # the per-vertex pass's samples a block (about 0.3 GB o
 
 def search_slice(n_vertices, n_directions, search_samples=SEARCH_SAMPLES):
     """slice(0, V, k): every k-th vertex, k the least keeping the subset within
-    ``search_samples`` samples (k = 1: the whole object)."""
+    ``search_samples`` samples (k = 1: the whole object), at least two vertices."""
     step = max(1, math.ceil(n_vertices * n_directions / max(int(search_samples), 1)))
-    return slice(0, n_vertices, step)
+    return slice(0, n_vertices, max(1, min(step, (n_vertices - 1) // 2 + (n_vertices == 1))))
 
 
 def vertex_blocks(n_vertices, n_directions, block_samples=BLOCK_SAMPLES):
-    """Consecutive slices of vertices, each of at most ``block_samples`` samples (at
-    least one vertex)."""
-    block = max(1, int(block_samples) // max(n_directions, 1))
-    return [slice(first, min(n_vertices, first + block)) for first in range(0, n_vertices, block)]
+    """Consecutive slices of vertices, each of at most ``block_samples`` samples, and of
+    at least two vertices (a trailing one joins the block before): the kernels read loss
+    weights of one vertex, (1, D, 3), as the linear loss's placeholder (1, 1, 1)."""
+    block = max(2, int(block_samples) // max(n_directions, 1))
+    starts = list(range(0, n_vertices, block))
+    if len(starts) > 1 and n_vertices - starts[-1] == 1:
+        starts.pop()
+    return [slice(first, starts[i + 1] if i + 1 < len(starts) else n_vertices) for i, first in enumerate(starts)]
 
 
 def object_mean(radiance, area, block_samples=BLOCK_SAMPLES):
