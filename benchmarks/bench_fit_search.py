@@ -1,10 +1,10 @@
 """Does a model searched for on a subset of a glossy object's vertices choose as the whole does?
 
     python benchmarks/bench_fit_search.py SOLUTION.npz [SOLUTION.npz ...] [--fractions 1 0.25 0.0625]
-                                          [--quality Q] [--min-samples N]
+                                          [--quality Q] [--min-samples N] [--max-samples N]
 
-For every glossy object of at least --min-samples samples (vertex x direction) of each
-solution, fits ``--model auto`` (the quality's options: the solution's unless
+For every glossy object of --min-samples to --max-samples samples (vertex x direction:
+the whole object's search holds about 1.2 kB a sample) of each solution, fits ``--model auto`` (the quality's options: the solution's unless
 --quality) with the search on the whole object and on every k-th vertex (a fraction
 of its samples: ``FitOptions.search_samples``), the per-vertex coefficients always on
 every vertex, and records for each the model chosen (model, probe size, lights, loss),
@@ -32,6 +32,7 @@ def main(argv=None):
     parser.add_argument("--fractions", type=float, nargs="+", default=[1.0, 0.25, 1 / 16])
     parser.add_argument("--quality", default=None)
     parser.add_argument("--min-samples", type=int, default=50_000)
+    parser.add_argument("--max-samples", type=int, default=6_000_000)
     args = parser.parse_args(argv)
 
     from fitting import FitOptions
@@ -52,7 +53,7 @@ def main(argv=None):
             del meshes
             for name in source.names:
                 v, d, _ = source.sizes(name)
-                if d == 1 or v * d < args.min_samples:
+                if d == 1 or not args.min_samples <= v * d <= args.max_samples:
                     continue
                 obj, alone = source.object(name), source.alone(name)
                 if warm:

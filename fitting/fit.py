@@ -466,7 +466,9 @@ def _fit_streamed(source, options, place, bar, workers):
     def here(chosen):
         for name in chosen:
             glossy = name in glossy_names
-            done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if glossy else None, box)
+            obj, alone = _read(source, name, glossy)
+            done[name] = fit_object(obj, options, scene, bar, alone, box)
+            del obj, alone
             tick()
 
     cost = costs(source)
@@ -518,4 +520,15 @@ def _worker_start(threads, show_warning, path, scene, box):
 def _fit_in_worker(name, options):
     """Object ``name`` of the worker's solution file, fitted (in a worker process)."""
     source = _WORKER["source"]
-    return fit_object(source.object(name), options, _WORKER["scene"], None, source.alone(name), _WORKER["box"])
+    obj, alone = _read(source, name, True)
+    return fit_object(obj, options, _WORKER["scene"], None, alone, _WORKER["box"])
+
+
+def _read(source, name, glossy):
+    """(object ``name`` of the ``SolutionFile`` ``source``, and for a glossy one the
+    ``Solution`` of it alone, whose emitters its fit reads): the object read once, its
+    radiance held once (a glossy object's largest array)."""
+    if not glossy:
+        return source.object(name), None
+    alone = source.alone(name)
+    return alone.object(name), alone
