@@ -267,14 +267,14 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     positions = np.asarray(obj.positions, np.float64)
     centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
     del positions
-    found = _search(full, np.asarray(of(sub), np.float64), obj.material, n_vertices, parts, options, (centre, box),
-                    exponent, fit_lights, probe_sizes)
+    found = _search(full, np.asarray(of(sub), np.float64), obj.material, n_vertices, parts, options,
+                    place=(centre, box), exponent=exponent, fit_lights=fit_lights, probe_sizes=probe_sizes)
     if sub.step == 1:
         return found
     return _every_vertex(found, obj, of, area, options, (sub, block_samples))
 
 
-def _search(full, highlights, material, n_vertices, parts, options, place, exponent, fit_lights, probe_sizes):
+def _search(full, highlights, material, n_vertices, parts, options, *, place, exponent, fit_lights, probe_sizes):
     """``fit_components`` on ``full`` (the ``FitData`` of the object or of a subset of
     its vertices, ``highlights`` theirs): the model "auto" chooses, or the one asked
     for; n_vertices: the object's (what a model stores counts them all); place: the
