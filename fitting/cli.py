@@ -23,6 +23,7 @@ from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import SolutionFile
 
 from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
+from .blocks import BLOCK_SAMPLES
 from .glossy import MODEL_TARGET
 from .memory import check_dask_memory, check_fit_memory, cores
 
@@ -109,6 +110,14 @@ def register(subparsers, not_built):
                    help="range of the exponent search (default: 1 10000)")
     p.add_argument("--iterations", type=int, default=None, metavar="N",
                    help=f"refinement iterations, 0 to {MAX_ITERATIONS:,} (default: the quality's: see --quality)")
+    p.add_argument("--search-samples", type=int, default=None, metavar="N",
+                   help="a glossy object's model (the comparison of --model auto, the probe's texels, the lights) is "
+                   "searched for on every k-th vertex, at most N samples (vertex x direction), its per-vertex "
+                   "coefficients then solved on every vertex; more is slower and holds more memory, about 1.2 kB a "
+                   "sample (default: the quality's: " + per_quality(lambda k: f"{k.fit_search_samples:,}") + ")")
+    p.add_argument("--block-samples", type=int, default=BLOCK_SAMPLES, metavar="N",
+                   help="samples of a block of vertices in the per-vertex pass: memory only, the same model "
+                   "whatever N (default: %(default)s)")
     p.add_argument("--workers", type=_workers, default=None, metavar="N",
                    help="processes fitting glossy objects at once, the costliest first; the model is the same "
                    "whatever N (default: one per core)")
@@ -153,6 +162,8 @@ def fit_options(args, quality):
         light_kind=args.light_kind, coefficients=args.coefficients, loss=args.loss, exponent_bounds=tuple(args.exponent_bounds), iterations=iterations,
         model=args.model, probe_size=args.probe_size, probe_sizes=tuple(knobs.probe_sizes), probe_lights=probe_lights,
         model_target=args.model_target,
+        search_samples=args.search_samples if args.search_samples is not None else knobs.fit_search_samples,
+        block_samples=args.block_samples,
     ).check()
 
 
@@ -175,7 +186,8 @@ def _fit(args):
         quality, chosen_by = fit_quality(args.quality, solution)
         options = fit_options(args, quality)
         if args.scheduler == "threads":
-            workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()))
+            workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()),
+                                       search_samples=options.search_samples, block_samples=options.block_samples)
             model = fit(solution, options, progress=True, workers=workers)
         else:
             model = _fit_on(args.scheduler, solution, options)
@@ -191,7 +203,8 @@ def _fit_on(scheduler, solution, options):
     client, cluster = connect(scheduler)
     try:
         threads = sum(client.nthreads().values())
-        check_dask_memory(solution, 2 * threads + 1)
+        check_dask_memory(solution, 2 * threads + 1, search_samples=options.search_samples,
+                          block_samples=options.block_samples)
         # one write: a Ctrl-C cannot come between the line and its end
         sys.stderr.write(f"fit: on dask {client.scheduler.address} ({threads} threads)\n")
         return fit(solution, options, progress=True, client=client)

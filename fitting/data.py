@@ -47,10 +47,17 @@ def vertex_areas(positions, faces):
     return out
 
 
-def fit_data(obj):
-    """The FitData of a ``radiosity.formats.solution.ObjectSolution``."""
-    normals = np.asarray(obj.normals, np.float64)
-    tangents = np.asarray(obj.tangents, np.float64)
+def fit_data(obj, vertices=slice(None), area=None):
+    """The FitData of a ``radiosity.formats.solution.ObjectSolution``, or of its
+    ``vertices`` alone (a slice: a block of a large object, or every k-th vertex).
+
+    area : (V,) every vertex's area (``vertex_areas``), if already known. A block's
+    weights are those of the whole object (summing to 1 over all vertices, so that sums
+    over blocks add up); a strided subset's (step > 1) are scaled to sum to 1 over it.
+    """
+    sl = vertices if isinstance(vertices, slice) else slice(None)
+    normals = np.asarray(obj.normals[sl], np.float64)
+    tangents = np.asarray(obj.tangents[sl], np.float64)
     bitangents = np.cross(normals, tangents)
     local = np.asarray(obj.directions, np.float64)
     views = (
@@ -59,17 +66,69 @@ def fit_data(obj):
         + local[None, :, 2:3] * normals[:, None, :]
     )
     views /= np.linalg.norm(views, axis=2, keepdims=True)
-    area = vertex_areas(obj.positions, obj.faces)
+    if area is None:
+        area = vertex_areas(obj.positions, obj.faces)
     if area.sum() <= 0:
         area = np.ones_like(area)
-    weights = np.broadcast_to(area[:, None], views.shape[:2]) / (area.sum() * views.shape[1])
+    total = area.sum() if (sl.step or 1) == 1 else area[sl].sum()
+    if not total > 0:
+        area, total = np.ones_like(area), float(len(area[sl]))
+    weights = np.broadcast_to(area[sl, None], views.shape[:2]) / (total * views.shape[1])
     return FitData(
-        radiance=np.asarray(obj.radiance, np.float64),
+        radiance=np.asarray(obj.radiance[sl], np.float64),
         views=views,
         normals=normals,
         weights=np.ascontiguousarray(weights),
-        positions=np.asarray(obj.positions, np.float64),
+        positions=np.asarray(obj.positions[sl], np.float64),
     )
+
+
+def mean_radiance(data):
+    """The object's weighted mean radiance (one number, over channels too)."""
+    w = data.weights[:, :, None]
+    return float(np.sum(w * data.radiance) / max(float(w.sum()), 1e-300) / 3.0)
+
+
+class ErrorSums:
+    """``relative_error`` and ``perceptual_error`` of an approximation added up a block
+    of vertices at a time (the sums of every block, in block order: the same bits for
+    the same blocks). ``mean``: the whole object's ``mean_radiance``."""
+
+    def __init__(self, mean):
+        self.mean = float(mean)
+        self.num = self.den = self.seen_num = self.seen_den = 0.0
+        self.worst, self.worst_index = 0.0, 0
+
+    def add(self, data, approximation, first=0):
+        """Vertices ``first``.. of the object: their ``data`` and ``approximation``."""
+        diff = np.sum((approximation - data.radiance) ** 2, axis=2)
+        size = np.sum(data.radiance**2, axis=2)
+        num, den = np.sum(data.weights * diff, axis=1), np.sum(data.weights * size, axis=1)
+        self.num += float(num.sum())
+        self.den += float(den.sum())
+        with np.errstate(divide="ignore", invalid="ignore"):
+            per_vertex = np.sqrt(np.where(den > 0, num / den, np.where(num > 0, np.inf, 0.0)))
+        if len(per_vertex) and per_vertex.max() > self.worst:
+            self.worst, self.worst_index = float(per_vertex.max()), first + int(np.argmax(per_vertex))
+        if self.mean > 0:
+            w = data.weights[:, :, None]
+            a = np.maximum(approximation / self.mean, 0.0) ** GAMMA
+            b = np.maximum(data.radiance / self.mean, 0.0) ** GAMMA
+            self.seen_num += float(np.sum(w * (a - b) ** 2))
+            self.seen_den += float(np.sum(w * b**2))
+        elif np.any(approximation):
+            self.seen_num = np.inf
+
+    def relative(self):
+        """As ``relative_error`` returns it, of everything added."""
+        total = (np.sqrt(self.num / self.den) if self.den > 0 else (0.0 if self.num == 0 else np.inf))
+        return {"relative_rms": float(total), "worst_vertex": self.worst, "worst_vertex_index": self.worst_index}
+
+    def perceptual(self):
+        """As ``perceptual_error`` returns it, of everything added."""
+        if not self.mean > 0:
+            return 0.0 if self.seen_num == 0 else float("inf")
+        return float(np.sqrt(self.seen_num / self.seen_den)) if self.seen_den > 0 else 0.0
 
 
 def relative_error(data, approximation):

@@ -20,8 +20,8 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import SolutionFile
 
-from . import glossy, loss, mixed, paper
-from .data import fit_data, relative_error
+from . import blocks, glossy, loss, mixed, paper
+from .data import ErrorSums, fit_data, relative_error, vertex_areas
 from .memory import cores, costs
 from .model import FittedModel, FittedObject, Highlight, directional
 
@@ -62,6 +62,12 @@ class FitOptions:
                       of the best kept
     probe_lights    : lights beside a probe (the model "probe+lights"), or "auto"
     model_target    : the error target of --model auto (``data.perceptual_error``)
+    search_samples  : a glossy object's model is searched for (the comparison of models,
+                      the probe's texels, the lights' placement and refinement) on every
+                      k-th vertex, at most this many samples (vertex x direction), and its
+                      per-vertex coefficients then solved on every vertex (``fitting.blocks``)
+    block_samples   : the samples of a block of vertices in that last pass (memory only:
+                      the same model whatever it is)
     """
 
     lights: int | str = 8
@@ -78,6 +84,8 @@ class FitOptions:
     probe_sizes: tuple[int, ...] = glossy.PROBE_SIZES
     probe_lights: int | str = 4
     model_target: float = glossy.MODEL_TARGET
+    search_samples: int = blocks.SEARCH_SAMPLES
+    block_samples: int = blocks.BLOCK_SAMPLES
 
     @classmethod
     def for_quality(cls, quality):
@@ -87,7 +95,7 @@ class FitOptions:
 
         knobs = preset(quality)
         return cls(lights=knobs.fit_lights, iterations=knobs.fit_iterations, probe_sizes=tuple(knobs.probe_sizes),
-                   probe_lights=knobs.probe_lights).check()
+                   probe_lights=knobs.probe_lights, search_samples=knobs.fit_search_samples).check()
 
     def check(self):
         for lights in (self.lights, self.probe_lights):
@@ -112,6 +120,9 @@ class FitOptions:
             raise InputError(f"--max-lights must be a whole number from 1 to 64, got {self.max_lights!r}")
         if not (isinstance(self.iterations, int) and self.iterations >= 0):
             raise InputError(f"--iterations must be a whole number >= 0, got {self.iterations!r}")
+        for name, value in (("--search-samples", self.search_samples), ("--block-samples", self.block_samples)):
+            if not (isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 2**40):
+                raise InputError(f"{name} must be a whole number of samples from 1, got {value!r}")
         if self.model not in MODELS:
             raise InputError(f"unknown model {self.model!r}; choose one of {', '.join(MODELS)}")
         if self.probe_size != "auto" and not (
@@ -185,7 +196,12 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     if not obj.is_diffuse and options.glossy_model != "lights":
         return _fit_components(obj, options, scene, progress, solution, box)
     t0 = time.perf_counter()
-    data = fit_data(obj)
+    # a glossy object's lights are found on every k-th vertex (at most search_samples
+    # samples), then its coefficients solved on every vertex a block at a time
+    sub = slice(None) if obj.is_diffuse else blocks.search_slice(obj.num_vertices, len(obj.directions),
+                                                                 options.search_samples)
+    area = None if obj.is_diffuse else _areas(obj)
+    data = fit_data(obj, sub, area)
     problem = problem_for(data, options, scene)
     if obj.is_diffuse:
         emitted = data.radiance[:, 0, :]
@@ -202,8 +218,13 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
         else:
             result = fit_lights(problem, options.lights, options, exponent, log=log)
             chosen_by = f"--lights {options.lights}"
-    error = relative_error(data, reconstruct(problem, result))
-    diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
+    if (sub.step or 1) > 1:
+        del data, problem
+        result, error, diffuse_part = _lights_on_every_vertex(obj, result, options, scene, area)
+        chosen_by += f"; found on every {sub.step}-th vertex ({len(range(*sub.indices(obj.num_vertices))):,} of {obj.num_vertices:,})"
+    else:
+        error = relative_error(data, reconstruct(problem, result))
+        diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
     kinds = ["positional" if w == 1 else "directional" for w in result.pos[:, 3]]
     info = {
         "model": "diffuse" if obj.is_diffuse else "lights",
@@ -225,6 +246,33 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     if result.iterations:
         info["iterations"] = result.iterations
     return _fitted_object(obj, result.emitted, result.specular, (result.pos, result.rgb, result.shininess), info)
+
+
+def _areas(obj):
+    """(V,) each vertex's area (ones where the object has none), as ``fit_data`` weighs them."""
+    area = vertex_areas(obj.positions, obj.faces)
+    return area if area.sum() > 0 else np.ones_like(area)
+
+
+def _lights_on_every_vertex(obj, result, options, scene, area):
+    """(the ``mixed.MixedFit`` ``result``, its lights held and its per-vertex coefficients
+    solved on every vertex of ``obj``, a block at a time; its ``relative_error``; that of
+    its emitted colour alone)."""
+    v, d = obj.num_vertices, len(obj.directions)
+    mean = blocks.object_mean(obj.radiance, area, options.block_samples)
+    lights = result.lights()
+    emitted = np.empty((v, 3))
+    specular = np.empty((v, result.n_lights, 3) if result.per_light else (v, 3))
+    model, diffuse, sq_error = ErrorSums(mean), ErrorSums(mean), 0.0
+    for sl in blocks.vertex_blocks(v, d, options.block_samples):
+        data = fit_data(obj, sl, area)
+        lw = loss.loss_weights(data, options.loss_for("lights"), mean)
+        problem = mixed.Problem.make(data, lw, result.per_light, scene, options.exponent_bounds)
+        emitted[sl], specular[sl], err = mixed.coefficients(problem, lights)
+        sq_error += err
+        model.add(data, mixed.model_colours(problem, lights, emitted[sl], specular[sl]), sl.start)
+        diffuse.add(data, np.broadcast_to(emitted[sl, None, :], data.radiance.shape), sl.start)
+    return replace(result, emitted=emitted, specular=specular, sq_error=sq_error), model.relative(), diffuse.relative()
 
 
 def _fit_components(obj, options, scene, progress, solution, box):
@@ -254,10 +302,13 @@ def _fit_components(obj, options, scene, progress, solution, box):
         chosen_by.append(f"{options.probe_lights} lights")
         return fit_lights(problem, options.probe_lights, options, start, previous=previous, log=log)
 
-    highlights = solution.highlights(obj.name)
+    def highlights(vertices):
+        return solution.highlights(obj.name, vertices)
+
     parts = len(solution.emitters) if obj.visibility is not None else 0
     c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for,
-                              probe_sizes=options.probe_sizes)
+                              probe_sizes=options.probe_sizes, search_samples=options.search_samples,
+                              block_samples=options.block_samples)
     highlight = None
     if c.emitters and parts:
         m = obj.material
@@ -415,7 +466,9 @@ def _fit_streamed(source, options, place, bar, workers):
     def here(chosen):
         for name in chosen:
             glossy = name in glossy_names
-            done[name] = fit_object(source.object(name), options, scene, bar, source.alone(name) if glossy else None, box)
+            obj, alone = _read(source, name, glossy)
+            done[name] = fit_object(obj, options, scene, bar, alone, box)
+            del obj, alone
             tick()
 
     cost = costs(source)
@@ -434,7 +487,11 @@ def _fit_streamed(source, options, place, bar, workers):
         futures = {pool.submit(_fit_in_worker, name, options): name for name in order}
         here([n for n in names if n not in cost])  # the diffuse objects, while the workers fit
         for future in as_completed(futures):
-            done[futures[future]] = future.result()
+            name = futures[future]
+            # its textured diffuse term read here, sharing the textures this process holds
+            # (a worker's copy of a shared texture is a copy: the staircase's 633 glossy
+            # textured objects held 4.4 GB of them)
+            done[name] = replace(future.result(), textured=source.textured(name))
             tick()
     return [done[n] for n in names]
 
@@ -467,4 +524,16 @@ def _worker_start(threads, show_warning, path, scene, box):
 def _fit_in_worker(name, options):
     """Object ``name`` of the worker's solution file, fitted (in a worker process)."""
     source = _WORKER["source"]
-    return fit_object(source.object(name), options, _WORKER["scene"], None, source.alone(name), _WORKER["box"])
+    obj, alone = _read(source, name, True)
+    fitted = fit_object(obj, options, _WORKER["scene"], None, alone, _WORKER["box"])
+    return replace(fitted, textured=None)  # the parent reads it, shared (``_fit_streamed``)
+
+
+def _read(source, name, glossy):
+    """(object ``name`` of the ``SolutionFile`` ``source``, and for a glossy one the
+    ``Solution`` of it alone, whose emitters its fit reads): the object read once, its
+    radiance held once (a glossy object's largest array)."""
+    if not glossy:
+        return source.object(name), None
+    alone = source.alone(name)
+    return alone.object(name), alone

@@ -32,12 +32,13 @@ highlight's lights included), and when every other model is worse the object kee
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from . import mixed, probe
-from .data import FitData, fit_data, perceptual_error, relative_error
+from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES, object_mean, search_slice, vertex_blocks
+from .data import ErrorSums, FitData, fit_data, perceptual_error, relative_error, vertex_areas
 from .lobes import MixedLights
 from .loss import loss_weights as make_loss_weights
 
@@ -243,16 +244,43 @@ def _model(highlights, emitted, probe_term, light_term):
     return out
 
 
-def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights, *, probe_sizes=PROBE_SIZES):
+def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_lights, *, probe_sizes=PROBE_SIZES,
+                   search_samples=SEARCH_SAMPLES, block_samples=BLOCK_SAMPLES):
     """The ``Components`` of one glossy ``ObjectSolution`` ``obj``.
 
-    highlights (V, D, 3): the emitter term on its grid (zeros without emitters); parts:
-    the emitter parts' count; options: ``FitOptions`` (model, probe_size, loss, target,
-    lights...); scene: the ``mixed.SceneGeometry``; box: the probe's proxy (2, 3);
-    exponent: where the lights' exponent starts; fit_lights(data, loss_weights, exponent)
-    -> ``mixed.MixedFit``; probe_sizes: what "auto" tries."""
-    full = fit_data(obj)
+    highlights: the emitter term on its grid (zeros without emitters), (V, D, 3), or a
+    function of a slice of vertices giving theirs; parts: the emitter parts' count;
+    options: ``FitOptions`` (model, probe_size, loss, target, lights...); scene: the
+    ``mixed.SceneGeometry``; box: the probe's proxy (2, 3); exponent: where the lights'
+    exponent starts; fit_lights(data, loss_weights, exponent) -> ``mixed.MixedFit``;
+    probe_sizes: what "auto" tries. The model is searched for on every k-th vertex, at
+    most ``search_samples`` samples, and its per-vertex coefficients then solved on
+    every vertex, ``block_samples`` samples at a time (``fitting.blocks``); an object
+    of at most ``search_samples`` samples is fitted whole."""
+    of = highlights if callable(highlights) else (lambda vertices: highlights[vertices])
+    n_vertices, n_directions = obj.num_vertices, len(obj.directions)
+    area = vertex_areas(obj.positions, obj.faces)
+    if not area.sum() > 0:
+        area = np.ones_like(area)
+    sub = search_slice(n_vertices, n_directions, search_samples)
+    full = fit_data(obj, sub, area)
+    positions = np.asarray(obj.positions, np.float64)
+    centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
+    del positions
+    found = _search(full, np.asarray(of(sub), np.float64), obj.material, n_vertices, parts, options,
+                    place=(centre, box), exponent=exponent, fit_lights=fit_lights, probe_sizes=probe_sizes)
+    if sub.step == 1:
+        return found
+    return _every_vertex(found, obj, of, area, options, (sub, block_samples))
+
+
+def _search(full, highlights, material, n_vertices, parts, options, *, place, exponent, fit_lights, probe_sizes):
+    """``fit_components`` on ``full`` (the ``FitData`` of the object or of a subset of
+    its vertices, ``highlights`` theirs): the model "auto" chooses, or the one asked
+    for; n_vertices: the object's (what a model stores counts them all); place: the
+    probe's centre (the whole object's) and proxy box."""
     v = full.n_vertices
+    centre, box = place
     rest = full.radiance - highlights
     data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights, positions=full.positions)
     wanted = options.model
@@ -260,8 +288,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     # the loss weights, of what a viewer sees (the whole radiance), of each loss fitted
     # ("auto" may try both: ``_choose_loss``)
     weights = {options.loss_for("probe"): make_loss_weights(full, options.loss_for("probe"))}
-    centre = 0.5 * (full.positions.min(axis=0) + full.positions.max(axis=0))
-    albedo = probe.albedo_table(obj.material["exponent"])
+    albedo = probe.albedo_table(material["exponent"])
     tried, fits = [], []
 
     def record(model, size, emitters, emitted, *, light_fit=None, probe_fit=None, weight=None, probe_term=None,
@@ -269,7 +296,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
         # keep=False: a step on the way (tried, shown in the report), not a model "auto" may choose;
         # loss: what it was fitted with (None: the diffuse walkthrough's mean, no fit)
         n_lights = 0 if light_fit is None else len(light_fit[0])
-        floats = _floats(v, parts, size, n_lights, emitters)
+        floats = _floats(n_vertices, parts, size, n_lights, emitters)
         approximation = _model(highlights if emitters else 0.0, emitted, probe_term, light_term)
         error = relative_error(full, approximation)["relative_rms"]
         seen = perceptual_error(full, approximation)
@@ -346,6 +373,63 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     if automatic:
         return _choose(fits, options.model_target, tried, full, floor)
     return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)
+
+
+def _every_vertex(c, obj, highlights_of, area, options, blocking):
+    """The ``Components`` ``c`` found on a subset of the vertices (``fit_components``),
+    its per-vertex coefficients solved on every vertex with its probe's texels and its
+    lights held, a block of vertices at a time, and its errors measured on them all.
+    blocking = (the subset's slice, the block's samples)."""
+    sub, block_samples = blocking
+    v, d = obj.num_vertices, len(obj.directions)
+    mean = object_mean(obj.radiance, area, block_samples)
+    n_k = c.n_lights
+    emitted = np.empty((v, 3))
+    weight = None if c.probe is None else np.empty((v, 3))
+    specular = np.empty((v, n_k, 3))
+    model, baseline = ErrorSums(mean), ErrorSums(mean)
+    for sl in vertex_blocks(v, d, block_samples):
+        full = fit_data(obj, sl, area)
+        highlights = np.asarray(highlights_of(sl), np.float64)
+        rest = full.radiance - highlights
+        data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights,
+                       positions=full.positions)
+        walkthrough = directional_mean(full.radiance)
+        values = probe_term = light_term = None
+        if c.model == "diffuse":
+            e = walkthrough
+        else:
+            lw = None if c.loss is None else make_loss_weights(full, c.loss, mean)
+            if c.probe is not None:
+                values = _probe_values(data, c.probe)
+            lobes = _lobe_columns(data, c.lights) if n_k else np.zeros(rest.shape[:2] + (0,))
+            e, s, k = _joint(data, rest, lw, values, lobes, _light_caps(data, c.lights) if n_k else None)
+            del lw
+            if values is not None:
+                weight[sl] = s
+                probe_term = s[:, None, :] * values
+            if n_k:
+                specular[sl] = k
+                light_term = np.einsum("vdk,vkc->vdc", lobes, k)
+            del lobes
+        emitted[sl] = e
+        model.add(full, _model(highlights if c.emitters else 0.0, e, probe_term, light_term), sl.start)
+        baseline.add(full, np.broadcast_to(walkthrough[:, None, :], full.radiance.shape), sl.start)
+    on = f"chosen on every {sub.step}-th vertex ({len(range(*sub.indices(v))):,} of {v:,})"
+    return replace(c, emitted=emitted, probe_weight=weight, specular=specular, error=model.relative()["relative_rms"],
+                   perceptual=model.perceptual(), baseline=baseline.relative()["relative_rms"],
+                   why=f"{c.why}; {on}" if c.why else on)
+
+
+def _probe_values(data, found):
+    """S(n . w) P(u) (V, D, 3) at the samples of ``data`` (its vertices' look-ups in the
+    probe ``found``'s stored texels), as ``fit_probe_part``'s values."""
+    u = probe.box_directions(data.positions[:, None, :], data.views, data.normals[:, None, :], found.centre, found.box)
+    idx, wts = probe.texels(u.reshape(-1, 3), found.size)
+    del u
+    wts *= probe.albedo_factor(found.albedo, data.normals[:, None, :], data.views).reshape(-1, 1)
+    flat = np.asarray(found.texels, np.float64).reshape(-1, 3)
+    return np.einsum("sk,skc->sc", wts, flat[idx]).reshape(data.radiance.shape)
 
 
 def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, place, exponent, fit_lights, required):

@@ -1,14 +1,17 @@
 """What a fit will need in memory, said before it starts, and a refusal in one line when
-the machine cannot hold it (issue 25).
+the machine cannot hold it.
 
 The fit reads a solution an object at a time (``fit.fit`` with a ``SolutionFile``), so
 its peak is the process's base, the fitted model it gathers (every object's mesh and
 coefficients: about the solution's geometry twice), and, in each worker at once, one
-glossy object's working set. That working set grows with the object's samples
-(vertices x directions): the model search's arrays of every sample, float64. Measured on
-the scaling interior (``benchmarks/bench_scale.py``) at up to about 1.1 kB a sample for
-an object whose model gets lights, less for the others; the estimate uses
-``SAMPLE_BYTES``, above that figure.
+glossy object's working set (``object_bytes``): its radiance as the file holds it
+(float32, 12 bytes a sample: vertex x direction), the search for its model on at most
+``search_samples`` of its samples (``fitting.blocks``; float64 arrays of every sample
+searched, up to about 1.1 kB a sample measured on the scaling interior for an object
+whose model gets lights: ``SAMPLE_BYTES`` above that), then its per-vertex pass, a
+block of at most ``block_samples`` samples at a time (``BLOCK_BYTES`` a sample of the
+block), and its stored model (``VERTEX_BYTES`` a vertex). The search and the pass do
+not overlap: the larger counts.
 """
 
 from __future__ import annotations
@@ -19,11 +22,26 @@ import sys
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import available_memory
 
-__all__ = ["SAMPLE_BYTES", "check_dask_memory", "check_fit_memory", "cores", "costs", "fit_estimate"]
+from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES
 
-SAMPLE_BYTES = 1_200  # a glossy object's working set per sample (vertex x direction), upper figure measured
+__all__ = ["SAMPLE_BYTES", "check_dask_memory", "check_fit_memory", "cores", "costs", "fit_estimate", "object_bytes"]
+
+SAMPLE_BYTES = 1_200  # the search's working set per sample searched, upper figure measured
+BLOCK_BYTES = 1_200  # the per-vertex pass's working set per sample of a block
+RADIANCE_BYTES = 12  # the object's radiance as read: float32 RGB per sample
+VERTEX_BYTES = 1_000  # per vertex: its mesh, frames, coefficients (float64 and their float32 copies), visibility
 PROCESS_BYTES = 200 * 2**20  # a fitting process before its object: Python, numpy, scipy, numba
 GIB = 2**30
+
+
+def object_bytes(vertices, directions, search_samples=SEARCH_SAMPLES, block_samples=BLOCK_SAMPLES):
+    """The working set of fitting one glossy object of ``vertices`` x ``directions``
+    samples: its radiance, the larger of the search and a block of the per-vertex
+    pass, and its per-vertex arrays."""
+    samples = vertices * directions
+    searched = min(samples, max(int(search_samples), directions))
+    block = min(samples, max(int(block_samples), directions))
+    return samples * RADIANCE_BYTES + max(searched * SAMPLE_BYTES, block * BLOCK_BYTES) + vertices * VERTEX_BYTES
 
 
 def cores():
@@ -39,7 +57,9 @@ def costs(source):
 
 def _objects(source):
     """(bytes of the fitted model's geometry, [(samples, name, V, D) of each glossy
-    object], costliest first) of the ``SolutionFile`` ``source``, from its headers."""
+    object], costliest first) of the ``SolutionFile`` ``source``, from its headers.
+    "Costliest" is by samples: with a bounded search the working set still grows
+    with them (``object_bytes``)."""
     geometry, glossy = 0, []
     for name in source.names:
         v, d, mesh = source.sizes(name)
@@ -49,20 +69,27 @@ def _objects(source):
     return geometry, sorted(glossy, reverse=True)
 
 
-def fit_estimate(source, workers):
+def fit_estimate(source, workers, search_samples=SEARCH_SAMPLES, block_samples=BLOCK_SAMPLES):
     """(peak bytes, the costliest object's (name, vertices, directions)) of fitting the
-    ``SolutionFile`` ``source`` with ``workers`` processes."""
+    ``SolutionFile`` ``source`` with ``workers`` processes, each object's model searched
+    for on at most ``search_samples`` samples and its per-vertex pass in blocks of
+    ``block_samples`` (``fitting.blocks``)."""
     geometry, glossy = _objects(source)
     main = PROCESS_BYTES + 2 * geometry
     if not glossy:
         return main, None
-    busy = glossy[: max(1, workers)]
+
+    def one(v, d):
+        return object_bytes(v, d, search_samples, block_samples)
+
+    busy = sorted(glossy, key=lambda g: -one(*g[2:]))[: max(1, workers)]
     if workers <= 1:
-        return main + busy[0][0] * SAMPLE_BYTES, busy[0][1:]
-    return main + sum(PROCESS_BYTES + samples * SAMPLE_BYTES for samples, *_ in busy), busy[0][1:]
+        return main + one(*busy[0][2:]), busy[0][1:]
+    return main + sum(PROCESS_BYTES + one(v, d) for _, _, v, d in busy), busy[0][1:]
 
 
-def check_fit_memory(source, workers, available=None, out=None):
+def check_fit_memory(source, workers, available=None, out=None, search_samples=SEARCH_SAMPLES,
+                     block_samples=BLOCK_SAMPLES):
     """The workers to fit ``source`` with: ``workers``, or fewer if their objects at once
     would not fit in the memory left (``available`` bytes, default the machine's). Says
     the estimate (``out``, default a line on stderr, beside the progress bar: stdout
@@ -70,21 +97,22 @@ def check_fit_memory(source, workers, available=None, out=None):
     out = out or (lambda line: print(line, file=sys.stderr))
     available = available_memory() if available is None else available
     chosen = max(1, workers)
-    need, biggest = fit_estimate(source, chosen)
+    need, biggest = fit_estimate(source, chosen, search_samples, block_samples)
     while available is not None and need > available and chosen > 1:
         chosen -= 1
-        need, biggest = fit_estimate(source, chosen)
+        need, biggest = fit_estimate(source, chosen, search_samples, block_samples)
     largest = "" if biggest is None else f"; largest glossy object {biggest[0]!r}: {biggest[1]:,} vertices x {biggest[2]:,} directions"
     have = "" if available is None else f" of {available / GIB:.1f} GB available"
     if available is not None and need > available:
-        raise InputError(f"fit needs about {need / GIB:.1f} GB{have}{largest}; solve it with a coarser "
-                         "--grid or a larger --max-edge, or free memory")
+        raise InputError(f"fit needs about {need / GIB:.1f} GB{have}{largest}; fit with fewer --search-samples, "
+                         "solve with a coarser --grid or a larger --max-edge, or free memory")
     note = f" (fewer than the {workers} asked: memory)" if chosen < workers else ""
     out(f"fit: about {need / GIB:.2f} GB at most{have}, {chosen} worker{'s' if chosen > 1 else ''}{note}{largest}")
     return chosen
 
 
-def check_dask_memory(source, in_flight, available=None, out=None):
+def check_dask_memory(source, in_flight, available=None, out=None, search_samples=SEARCH_SAMPLES,
+                      block_samples=BLOCK_SAMPLES):
     """Says what a fit on Dask needs: here, the base, the fitted model and the arrays of
     the ``in_flight`` costliest glossy objects (their radiance, float32 (V, D, 3), on
     their way to the workers); on each worker, one object's working set (its machine's
@@ -97,6 +125,7 @@ def check_dask_memory(source, in_flight, available=None, out=None):
     have = "" if available is None else f" of {available / GIB:.1f} GB available"
     if available is not None and here > available:
         raise InputError(f"fit needs about {here / GIB:.1f} GB here{have} to send its objects to Dask; free memory")
-    worker = "" if not glossy else (f"; each Dask worker about {(PROCESS_BYTES + glossy[0][0] * SAMPLE_BYTES) / GIB:.2f} GB "
+    largest = 0 if not glossy else PROCESS_BYTES + object_bytes(glossy[0][2], glossy[0][3], search_samples, block_samples)
+    worker = "" if not glossy else (f"; each Dask worker about {largest / GIB:.2f} GB "
                                     f"for the largest glossy object {glossy[0][1]!r}")
     out(f"fit: about {here / GIB:.2f} GB at most here{have}{worker}")

@@ -497,6 +497,15 @@ class SolutionFile:
         camera, environment, settings and scene."""
         return self._solution((self.object(name),))
 
+    def textured(self, name: str) -> TexturedDiffuse | None:
+        """Object ``name``'s ``TexturedDiffuse`` (None: untextured) without its radiance:
+        a texture other objects share is the very array theirs is, as ``object`` reads
+        it (a fit's worker processes return their objects without it)."""
+        diffuse = self.materials[name].get("diffuse") if isinstance(self.materials[name], dict) else None
+        if self._archive.meta["version"] < 3 or not (isinstance(diffuse, list) and len(diffuse) == 3):
+            return None
+        return read_textured(self._archive, name, self.sizes(name)[0], diffuse)
+
     def geometry(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(positions (V, 3) float32, faces (F, 3) int) of object ``name``, unvalidated:
         ``object`` checks them when the object itself is read."""

@@ -13,7 +13,7 @@ from test_fit_streamed import OPTIONS, arrays, same, scene_file
 from fitting import mixed
 from fitting.cluster import fit_on_dask
 from fitting.fit import fit, fit_object
-from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_dask_memory
+from fitting.memory import PROCESS_BYTES, check_dask_memory, object_bytes
 from radiosity.formats import cluster
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import Solution, SolutionFile
@@ -120,7 +120,8 @@ def test_the_dask_estimate_counts_the_objects_in_flight_here_and_one_on_a_worker
         [line] = lines
         here = PROCESS_BYTES + 2 * geometry + glossy[0][0] * 12
         assert f"about {here / 2**30:.2f} GB at most here of 1024.0 GB available" in line
-        assert f"each Dask worker about {(PROCESS_BYTES + glossy[0][0] * SAMPLE_BYTES) / 2**30:.2f} GB" in line
+        v, d, _ = sizes[glossy[0][1]]
+        assert f"each Dask worker about {(PROCESS_BYTES + object_bytes(v, d)) / 2**30:.2f} GB" in line
         assert repr(glossy[0][1]) in line
         lines.clear()
         check_dask_memory(f, 2, available=2**40, out=lines.append)

@@ -13,7 +13,7 @@ from test_fit_cli import DIFFUSE_MATERIAL, run
 from fitting import lobes, mixed
 from fitting.data import fit_data
 from fitting.fit import FitOptions, fit, planned_workers
-from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate
+from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate, object_bytes
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import ObjectSolution, Solution, SolutionFile, load_solution
 
@@ -116,18 +116,28 @@ def test_the_lights_loss_has_the_same_bits_on_any_number_of_threads():
 def test_the_estimate_adds_the_base_the_geometry_and_each_worker_s_largest_object(path):
     with SolutionFile(path) as f:
         geometry = sum(f.geometry(n)[0].nbytes * 4 + f.geometry(n)[1].nbytes for n in f.names)
-        samples = sorted((len(f.geometry(n)[0]) * f.n_directions(n) for n in f.names if f.n_directions(n) > 1), reverse=True)
+        shapes = sorted(((len(f.geometry(n)[0]), f.n_directions(n)) for n in f.names if f.n_directions(n) > 1),
+                        key=lambda s: -s[0] * s[1])
+        work = [object_bytes(v, d) for v, d in shapes]
         one, biggest = fit_estimate(f, 1)
         two, _ = fit_estimate(f, 2)
-        assert biggest[0] == "dome_1" and biggest[1] * biggest[2] == samples[0]
-        assert one == PROCESS_BYTES + 2 * geometry + samples[0] * SAMPLE_BYTES
-        assert two == PROCESS_BYTES + 2 * geometry + 2 * PROCESS_BYTES + (samples[0] + samples[1]) * SAMPLE_BYTES
+        assert biggest[0] == "dome_1" and (biggest[1], biggest[2]) == shapes[0]
+        assert one == PROCESS_BYTES + 2 * geometry + work[0]
+        assert two == PROCESS_BYTES + 2 * geometry + 2 * PROCESS_BYTES + work[0] + work[1]
         said = []
         assert check_fit_memory(f, 2, available=two, out=said.append) == 2
         assert check_fit_memory(f, 2, available=two - 1, out=said.append) == 1
         assert "fewer than the 2 asked" in said[-1] and "'dome_1'" in said[-1]
         with pytest.raises(InputError, match=r"fit needs about .* GB of .* GB available; largest glossy object 'dome_1'"):
             check_fit_memory(f, 1, available=one - 1, out=said.append)
+
+
+def test_an_object_s_working_set_is_bounded_by_the_search_and_the_block_not_its_samples():
+    small, large = object_bytes(2_000, 1_024), object_bytes(100_000, 1_024)
+    # the search and a block are capped: beyond them an object adds its float32 radiance and its vertices
+    assert large - small == 98_000 * (1_024 * 12 + 1_000)
+    assert large < 100_000 * 1_024 * SAMPLE_BYTES / 40  # 2.6 GB where arrays of every sample were 123 GB
+    assert object_bytes(100_000, 1_024, search_samples=2**16) < large
 
 
 def test_the_command_refuses_what_does_not_fit_in_one_line_and_writes_nothing(path, tmp_path, capsys, monkeypatch):

@@ -77,3 +77,29 @@ def test_a_half_textured_object_is_refused(rng, tmp_path):
     np.savez(tmp_path / "bad.npz", **content)
     with pytest.raises(InputError, match="ball/irradiance"):
         load_fit(tmp_path / "bad.npz")
+
+
+def test_objects_fitted_in_workers_share_the_texture_the_parent_holds(rng, tmp_path):
+    """Two glossy objects with one texture, fitted in two worker processes: each comes
+    back with its textured term read in the parent, the one shared array (a worker's
+    copy would be a copy each), and the model is the one fitted here."""
+    from dataclasses import replace
+
+    from radiosity.formats.solution import SolutionFile
+
+    ball = textured_solution(rng, True).objects[0]
+    solution = Solution(objects=(ball, replace(ball, name="ball2", positions=ball.positions + 3.0)), scene="test")
+    solution.save(tmp_path / "solution.npz")
+    options = FitOptions.for_quality("draft")
+    from fitting.fit import planned_workers
+
+    with SolutionFile(tmp_path / "solution.npz") as source:
+        assert planned_workers(source, 2) == 2
+        apart = fit(source, options, workers=2)
+        here = fit(source, options, workers=1)
+    a, b = apart.object("ball").textured, apart.object("ball2").textured
+    assert a.texture is b.texture
+    for name in ("ball", "ball2"):
+        x, y = apart.object(name), here.object(name)
+        assert np.array_equal(x.textured.texture, y.textured.texture) and np.array_equal(x.textured.uvs, y.textured.uvs)
+        assert np.array_equal(x.emitted, y.emitted) and np.array_equal(x.specular, y.specular)
