@@ -22,8 +22,8 @@ from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import SolutionFile
 
-from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
 from .blocks import BLOCK_SAMPLES
+from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
 from .glossy import MODEL_TARGET
 from .memory import check_dask_memory, check_fit_memory, cores
 

@@ -14,13 +14,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_glossy import plane, solution_of
 
 from fitting import FitOptions
 from fitting.blocks import search_slice, vertex_blocks
 from fitting.fit import fit_object
 from fitting.model import directional, shade_arrays
-
-from test_glossy import plane, solution_of
 
 TRUE_DIRS = np.array([[0.6, 0.2, 0.77], [-0.5, -0.4, 0.77]]) / np.linalg.norm([0.6, 0.2, 0.77])
 TRUE_DIRS /= np.linalg.norm(TRUE_DIRS, axis=1, keepdims=True)
