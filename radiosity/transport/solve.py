@@ -425,7 +425,7 @@ def _solve(scene, settings, runner, progress):
             diffuse = np.zeros_like(diffuse)
         if o.material.is_glossy:
             dirs = glossy_dirs[o.name]
-            radiance = gathered[o.name]
+            radiance = gathered.pop(o.name)  # not held twice where the texture is taken out below
             if o.texture is not None:
                 # what the gather added: kd / pi * E in every direction (times b(cos_o) with Fresnel)
                 exitance = np.ones(len(dirs))
