@@ -47,6 +47,13 @@ def vertex_areas(positions, faces):
     return out
 
 
+
+def object_areas(obj):
+    """(V,) each vertex's area (``vertex_areas``), ones where the object has none: the
+    weights ``fit_data`` and a fit's blocks use."""
+    area = vertex_areas(obj.positions, obj.faces)
+    return area if area.sum() > 0 else np.ones_like(area)
+
 def fit_data(obj, vertices=slice(None), area=None):
     """The FitData of a ``radiosity.formats.solution.ObjectSolution``, or of its
     ``vertices`` alone (a slice: a block of a large object, or every k-th vertex).
@@ -67,7 +74,7 @@ def fit_data(obj, vertices=slice(None), area=None):
     )
     views /= np.linalg.norm(views, axis=2, keepdims=True)
     if area is None:
-        area = vertex_areas(obj.positions, obj.faces)
+        area = object_areas(obj)
     if area.sum() <= 0:
         area = np.ones_like(area)
     total = area.sum() if (sl.step or 1) == 1 else area[sl].sum()

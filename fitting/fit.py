@@ -21,7 +21,7 @@ from radiosity.formats.errors import InputError
 from radiosity.formats.solution import SolutionFile
 
 from . import blocks, glossy, loss, mixed, paper
-from .data import ErrorSums, fit_data, relative_error, vertex_areas
+from .data import ErrorSums, fit_data, object_areas, relative_error
 from .memory import cores, costs
 from .model import FittedModel, FittedObject, Highlight, directional
 
@@ -200,7 +200,7 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     # samples), then its coefficients solved on every vertex a block at a time
     sub = slice(None) if obj.is_diffuse else blocks.search_slice(obj.num_vertices, len(obj.directions),
                                                                  options.search_samples)
-    area = None if obj.is_diffuse else _areas(obj)
+    area = None if obj.is_diffuse else object_areas(obj)
     data = fit_data(obj, sub, area)
     problem = problem_for(data, options, scene)
     if obj.is_diffuse:
@@ -246,12 +246,6 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     if result.iterations:
         info["iterations"] = result.iterations
     return _fitted_object(obj, result.emitted, result.specular, (result.pos, result.rgb, result.shininess), info)
-
-
-def _areas(obj):
-    """(V,) each vertex's area (ones where the object has none), as ``fit_data`` weighs them."""
-    area = vertex_areas(obj.positions, obj.faces)
-    return area if area.sum() > 0 else np.ones_like(area)
 
 
 def _lights_on_every_vertex(obj, result, options, scene, area):

@@ -38,7 +38,7 @@ import numpy as np
 
 from . import mixed, probe
 from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES, object_mean, search_slice, vertex_blocks
-from .data import ErrorSums, FitData, fit_data, perceptual_error, relative_error, vertex_areas
+from .data import ErrorSums, FitData, fit_data, object_areas, perceptual_error, relative_error
 from .lobes import MixedLights
 from .loss import loss_weights as make_loss_weights
 
@@ -259,9 +259,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     of at most ``search_samples`` samples is fitted whole."""
     of = highlights if callable(highlights) else (lambda vertices: highlights[vertices])
     n_vertices, n_directions = obj.num_vertices, len(obj.directions)
-    area = vertex_areas(obj.positions, obj.faces)
-    if not area.sum() > 0:
-        area = np.ones_like(area)
+    area = object_areas(obj)
     sub = search_slice(n_vertices, n_directions, search_samples)
     full = fit_data(obj, sub, area)
     positions = np.asarray(obj.positions, np.float64)
