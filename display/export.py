@@ -40,7 +40,8 @@ textures and environments):
   ``pbrMetallicRoughness.baseColorTexture`` is its image as a PNG in the GLB's buffer
   (8-bit RGB, the sRGB encoding of the linear texture, row 0 the image's top; sampler
   REPEAT both ways, LINEAR_MIPMAP_LINEAR / LINEAR) and ``baseColorFactor`` [kd, 1], so
-  that other glTF viewers show the object's diffuse colour. The PNG is exact for a
+  that other glTF viewers show the object's diffuse colour. Objects with the same
+  image share its PNG, image and texture (``_Images``). The PNG is exact for a
   texture decoded from 8-bit sRGB (every image file's: ``linear_to_srgb8``); another
   (a float texture) is rounded: its sRGB encoding to the nearest of the 256 codes;
 - the mesh's ``extras``: ``{"name", "lights": K, "per_light": bool, "light_pos":
@@ -102,6 +103,7 @@ ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delt
 TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
 UNTEXTURED_VERSION = 2  # the version of a file with neither
 ENVIRONMENT_BUFFER = "vlights/environment"  # the environment image's key among trimesh's buffers (no hash clashes)
+IMAGE_BUFFER = "vlights/image"  # IMAGE_BUFFER/i: textured objects' image i among trimesh's buffers
 FILE = "scene.glb"
 PAGE = "index.html"
 WEB = Path(__file__).with_name("web")  # the page, its script and the vendored three.js (r187, MIT)
@@ -265,31 +267,74 @@ def srgb8(texture):
 
 def _visual(obj):
     """A textured object's trimesh ``TextureVisuals``: its uvs (trimesh writes glTF's
-    1 - v) and a material holding its image as sRGB codes (PNG), kd its base colour."""
-    from PIL import Image
+    1 - v) and a material of its own, named as it; its image is added after
+    (``_Images``), once for all the objects that share it."""
     from trimesh.visual.material import PBRMaterial
     from trimesh.visual.texture import TextureVisuals
 
     t = obj.textured
-    material = PBRMaterial(name=obj.name, baseColorTexture=Image.fromarray(srgb8(t.texture), "RGB"),
-                           baseColorFactor=[*t.kd, 1.0], metallicFactor=0.0, roughnessFactor=1.0, doubleSided=True)
+    material = PBRMaterial(name=obj.name, baseColorFactor=[*t.kd, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
+                           doubleSided=True)
     return TextureVisuals(uv=t.uvs, material=material)
 
 
-def _finish_materials(tree):
-    """trimesh's glTF tree completed for textured objects: the sampler (trimesh writes
-    none) and the exact base colour (trimesh keeps colours as 8-bit), from each mesh's
-    extras. A material is the object's own (named as the object, so not shared)."""
-    for mesh in tree.get("meshes", []):
-        textured = (mesh.get("extras") or {}).get("textured")
-        if textured is None:
-            continue
-        material = tree["materials"][mesh["primitives"][0]["material"]]
-        pbr = material["pbrMetallicRoughness"]
-        pbr["baseColorFactor"] = [*textured["kd"], 1.0]
-        if "samplers" not in tree:
-            tree["samplers"] = [dict(SAMPLER)]
-        tree["textures"][pbr["baseColorTexture"]["index"]]["sampler"] = 0
+class _Images:
+    """The textured objects' images as the GLB holds them: one PNG, image and texture for
+    each distinct image, however many materials use it (600 of staircase's 655 textured
+    objects share one image; trimesh would encode it and list it once for each). Objects
+    that share an image share its array, as the fit's reader gives it
+    (``radiosity.formats.npz.Archive.shared``); arrays that are not the same object but
+    hold the same codes are found by their codes' digest."""
+
+    def __init__(self, model):
+        import hashlib
+
+        self.objects = {}  # object name -> index of its image
+        self.codes = []    # each image's 8-bit sRGB codes (H, W, 3) uint8
+        by_array, by_digest = {}, {}
+        for obj in model.objects:
+            if obj.textured is None:
+                continue
+            key = id(obj.textured.texture)
+            if key not in by_array:
+                codes = srgb8(obj.textured.texture)
+                digest = hashlib.blake2b(codes.tobytes(), digest_size=16).digest() + repr(codes.shape).encode()
+                if digest not in by_digest:
+                    by_digest[digest] = len(self.codes)
+                    self.codes.append(codes)
+                by_array[key] = by_digest[digest]
+            self.objects[obj.name] = by_array[key]
+
+    def add(self, buffers, tree):
+        """Each image as a PNG in a buffer of its own (a bufferView each: views are made one
+        per buffer, in order), its image and texture (``SAMPLER``), and each
+        textured mesh's material pointed at its texture, with the exact base colour
+        (trimesh keeps colours as 8-bit) from the mesh's extras."""
+        import io
+
+        from PIL import Image
+
+        if not self.codes:
+            return
+        samplers = tree.setdefault("samplers", [])
+        samplers.append(dict(SAMPLER))
+        first = len(tree["textures"])
+        for i, codes in enumerate(self.codes):
+            with io.BytesIO() as f:
+                Image.fromarray(codes, "RGB").save(f, format="png")
+                data = f.getvalue()
+            key = f"{IMAGE_BUFFER}/{i}"
+            buffers[key] = data + b"\0" * (-len(data) % 4)  # glTF aligns views to 4 bytes
+            tree["images"].append({"bufferView": buffers.index(key), "mimeType": "image/png"})
+            tree["textures"].append({"source": len(tree["images"]) - 1, "sampler": len(samplers) - 1})
+        for mesh in tree["meshes"]:
+            extras = mesh.get("extras") or {}
+            if "textured" not in extras:
+                continue
+            material = tree["materials"][mesh["primitives"][0]["material"]]
+            pbr = material.setdefault("pbrMetallicRoughness", {})
+            pbr["baseColorFactor"] = [*extras["textured"]["kd"], 1.0]
+            pbr["baseColorTexture"] = {"index": first + self.objects[extras["name"]]}
 
 
 def export_glb(model):
@@ -313,15 +358,18 @@ def export_glb(model):
     scene.metadata.update(scene_extras(model))
     env = model.environment
 
-    def add_environment(buffers, tree):
-        """The environment's image as one more buffer (a bufferView of its own: views are
-        made one per buffer, in order), and its entry in the scene's extras."""
-        buffers[ENVIRONMENT_BUFFER] = environment_bytes(env)  # float32: a multiple of 4 bytes, as glTF wants
-        tree["scenes"][0]["extras"]["environment"] = environment_extras(env, buffers.index(ENVIRONMENT_BUFFER))
+    images = _Images(model)
+
+    def add_buffers(buffers, tree):
+        """The images (``_Images``), then the environment's image as one more buffer (a
+        bufferView of its own) and its entry in the scene's extras."""
+        images.add(buffers, tree)
+        if env is not None:
+            buffers[ENVIRONMENT_BUFFER] = environment_bytes(env)  # float32: a multiple of 4 bytes, as glTF wants
+            tree["scenes"][0]["extras"]["environment"] = environment_extras(env, buffers.index(ENVIRONMENT_BUFFER))
 
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, unitize_normals=False,
-                                            tree_postprocessor=_finish_materials,
-                                            buffer_postprocessor=add_environment if env is not None else None)
+                                            buffer_postprocessor=add_buffers)
 
 
 SHADING = "shading.js"  # written with the page: the shaders' #define lines and constants, an ES module
@@ -470,11 +518,13 @@ def _read_probe(info, attributes, v, fail):
     return probe, _attribute(attributes, "_PROBE", v, fail)
 
 
-def _read_textured(info, mesh, v, fail):
+def _read_textured(info, mesh, v, fail, decoded):
     """An object's ``TexturedDiffuse`` from its mesh extras, uvs, image and
     ``_IRRADIANCE`` (None if it has none). The image's 8-bit sRGB codes are decoded as
     the solution's are (``radiosity.formats.texture``): a texture that was such a
-    decoding comes back exact."""
+    decoding comes back exact. ``decoded`` (id(image) -> (image, texture)) holds each
+    image decoded once: objects whose materials share an image share its array, as
+    they do read from fit.npz."""
     from radiosity.formats.material import srgb_to_linear
     from radiosity.formats.texture import TexturedDiffuse
 
@@ -492,8 +542,10 @@ def _read_textured(info, mesh, v, fail):
     image = getattr(getattr(visual, "material", None), "baseColorTexture", None)
     if image is None or not hasattr(image, "convert"):
         raise fail("is textured but its material has no baseColorTexture image")
-    codes = np.asarray(image.convert("RGB"))
-    texture = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes]
+    if id(image) not in decoded:
+        codes = np.asarray(image.convert("RGB"))
+        decoded[id(image)] = (image, srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes])
+    texture = decoded[id(image)][1]
     irradiance = _attribute(mesh.vertex_attributes, "_IRRADIANCE", v, fail)
     try:
         return TexturedDiffuse(uvs=np.asarray(uv, np.float64), irradiance=irradiance, texture=texture, kd=kd)
@@ -532,7 +584,7 @@ def load_export(path):
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
     environment = _read_environment(header, extras, binary, fail) if version >= 4 else None  # before trimesh's checks
     scene = trimesh.load(path, file_type="glb", force="scene", process=False)
-    objects = []
+    objects, decoded = [], {}  # decoded: each image decoded once (_read_textured)
     for name in extras["objects"]:
         mesh = scene.geometry[name]
         info = mesh.metadata
@@ -554,7 +606,7 @@ def load_export(path):
             highlight = _read_highlight(info, attributes, v, parts, nodes, object_fail)
             probe, weight = _read_probe(info, attributes, v, object_fail)
         if version >= 3:
-            textured = _read_textured(info, mesh, v, object_fail)
+            textured = _read_textured(info, mesh, v, object_fail, decoded)
         objects.append(FittedObject(
             name=name,
             positions=np.asarray(mesh.vertices, np.float32),

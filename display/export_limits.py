@@ -85,6 +85,7 @@ class ObjectSizes(NamedTuple):
     parts: int           # P: emitter parts whose visibility it holds
     probe: int           # M of its M x M probe (0: none)
     values: dict         # values (float32 / int32 numbers) of each of its arrays, by key ("positions", ...)
+    image: tuple | None = None  # its texture as stored, (CRC-32, bytes): objects that share an image share this
 
 
 class FitSizes(NamedTuple):
@@ -136,7 +137,7 @@ def fit_sizes(path):
             objects.append(ObjectSizes(
                 name=str(name), vertices=side("positions", 0), lights=side("light_pos", 0) or side("light_dirs", 0),
                 per_light=len(shapes.get("specular", ())) == 3, parts=side("visibility", 1), probe=side("probe", 0),
-                values=values,
+                values=values, image=archive.stored_as(f"{name}/texture") if "texture" in own else None,
             ))
         environment = None
         if IMAGE_KEY in archive.keys:
@@ -157,12 +158,15 @@ def _attribute_values(obj):
 def export_estimate(sizes):
     """Bytes of the export's peak resident memory, for a ``FitSizes`` (constants above)."""
     need = PROCESS_BYTES + OBJECT_BYTES * len(sizes.objects)
+    images = {}  # an image once, however many objects share it (display.export._Images)
     for obj in sizes.objects:
         v = obj.values
         keys, attributes = _attribute_values(obj)
         rest = sum(n for k, n in v.items() if k not in (*MESH_KEYS, *keys, "texture", "probe"))
         need += (MESH_BYTES * sum(v.get(k, 0) for k in MESH_KEYS) + ATTRIBUTE_BYTES * attributes
-                 + TEXTURE_BYTES * v.get("texture", 0) + PROBE_BYTES * v.get("probe", 0) + REST_BYTES * rest)
+                 + PROBE_BYTES * v.get("probe", 0) + REST_BYTES * rest)
+        images[obj.name if obj.image is None else obj.image] = v.get("texture", 0)
+    need += TEXTURE_BYTES * sum(images.values())
     if sizes.environment is not None:
         need += ENVIRONMENT_BYTES * 3 * sizes.environment[0] * sizes.environment[1]
     return need

@@ -223,25 +223,15 @@ class _Object:
             self.formats[attribute] = f"{values.shape[1]}f"
         self.bytes += self.buffers[attribute].size
 
-    def add_textured(self, ctx, textured):
+    def add_textured(self, ctx, textured, images):
         """A textured object's diffuse term (``radiosity.formats.texture.TexturedDiffuse``):
-        its uvs and irradiance as attributes, its image as a float texture, bottom row
-        first (t = v), bilinear and repeating, mipmapped for minification."""
+        its uvs and irradiance as attributes, its image the float texture ``images``
+        (``_Images``) holds for it: one for all the objects that share the image."""
         if self.textured is not None:
             return
         self.add(ctx, "in_uv", textured.uvs)
         self.add(ctx, "in_irradiance", textured.irradiance)
-        image = np.ascontiguousarray(textured.texture[::-1], np.float32)
-        height, width = image.shape[:2]
-        limit = ctx.info["GL_MAX_TEXTURE_SIZE"]
-        if max(width, height) > limit:
-            raise InputError(f"object {self.name!r}: its texture ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
-        texture = ctx.texture((width, height), 3, image.tobytes(), dtype="f4")
-        texture.repeat_x = texture.repeat_y = True
-        texture.build_mipmaps()
-        texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        self.textured = (texture, tuple(float(c) for c in textured.kd))
-        self.bytes += image.nbytes * 4 // 3
+        self.textured = (images.texture(self.name, textured.texture), tuple(float(c) for c in textured.kd))
 
     def vao(self, ctx, program, attributes, indexed=True, sources=None):
         # an attribute with no buffer (in_specular of per-light coefficients) reads the
@@ -260,8 +250,45 @@ class _Object:
             b.release()
         if self.lights is not None:
             self.lights.release()
-        if self.textured is not None:
-            self.textured[0].release()
+
+
+class _Images:
+    """The float textures of textured objects' images, one for each image: the objects of
+    a scene that share an image (600 of staircase's 655 share one) share the array the
+    file's reader gives them (``radiosity.formats.npz.Archive.shared``), and so their
+    texture here. Bottom row first (t = v), bilinear and repeating, mipmapped for
+    minification."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._textures = {}  # id(image) -> (image, its texture): the image held, so its id is not reused
+
+    def texture(self, name, image):
+        """The texture of ``image`` (H, W, 3) linear floats, made at its first use by object ``name``."""
+        held = self._textures.get(id(image))
+        if held is not None:
+            return held[1]
+        height, width = image.shape[:2]
+        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
+        if max(width, height) > limit:
+            raise InputError(f"object {name!r}: its texture ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
+        flipped = np.ascontiguousarray(np.asarray(image)[::-1], np.float32)
+        texture = self.ctx.texture((width, height), 3, flipped.tobytes(), dtype="f4")
+        texture.repeat_x = texture.repeat_y = True
+        texture.build_mipmaps()
+        texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self._textures[id(image)] = (image, texture)
+        return texture
+
+    @property
+    def nbytes(self):
+        """Bytes of the textures with their mipmaps (12 a texel)."""
+        return sum(t.width * t.height * 12 * 4 // 3 for _, t in self._textures.values())
+
+    def release(self):
+        for _, texture in self._textures.values():
+            texture.release()
+        self._textures.clear()
 
 
 class _Framebuffers:
@@ -327,7 +354,7 @@ def _store_blocks(fit, solution):
 
 def _estimate(fit, solution, layout):
     """``display.store.Estimate`` of a renderer of ``fit`` and ``solution`` in ``layout``."""
-    buffers, host = 0, 0
+    buffers, host, images = 0, 0, {}
     for model in (fit, solution):
         for o in model.objects if model is not None else ():
             buffers += VERTEX_BYTES * len(o.positions) + 12 * len(o.faces)
@@ -336,7 +363,8 @@ def _estimate(fit, solution, layout):
             host += sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
             textured = getattr(o, "textured", None)
             if textured is not None:
-                buffers += np.asarray(textured.texture).size * 4 * 4 // 3
+                images[id(textured.texture)] = np.asarray(textured.texture).size
+    buffers += sum(images.values()) * 4 * 4 // 3  # an image once, however many objects share it (_Images)
     # a band of rows; a chunk of a grid: its highlights and their difference (float64), that as
     # float32, or its float64 copy for the directional mean (_grid_chunks, _directional_mean)
     chunk = max((min(s.radiance.size // 3, _chunk_vertices(s.radiance) * s.radiance.shape[1])
@@ -421,6 +449,7 @@ class Renderer:
             environment = fit.environment
         self.environment = environment  # the light from outside the scene, drawn where no object is
         self._environment_texture = None
+        self.images = _Images(ctx)  # textured objects' images, one texture each
         self.nodes = {"fitted": DEFAULT_NODES, "reference": DEFAULT_NODES}
         plan = StorePlan()  # the blocks of the float store, streamed into it once all are known
         if fit is not None:
@@ -455,7 +484,7 @@ class Renderer:
         probes, row = [], 0
         for obj, f in zip(self.objects, fit.objects):
             if f.textured is not None:
-                obj.add_textured(ctx, f.textured)
+                obj.add_textured(ctx, f.textured, self.images)
             if f.highlight is not None:
                 h = f.highlight
                 self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, plan, fresnel=h.fresnel)
@@ -501,7 +530,7 @@ class Renderer:
                 raise InputError(f"the solution and the fitted model differ (object {obj.name!r})")
             obj.add(ctx, "in_tangent", s.tangents)
             if s.textured is not None:
-                obj.add_textured(ctx, s.textured)
+                obj.add_textured(ctx, s.textured, self.images)
             # the diffuse display: each vertex's radiance averaged over directions (what a
             # diffuse walkthrough of this solution shows)
             mean = _directional_mean(s.radiance)
@@ -525,7 +554,7 @@ class Renderer:
     def uploaded_bytes(self):
         """Bytes on the GPU: vertex and index buffers, light tables, the float store (radiance
         grids, per-light coefficients, visibility), the probes."""
-        total = sum(o.bytes for o in self.objects)
+        total = sum(o.bytes for o in self.objects) + self.images.nbytes
         total += sum(o.lights.width * o.lights.height * 16 for o in self.objects if o.lights is not None)
         total += self.store.nbytes
         if self.probes is not None:
@@ -894,6 +923,7 @@ class Renderer:
     def release(self):
         for o in self.objects:
             o.release()
+        self.images.release()
         for p in self._programs.values():
             p.release()
         for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values()):

@@ -111,6 +111,28 @@ def test_the_estimate_counts_each_kind_of_value_at_its_own_cost():
         + L.ENVIRONMENT_BYTES * 3 * 32 * 64
 
 
+def test_an_image_that_objects_share_is_counted_once(tmp_path, rng):
+    """Objects whose textures are stored alike (one image: staircase's 600 objects of one
+    wood) cost the image once; a different image costs its own. From a file: the sizes
+    name each object's stored image, equal for the copies of one image."""
+    L = limits
+    v, f = 100, 150
+    one = [an_object(f"o{i}", v, f, texture=64 * 64)._replace(image=(7, 1000)) for i in range(3)]
+    other = an_object("x", v, f, texture=32 * 32)._replace(image=(8, 500))
+    alone = L.export_estimate(sizes_of(one[0]))
+    together = L.export_estimate(sizes_of(*one))
+    assert together == 3 * alone - 2 * L.PROCESS_BYTES - 2 * L.TEXTURE_BYTES * 3 * 64 * 64
+    assert L.export_estimate(sizes_of(*one, other)) == together + L.export_estimate(sizes_of(other)) - L.PROCESS_BYTES
+
+    model = textured_model(False, rng)
+    wall = model.objects[0]
+    copy = dataclasses.replace(wall, name="copy", textured=dataclasses.replace(wall.textured))
+    dataclasses.replace(model, objects=(*model.objects, copy)).save(tmp_path / "fit.npz")
+    sizes = {o.name: o for o in fit_sizes(tmp_path / "fit.npz").objects}
+    assert sizes["wall"].image == sizes["copy"].image != sizes["tile"].image
+    assert None not in (sizes["wall"].image, sizes["tile"].image)
+
+
 # ---------------------------------------------------------------------- against the measure
 
 MEASURE = """

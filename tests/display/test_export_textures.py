@@ -202,6 +202,37 @@ def test_one_textured_object_beside_an_untextured_one(tmp_path, rng):
     assert bits_equal(back.objects[1].textured.texture, model.objects[1].textured.texture)
 
 
+@pytest.mark.parametrize("same_array", [True, False])
+def test_objects_that_share_an_image_share_its_png_image_and_texture(tmp_path, rng, same_array):
+    """Two objects with one image (the very array, as fit.npz's reader gives it, or an
+    equal copy): one PNG, one image, one texture, which both materials (each the object's
+    own, with its own kd) name; read back, both objects hold one array, bit for bit the
+    image. A third object's different image is a texture of its own."""
+    model = textured_model(True, rng)
+    wall = model.object("wall").textured
+    image = wall.texture if same_array else wall.texture.copy()
+    tile = dataclasses.replace(model.object("tile").textured, texture=image)
+    third = dataclasses.replace(model.objects[1], name="tile2")
+    objects = (model.objects[0], dataclasses.replace(model.objects[1], textured=tile), third)
+    shared = dataclasses.replace(model, objects=objects)
+    (tmp_path / FILE).write_bytes(export_glb(shared))
+    header, binary = chunks(tmp_path / FILE)
+    assert len(header["images"]) == len(header["textures"]) == 2 and header["samplers"] == [SAMPLER]
+    assert len({i["bufferView"] for i in header["images"]}) == 2
+    assert len(header["materials"]) == 3
+    used = {}
+    for mesh in header["meshes"]:
+        material = header["materials"][mesh["primitives"][0]["material"]]
+        assert material["name"] == mesh["name"]
+        used[mesh["name"]] = material["pbrMetallicRoughness"]["baseColorTexture"]["index"]
+    assert used["wall"] == used["tile"] != used["tile2"]
+    back = load_export(tmp_path / FILE)
+    assert back.object("wall").textured.texture is back.object("tile").textured.texture
+    assert bits_equal(back.object("tile").textured.texture, wall.texture)
+    assert bits_equal(back.object("tile2").textured.texture, model.object("tile").textured.texture)
+    assert back.object("tile").textured.kd == model.object("tile").textured.kd
+
+
 def test_the_khronos_validator_finds_no_errors_in_a_textured_export(exported):
     validate(exported[1] / FILE)
 

@@ -113,3 +113,38 @@ def test_an_untextured_object_beside_it_is_untouched(gl_context, texture):
     uncovered = behind & ~((np.abs(front[..., 0]) < 1.03) & (np.abs(front[..., 1]) < 1.03))
     assert uncovered.sum() > 20
     assert np.allclose(image[uncovered], 0.3, rtol=1e-6)
+
+
+def halves(texture, other):
+    """The square as two objects, its left half textured with ``texture`` and its right
+    half with ``other``: the same array, or an equal copy."""
+    square = square_solution(texture).object("square")
+    objects = []
+    for name, x0, image in (("left", -1.0, texture), ("right", 0.0, other)):
+        positions = np.array([[x0, -1, 0], [x0 + 1, -1, 0], [x0 + 1, 1, 0], [x0, 1, 0]], np.float64)
+        textured = TexturedDiffuse(uvs=uv_of(positions), irradiance=irradiance_of(positions), texture=image, kd=KD)
+        objects.append(ObjectSolution(name=name, positions=positions, normals=square.normals, tangents=square.tangents,
+                                      faces=square.faces, directions=square.directions, radiance=square.radiance,
+                                      material=square.material, textured=textured))
+    return Solution(objects=tuple(objects), scene="test")
+
+
+@pytest.mark.parametrize("same", [True, False])
+def test_objects_that_share_an_image_share_its_texture(gl_context, texture, same):
+    """Two objects with the very same image array (as a file's reader gives objects that
+    share an image) make one texture, counted once in the renderer's estimate and its
+    uploaded bytes; an equal copy makes its own. Either draws the square as one object."""
+    solution = halves(texture, texture if same else texture.copy())
+    renderer = Renderer(gl_context, solution=solution, samples=1)
+    image = renderer.render(CAMERA, mode="reference", shading="pixel").astype(np.float64)
+    expected, inside = expected_image(texture)
+    inside &= np.abs(np.arange(CAMERA.width) - (CAMERA.width - 1) / 2) > 1.0  # off the seam between the halves
+    assert np.allclose(image[inside], expected[inside] + 0.05, rtol=RTOL, atol=ATOL)
+    made = len(renderer.images._textures)
+    assert made == (1 if same else 2)
+    assert renderer.images.nbytes == made * texture.size * 4 * 4 // 3
+    one = Renderer(gl_context, solution=halves(texture, texture), samples=1)
+    two = Renderer(gl_context, solution=halves(texture, texture.copy()), samples=1)
+    assert two.estimate.buffers - one.estimate.buffers == texture.size * 4 * 4 // 3
+    for r in (renderer, one, two):
+        r.release()
