@@ -286,11 +286,18 @@ def _fit_components(obj, options, scene, progress, solution, box):
     exponent = start_exponent(obj, options)
     chosen_by = []
 
-    def lights_for(data, loss_weights, start, count=None, previous=None):
+    def lights_for(data, loss_weights, start, count=None, previous=None, alone=False):
         # count: a quick fit of this many lights (the first light's polish, as many
-        # iterations: whether lights pay), previous: a fit of fewer to continue from
+        # iterations: whether lights pay), previous: a fit of fewer to continue from,
+        # alone: the model "lights" (--lights of them), which "auto" weighs too
         problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
                                      options.exponent_bounds)
+        if alone:  # count given: a quick fit (as the first light's)
+            opts = options if count is None else replace(options, iterations=min(options.iterations,
+                                                                                 mixed.FIRST_POLISH_ITERATIONS))
+            if options.lights == "auto":
+                return _auto_lights(problem, opts, start, log)[0]
+            return fit_lights(problem, options.lights, opts, start, previous=previous, log=log)
         if count is not None:
             quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
             return fit_lights(problem, count, quick, start, previous=previous, log=log)
