@@ -23,7 +23,7 @@ from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import SolutionFile
 
 from .blocks import BLOCK_SAMPLES
-from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers
+from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers, quality_of
 from .glossy import MODEL_TARGET
 from .memory import check_dask_memory, check_fit_memory, cores
 
@@ -140,13 +140,11 @@ def _workers(text):
 
 def fit_quality(args_quality, solution):
     """(quality, how it was chosen): ``--quality`` if given, else the quality recorded
-    in the solution's ``settings["quality"]`` if it is one we know, else the default."""
+    in the solution's ``settings["quality"]`` if it is one we know, else the default
+    (``fitting.fit.quality_of``)."""
     if args_quality is not None:
         return args_quality, "--quality"
-    recorded = solution.settings.get("quality")
-    if isinstance(recorded, str) and recorded in QUALITIES:
-        return recorded, "the solution's quality"
-    return DEFAULT_QUALITY, "default"
+    return quality_of(solution)
 
 
 def fit_options(args, quality):
@@ -165,11 +163,6 @@ def fit_options(args, quality):
         search_samples=args.search_samples if args.search_samples is not None else knobs.fit_search_samples,
         block_samples=args.block_samples,
     ).check()
-
-
-def fit_options_for_quality(quality):
-    """The ``FitOptions`` ``vlights fit`` uses at ``quality`` with no other flag."""
-    return FitOptions.for_quality(quality)
 
 
 def _fit(args):

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import SolutionFile
 
 from . import blocks, glossy, loss, mixed, paper
@@ -33,9 +34,15 @@ ONE_OBJECT_SHARE = 0.5  # no worker processes when one glossy object has more th
 PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
 
 
+_DEFAULT = preset(DEFAULT_QUALITY)  # FitOptions() is what ``vlights fit`` does at the default quality
+
+
 @dataclass(frozen=True)
 class FitOptions:
-    """lights          : K per glossy object, or "auto" (smallest K reaching ``target``)
+    """What a fit does; ``FitOptions()`` is ``FitOptions.for_quality(DEFAULT_QUALITY)``,
+    what ``vlights fit`` does with no flag on a solution that records no quality.
+
+    lights          : K per glossy object, or "auto" (smallest K reaching ``target``)
     target          : relative RMS error target of "auto"
     max_lights      : the cap of "auto"
     method          : "paper" (section 3.2 exactly: directional lights, shared
@@ -70,7 +77,7 @@ class FitOptions:
                       the same model whatever it is)
     """
 
-    lights: int | str = 8
+    lights: int | str = _DEFAULT.fit_lights
     target: float = 0.1
     max_lights: int = 16
     method: str = "refined"
@@ -78,21 +85,19 @@ class FitOptions:
     coefficients: str = "per-light"
     loss: str = "auto"
     exponent_bounds: tuple[float, float] = (1.0, 1e4)
-    iterations: int = 100
+    iterations: int = _DEFAULT.fit_iterations
     model: str = "auto"
     probe_size: int | str = "auto"
-    probe_sizes: tuple[int, ...] = glossy.PROBE_SIZES
-    probe_lights: int | str = 4
+    probe_sizes: tuple[int, ...] = tuple(_DEFAULT.probe_sizes)
+    probe_lights: int | str = _DEFAULT.probe_lights
     model_target: float = glossy.MODEL_TARGET
-    search_samples: int = blocks.SEARCH_SAMPLES
+    search_samples: int = _DEFAULT.fit_search_samples
     block_samples: int = blocks.BLOCK_SAMPLES
 
     @classmethod
     def for_quality(cls, quality):
         """The options ``vlights fit`` uses at ``quality`` (a preset name) with no other
         flag: the preset's lights, iterations, probe sizes and probe lights."""
-        from radiosity.formats.presets import preset
-
         knobs = preset(quality)
         return cls(lights=knobs.fit_lights, iterations=knobs.fit_iterations, probe_sizes=tuple(knobs.probe_sizes),
                    probe_lights=knobs.probe_lights, search_samples=knobs.fit_search_samples).check()
@@ -281,11 +286,18 @@ def _fit_components(obj, options, scene, progress, solution, box):
     exponent = start_exponent(obj, options)
     chosen_by = []
 
-    def lights_for(data, loss_weights, start, count=None, previous=None):
+    def lights_for(data, loss_weights, start, count=None, previous=None, alone=False):
         # count: a quick fit of this many lights (the first light's polish, as many
-        # iterations: whether lights pay), previous: a fit of fewer to continue from
+        # iterations: whether lights pay), previous: a fit of fewer to continue from,
+        # alone: the model "lights" (--lights of them), which "auto" weighs too
         problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
                                      options.exponent_bounds)
+        if alone:  # count given: a quick fit (as the first light's)
+            opts = options if count is None else replace(options, iterations=min(options.iterations,
+                                                                                 mixed.FIRST_POLISH_ITERATIONS))
+            if options.lights == "auto":
+                return _auto_lights(problem, opts, start, log)[0]
+            return fit_lights(problem, options.lights, opts, start, previous=previous, log=log)
         if count is not None:
             quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
             return fit_lights(problem, count, quick, start, previous=previous, log=log)
@@ -382,15 +394,26 @@ def _auto_lights(problem, options, exponent, log=None):
     return fit, why
 
 
-def fit(solution, options=FitOptions(), progress=False, workers=1, client=None):
+def quality_of(solution):
+    """(quality, how it was chosen) of a fit of ``solution`` given none: the quality its
+    solve recorded (``settings["quality"]``) if it is one we know, else the default."""
+    recorded = solution.settings.get("quality")
+    if isinstance(recorded, str) and recorded in QUALITIES:
+        return recorded, "the solution's quality"
+    return DEFAULT_QUALITY, "default"
+
+
+def fit(solution, options=None, progress=False, workers=1, client=None):
     """The fitted model of every object of ``solution``: a ``Solution``, or a
     ``radiosity.formats.solution.SolutionFile``, read an object at a time so that the
     fit's memory is that of the objects being fitted, not of the whole solution.
+    ``options`` None: ``FitOptions.for_quality`` of the quality the solution was solved
+    at (``quality_of``), as ``vlights fit`` with no flag.
     ``workers`` > 1 (a ``SolutionFile`` only) fits the glossy objects in that many
     processes, the costliest first; ``client`` (a ``distributed.Client``, a
     ``SolutionFile`` only) fits them as Dask tasks instead (``fitting.cluster``). The
     model is the same, bit for bit, whichever runs it."""
-    options.check()
+    options = FitOptions.for_quality(quality_of(solution)[0]) if options is None else options.check()
     streamed = isinstance(solution, SolutionFile)
     if (workers > 1 or client is not None) and not streamed:
         raise ValueError("workers > 1 or a Dask client needs a SolutionFile (objects are read from the file one at a time)")

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -55,6 +56,8 @@ WARM_ROUNDS = 3  # alternations of a probe fit that starts from another's coeffi
 PROBE_SAMPLES = 2_000_000  # the texels are fitted to at most about this many samples (every k-th vertex's)
 BLOCK_FLOATS = 1 << 24  # the per-vertex solves' design matrices, a block of vertices at a time (128 MB)
 AUTO_LOSSES = ("relative", "linear")  # the losses "auto" chooses between (``_choose_loss``)
+QUICK_VERTICES = 1000  # lights alone are fitted quickly on about this many vertices first (``_lights_alone``)
+SCREEN = 2 * math.log(1.25)  # lights alone are refined in full where a quick fit's error is within 1.25 x what pays
 LOSS_MARGIN = 0.1  # "auto" takes the linear loss where its first probe's perceptual error is this much below the relative's
 
 
@@ -94,8 +97,11 @@ class Components:
         return len(self.lights[0])
 
 
-def _floats(n_vertices, parts, probe_size, n_lights, emitters):
-    per_vertex = 3 + (parts if emitters else 0) + (3 if probe_size else 0) + 3 * n_lights
+def _floats(n_vertices, parts, probe_size, n_lights, emitters, shared=False):
+    """The numbers a model stores: per vertex its emitted colour, its emitters'
+    visibility, its probe weight and its lights' coefficients (three a light, or three
+    in all where they are ``shared``), and per object its probe's texels and lights."""
+    per_vertex = 3 + (parts if emitters else 0) + (3 if probe_size else 0) + 3 * (min(n_lights, 1) if shared else n_lights)
     return per_vertex * n_vertices + 3 * probe_size * probe_size + 8 * n_lights
 
 
@@ -136,13 +142,47 @@ def _lobe_columns(data, lights):
     return out
 
 
-def _joint(data, target, loss_weights, probe_values, lobes, light_caps):
+class _LightColumns(NamedTuple):
+    """The lights' columns of ``_joint``: per light, ``values`` (V, D, K) each light's
+    lobe (its colour one) and ``caps`` (V, 3, K) its coefficient's; ``shared`` (one
+    coefficient a vertex, the paper's model): ``values`` (V, D, 3) the lights' sum,
+    sum_k rgb_k lobe_k, and ``caps`` (V, 3) its coefficient's."""
+
+    values: np.ndarray
+    caps: np.ndarray
+    shared: bool
+
+    def term(self, c):
+        """(V, D, 3) the lights' part of the model with coefficients ``c`` (``_joint``'s)."""
+        if self.shared:
+            return c[:, None, :] * self.values
+        return np.einsum("vdk,vkc->vdc", self.values, c)
+
+
+def _light_columns(data, lights, shared):
+    """``_LightColumns`` of ``lights`` (pos, rgb, shininess) at the samples of ``data``;
+    ``shared``: one coefficient a vertex for them all, which multiplies each light's
+    colour (per-light coefficients carry the colour: their lights' are ones)."""
+    lobes = _lobe_columns(data, lights)
+    caps = _light_caps(data, lights)
+    if not shared:
+        return _LightColumns(lobes, caps, False)
+    rgb = np.asarray(lights[1], np.float64)
+    # the shared coefficient's cap is the tightest the lights set: CAP_FACTOR x the brightest
+    # radiance over the brightest lobe shown, max_k peak_k rgb_k (as ``mixed.coefficients``)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.min(np.where(rgb.T[None] > 0, caps / rgb.T[None], np.inf), axis=2)
+    return _LightColumns(np.einsum("vdk,kc->vdc", lobes, rgb), np.minimum(cap, 1e200), True)
+
+
+def _joint(data, target, loss_weights, probe_values, lights=None):
     """Per-vertex coefficients [emitted, probe weight?, light coefficients...] >= 0 of
-    ``target`` (V, D, 3) with the columns given (probe_values (V, D, 3) or None, lobes
-    (V, D, K)); returns (emitted (V, 3), probe weight (V, 3) or None, c (V, K, 3)).
-    Vertices are solved a block at a time (the design is (V, D, columns, 3))."""
+    ``target`` (V, D, 3) with the columns given (probe_values (V, D, 3) or None, lights a
+    ``_LightColumns`` or None); returns (emitted (V, 3), probe weight (V, 3) or None, c:
+    (V, K, 3) per light, (V, 3) shared, (V, 0, 3) without lights). Vertices are solved a
+    block at a time (the design is (V, D, columns, 3))."""
     v, d, _ = target.shape
-    n_k = lobes.shape[2]
+    n_k = 0 if lights is None else (1 if lights.shared else lights.values.shape[2])
     n = 1 + (probe_values is not None) + n_k
     x = np.empty((v, 3, n))
     block = max(1, BLOCK_FLOATS // max(d * n * 3, 1))
@@ -152,16 +192,20 @@ def _joint(data, target, loss_weights, probe_values, lobes, light_caps):
         columns = [np.ones((b, d, 1, 3))]
         if probe_values is not None:
             columns.append(probe_values[sl, :, None, :])
-        if n_k:
-            columns.append(np.broadcast_to(lobes[sl, :, :, None], (b, d, n_k, 3)))
-        columns = np.concatenate(columns, axis=2)
         cap = np.full((b, 3, n), 1e200)
-        if n_k:
-            cap[:, :, n - n_k:] = light_caps[sl]
+        if lights is not None and lights.shared:
+            columns.append(lights.values[sl, :, None, :])
+            cap[:, :, n - 1] = lights.caps[sl]
+        elif n_k:
+            columns.append(np.broadcast_to(lights.values[sl, :, :, None], (b, d, n_k, 3)))
+            cap[:, :, n - n_k:] = lights.caps[sl]
+        columns = np.concatenate(columns, axis=2)
         lw = None if loss_weights is None or loss_weights.shape[0] == 1 else loss_weights[sl]
         x[sl], _ = probe.vertex_coefficients(columns, target[sl], data.weights[sl], lw, cap)
     emitted = x[:, :, 0]
     weight = x[:, :, 1] if probe_values is not None else None
+    if lights is not None and lights.shared:
+        return emitted, weight, np.ascontiguousarray(x[:, :, n - 1])
     c = np.transpose(x[:, :, n - n_k:], (0, 2, 1)) if n_k else np.zeros((v, 0, 3))
     return emitted, weight, np.ascontiguousarray(c)
 
@@ -229,7 +273,7 @@ def fit_probe_part(data, target, loss_weights, size, centre, box, albedo, *, fix
                 part = np.arange(first, min(v, first + block))
                 i, w, _ = look_ups(part)
                 values[part] = np.einsum("sk,skc->sc", w, flat[i]).reshape(len(part), d, 3)
-        emitted, scale, _ = _joint(data, rest, loss_weights, values, np.zeros((v, d, 0)), None)
+        emitted, scale, _ = _joint(data, rest, loss_weights, values)
     found = probe.Probe(texels.astype(np.float32), np.asarray(centre, np.float64), np.asarray(box, np.float64),
                         np.asarray(albedo, np.float64))
     return found, emitted, scale, values
@@ -252,7 +296,8 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     function of a slice of vertices giving theirs; parts: the emitter parts' count;
     options: ``FitOptions`` (model, probe_size, loss, target, lights...); scene: the
     ``mixed.SceneGeometry``; box: the probe's proxy (2, 3); exponent: where the lights'
-    exponent starts; fit_lights(data, loss_weights, exponent) -> ``mixed.MixedFit``;
+    exponent starts; fit_lights(data, loss_weights, exponent) -> ``mixed.MixedFit``
+    (``alone=True``: the lights of the model "lights", which "auto" weighs too);
     probe_sizes: what "auto" tries. The model is searched for on every k-th vertex, at
     most ``search_samples`` samples, and its per-vertex coefficients then solved on
     every vertex, ``block_samples`` samples at a time (``fitting.blocks``); an object
@@ -294,7 +339,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
         # keep=False: a step on the way (tried, shown in the report), not a model "auto" may choose;
         # loss: what it was fitted with (None: the diffuse walkthrough's mean, no fit)
         n_lights = 0 if light_fit is None else len(light_fit[0])
-        floats = _floats(n_vertices, parts, size, n_lights, emitters)
+        floats = _floats(n_vertices, parts, size, n_lights, emitters, light_fit is not None and light_fit[3].ndim == 2)
         approximation = _model(highlights if emitters else 0.0, emitted, probe_term, light_term)
         error = relative_error(full, approximation)["relative_rms"]
         seen = perceptual_error(full, approximation)
@@ -314,14 +359,25 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
             fits.append(c)
         return c
 
-    no_columns = np.zeros((v, full.n_directions, 0))
     floor = None
     if automatic or wanted == "diffuse":
         # what the diffuse walkthrough draws: the floor no kept model may be worse than
         floor = record("diffuse", 0, False, directional_mean(full.radiance))
+    def weigh(kept):
+        # lights alone, weighed against what "auto" keeps of the others; not fitted where
+        # that reaches the target with fewer floats than they would store (the fewest:
+        # --lights auto may stop at one), since "auto" keeps the cheapest reaching it
+        fewest = 1 if options.lights == "auto" else options.lights
+        least = _floats(n_vertices, 0, 0, fewest, False, options.coefficients == "shared")
+        if fewest == 0 or (kept.perceptual <= options.model_target and least >= kept.floats):
+            return kept
+        samples = 3.0 * full.n_directions * n_vertices
+        alone = _lights_alone(record, full, weights, options.loss_for("lights"), exponent, fit_lights,
+                              _criterion(kept, samples), (n_vertices, samples))
+        return _or_alone(kept, alone, floor, samples, options.model_target)
     loss = options.loss_for("probe")
     if automatic or wanted == "emitters":
-        e, _, _ = _joint(data, rest, weights[loss], None, no_columns, None)
+        e, _, _ = _joint(data, rest, weights[loss], None)
         record("emitters", 0, True, e, loss=loss)
     if automatic or wanted in ("probe", "probe+lights"):
         if options.probe_size != "auto":
@@ -332,7 +388,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
         if automatic and options.loss == "auto":
             loss, first = _choose_loss(record, (data, rest, full, highlights), weights, (sizes[0], centre, box, albedo))
             if loss != "relative" and parts:  # without an emitter term its colour would be the directional mean
-                e, _, _ = _joint(data, rest, weights[loss], None, no_columns, None)
+                e, _, _ = _joint(data, rest, weights[loss], None)
                 record("emitters", 0, True, e, loss=loss)
         best, start = None, None
         for size in sizes:
@@ -363,13 +419,13 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
             # unless every model with lights is worse than the diffuse walkthrough
             with_lights = [f for f in fits if f.n_lights]
             if any(not _above(f, floor) for f in with_lights):
-                return _choose(with_lights, options.model_target, tried, full, floor,
-                               reason="a highlight the probe does not draw: the cheapest model with lights")
-            return _choose(fits, options.model_target, tried, full, floor, unfloored=with_lights)
+                return weigh(_choose(with_lights, options.model_target, tried, full, floor,
+                                     reason="a highlight the probe does not draw: the cheapest model with lights"))
+            return weigh(_choose(fits, options.model_target, tried, full, floor, unfloored=with_lights))
     if wanted == "lights":
         raise ValueError("the 'lights' model is fitted by fitting.fit (the paper's path)")
     if automatic:
-        return _choose(fits, options.model_target, tried, full, floor)
+        return weigh(_choose(fits, options.model_target, tried, full, floor))
     return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)
 
 
@@ -384,12 +440,12 @@ def _every_vertex(c, obj, highlights_of, area, options, blocking):
     n_k = c.n_lights
     emitted = np.empty((v, 3))
     weight = None if c.probe is None else np.empty((v, 3))
-    specular = np.empty((v, n_k, 3))
+    specular = np.empty((v, 3) if c.specular.ndim == 2 else (v, n_k, 3))
     model, baseline = ErrorSums(mean), ErrorSums(mean)
     for sl in vertex_blocks(v, d, block_samples):
         full = fit_data(obj, sl, area)
-        highlights = np.asarray(highlights_of(sl), np.float64)
-        rest = full.radiance - highlights
+        highlights = np.asarray(highlights_of(sl), np.float64) if c.emitters else 0.0
+        rest = full.radiance - highlights  # the model "lights" (no emitter term): the whole radiance
         data = FitData(radiance=rest, views=full.views, normals=full.normals, weights=full.weights,
                        positions=full.positions)
         walkthrough = directional_mean(full.radiance)
@@ -400,16 +456,16 @@ def _every_vertex(c, obj, highlights_of, area, options, blocking):
             lw = None if c.loss is None else make_loss_weights(full, c.loss, mean)
             if c.probe is not None:
                 values = _probe_values(data, c.probe)
-            lobes = _lobe_columns(data, c.lights) if n_k else np.zeros(rest.shape[:2] + (0,))
-            e, s, k = _joint(data, rest, lw, values, lobes, _light_caps(data, c.lights) if n_k else None)
+            lights = _light_columns(data, c.lights, c.specular.ndim == 2) if n_k else None
+            e, s, k = _joint(data, rest, lw, values, lights)
             del lw
             if values is not None:
                 weight[sl] = s
                 probe_term = s[:, None, :] * values
             if n_k:
                 specular[sl] = k
-                light_term = np.einsum("vdk,vkc->vdc", lobes, k)
-            del lobes
+                light_term = lights.term(k)
+            del lights
         emitted[sl] = e
         model.add(full, _model(highlights if c.emitters else 0.0, e, probe_term, light_term), sl.start)
         baseline.add(full, np.broadcast_to(walkthrough[:, None, :], full.radiance.shape), sl.start)
@@ -428,6 +484,73 @@ def _probe_values(data, found):
     wts *= probe.albedo_factor(found.albedo, data.normals[:, None, :], data.views).reshape(-1, 1)
     flat = np.asarray(found.texels, np.float64).reshape(-1, 3)
     return np.einsum("sk,skc->sc", wts, flat[idx]).reshape(data.radiance.shape)
+
+
+def _lights_alone(record, full, weights, loss, exponent, fit_lights, beat, sizes):
+    """The model "lights" as "auto" weighs it: virtual lights on the whole radiance (no
+    emitter term, no probe), as many as --lights says, with ``loss`` (``weights`` gains
+    its weights), their per-vertex coefficients solved as every other model's; None if
+    no light was fitted. First a quick fit (``mixed.FIRST_POLISH_ITERATIONS``
+    iterations, on every k-th vertex: at most QUICK_VERTICES), a step on the way in the
+    report; the whole fit only where the quick one's error comes within SCREEN of the
+    criterion ``beat`` (``_criterion`` of what "auto" keeps of the others). sizes =
+    (the object's vertices, the samples the criterion counts). Weighed with a quick fit
+    on the search's vertices, they more than doubled the living room's fit on one core
+    (435 s without them; stopped after 965 s)."""
+    n_vertices, samples = sizes
+    if loss not in weights:
+        weights[loss] = make_loss_weights(full, loss)
+    lw = weights[loss]
+
+    def candidate(found, keep):
+        lights = (found.pos, found.rgb, found.shininess)
+        columns = _light_columns(full, lights, not found.per_light)
+        e, _, c = _joint(full, full.radiance, lw, None, columns)
+        return record("lights", 0, False, e, light_fit=(*lights, c), light_term=columns.term(c), loss=loss, keep=keep)
+
+    step = max(1, math.ceil(full.n_vertices / QUICK_VERTICES))
+    few = FitData(radiance=full.radiance[::step], views=full.views[::step], normals=full.normals[::step],
+                  weights=full.weights[::step], positions=None if full.positions is None else full.positions[::step])
+    few_lw = lw[::step] if lw is not None and lw.shape[0] > 1 else lw
+    quick = fit_lights(few, few_lw, exponent, alone=True, count=0)
+    if not quick.n_lights:
+        return None
+    lights = (quick.pos, quick.rgb, quick.shininess)
+    columns = _light_columns(few, lights, not quick.per_light)
+    e, _, c = _joint(few, few.radiance, few_lw, None, columns)
+    error = perceptual_error(few, e[:, None, :] + columns.term(c))
+    floats = _floats(n_vertices, 0, 0, len(quick.pos), False, not quick.per_light)
+    del columns, e, c
+    if 2.0 * math.log(max(error, 1e-12)) + 2.0 * floats / samples >= beat + SCREEN:
+        return candidate(quick, False)
+    first = candidate(quick, False)
+    alone = candidate(fit_lights(full, lw, exponent, alone=True, previous=quick), True)
+    return alone if alone.perceptual <= first.perceptual else first
+
+
+def _criterion(fit, samples):
+    """An information criterion of a fit (Akaike's, with its perceptual error as the
+    residual): 2 ln(error) + 2 floats / samples. Lower is better: an error lower by a
+    factor f pays for (ln f) x samples more floats."""
+    return 2.0 * math.log(max(fit.perceptual, 1e-12)) + 2.0 * fit.floats / samples
+
+
+def _or_alone(kept, alone, floor, samples, target):
+    """What "auto" keeps once lights alone (``_lights_alone``: None if none were fitted)
+    are weighed against ``kept``, its choice among the other models: they are kept where
+    they are no worse than the diffuse walkthrough and their criterion (``_criterion``)
+    is the lower. Why a criterion, and not the others' rule (the cheapest within reach of
+    the best): lights alone have 3 K coefficients a vertex, and fitted to the same samples
+    they are measured on they draw a gather's noise too: on a diffuse colour times noise
+    8 lights (9 x the floats) measured 5 % below the walkthrough's error, which the rule
+    would keep. The criterion asks an error lower by a factor that pays for the floats."""
+    if alone is None or _above(alone, floor) or _criterion(alone, samples) >= _criterion(kept, samples):
+        return kept
+    if kept.perceptual <= target and alone.floats >= kept.floats:  # the cheapest reaching the target
+        return kept
+    why = (f"lights alone: perceptual {alone.perceptual:.3g} with {alone.floats:,} floats, against "
+           f"{_name(kept)}'s {kept.perceptual:.3g} with {kept.floats:,} (the lower information criterion)")
+    return replace(alone, tried=kept.tried, baseline=kept.baseline, why=why)
 
 
 def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, place, exponent, fit_lights, required):
@@ -451,10 +574,10 @@ def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, pl
         first = fit_lights(lights_data, lw, exponent, count=1)
         if first.n_lights:
             lights = (first.pos, first.rgb, first.shininess)
-            lobes = _lobe_columns(full, lights)
-            e, s, c = _joint(data, rest, lw, values, lobes, _light_caps(data, lights))
+            columns = _light_columns(data, lights, not first.per_light)
+            e, s, c = _joint(data, rest, lw, values, columns)
             one = record("probe+lights", chosen.probe.size, True, e, light_fit=(*lights, c), probe_fit=chosen.probe,
-                         weight=s, probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c),
+                         weight=s, probe_term=s[:, None, :] * values, light_term=columns.term(c),
                          keep=False, loss=chosen.loss)
             if chosen.perceptual - one.perceptual < FIRST_LIGHT_PAYS * chosen.perceptual:
                 return
@@ -465,15 +588,14 @@ def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, pl
                    weight=chosen.probe_weight, probe_term=probe_term, loss=chosen.loss)
         return
     lights = (fitted.pos, fitted.rgb, fitted.shininess)
-    lobes = _lobe_columns(full, lights)
-    caps = _light_caps(data, lights)
-    e, s, c = _joint(data, rest, lw, values, lobes, caps)
-    light_term = np.einsum("vdk,vkc->vdc", lobes, c)
+    columns = _light_columns(data, lights, not fitted.per_light)
+    e, s, c = _joint(data, rest, lw, values, columns)
+    light_term = columns.term(c)
     p2, _, _, values = fit_probe_part(data, rest, lw, chosen.probe.size, centre, box, albedo, fixed=light_term,
                                       start=(e, s), rounds=WARM_ROUNDS)
-    e, s, c = _joint(data, rest, lw, values, lobes, caps)
+    e, s, c = _joint(data, rest, lw, values, columns)
     record("probe+lights", p2.size, True, e, light_fit=(*lights, c), probe_fit=p2, weight=s,
-           probe_term=s[:, None, :] * values, light_term=np.einsum("vdk,vkc->vdc", lobes, c), loss=chosen.loss)
+           probe_term=s[:, None, :] * values, light_term=columns.term(c), loss=chosen.loss)
 
 
 def directional_mean(radiance):

@@ -30,6 +30,9 @@ import numpy as np
 from radiosity.scene.geometry import unique_edges
 
 _CONDITION_LIMIT = 1e-3  # below this (relative) Schur complement, fall back to S0 / K0
+MIN_PHOTONS = 16  # a kernel with fewer photons is widened (``irradiance``)
+MAX_SPARSE_RINGS = 8  # by at most this many rings more
+SEAM_COSINE = 0.9  # vertices at one position with normals this alike are one surface (``seam_pairs``)
 
 
 def kernel_moments(positions, normals, tangents, faces):
@@ -62,12 +65,40 @@ def kernel_moments(positions, normals, tangents, faces):
     return k0, k1, k2
 
 
+def seam_pairs(positions, normals, alike=SEAM_COSINE):
+    """(S, 2) int64: pairs of distinct vertices at the same position whose normals are
+    within acos(``alike``) of each other: one surface split by its texture coordinates
+    (a model's UV islands), not at a crease. Rings of neighbours (``widen``) cross such
+    a seam through them. The living room's sofa cushions are 1,801 pieces of a median
+    9 vertices; a kernel could not grow beyond its piece."""
+    if len(positions) == 0:
+        return np.zeros((0, 2), np.int64)
+    _, group, counts = np.unique(positions, axis=0, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)
+    shared = np.flatnonzero(counts[group] > 1)
+    if not len(shared):
+        return np.zeros((0, 2), np.int64)
+    order = shared[np.argsort(group[shared], kind="stable")]
+    first = np.r_[0, np.flatnonzero(np.diff(group[order])) + 1]
+    pairs = []
+    for start, stop in zip(first, np.r_[first[1:], len(order)]):
+        members = order[start:stop]
+        a, b = np.triu_indices(len(members), 1)
+        pairs.append(np.stack([members[a], members[b]], axis=1))
+    pairs = np.concatenate(pairs)
+    cosine = np.einsum("pi,pi->p", normals[pairs[:, 0]], normals[pairs[:, 1]])
+    return pairs[cosine > alike].astype(np.int64)
+
+
 def widening_pairs(positions, normals, tangents, faces):
     """What ``widen`` adds up: (target, source, rotate, delta), one row per pair of a
-    vertex i (target) and itself or a neighbour j (source): ``rotate`` (P, 2, 2) takes
-    j-frame coordinates to i's frame, ``delta`` (P, 2) is x_j - x_i in i's frame.
-    Depends on the mesh only: compute it once for every ``widen`` of a mesh."""
+    vertex i (target) and itself or a neighbour j (source): a vertex sharing a triangle
+    edge with it, or one at its position across a texture seam (``seam_pairs``).
+    ``rotate`` (P, 2, 2) takes j-frame coordinates to i's frame, ``delta`` (P, 2) is
+    x_j - x_i in i's frame. Depends on the mesh only: compute it once for every
+    ``widen`` of a mesh."""
     edges = unique_edges(faces)
+    edges = np.concatenate([edges.reshape(-1, 2), seam_pairs(positions, normals)])
     n_vertices = len(positions)
     target = np.concatenate([np.arange(n_vertices), edges[:, 0], edges[:, 1]])
     source = np.concatenate([np.arange(n_vertices), edges[:, 1], edges[:, 0]])
@@ -188,7 +219,8 @@ def local_scale(positions, faces):
     return total / np.maximum(count, 1.0)
 
 
-def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, max_extra_rings=3):
+def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, max_extra_rings=3, *,
+               photon_power=0.0, min_photons=MIN_PHOTONS, max_sparse_rings=MAX_SPARSE_RINGS, max_radius=np.inf):
     """Vertex irradiance (V, 3) of one object from its photon moments.
 
     Each vertex's kernel is its hat function widened by ``rings`` rings, and by up to
@@ -200,6 +232,16 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     own mesh size so that where the mesh was refined (along a shadow edge, say) the
     small kernels are not widened back across the edge they resolve: rings are
     topological, so the support shrinks with the triangles.
+
+    And where the kernel holds fewer than ``min_photons`` photons (its photon power over
+    one photon's, ``photon_power``: the RGB sum a photon carries; 0 leaves this out), it
+    is widened a ring at a time, up to ``max_sparse_rings`` more, while its support
+    (rings times the local edge length) stays within ``max_radius``. A finely modelled
+    object (the living room's sofa: cushions of 18,108 vertices, edges of 6 mm) has
+    kernels so small that at draft most of them catch no photon at all, and the sofa
+    was drawn in black-and-white speckle: a kernel of one photon reads 0 or several
+    times the truth. A kernel that holds a few photons reads the light, at the cost of
+    a support a few rings wider on such a mesh only.
     """
     moments = (moment0, moment1) + kernel_moments(positions, normals, tangents, faces)
     pairs = widening_pairs(positions, normals, tangents, faces)
@@ -207,13 +249,60 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     estimate, mass = _fit(moments)
     scale = np.maximum(local_scale(positions, faces), 1e-300)
     mass = mass / scale
-    target = np.median(mass)
-    for _ in range(max_extra_rings):
-        weak = mass < target
-        if not weak.any():
+    target = np.median(mass) if len(mass) else 0.0
+    weak = mass < target
+    edge = np.sqrt(scale)
+
+    count = _PhotonCount(pairs, moment0, photon_power, rings)
+    sparse = count.fewer(min_photons)
+    for extra in range(1, max(max_extra_rings, max_sparse_rings) + 1):
+        weak &= extra <= max_extra_rings
+        sparse &= (extra <= max_sparse_rings) & ((rings + extra) * edge <= max_radius)
+        wanted = weak | sparse
+        if not wanted.any():
             break
         moments = widen(positions, normals, tangents, faces, moments, 1, pairs)
         wider, wider_mass = _fit(moments)
-        estimate[weak] = wider[weak]
-        mass = np.where(weak, wider_mass / scale, np.inf)
+        estimate[wanted] = wider[wanted]
+        weak &= wider_mass / scale < target
+        sparse &= count.grow(sparse).fewer(min_photons)
     return estimate
+
+
+class _PhotonCount:
+    """The photons in each vertex's kernel support: the vertices within r rings of it
+    (a set: a widened kernel counts a neighbour's photons once for every path to it, 7^r
+    times at most, so its moments do not count photons), each holding its share of the
+    photons that hit its triangles (a hit's hat weights sum to 1). Counted for the
+    vertices still asked about only, a ring at a time, as a sparse matrix of their
+    supports (rows) over the vertices."""
+
+    def __init__(self, pairs, moment0, photon_power, rings):
+        import scipy.sparse as sp
+
+        n = len(moment0)
+        self.photons = moment0.sum(axis=1) / photon_power if photon_power > 0 else None
+        target, source = pairs[0], pairs[1]  # self pairs and both directions of every edge
+        self.adjacency = sp.csr_matrix((np.ones(len(target), np.float32), (target, source)), shape=(n, n))
+        self.rows = np.arange(n)
+        self.support = sp.identity(n, np.float32, format="csr")
+        for _ in range(rings):
+            self._ring()
+
+    def _ring(self):
+        self.support = self.support @ self.adjacency
+        self.support.data[:] = 1.0
+
+    def grow(self, asked):
+        """One ring more for the vertices ``asked`` (bool (V,)); the others are let go."""
+        keep = asked[self.rows]
+        self.rows, self.support = self.rows[keep], self.support[keep]
+        self._ring()
+        return self
+
+    def fewer(self, least):
+        """(V,) bool: the vertices counted whose support holds fewer than ``least`` photons."""
+        out = np.zeros(len(self.adjacency.indptr) - 1, bool)
+        if self.photons is not None and len(self.rows):
+            out[self.rows] = self.support @ self.photons < least
+        return out

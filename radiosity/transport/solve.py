@@ -371,10 +371,12 @@ def _solve(scene, settings, runner, progress):
     t0 = time.perf_counter()
     irradiance = np.zeros_like(moment0)
     offsets = merged.vertex_offset
+    photon_power = float(emitted.sum()) / total if lit and total else 0.0  # the RGB sum one photon carries
     for i, o in enumerate(refined.objects):
         sl = slice(offsets[i], offsets[i + 1])
         irradiance[sl] = density.irradiance(
-            o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"]
+            o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"],
+            photon_power=photon_power, max_radius=settings["max_edge"],
         )
     times["density"] = time.perf_counter() - t0
 

@@ -148,3 +148,26 @@ def test_fit_options_for_a_quality_follow_its_preset(quality):
     options, knobs = FitOptions.for_quality(quality), preset(quality)
     assert (options.lights, options.iterations, options.probe_sizes, options.probe_lights) == (
         knobs.fit_lights, knobs.fit_iterations, tuple(knobs.probe_sizes), knobs.probe_lights)
+
+
+@pytest.mark.parametrize("quality", [None, "medium"])
+def test_one_default_for_python_and_the_command(quality, tmp_path, capsys):
+    """``FitOptions()`` is the default quality's preset; ``fitting.fit(solution)`` with no
+    options fits at the quality the solution was solved at (the default where it records
+    none), and writes the same model, bit for bit, as ``vlights fit`` with no flag."""
+    from fitting import FitOptions, fit
+    from radiosity.formats.presets import DEFAULT_QUALITY
+    from radiosity.formats.solution import load_solution
+
+    assert FitOptions() == FitOptions.for_quality(DEFAULT_QUALITY)
+    path = small_solution(tmp_path / "s.npz", quality)
+    code, _, err = run(["fit", str(path), "-o", str(tmp_path / "cli.npz"), "--workers", "1"], capsys)
+    assert code == 0, err
+    fit(load_solution(path)).save(tmp_path / "python.npz")
+    cli, python = load_fit(tmp_path / "cli.npz"), load_fit(tmp_path / "python.npz")
+    assert [o.info["chosen_by"] for o in cli.objects] == [o.info["chosen_by"] for o in python.objects]
+    for a, b in zip(cli.objects, python.objects, strict=True):
+        for key, value in a.arrays().items():
+            assert np.array_equal(value, b.arrays()[key]), (a.name, key)
+    iterations = preset(quality or DEFAULT_QUALITY).fit_iterations
+    assert cli.object("dome").info.get("iterations", iterations) <= iterations

@@ -36,7 +36,7 @@ def test_the_model_on_dask_is_the_model_here_bit_for_bit(path, client, tmp_path)
     for a, b in zip(here.objects, there.objects):
         drop = ("time_s",)
         assert {k: v for k, v in a.info.items() if k not in drop} == {k: v for k, v in b.info.items() if k not in drop}
-    assert {o.info["model"] for o in there.objects[:2]} <= {"probe", "probe+lights", "emitters"}  # fitted there
+    assert {o.info["model"] for o in there.objects[:2]} <= {"probe", "probe+lights", "emitters", "lights"}  # fitted there
 
 
 @pytest.mark.dask
