@@ -101,6 +101,14 @@ def register(subparsers, not_built):
         f"(less noise, more blur; default: {preset_values('kernel_rings')})",
     )
     p.add_argument(
+        "--min-photons",
+        type=whole_number(0, presets.MAX_MIN_PHOTONS),
+        metavar="N",
+        help=f"widen a density kernel whose support holds fewer than N photons, ring by ring, up to "
+        f"{presets.MAX_SPARSE_RINGS} rings more within --max-edge (0: never; more: less noise, more blur; "
+        f"default: {presets.MIN_PHOTONS})",
+    )
+    p.add_argument(
         "--extra-gather",
         type=float,
         metavar="F",
@@ -198,6 +206,7 @@ def _solve(args):
         grid=args.grid,
         max_edge=args.max_edge,
         kernel_rings=args.kernel_rings,
+        min_photons=args.min_photons,
         extra_gather=args.extra_gather,
         gather_tolerance=args.gather_tolerance,
         emitter_highlights=args.emitter_highlights,

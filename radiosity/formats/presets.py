@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 
 from radiosity.formats.errors import InputError
 
-__all__ = ["DEFAULT_QUALITY", "MAX_KERNEL_RINGS", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
+__all__ = ["DEFAULT_QUALITY", "MAX_KERNEL_RINGS", "MAX_MIN_PHOTONS", "MAX_SPARSE_RINGS", "MIN_PHOTONS", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,12 @@ QUALITIES = tuple(PRESETS)
 # is far below float64's 1.8e308, while 1000 rings overflow to inf and the solve's
 # radiance to NaN (measured), and 10^9 rings would run for days.
 MAX_KERNEL_RINGS = 64
+# A density kernel whose support holds fewer than MIN_PHOTONS photons widens further, ring by
+# ring, up to MAX_SPARSE_RINGS more (``transport.density.irradiance``; ``--min-photons``): the
+# same at every quality, since it is the photons a kernel holds, not their total, that it asks.
+MIN_PHOTONS = 16
+MAX_SPARSE_RINGS = 8
+MAX_MIN_PHOTONS = 1_000_000
 DEFAULT_QUALITY = "draft"
 
 

@@ -27,11 +27,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from radiosity.formats.presets import MAX_SPARSE_RINGS, MIN_PHOTONS
 from radiosity.scene.geometry import unique_edges
 
 _CONDITION_LIMIT = 1e-3  # below this (relative) Schur complement, fall back to S0 / K0
-MIN_PHOTONS = 16  # a kernel with fewer photons is widened (``irradiance``)
-MAX_SPARSE_RINGS = 8  # by at most this many rings more
 SEAM_COSINE = 0.9  # vertices at one position with normals this alike are one surface (``seam_pairs``)
 
 

@@ -97,6 +97,8 @@ class SolveOptions:
     kernel_rings   : density kernel of each vertex: its hat function widened by this
                      many rings of neighbours (0: the hat alone; more: less noise,
                      more blur), see ``density.widen``
+    min_photons    : a kernel whose support holds fewer photons widens further, ring by
+                     ring (``density.irradiance``; 0: never; more: less noise, more blur)
     extra_gather   : further gather passes where the gather is noisy, at most this
                      times the glossy vertices (0: none), see ``regather``
     gather_tolerance : the relative standard error those passes aim at
@@ -122,6 +124,7 @@ class SolveOptions:
     grid: int | None = None
     max_edge: float | None = None
     kernel_rings: int | None = None
+    min_photons: int | None = None
     extra_gather: float | None = None
     gather_tolerance: float | None = None
     emitter_highlights: bool = True
@@ -141,6 +144,7 @@ class SolveOptions:
             "gather_samples": self.gather_samples if self.gather_samples is not None else preset.gather_samples,
             "light_samples": self.light_samples if self.light_samples is not None else preset.light_samples,
             "kernel_rings": self.kernel_rings if self.kernel_rings is not None else preset.kernel_rings,
+            "min_photons": self.min_photons if self.min_photons is not None else presets.MIN_PHOTONS,
             "extra_gather": float(self.extra_gather if self.extra_gather is not None else preset.extra_gather),
             "gather_tolerance": float(
                 self.gather_tolerance if self.gather_tolerance is not None else preset.gather_tolerance
@@ -159,7 +163,8 @@ class SolveOptions:
         if not math.isfinite(out["max_edge"]):
             raise InputError(f"--max-edge must be a finite length, got {out['max_edge']}")
         for key, low in (
-            ("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("threads", 1),
+            ("photons", 1), ("gather_samples", 1), ("light_samples", 0), ("kernel_rings", 0), ("min_photons", 0),
+            ("threads", 1),
             ("visibility_samples", 1), ("emitter_nodes", 1),
         ):  # fmt: skip
             if int(out[key]) != out[key] or out[key] < low:
@@ -376,7 +381,7 @@ def _solve(scene, settings, runner, progress):
         sl = slice(offsets[i], offsets[i + 1])
         irradiance[sl] = density.irradiance(
             o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"],
-            photon_power=photon_power, max_radius=settings["max_edge"],
+            photon_power=photon_power, max_radius=settings["max_edge"], min_photons=settings["min_photons"],
         )
     times["density"] = time.perf_counter() - t0
 

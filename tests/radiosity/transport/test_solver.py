@@ -471,3 +471,29 @@ def test_odd_inputs_raise_no_runtime_warning(tmp_path):
             scene = furnace(tmp_path, material, subdivisions=1)
             sol = solve(scene, SolveOptions(**{"photons": 2000, "max_edge": 10.0, "gather_samples": 4, **opts}))
             assert np.isfinite(sol.object("sphere").radiance).all()
+
+
+def test_min_photons_reaches_the_density_estimate(monkeypatch):
+    """--min-photons: its default is the presets' MIN_PHOTONS, a negative count is refused
+    in one line, and the solve hands the resolved value to every object's density
+    estimate (0: kernels are never widened for want of photons)."""
+    from radiosity.formats.presets import MIN_PHOTONS
+    from radiosity.transport import density
+
+    scene = load_scene("cornell")
+    assert SolveOptions().resolved(scene)["min_photons"] == MIN_PHOTONS == 16
+    with pytest.raises(InputError, match="--min-photons must be a whole number >= 0, got -1"):
+        SolveOptions(min_photons=-1).resolved(scene)
+    seen = []
+    original = density.irradiance
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["min_photons"], kwargs["photon_power"] > 0))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(density, "irradiance", spy)
+    for count in (0, 40):
+        seen.clear()
+        solve_module.solve(scene, SolveOptions(photons=2000, gather_samples=4, light_samples=1, min_photons=count,
+                                               threads=1))
+        assert seen and set(seen) == {(count, True)}
