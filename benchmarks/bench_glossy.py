@@ -1,4 +1,4 @@
-"""Do glossy objects in the fitted walkthrough look like the truth? (issue 22)
+"""Do glossy objects in the fitted walkthrough look like the truth?
 
 Usage:
     python benchmarks/bench_glossy.py [--parts look,highlights,time,variants] [--truth-spp 1024]

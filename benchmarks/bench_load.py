@@ -1,4 +1,4 @@
-"""How long a Mitsuba XML scene takes to load, against its triangles (issue 24's target:
+"""How long a Mitsuba XML scene takes to load, against its triangles (the target:
 100,000 triangles in under 10 s on 2 cores).
 
 The scene is generated: a room of rectangles and a grid of meshes (icospheres and

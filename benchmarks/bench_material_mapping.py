@@ -1,4 +1,4 @@
-"""How well does the modified-Phong lobe stand in for Mitsuba's rough materials? (issue 24)
+"""How well does the modified-Phong lobe stand in for Mitsuba's rough materials?
 
 Usage:
     python benchmarks/bench_material_mapping.py [--parts rule,sphere,fresnel] [--quick]

@@ -1,4 +1,4 @@
-"""Time and peak memory of every stage against the scene's size (issue 25).
+"""Time and peak memory of every stage against the scene's size.
 
 The scene (``interior``, written as a TOML file): a closed hall divided into rooms by
 full-height walls with a doorway between neighbours; every room is furnished alike: a

@@ -281,7 +281,7 @@ def solve_times(record, rows, args):
                     "target_s": {"draft": 1.5, "high": 15.0}.get(quality),
                 }
             )
-        # what ``vlights solve`` runs at draft: refinement included (issue 13's target: 10 s)
+        # what ``vlights solve`` runs at draft: refinement included (the target: 10 s)
         refined = [timed_solve_in_fresh_process(args.scene, "draft", args.threads, cache, adaptive=True)
                    for _ in range(args.repeats)]
         record(

@@ -1,6 +1,6 @@
 """Does a texture cost accuracy? A textured room against the same room untextured.
 
-Issue 24's target: a textured scene's reference display keeps the texture's detail,
+The target: a textured scene's reference display keeps the texture's detail,
 its FLIP against the path tracer within 10 % of the same scene's without textures.
 
 The scene (written by this script with its images): a room with a tiled floor, a

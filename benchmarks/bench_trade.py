@@ -233,7 +233,7 @@ def truth_trade(record, args):
     ctx = headless_context()
     try:
         for quality, adaptive in [(q, a) for q in (("draft",) if args.quick else presets.QUALITIES) for a in (False, True)]:
-            # with and without the refinement driven by the light (issue 13): the uniform
+            # with and without the refinement driven by the light: the uniform
             # mesh's reference display alone, the refined one's every display
             knobs = presets.preset(quality)
             solution, solve_s = timed_solve(scene, adaptive=adaptive, quality=quality)

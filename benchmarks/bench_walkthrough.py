@@ -1,5 +1,5 @@
 """The trade that justifies the method, measured: a walkthrough of N frames, three ways,
-at equal quality (issue 25).
+at equal quality.
 
 Usage:
     python benchmarks/bench_walkthrough.py [--scenes cornell-teapot,interior] [--triangles 100000]

@@ -544,7 +544,7 @@ def scale(rows, name="scale.jsonl", title="Scale", plotted=True):
                 f"a diffuse statue, a glossy ball of exponent 20, 100 or 1000 and a lamp), {stages[0]['quality']}, "
                 "each stage the command a user types in a process of its own. Peak memory: the kernel's figure for "
                 "the process, and the process tree's summed proportional set size sampled every 0.1 s (the fit's "
-                "worker processes). Issue 25's targets: 10^6 triangles with solve + fit <= 5 minutes and <= 8 GB; "
+                "worker processes). The targets: 10^6 triangles with solve + fit <= 5 minutes and <= 8 GB; "
                 "each stage's log-log slope <= 1.15 between 10^5 and 10^6; the fit's peak <= 2 x the solution's "
                 "arrays.", ""]
     notes = sorted({r["note"] for r in stages if r.get("note")})

@@ -5,7 +5,7 @@ pixel (two seeds); ``vlights truth`` renders the same file with N samples. Repor
 against Mitsuba's 4N-spp image: the mean ratio (ours / Mitsuba's, over the image),
 HDR-FLIP and relative MSE of ours, and, as the noise level to read them by, the same
 for Mitsuba's own N-spp image; and, to tell noise from a difference of models, ours at
-N against ours at 4N (our noise) and ours at 4N against Mitsuba's 4N (the models). Targets (issue 24): mean within 2 %, and our FLIP at or
+N against ours at 4N (our noise) and ours at 4N against Mitsuba's 4N (the models). Targets: mean within 2 %, and our FLIP at or
 below Mitsuba's own N-spp noise level. ``validate_textured.xml`` holds diffuse bitmap textures (a 4 x 4 image
 with distinct corners on a rectangle with to_uv and mirror wrapping, a sphere and an obj): a flipped or rotated
 mapping shows in its FLIP.

@@ -61,7 +61,7 @@ from .outputs import staged_directory
 from .renderer import tonemap
 
 FILES = ("figure5_view1.png", "figure5_view2.png", "figure5_view3.png", "figure6.png", "figure7.png", "compare.json")
-FIGURE7_TARGET = 0.5  # issue 22: FLIP on the glossy objects of the fitted display <= 0.5 x diffuse-only
+FIGURE7_TARGET = 0.5  # the target: FLIP on the glossy objects of the fitted display <= 0.5 x diffuse-only
 CAPTION = 22  # height of the caption strip above each panel, pixels
 BAR_WIDTH = 44  # the colour bar column beside each FLIP error image, pixels
 

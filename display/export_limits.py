@@ -1,4 +1,4 @@
-"""What ``vlights export`` needs, said before it starts (issue 25): memory on this
+"""What ``vlights export`` needs, said before it starts: memory on this
 machine, and texture sizes in the browser that draws its page.
 
 Memory. ``fit_sizes`` reads a fit.npz's zip directory and the headers of the arrays

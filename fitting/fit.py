@@ -63,7 +63,7 @@ class FitOptions:
     model           : what a glossy object's model is made of (``fitting.glossy``):
                       "auto" (the cheapest reaching ``target``), "diffuse", "emitters",
                       "probe", "probe+lights", or "lights" (virtual lights alone on the
-                      whole radiance, as before issue 22; "paper" always is)
+                      whole radiance; "paper" always is)
     probe_size      : the probe's M (M x M texels), or "auto": the sizes ``probe_sizes``
                       tried (the quality preset's), each fitted, the cheapest within reach
                       of the best kept
@@ -197,7 +197,7 @@ def _json_number(value):
 def fit_object(obj, options, scene=None, progress=None, solution=None, box=None):
     """FittedObject for one ``ObjectSolution``; ``scene`` the ``mixed.SceneGeometry`` of
     the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None;
-    ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models of issue 22."""
+    ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models with emitters and a probe."""
     if not obj.is_diffuse and options.glossy_model != "lights":
         return _fit_components(obj, options, scene, progress, solution, box)
     t0 = time.perf_counter()
@@ -278,7 +278,7 @@ def _fit_components(obj, options, scene, progress, solution, box):
     """A glossy object's model of emitter term, probe and lights (``fitting.glossy``)."""
     t0 = time.perf_counter()
     if solution is None:
-        raise ValueError("the models of issue 22 need the solution (its emitters)")
+        raise ValueError("the models with emitters and a probe need the solution (its emitters)")
     log = None
     if progress is not None:
         def log(fit):

@@ -1,4 +1,4 @@
-"""What a glossy object's model is made of, fitted part by part (issue 22).
+"""What a glossy object's model is made of, fitted part by part.
 
     colour(x, w) = emitted(x)                               every object
                  + E(x, w)                                   the emitters' own highlights, in closed
@@ -13,7 +13,7 @@ neighbour, an object the probe's box does not know).
 
 Models, cheapest first (``MODELS``): "diffuse" (emitted alone), "emitters", "probe"
 (emitters + probe), "probe+lights", and "lights" (virtual lights on the whole radiance,
-no emitter term: the paper's model and its extensions, as before issue 22). "auto" fits
+no emitter term: the paper's model and its extensions). "auto" fits
 them all (the probe at several sizes; lights only where the rest still shows a
 highlight) and keeps, in order of stored floats, the first whose error in a space near
 what a viewer sees (``data.perceptual_error``, against the solution's whole radiance)

@@ -2,7 +2,7 @@
 naming the problem and exit status 2 (or a clear warning), no traceback, nothing
 half-written or clobbered, nothing left in the temporary directory.
 
-The first part holds the defects issue 23's sweep found, each with the input that
+The first part holds the defects an adversarial sweep found, each with the input that
 showed it; the second is this sweep's own: malformed scenes and archives, names with
 control characters, output-path hazards and the extremes of every numeric flag.
 Commands run in this process (``display.cli.main``) unless they need a child
@@ -81,7 +81,7 @@ def no_temporary_files_left(tmp_path):
     assert not left, left
 
 
-# -- the defects of issue 23 ---------------------------------------------------------
+# -- the defects the sweep found ----------------------------------------------------
 
 
 @pytest.mark.parametrize("char", ["\x00", "\x01", "\n", "\x1b", "\x7f", "\x85"])

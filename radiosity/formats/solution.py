@@ -447,7 +447,7 @@ def load_solution(path: str | os.PathLike) -> Solution:
 
 class SolutionFile:
     """A solution file read an object at a time, for stages whose memory must not grow
-    with the whole solution (the fit of a large scene: issue 25).
+    with the whole solution (the fit of a large scene).
 
     Opening reads and validates the meta (and the environment); ``object(name)`` reads
     and validates one object as ``load_solution`` would; ``alone(name)`` is a

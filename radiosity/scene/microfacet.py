@@ -54,7 +54,7 @@ modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
   to 2.4 (Beckmann) times the rule at small alpha: too sharp except at grazing
   incidence; the glTF loader's (2/alpha^2 - 2)/4 is 2.7 (GGX) and 1.6 (Beckmann) times
   too broad (glTF's roughness is GGX's).
-- Fresnel (the rule since issue 24's second deliverable): the lobe gets Schlick's term
+- Fresnel (the rule for every microfacet material): the lobe gets Schlick's term
   (``radiosity.formats.material``) with F0 the exact reflectance at normal incidence
   (``normal_reflectance``: the dielectric's for plastics, the conductor's per channel
   for metals); ks, the lobe's scale, is the least-squares fit of its specular albedo ks

@@ -105,11 +105,11 @@ class SolveOptions:
     emitter_highlights : the emitters' direct glossy highlights in closed form (True:
                      ``transport.highlights``, the solution's ``emitters`` and each glossy
                      object's ``visibility``, which the displays draw per pixel); False
-                     gathers them like any light, as before issue 22 (for comparisons)
+                     gathers them like any light (for comparisons)
     visibility_samples : shadow rays per glossy vertex and emitter part
     emitter_nodes  : N of the highlights' quadrature (``formats.emitters``)
     lobe_light     : sample the light where gather paths meet glossy surfaces (True);
-                     False finds it through the lobe alone, as before issue 13: the
+                     False finds it through the lobe alone: the
                      same expected value, more noise (for comparisons)
     seed, threads  : the random seed; worker threads (default: one per core)
     scheduler      : "threads" (this process), "dask" (a new LocalCluster sized to the

@@ -1,4 +1,4 @@
-"""An adversarial sweep of the display commands (issue 23): malformed archives, every
+"""An adversarial sweep of the display commands: malformed archives, every
 output-path hazard, flag extremes, hostile views files and signals mid-work.
 
 Expected everywhere: one line naming the problem and exit status 2 (130 / 143 for
@@ -258,7 +258,7 @@ TARGETS = {
 
 def _long_names_written():
     """Whether this tree's atomic writer takes a name of 255 bytes (its temporary name
-    kept within NAME_MAX: radiosity.formats.atomic, issue 23)."""
+    kept within NAME_MAX: radiosity.formats.atomic)."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as directory:

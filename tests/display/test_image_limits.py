@@ -124,7 +124,7 @@ LLVMPIPE = SimpleNamespace(max_samples=4, info={"GL_RENDERER": "llvmpipe (LLVM 1
     (4096, 16, "8192x8192", 4), (12000, 1, "12000x12000 image of 1 sample a pixel", 0),
 ])
 def test_a_buffer_the_driver_refuses_is_refused_first(size, samples, drawn, most):
-    """The sizes of issue 23 that ended in "framebuffer incomplete": one line, with the
+    """The sizes an adversarial sweep found that ended in "framebuffer incomplete": one line, with the
     most samples that fit."""
     from display.gl import check_samples
 

@@ -1,4 +1,4 @@
-"""A float store larger than one texture (issue 25: a solution of 10^8 radiance values).
+"""A float store larger than one texture (a solution of 10^8 radiance values).
 
 The renderer keeps every per-vertex float array the shaders read by index (radiance
 grids, per-light coefficients, the emitters' visibility) in paged 2D array textures

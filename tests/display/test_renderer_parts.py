@@ -1,4 +1,4 @@
-"""The parts issue 22 added to the displays, GPU against numpy (float framebuffers):
+"""The glossy models' parts in the displays (emitter highlights, probes, lights), GPU against numpy (float framebuffers):
 the emitters' highlights and the reflection probe of the fitted model (per pixel and
 Gouraud, each part switched off in turn), the reference display's highlights added back
 to the solution's rest, and no light counted twice (a glossy floor under a square lamp

@@ -1,4 +1,4 @@
-"""The fit's glossy objects on Dask (issue 25): the same model, bit for bit, as in this
+"""The fit's glossy objects on Dask: the same model, bit for bit, as in this
 process; the window of objects in flight; the command's scheduler, checked and refused
 in one line; its memory statement."""
 

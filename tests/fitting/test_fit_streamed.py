@@ -1,4 +1,4 @@
-"""The fit read an object at a time (issue 25): the same model as from a loaded
+"""The fit read an object at a time: the same model as from a loaded
 solution, the same bits with any number of worker processes or numba threads, and a
 memory estimate that is said before the work and refuses in one line what cannot fit."""
 
