@@ -37,6 +37,12 @@ class FitData:
     def n_directions(self):
         return self.radiance.shape[1]
 
+    def vertices(self, idx):
+        """The same data at the vertices ``idx`` (an index array), weights as they are."""
+        return FitData(radiance=np.ascontiguousarray(self.radiance[idx]), views=np.ascontiguousarray(self.views[idx]),
+                       normals=np.ascontiguousarray(self.normals[idx]), weights=np.ascontiguousarray(self.weights[idx]),
+                       positions=None if self.positions is None else np.ascontiguousarray(self.positions[idx]))
+
 
 def vertex_areas(positions, faces):
     """(V,) float64: a third of the area of every triangle around each vertex."""

@@ -292,14 +292,13 @@ def _fit_components(obj, options, scene, progress, solution, box):
         # alone: the model "lights" (--lights of them), which "auto" weighs too
         problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
                                      options.exponent_bounds)
+        quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
         if alone:  # count given: a quick fit (as the first light's)
-            opts = options if count is None else replace(options, iterations=min(options.iterations,
-                                                                                 mixed.FIRST_POLISH_ITERATIONS))
+            opts = options if count is None else quick
             if options.lights == "auto":
                 return _auto_lights(problem, opts, start, log)[0]
             return fit_lights(problem, options.lights, opts, start, previous=previous, log=log)
         if count is not None:
-            quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
             return fit_lights(problem, count, quick, start, previous=previous, log=log)
         if options.probe_lights == "auto":
             fit, why = _auto_lights(problem, options, start, log)

@@ -363,6 +363,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
     if automatic or wanted == "diffuse":
         # what the diffuse walkthrough draws: the floor no kept model may be worse than
         floor = record("diffuse", 0, False, directional_mean(full.radiance))
+
     def weigh(kept):
         # lights alone, weighed against what "auto" keeps of the others; not fitted where
         # that reaches the target with fewer floats than they would store (the fewest:
@@ -502,37 +503,42 @@ def _lights_alone(record, full, weights, loss, exponent, fit_lights, beat, sizes
         weights[loss] = make_loss_weights(full, loss)
     lw = weights[loss]
 
-    def candidate(found, keep):
-        lights = (found.pos, found.rgb, found.shininess)
-        columns = _light_columns(full, lights, not found.per_light)
-        e, _, c = _joint(full, full.radiance, lw, None, columns)
-        return record("lights", 0, False, e, light_fit=(*lights, c), light_term=columns.term(c), loss=loss, keep=keep)
+    def solved(data, data_lw, found):
+        # (emitted, coefficients, the lights' term) of the lights ``found`` at the samples of ``data``
+        columns = _light_columns(data, (found.pos, found.rgb, found.shininess), not found.per_light)
+        e, _, c = _joint(data, data.radiance, data_lw, None, columns)
+        return e, c, columns.term(c)
 
-    step = max(1, math.ceil(full.n_vertices / QUICK_VERTICES))
-    few = FitData(radiance=full.radiance[::step], views=full.views[::step], normals=full.normals[::step],
-                  weights=full.weights[::step], positions=None if full.positions is None else full.positions[::step])
-    few_lw = lw[::step] if lw is not None and lw.shape[0] > 1 else lw
+    def candidate(found, keep):
+        e, c, term = solved(full, lw, found)
+        return record("lights", 0, False, e, light_fit=(found.pos, found.rgb, found.shininess, c), light_term=term,
+                      loss=loss, keep=keep)
+
+    idx = np.arange(0, full.n_vertices, max(1, math.ceil(full.n_vertices / QUICK_VERTICES)))
+    few, few_lw = full.vertices(idx), lw[idx] if lw is not None and lw.shape[0] > 1 else lw
     quick = fit_lights(few, few_lw, exponent, alone=True, count=0)
     if not quick.n_lights:
         return None
-    lights = (quick.pos, quick.rgb, quick.shininess)
-    columns = _light_columns(few, lights, not quick.per_light)
-    e, _, c = _joint(few, few.radiance, few_lw, None, columns)
-    error = perceptual_error(few, e[:, None, :] + columns.term(c))
-    floats = _floats(n_vertices, 0, 0, len(quick.pos), False, not quick.per_light)
-    del columns, e, c
-    if 2.0 * math.log(max(error, 1e-12)) + 2.0 * floats / samples >= beat + SCREEN:
-        return candidate(quick, False)
+    e, _, term = solved(few, few_lw, quick)
+    error = perceptual_error(few, e[:, None, :] + term)
+    del e, term
     first = candidate(quick, False)
+    if _information(error, _floats(n_vertices, 0, 0, quick.n_lights, False, not quick.per_light), samples) >= beat + SCREEN:
+        return first
     alone = candidate(fit_lights(full, lw, exponent, alone=True, previous=quick), True)
     return alone if alone.perceptual <= first.perceptual else first
 
 
+def _information(error, floats, samples):
+    """An information criterion (Akaike's, with a perceptual error as the residual):
+    2 ln(error) + 2 floats / samples. Lower is better: an error lower by a factor f pays
+    for (ln f) x samples more floats."""
+    return 2.0 * math.log(max(error, 1e-12)) + 2.0 * floats / samples
+
+
 def _criterion(fit, samples):
-    """An information criterion of a fit (Akaike's, with its perceptual error as the
-    residual): 2 ln(error) + 2 floats / samples. Lower is better: an error lower by a
-    factor f pays for (ln f) x samples more floats."""
-    return 2.0 * math.log(max(fit.perceptual, 1e-12)) + 2.0 * fit.floats / samples
+    """``_information`` of a fitted model (a ``Components``)."""
+    return _information(fit.perceptual, fit.floats, samples)
 
 
 def _or_alone(kept, alone, floor, samples, target):

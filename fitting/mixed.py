@@ -174,15 +174,10 @@ class Problem:
     def subset(self, step):
         """The same problem on every ``step``-th vertex (weights renormalised): where the
         greedy placement polishes its lights before the full refinement."""
-        from .data import FitData
-
-        d = self.data
-        idx = np.arange(0, d.n_vertices, step)
-        weights = d.weights[idx]
-        weights = weights / weights.sum() if weights.sum() > 0 else weights
-        data = FitData(radiance=np.ascontiguousarray(d.radiance[idx]), views=np.ascontiguousarray(d.views[idx]),
-                       normals=np.ascontiguousarray(d.normals[idx]), weights=np.ascontiguousarray(weights),
-                       positions=np.ascontiguousarray(d.positions[idx]))
+        idx = np.arange(0, self.data.n_vertices, step)
+        data = self.data.vertices(idx)
+        total = data.weights.sum()
+        data = replace(data, weights=data.weights / total) if total > 0 else data
         lw = self.samples.loss_weights
         lw = lw if lw.shape[0] == 1 else np.ascontiguousarray(lw[idx])
         return Problem.make(data, None if lw.shape[0] == 1 else lw, self.per_light, self.scene, self.exponent_bounds)

@@ -252,8 +252,9 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     weak = mass < target
     edge = np.sqrt(scale)
 
-    count = _PhotonCount(pairs, moment0, photon_power, rings)
-    sparse = count.fewer(min_photons)
+    # the photons in each support, counted only where they are asked about
+    count = _PhotonCount(pairs, moment0, photon_power, rings) if photon_power > 0 and min_photons > 0 else None
+    sparse = count.fewer(min_photons) if count is not None else np.zeros(len(positions), bool)
     for extra in range(1, max(max_extra_rings, max_sparse_rings) + 1):
         weak &= extra <= max_extra_rings
         sparse &= (extra <= max_sparse_rings) & ((rings + extra) * edge <= max_radius)
@@ -264,7 +265,8 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
         wider, wider_mass = _fit(moments)
         estimate[wanted] = wider[wanted]
         weak &= wider_mass / scale < target
-        sparse &= count.grow(sparse).fewer(min_photons)
+        if sparse.any():
+            sparse &= count.grow(sparse).fewer(min_photons)
     return estimate
 
 
@@ -280,7 +282,7 @@ class _PhotonCount:
         import scipy.sparse as sp
 
         n = len(moment0)
-        self.photons = moment0.sum(axis=1) / photon_power if photon_power > 0 else None
+        self.photons = moment0.sum(axis=1) / photon_power
         target, source = pairs[0], pairs[1]  # self pairs and both directions of every edge
         self.adjacency = sp.csr_matrix((np.ones(len(target), np.float32), (target, source)), shape=(n, n))
         self.rows = np.arange(n)
@@ -302,6 +304,6 @@ class _PhotonCount:
     def fewer(self, least):
         """(V,) bool: the vertices counted whose support holds fewer than ``least`` photons."""
         out = np.zeros(len(self.adjacency.indptr) - 1, bool)
-        if self.photons is not None and len(self.rows):
+        if len(self.rows):
             out[self.rows] = self.support @ self.photons < least
         return out
