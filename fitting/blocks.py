@@ -25,9 +25,11 @@ import math
 
 import numpy as np
 
+from radiosity.formats.presets import DEFAULT_QUALITY, PRESETS
+
 __all__ = ["BLOCK_SAMPLES", "SEARCH_SAMPLES", "object_mean", "search_slice", "vertex_blocks"]
 
-SEARCH_SAMPLES = 1 << 20  # the search's samples (draft: the teapot's 3,437 x 289 fit whole)
+SEARCH_SAMPLES = PRESETS[DEFAULT_QUALITY].fit_search_samples  # the search's samples (draft: the teapot's every 4th vertex)
 BLOCK_SAMPLES = 1 << 18  # the per-vertex pass's samples a block (about 0.3 GB of working arrays)
 
 

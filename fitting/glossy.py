@@ -56,7 +56,7 @@ WARM_ROUNDS = 3  # alternations of a probe fit that starts from another's coeffi
 PROBE_SAMPLES = 2_000_000  # the texels are fitted to at most about this many samples (every k-th vertex's)
 BLOCK_FLOATS = 1 << 24  # the per-vertex solves' design matrices, a block of vertices at a time (128 MB)
 AUTO_LOSSES = ("relative", "linear")  # the losses "auto" chooses between (``_choose_loss``)
-QUICK_VERTICES = 1000  # lights alone are fitted quickly on about this many vertices first (``_lights_alone``)
+QUICK_SAMPLES = 1 << 16  # lights alone are fitted quickly on every k-th vertex, about this many samples, first (``_lights_alone``)
 SCREEN = 2 * math.log(1.25)  # lights alone are refined in full where a quick fit's error is within 1.25 x what pays
 LOSS_MARGIN = 0.1  # "auto" takes the linear loss where its first probe's perceptual error is this much below the relative's
 
@@ -492,7 +492,7 @@ def _lights_alone(record, full, weights, loss, exponent, fit_lights, beat, sizes
     emitter term, no probe), as many as --lights says, with ``loss`` (``weights`` gains
     its weights), their per-vertex coefficients solved as every other model's; None if
     no light was fitted. First a quick fit (``mixed.FIRST_POLISH_ITERATIONS``
-    iterations, on every k-th vertex: at most QUICK_VERTICES), a step on the way in the
+    iterations, on every k-th vertex: at most QUICK_SAMPLES samples), a step on the way in the
     report; the whole fit only where the quick one's error comes within SCREEN of the
     criterion ``beat`` (``_criterion`` of what "auto" keeps of the others). sizes =
     (the object's vertices, the samples the criterion counts). Weighed with a quick fit
@@ -514,7 +514,7 @@ def _lights_alone(record, full, weights, loss, exponent, fit_lights, beat, sizes
         return record("lights", 0, False, e, light_fit=(found.pos, found.rgb, found.shininess, c), light_term=term,
                       loss=loss, keep=keep)
 
-    idx = np.arange(0, full.n_vertices, max(1, math.ceil(full.n_vertices / QUICK_VERTICES)))
+    idx = np.arange(0, full.n_vertices, max(1, math.ceil(full.n_vertices * full.n_directions / QUICK_SAMPLES)))
     few, few_lw = full.vertices(idx), lw[idx] if lw is not None and lw.shape[0] > 1 else lw
     quick = fit_lights(few, few_lw, exponent, alone=True, count=0)
     if not quick.n_lights:

@@ -55,7 +55,7 @@ AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
 DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
 POLISH_ITERATIONS = 4
-PLACEMENT_VERTICES = 1000  # lights are placed on about this many vertices of a larger object, then refined on all
+PLACEMENT_SAMPLES = 1 << 16  # lights are placed on every k-th vertex of a larger object, about this many samples, then refined on all
 MEETING_RAYS = 256  # the strongest vertices whose mirror rays locate a light
 FAR = 1e4  # a point light with nothing to locate it starts this many object sizes away
 FIRST_POLISH_ITERATIONS = 12
@@ -476,9 +476,10 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
     continue from. Returns a ``MixedFit`` with at most ``n_lights`` lights.
     """
     full = problem
-    if problem.data.n_vertices > 2 * PLACEMENT_VERTICES:
+    samples = problem.data.n_vertices * problem.data.n_directions
+    if samples > 2 * PLACEMENT_SAMPLES and problem.data.n_vertices >= 4:
         # lights are placed and polished on a subset of the vertices, refined on all
-        problem = full.subset(int(math.ceil(full.data.n_vertices / PLACEMENT_VERTICES)))
+        problem = full.subset(min(int(math.ceil(samples / PLACEMENT_SAMPLES)), problem.data.n_vertices // 2))
     if previous is not None:
         fit = evaluate(problem, previous.pos, previous.rgb, previous.shininess)
     else:

@@ -77,7 +77,7 @@ class Preset:
     emitter_nodes: int = 8
     probe_sizes: tuple[int, ...] = (16, 32)
     probe_lights: int = 4
-    fit_search_samples: int = 1 << 20
+    fit_search_samples: int = 1 << 18
 
 
 # fit_iterations: the refinement's L-BFGS iterations. One evaluation costs about
@@ -90,7 +90,7 @@ PRESETS = {
         8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02, 64, 8, (16, 32, 64), 4
     ),
     "high": Preset(
-        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12, (32, 64), 8, 1 << 21
+        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12, (32, 64), 8, 1 << 19
     ),
 }
 QUALITIES = tuple(PRESETS)
