@@ -165,9 +165,60 @@ def fit_options(args, quality):
     ).check()
 
 
+# What the flags that shape virtual lights, the probe or a fit's loss are, with their
+# defaults: given with a model that has no such part, a flag would be dropped without a word
+LIGHT_FLAGS = (("--lights", "lights", None), ("--method", "method", "refined"), ("--light-kind", "light_kind", "auto"),
+               ("--coefficients", "coefficients", "per-light"), ("--target", "target", 0.1),
+               ("--max-lights", "max_lights", 16), ("--iterations", "iterations", None),
+               ("--exponent-bounds", "exponent_bounds", (1.0, 1e4)))
+NO_LIGHTS = ("diffuse", "emitters", "probe")
+NO_PROBE = ("diffuse", "emitters", "lights")
+
+
+def _given(args, names):
+    """The flags among ``names`` ((flag, attribute, default)) given a value other than their default."""
+    return [flag for flag, attr, default in names
+            if getattr(args, attr) is not None and getattr(args, attr) != default
+            and not (isinstance(default, tuple) and tuple(getattr(args, attr)) == default)]
+
+
+def check_combination(args):
+    """Refuse in one line (InputError) a flag that the chosen --model or --method cannot
+    honour: no flag the user gives is dropped without a word."""
+    model, method = args.model, args.method
+    if method == "paper":
+        if model not in ("auto", "lights"):
+            raise InputError(f"--method paper fits virtual lights alone (the paper's model): it does not go with "
+                             f"--model {model}")
+        if args.light_kind == "positional":
+            raise InputError("--method paper has directional lights (section 3.2): --light-kind positional is for the "
+                             "refined methods")
+    if model in NO_LIGHTS:
+        given = _given(args, LIGHT_FLAGS)
+        if given:
+            raise InputError(f"{given[0]} shapes virtual lights: --model {model} has none (use --model probe+lights, "
+                             f"lights or auto)")
+    if model in NO_PROBE and args.probe_size != "auto":
+        raise InputError(f"--probe-size shapes the reflection probe: --model {model} has none (use --model probe, "
+                         f"probe+lights or auto)")
+    if model == "diffuse" and args.loss != "auto":
+        raise InputError("--model diffuse fits nothing (each vertex's mean over its directions): --loss does not go "
+                         "with it")
+    if model == "probe+lights" and args.lights is not None and _lights(args.lights) == 0:
+        raise InputError("--lights 0 leaves --model probe+lights no lights (use --model probe)")
+    lights = None if args.lights is None else _lights(args.lights)
+    if lights != "auto":
+        given = _given(args, LIGHT_FLAGS[4:6])
+        if given:
+            count = "the quality's number of" if lights is None else f"--lights {lights}"
+            raise InputError(f"{given[0]} is for --lights auto (how many lights it adds): it does nothing with "
+                             f"{count} lights")
+
+
 def _fit(args):
     out = check_output(args.output, ".npz", inputs=(args.solution,), flag="-o")
     fit_options(args, args.quality or DEFAULT_QUALITY)  # bad flags are refused before the solution is read
+    check_combination(args)
     if args.scheduler != "threads":
         check_scheduler(args.scheduler)
         if args.workers is not None:

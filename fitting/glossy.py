@@ -56,7 +56,7 @@ WARM_ROUNDS = 3  # alternations of a probe fit that starts from another's coeffi
 PROBE_SAMPLES = 2_000_000  # the texels are fitted to at most about this many samples (every k-th vertex's)
 BLOCK_FLOATS = 1 << 24  # the per-vertex solves' design matrices, a block of vertices at a time (128 MB)
 AUTO_LOSSES = ("relative", "linear")  # the losses "auto" chooses between (``_choose_loss``)
-QUICK_SAMPLES = 1 << 16  # lights alone are fitted quickly on every k-th vertex, about this many samples, first (``_lights_alone``)
+QUICK_SAMPLES = 1 << 14  # lights alone are fitted quickly on every k-th vertex, about this many samples, first (``_lights_alone``)
 SCREEN = 2 * math.log(1.25)  # lights alone are refined in full where a quick fit's error is within 1.25 x what pays
 LOSS_MARGIN = 0.1  # "auto" takes the linear loss where its first probe's perceptual error is this much below the relative's
 

@@ -140,6 +140,48 @@ def test_bad_model_flags_are_one_line_and_no_file(flags, message, solution_file,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("flags, message", [
+    (["--model", "probe", "--lights", "3"], "--lights shapes virtual lights: --model probe has none"),
+    (["--model", "emitters", "--coefficients", "shared"], "--coefficients shapes virtual lights: --model emitters"),
+    (["--model", "diffuse", "--method", "per-light"], "--method shapes virtual lights: --model diffuse has none"),
+    (["--model", "probe", "--light-kind", "positional"], "--light-kind shapes virtual lights"),
+    (["--model", "probe", "--iterations", "5"], "--iterations shapes virtual lights"),
+    (["--model", "probe", "--exponent-bounds", "2", "50"], "--exponent-bounds shapes virtual lights"),
+    (["--model", "lights", "--probe-size", "16"], "--probe-size shapes the reflection probe: --model lights has none"),
+    (["--model", "emitters", "--probe-size", "16"], "--probe-size shapes the reflection probe"),
+    (["--model", "diffuse", "--loss", "linear"], "--model diffuse fits nothing"),
+    (["--model", "probe+lights", "--lights", "0"], "--lights 0 leaves --model probe+lights no lights"),
+    (["--model", "probe", "--method", "paper"], "--method paper fits virtual lights alone"),
+    (["--method", "paper", "--light-kind", "positional"], "--method paper has directional lights"),
+    (["--lights", "4", "--target", "0.05"], "--target is for --lights auto"),
+    (["--max-lights", "4"], "--max-lights is for --lights auto (how many lights it adds): it does nothing with the "
+                            "quality's number of lights"),
+])
+def test_a_flag_the_model_cannot_honour_is_refused_in_one_line(flags, message, solution_file, tmp_path, capsys):
+    out = tmp_path / "f.npz"
+    code, _, err = run(["fit", str(solution_file), "-o", str(out), *flags], capsys)
+    assert code == 2 and message in err and err.count("\n") == 1 and "Traceback" not in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("flags, model, check", [
+    (["--model", "probe", "--probe-size", "8", "--loss", "linear"], "probe",
+     lambda o: o.probe.size == 8 and o.info["loss"] == "linear"),
+    (["--model", "lights", "--lights", "auto", "--target", "0.2", "--max-lights", "3"], "lights",
+     lambda o: 1 <= o.n_lights <= 3),
+    (["--method", "paper", "--light-kind", "directional", "--coefficients", "shared", "--lights", "2"], "lights",
+     lambda o: o.n_lights == 2 and not o.positional.any() and o.info["coefficients"] == "shared"),
+    (["--model", "probe+lights", "--lights", "1", "--coefficients", "shared", "--probe-size", "8"], "probe+lights",
+     lambda o: o.n_lights == 1 and o.probe.size == 8 and o.info["coefficients"] == "shared"),
+])
+def test_flags_the_model_honours_are_taken(flags, model, check, solution_file, tmp_path, capsys):
+    out = tmp_path / "f.npz"
+    code, _, err = run(["fit", str(solution_file), "-o", str(out), *flags], capsys)
+    assert code == 0 and out.exists(), err
+    dome = load_fit(out).object("dome")
+    assert dome.info["model"] == model and check(dome), dome.info
+
+
 @pytest.mark.parametrize("quality", ["draft", "medium", "high"])
 def test_fit_options_for_a_quality_follow_its_preset(quality):
     from fitting import FitOptions
