@@ -25,7 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import Recorder, run_vlights  # noqa: E402
+from _common import Recorder, git_commit, run_vlights  # noqa: E402
 
 TARGET_GB = 4.0
 LIGHTS = (((0.3, 0.2, 1.0), 400.0, 3.0), ((-0.6, 0.1, 0.8), 20.0, 0.4))  # (direction, exponent, strength)
@@ -75,7 +75,7 @@ def main(argv=None):
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="vlights-fit-memory-"))
     work.mkdir(parents=True, exist_ok=True)
-    record = Recorder(benchmark="fit_memory")
+    record = Recorder(benchmark="fit_memory", commit=git_commit())
     cases = []
     if args.samples > 0:
         path = work / "plate.npz"

@@ -27,7 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import Recorder, run_vlights  # noqa: E402
+from _common import Recorder, git_commit, run_vlights  # noqa: E402
 
 # name -> (scene: a built-in name, "interior:TRIANGLES" or "xml:NAME", solve flags)
 CASES = {
@@ -66,7 +66,7 @@ def main(argv=None):
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="vlights-fit-time-"))
     work.mkdir(parents=True, exist_ok=True)
-    record = Recorder(benchmark="fit_time")
+    record = Recorder(benchmark="fit_time", commit=git_commit())
     warm = [run_vlights(["solve", "cornell-teapot", "-o", "warm.npz", "--seed", "5"], work),
             run_vlights(["fit", "warm.npz", "-o", "warm.fit.npz"], work)]
     if any(r.exit_code for r in warm):

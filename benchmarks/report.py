@@ -187,6 +187,28 @@ def fit_speed(rows):
     return out + [""]
 
 
+def fit_time(rows):
+    out = ["## The fit against the solve", "", where("bench_fit_time.py", ["fit_time.jsonl"]), machine(rows), "",
+           "Each case solved and then fitted as a user types it (`vlights solve SCENE --seed 5 --quality Q`, "
+           "`vlights fit`), alternating, each in a process of its own; medians of the runs, the ratio of the "
+           "medians and of each run (target: fit <= solve). Peak: the fit's largest process (GNU time's maximum "
+           "resident set) and its process tree (summed Pss, sampled).", ""]
+    out += table(["case", "commit", "runs", "solve (s)", "fit (s)", "fit / solve", "per run", "fit peak (MB)",
+                  "fit tree (MB)"],
+                 [[r["case"], r.get("commit", ""), len(r["runs"]), num(r["solve_s"], 1), num(r["fit_s"], 1),
+                   num(r["ratio_medians"], 2), ", ".join(num(x, 2) for x in r["ratio_per_run"]), r["fit_peak_mb"],
+                   r["fit_tree_mb"]] for r in rows if "case" in r])
+    return out + [""]
+
+
+def fit_memory(rows):
+    out = ["## The fit's memory", "", where("bench_fit_memory.py", ["fit_memory.jsonl"]), machine(rows), ""]
+    out += table(["case", "commit", "seconds", "peak (MB)", "tree (MB)", "target (GB)", "within"],
+                 [[r["case"], r.get("commit", ""), num(r["seconds"], 1), r["peak_mb"], r["tree_mb"],
+                   num(r["target_gb"], 1), "yes" if r["within"] else "no"] for r in rows if "case" in r])
+    return out + [""]
+
+
 def glossy(rows_by_quality):
     files = [f"glossy{'' if q == 'draft' else '_' + q}.jsonl" for q in rows_by_quality]
     every = [r for rows in rows_by_quality.values() for r in rows]
@@ -589,6 +611,8 @@ SECTIONS = (
     ("pathtrace.jsonl", pathtrace),
     ("fit.jsonl", fit),
     ("fit_speed.jsonl", fit_speed),
+    ("fit_time.jsonl", fit_time),
+    ("fit_memory.jsonl", fit_memory),
     ("display.jsonl", display),
     ("web.jsonl", web),
     ("trade.jsonl", trade),

@@ -569,7 +569,8 @@ def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, pl
     first (with every coefficient), and the others only if it pays: if it lowers the
     perceptual error of the probe's model by less than FIRST_LIGHT_PAYS of it, what the
     probe leaves is detail no few lights draw (a room seen in a near-mirror), and the
-    lights' search, most of such an object's fit, is not run. The one-light step is
+    lights' search, most of such an object's fit, is not run; nor where the first light
+    carried nothing and was dropped (the mirror plate: 1.2 s). The one-light step is
     in what was tried, marked not kept."""
     centre, box, albedo = place
     chosen, values = probe_fit
@@ -587,6 +588,8 @@ def _probe_and_lights(record, full, data, rest, lw, probe_fit, probe_term, *, pl
                          keep=False, loss=chosen.loss)
             if chosen.perceptual - one.perceptual < FIRST_LIGHT_PAYS * chosen.perceptual:
                 return
+        else:  # the first light carried nothing (dropped as degenerate): nor would more
+            return
     fitted = fit_lights(lights_data, lw, exponent, previous=first)
     if not fitted.n_lights:
         if required:  # nothing left for a light to explain
