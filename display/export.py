@@ -1,14 +1,17 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3, 4 or 5) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3 to 6) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``, the renderer's shader files from
 ``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 5; docs/formats.md). V is an
-object's vertex count, K its number of virtual lights, P the scene's number of emitter
-parts, M an object's probe size. A file is written with the lowest version that holds
-it: 5 with a delta emitter part (a point, a spot, a direction: version 5 adds those
+Schema (format ``vlights.fit.gltf``, version 6; docs/formats.md). V is an
+object's vertex count, K its number of virtual lights, P the number of emitter parts
+its highlight draws (the scene's, or its own: version 6), M an object's probe size. A
+file is written with the lowest version that holds it: 6 where an object names its own
+emitter parts (its mesh extras' ``highlight.parts``: indices into the scene's
+``emitters`` and ``emitter_table``, which may then hold more than 31), else 5 with a
+delta emitter part (a point, a spot, a direction: version 5 adds those
 kinds to ``emitters`` and ``emitter_table``, and may have an environment too), else 4
 with an environment, else 3 with a textured object, else 2 (the same bytes as before
 textures and environments):
@@ -97,8 +100,9 @@ __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 5
-READS = (1, 2, 3, 4, 5)
+VERSION = 6
+READS = (1, 2, 3, 4, 5, 6)
+DELTA_VERSION = 5  # the version of a file with a delta emitter part and no object's own parts
 ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delta part
 TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
 UNTEXTURED_VERSION = 2  # the version of a file with neither
@@ -185,6 +189,8 @@ def mesh_extras(obj):
         extras["highlight"] = {"ks": _doubles(obj.highlight.ks), "exponent": float(obj.highlight.exponent)}
         if obj.highlight.fresnel is not None:
             extras["highlight"]["fresnel"] = _doubles(obj.highlight.fresnel)
+        if obj.highlight.indices is not None:
+            extras["highlight"]["parts"] = [int(i) for i in obj.highlight.indices]
     if obj.probe is not None:
         p = obj.probe
         extras["probe"] = {
@@ -200,22 +206,26 @@ def mesh_extras(obj):
 
 
 def _check_highlights(model):
-    """Every highlight reflects the model's own emitter parts with its nodes (the file
-    holds one list of parts); ValueError otherwise."""
+    """Every highlight reflects the model's emitter parts (all, or those its ``indices``
+    name) with its nodes (the file holds one list of parts); ValueError otherwise."""
     parts = [p.to_dict() for p in model.emitters]
     for obj in model.objects:
         h = obj.highlight
         if h is None:
             continue
-        if [p.to_dict() for p in h.parts] != parts or h.nodes != model.emitter_nodes:
+        wanted = parts if h.indices is None else [parts[i] for i in h.indices if 0 <= i < len(parts)]
+        if [p.to_dict() for p in h.parts] != wanted or h.nodes != model.emitter_nodes:
             raise ValueError(f"object {obj.name!r}: its highlight's emitter parts or nodes are not the model's")
 
 
 def file_version(model):
-    """The lowest version of the schema that holds ``model``: 5 with a delta emitter
-    part, 4 with an environment, 3 with a textured object, else 2."""
-    if any(p.is_delta for p in model.emitters):
+    """The lowest version of the schema that holds ``model``: 6 where an object names its
+    own emitter parts, 5 with a delta emitter part, 4 with an environment, 3 with a
+    textured object, else 2."""
+    if any(o.highlight is not None and o.highlight.indices is not None for o in model.objects):
         return VERSION
+    if any(p.is_delta for p in model.emitters):
+        return DELTA_VERSION
     if model.environment is not None:
         return ENVIRONMENT_VERSION
     return TEXTURED_VERSION if any(o.textured is not None for o in model.objects) else UNTEXTURED_VERSION
@@ -382,7 +392,7 @@ def shading_module(nodes=None):
     out with, as JavaScript. The page puts DEFINES after its header, before each shader file."""
     from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, defines
     from fitting.probe import ALBEDO_POINTS
-    from radiosity.formats.emitters import DEFAULT_NODES
+    from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS
 
     nodes = DEFAULT_NODES if nodes is None else int(nodes)
     return ("// Written by `vlights export` (display/export.py): the #define lines of display/glsl.py.\n"
@@ -390,7 +400,8 @@ def shading_module(nodes=None):
             f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n"
             f"export const EMITTER_NODES = {nodes};\n"
             f"export const TABLE_WIDTH = {TABLE_WIDTH};\n"
-            f"export const ALBEDO_POINTS = {ALBEDO_POINTS};\n")
+            f"export const ALBEDO_POINTS = {ALBEDO_POINTS};\n"
+            f"export const MAX_OBJECT_PARTS = {MAX_FILE_PARTS};\n")
 
 
 def write_files(model, directory, page=True):
@@ -481,8 +492,10 @@ def _attribute(attributes, key, v, fail):
 
 
 def _read_highlight(info, attributes, v, parts, nodes, fail):
-    """An object's ``Highlight`` from its mesh extras and attributes (None if it has none)."""
+    """An object's ``Highlight`` from its mesh extras and attributes (None if it has none):
+    of the scene's ``parts`` all, or those its ``highlight.parts`` name (version 6)."""
     from fitting.model import Highlight
+    from radiosity.formats.emitters import MAX_FILE_PARTS
 
     entry = info.get("highlight")
     if entry is None:
@@ -493,10 +506,21 @@ def _read_highlight(info, attributes, v, parts, nodes, fail):
         fresnel = None if entry.get("fresnel") is None else np.asarray(entry["fresnel"], np.float64).reshape(3)
     except (KeyError, TypeError, ValueError):
         raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent' (and 'fresnel' [r, g, b] if given)") from None
+    indices = entry.get("parts")
+    if indices is not None:
+        if not (isinstance(indices, list) and len(indices) <= MAX_FILE_PARTS and len(set(indices)) == len(indices)
+                and all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(parts) for i in indices)):
+            raise fail(f"'highlight' 'parts' must name at most {MAX_FILE_PARTS} distinct parts of the scene's "
+                       f"{len(parts)}")
+        indices = tuple(indices)
+        parts = tuple(parts[i] for i in indices)
+    elif len(parts) > MAX_FILE_PARTS:
+        raise fail(f"'highlight' draws {len(parts)} emitter parts; without its own 'parts' an object draws at most "
+                   f"{MAX_FILE_PARTS}")
     p = len(parts)
     columns = [_attribute(attributes, key, v, fail) for key in visibility_attributes(np.zeros((0, p)))]
     visibility = np.concatenate(columns, axis=1)[:, :p] if columns else np.zeros((v, 0), np.float32)
-    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel)
+    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel, indices)
 
 
 def _read_probe(info, attributes, v, fail):
@@ -562,7 +586,7 @@ def load_export(path):
 
     from fitting.model import FittedModel, FittedObject
     from radiosity.formats.camera import camera_from_dict
-    from radiosity.formats.emitters import AREA_KINDS, DEFAULT_NODES, KINDS, MAX_NODES, parts_from_meta
+    from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, file_parts
 
     shown = repr(str(path))
     header, binary = _chunks(path)
@@ -577,8 +601,8 @@ def load_export(path):
 
     parts, nodes = (), DEFAULT_NODES
     if version >= 2:
-        parts = parts_from_meta(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"),
-                                KINDS if version >= 5 else AREA_KINDS)
+        parts = file_parts(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"), delta=version >= 5,
+                           own=version >= 6)
         nodes = extras.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")

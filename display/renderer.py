@@ -443,7 +443,8 @@ class Renderer:
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
         self.store = None
         self.probes = None
-        self.emitter_tables = {}  # mode -> the emitter parts' texture
+        self.emitter_tables = {}  # (mode, a list of parts) -> the emitter parts' texture (``_emitter_table``)
+        self.default_tables = {}  # mode -> the table of all its parts
         environment = solution.environment if solution is not None else None
         if environment is None and fit is not None:
             environment = fit.environment
@@ -469,18 +470,26 @@ class Renderer:
         base = plan.add(len(values), lambda: (values,))
         own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
         f0 = (-1.0, -1.0, -1.0) if fresnel is None else tuple(float(v) for v in fresnel)  # < 0: no Fresnel
-        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0)
+        # the object's own parts (a file's version that names them) get their own table, one per distinct list
+        table = self._emitter_table(mode, parts)
+        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0, table)
 
     def _emitter_table(self, mode, parts):
-        table = emitter_table(parts)
-        texture = self.ctx.texture((table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
-        texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.emitter_tables[mode] = texture
+        """The emitter table texture of ``parts`` (``display.glsl.emitter_table``) in
+        ``mode``, made once per list of parts (a file's version that names an object's own
+        parts may give each object its own)."""
+        key = (mode, tuple(id(p) for p in parts))
+        if key not in self.emitter_tables:
+            table = emitter_table(parts)
+            texture = self.ctx.texture((table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
+            texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.emitter_tables[key] = texture
+        return self.emitter_tables[key]
 
     def _upload_fit(self, fit, plan):
         ctx = self.ctx
         self.nodes["fitted"] = fit.emitter_nodes
-        self._emitter_table("fitted", fit.emitters)
+        self.default_tables["fitted"] = self._emitter_table("fitted", fit.emitters)  # bound where an object draws none
         probes, row = [], 0
         for obj, f in zip(self.objects, fit.objects):
             if f.textured is not None:
@@ -522,7 +531,7 @@ class Renderer:
     def _upload_solution(self, solution, plan):
         ctx = self.ctx
         self.nodes["reference"] = solution.emitter_nodes
-        self._emitter_table("reference", solution.emitters)
+        self.default_tables["reference"] = self._emitter_table("reference", solution.emitters)  # where one draws none
         by_name = {o.name: o for o in solution.objects}
         for obj in self.objects:
             s = by_name.get(obj.name)
@@ -543,11 +552,12 @@ class Renderer:
             obj.grid_n = 0 if s.is_diffuse else s.grid_n
             obj.glossy = obj.glossy or not s.is_diffuse
             # the grid keeps the rest of the radiance; the shader draws the highlights per pixel
-            split = not s.is_diffuse and bool(solution.emitters) and s.visibility is not None
+            parts = solution.parts_of(s.name)
+            split = not s.is_diffuse and bool(parts) and s.visibility is not None
             obj.base = plan.add(s.radiance.size // 3, lambda s=s, split=split: _grid_chunks(solution, s, split))
             if split:
                 m = s.material
-                self._highlight("reference", obj, solution.emitters, s.visibility, m["specular"], m["exponent"],
+                self._highlight("reference", obj, parts, s.visibility, m["specular"], m["exponent"],
                                 plan, fresnel=m.get("fresnel"))
 
     @property
@@ -607,8 +617,9 @@ class Renderer:
         """The emitter term's uniforms of ``obj`` in ``mode`` ("fitted" or "reference"),
         drawn if ``on`` and the object has one there."""
         h = obj.highlight.get(mode) if on else None
-        if mode in self.emitter_tables:
-            self.emitter_tables[mode].use(location=3)
+        table = h[6] if h is not None else self.default_tables.get(mode)
+        if table is not None:
+            table.use(location=3)
         self._set(program, "emitter_table", 3)
         self._set(program, "n_parts", 0 if h is None else h[1])
         if h is not None:

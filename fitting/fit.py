@@ -310,16 +310,18 @@ def _fit_components(obj, options, scene, progress, solution, box):
     def highlights(vertices):
         return solution.highlights(obj.name, vertices)
 
-    parts = len(solution.emitters) if obj.visibility is not None else 0
+    own = solution.parts_of(obj.name)  # the parts its highlight draws (the object's own, or all)
+    parts = len(own) if obj.visibility is not None else 0
     c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for,
                               probe_sizes=options.probe_sizes, search_samples=options.search_samples,
                               block_samples=options.block_samples)
     highlight = None
     if c.emitters and parts:
         m = obj.material
-        highlight = Highlight(tuple(solution.emitters), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
+        indices = None if obj.emitter_parts is None else tuple(int(i) for i in obj.emitter_parts)
+        highlight = Highlight(tuple(own), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
                               float(m["exponent"]), np.asarray(obj.visibility, np.float32),
-                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64))
+                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64), indices)
     per_light = c.n_lights and c.specular.ndim == 3
     info = {
         "model": c.model,

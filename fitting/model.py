@@ -23,6 +23,10 @@ and the light from outside the scene, copied from the solution (``meta.environme
 object is. A file is written with the lowest version that holds it (3 without either).
 Version 5 adds delta emitter parts (points, spots, directions) to ``meta.emitters``, as
 the solution's version 4 has them; a file without any is still version 4 or 3.
+Version 6 adds emitter parts per object, as the solution's version 5 has them: an
+object's ``<name>/emitter_parts`` (P_o,) int32 names the parts of ``meta.emitters``
+(indices) its highlight draws, its ``visibility`` then (V, P_o); ``meta.emitters`` may
+then hold up to ``MAX_SCENE_PARTS``. An object without it draws every part.
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -48,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from radiosity.formats.camera import Camera, camera_from_meta
-from radiosity.formats.emitters import AREA_KINDS, DEFAULT_NODES, KINDS, MAX_NODES, emitter_radiance, parts_from_meta
+from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS, MAX_NODES, emitter_radiance, file_parts
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.npz import open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
@@ -58,7 +62,7 @@ from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
 VERSION = 5
-READS = (1, 2, 3, 4, 5)
+READS = (1, 2, 3, 4, 5, 6)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -119,9 +123,12 @@ class Highlight:
     """An object's emitter term (version 3): the emitters' glossy highlights in closed
     form (``radiosity.formats.emitters``).
 
-    parts: the scene's ``EmitterPart`` s; nodes: N of the quadrature; ks (3,) and exponent:
-    the surface's modified-Phong specular part; visibility (V, P) float32: how much of
-    each part each vertex sees; fresnel: None, or the material's Schlick F0 (3,)."""
+    parts: the ``EmitterPart`` s it draws (the scene's, or the object's own of them);
+    nodes: N of the quadrature; ks (3,) and exponent: the surface's modified-Phong
+    specular part; visibility (V, P) float32: how much of each part each vertex sees;
+    fresnel: None, or the material's Schlick F0 (3,); indices: where ``parts`` are the
+    object's own (version 6), their indices in the model's ``emitters`` (None: parts are
+    all of them, in order)."""
 
     parts: tuple
     nodes: int
@@ -129,6 +136,7 @@ class Highlight:
     exponent: float
     visibility: np.ndarray
     fresnel: np.ndarray | None = None  # Schlick's F0 (3,) of a Fresnel material: ks weighted by F(w.n)
+    indices: tuple | None = None  # version 6: the parts' indices in the model's emitters (None: all, in order)
 
     def radiance(self, positions, normals, views, source):
         """E (..., 3) float64 at points (..., 3) with unit normals, unit views, the
@@ -252,7 +260,7 @@ class FittedObject:
             )
         if self.highlight is not None and "emitters" in parts:
             h = self.highlight
-            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index], h.fresnel)
+            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index], h.fresnel, h.indices)
             out = out + vis.radiance(positions, normals, w, self.name)
         if self.textured is not None:
             out = out + self.textured.radiance(index)[extra]
@@ -269,6 +277,8 @@ class FittedObject:
             "light_rgb": np.asarray(self.light_rgb, np.float32).reshape(-1, 3),
             "shininess": np.asarray(self.shininess, np.float32).reshape(-1),
             **({"visibility": np.asarray(self.highlight.visibility, np.float32)} if self.highlight is not None else {}),
+            **({"emitter_parts": np.asarray(self.highlight.indices, np.int32).reshape(-1)}
+               if self.highlight is not None and self.highlight.indices is not None else {}),
             **({"probe": np.asarray(self.probe.texels, np.float32), "probe_weight": np.asarray(self.probe_weight, np.float32)}
                if self.probe is not None else {}),
             **({k.split("/", 1)[1]: a for k, a in self.textured.arrays("o").items()} if self.textured is not None else {}),
@@ -311,8 +321,11 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 5 with a delta emitter
-        part, else 4 with a textured object or an environment, else 3."""
+        """The lowest contract version that holds this model: 6 where an object names its
+        emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
+        an environment, else 3."""
+        if any(o.highlight is not None and o.highlight.indices is not None for o in self.objects):
+            return 6
         if any(p.is_delta for p in self.emitters):
             return 5
         return 4 if self.environment is not None or any(o.textured is not None for o in self.objects) else 3
@@ -488,10 +501,22 @@ def _read_highlight(archive, name, info, n_v, emitters, nodes):
             raise fail(f"meta 'objects': object {name!r}'s 'highlight' 'fresnel' must be [r, g, b] in [0, 1]")
     if key not in archive.keys:
         raise fail(f"object {name!r} has a 'highlight' but no '{key}' array")
-    vis = archive.array(key, "fiu", (n_v, len(emitters)))
+    indices, parts = None, emitters
+    if archive.meta["version"] >= 6 and f"{name}/emitter_parts" in archive.keys:
+        indices = archive.array(f"{name}/emitter_parts", "iu", (None,))
+        if len(indices) > MAX_FILE_PARTS or len(np.unique(indices)) != len(indices) or (
+                len(indices) and (int(indices.min()) < 0 or int(indices.max()) >= len(emitters))):
+            raise fail(f"'{name}/emitter_parts' must name at most {MAX_FILE_PARTS} distinct parts of the "
+                       f"{len(emitters)} in meta 'emitters'")
+        indices = tuple(int(i) for i in indices)
+        parts = tuple(emitters[i] for i in indices)
+    elif len(emitters) > MAX_FILE_PARTS:
+        raise fail(f"object {name!r} has a 'highlight' of {len(emitters)} emitter parts but no '{name}/emitter_parts' "
+                   f"(an object draws at most {MAX_FILE_PARTS})")
+    vis = archive.array(key, "fiu", (n_v, len(parts)))
     if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
         raise fail(f"'{key}' has values outside [0, 1]")
-    return Highlight(emitters, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel)
+    return Highlight(parts, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel, indices)
 
 
 def _read_probe(archive, name, info, n_v):
@@ -544,7 +569,7 @@ def load_fit(path):
                 raise fail(f"meta '{key}' must be a JSON {'string' if kind is str else 'object'}, got {_json_type(meta[key])}")
         emitters, nodes = (), DEFAULT_NODES
         if meta["version"] >= 3:
-            emitters = parts_from_meta(meta.get("emitters", []), fail, KINDS if meta["version"] >= 5 else AREA_KINDS)
+            emitters = file_parts(meta.get("emitters", []), fail, delta=meta["version"] >= 5, own=meta["version"] >= 6)
             nodes = meta.get("emitter_nodes", DEFAULT_NODES)
             if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
                 raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")

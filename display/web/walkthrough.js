@@ -75,10 +75,10 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { PointerLockControls } from 'three/addons/controls/PointerLockControls.js';
 // written by `vlights export`: the #define lines of display/glsl.py for this fit's
 // emitter nodes, and the constants of the textures' layout
-import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
+import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, MAX_OBJECT_PARTS, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3, 4, 5]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4, 5, 6]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -258,6 +258,20 @@ function probeTexture(probe, where) {
     return floatTexture(data, m, m);
 }
 
+// The indices of the scene's emitter parts an object's highlight draws: those its
+// extras' highlight.parts name (version 6: checked against the scene's `count`), else
+// all of them; none without a highlight
+export function drawnParts(info, count) {
+    if (!info.highlight) return [];
+    const named = info.highlight.parts;
+    if (named === undefined) return [...Array(count).keys()];
+    if (!Array.isArray(named) || new Set(named).size !== named.length
+        || !named.every((i) => Number.isInteger(i) && i >= 0 && i < count)) {
+        throw new Error(`object '${info.name}': its highlight's parts must name distinct parts of the scene's ${count}`);
+    }
+    return named;
+}
+
 // the emitter parts' table (display.glsl.emitter_table, written by export into the
 // scene's extras): row i = part i, TABLE_WIDTH RGBA texels; at least one row
 function emitterTable(rows) {
@@ -409,11 +423,14 @@ function makeObject(node, info, fit) {
     const { geometry, coefficients } = objectGeometry(source, info);
     const textured = info.textured ? diffuseTexture(node.material, info, where) : null;
     const v = source.attributes.position.count;
-    const parts = info.highlight ? fit.parts.length : 0;
+    // the parts its highlight draws: those its extras name (version 6), else all the scene's
+    const drawn = drawnParts(info, fit.parts.length);
+    const parts = drawn.length;
     const h = info.highlight || { ks: [0, 0, 0], exponent: 0 };
     const probe = info.probe || null;
-    let own = 0; // bit i: part i belongs to this object (it does not see itself)
-    fit.parts.forEach((part, i) => { if (part.source === info.name) own |= 1 << i; });
+    let own = 0; // bit i: its part i belongs to this object (it does not see itself)
+    drawn.forEach((index, i) => { if (fit.parts[index].source === info.name) own |= 1 << i; });
+    const table = info.highlight && info.highlight.parts ? emitterTable(drawn.map((i) => fit.tableRows[i])) : fit.emitterTable;
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3,
         vertexShader: textured ? fit.shaders.texturedVertex : fit.shaders.fittedVertex,
@@ -431,7 +448,7 @@ function makeObject(node, info, fit) {
             lights: { value: lightTexture(info) },
             coefficients: { value: coefficients || EMPTY },
             // the emitters' highlights
-            emitter_table: { value: fit.emitterTable },
+            emitter_table: { value: table },
             n_parts: { value: parts },
             own_parts: { value: own },
             emitter_ks: { value: new THREE.Vector3(...h.ks) },
@@ -576,8 +593,7 @@ export async function loadFit(url, maxTexture, reversed = false) {
     if (parts.length && nodes !== EMITTER_NODES) {
         throw new Error(`${url}: its emitters are drawn with ${nodes} nodes, this page's shading.js with ${EMITTER_NODES} (export it again)`);
     }
-    // own_parts, an int, is a bit mask of the parts
-    if (parts.length > 32) throw new Error(`${url}: ${parts.length} emitter parts; the shader draws at most 32`);
+
     const sources = new Map(); // object name -> its mesh (geometry, material, and the extras in userData)
     gltf.scene.traverse((node) => {
         if (node.isMesh && node.userData && typeof node.userData.name === 'string') sources.set(node.userData.name, node);
@@ -589,7 +605,10 @@ export async function loadFit(url, maxTexture, reversed = false) {
         if (!source) throw new Error(`${url}: object '${name}' has no mesh`);
         const info = source.userData;
         const vertices = source.geometry.attributes.position ? source.geometry.attributes.position.count : 0;
-        checkTextures(`object '${name}'`, textureNeeds(info, vertices, info.highlight ? parts.length : 0), maxTexture);
+        // own_parts, an int, is a bit mask of the parts an object draws
+        const drawn = drawnParts(info, parts.length).length;
+        if (drawn > MAX_OBJECT_PARTS) throw new Error(`${url}: object '${name}' draws ${drawn} emitter parts; the shader draws at most ${MAX_OBJECT_PARTS}`);
+        checkTextures(`object '${name}'`, textureNeeds(info, vertices, drawn), maxTexture);
     }
     const textured = [...sources.values()].some((node) => node.userData.textured);
     const environment = extras.version >= 4 && extras.environment ? await readEnvironment(gltf, extras.environment, url) : null;
@@ -597,7 +616,8 @@ export async function loadFit(url, maxTexture, reversed = false) {
         checkTextures('the scene', [{ what: 'its environment', width: environment.width, height: environment.height }], maxTexture);
     }
     const shaders = await loadShaders(textured, environment, reversed);
-    const fit = { parts, emitterTable: emitterTable(extras.emitter_table || []), shaders, backMaterial: backMaterial(shaders, reversed) };
+    const tableRows = extras.emitter_table || [];
+    const fit = { parts, tableRows, emitterTable: emitterTable(tableRows), shaders, backMaterial: backMaterial(shaders, reversed) };
     const scene = new THREE.Scene();
     const objects = [];
     const bounds = new THREE.Box3();

@@ -84,7 +84,8 @@ AREA_KINDS = ("sphere", "polygon")  # every version since the parts came (soluti
 MAX_POLYGON_VERTICES = 8
 DEFAULT_NODES = 8
 MAX_NODES = 32
-MAX_FILE_PARTS = 31  # a file's parts at most: the displays mark an object's own parts in a 32-bit mask
+MAX_FILE_PARTS = 31  # the parts one object's highlight draws at most: the displays mark its own parts in a 32-bit mask
+MAX_SCENE_PARTS = 4096  # a file's parts at most where each object names its own (solution 5, fit 6, glTF 6)
 MAX_LIGHTS = 1024  # a scene's delta lights at most (a solution's meta "lights")
 UNIT_TOLERANCE = 1e-12  # a direction or a spot's axis this near unit length is kept as given, else normalised
 HALF_PI = 0.5 * math.pi
@@ -330,6 +331,14 @@ def parts_from_meta(entries, fail, kinds=KINDS, what="emitters", limit=MAX_FILE_
                 raise
             raise fail(f"{where}: {exc}") from None
     return tuple(parts)
+
+
+def file_parts(entries, fail, *, delta, own):
+    """``parts_from_meta`` of a file's ``emitters`` as its version reads them: ``delta``,
+    its version holds delta parts (``KINDS``, else ``AREA_KINDS``); ``own``, its objects
+    may name their own parts (up to ``MAX_SCENE_PARTS``, else ``MAX_FILE_PARTS``)."""
+    return parts_from_meta(entries, fail, KINDS if delta else AREA_KINDS,
+                           limit=MAX_SCENE_PARTS if own else MAX_FILE_PARTS)
 
 
 def _spot_from_meta(entry, where, fail):

@@ -26,6 +26,10 @@ it where no object is. Version 4 adds delta lights (points, spots, directions):
 ``meta.lights`` lists them all (``radiosity.formats.emitters`` parts of kind "point" and
 "direction": what lit the scene, which ``vlights truth`` path-traces), and
 ``meta.emitters`` may hold them as parts; a file without any is still version 3 or 2.
+Version 5 adds emitter parts per object: a glossy object's ``<name>/emitter_parts``
+(P_o,) int32 names the parts of ``meta.emitters`` (indices) whose highlights it holds
+in closed form, its ``visibility`` then (V, P_o); ``meta.emitters`` may then hold up to
+``MAX_SCENE_PARTS`` parts. An object without it has every part (versions 2 to 4).
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -48,14 +52,15 @@ import numpy as np
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.directions import grid_directions
 from radiosity.formats.emitters import (
-    AREA_KINDS,
     DEFAULT_NODES,
     DELTA_KINDS,
-    KINDS,
+    MAX_FILE_PARTS,
     MAX_LIGHTS,
     MAX_NODES,
+    MAX_SCENE_PARTS,
     EmitterPart,
     emitter_grid,
+    file_parts,
     parts_from_meta,
 )
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
@@ -68,7 +73,7 @@ __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
 VERSION = 4
-READS = (1, 2, 3, 4)
+READS = (1, 2, 3, 4, 5)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -148,6 +153,10 @@ class ObjectSolution:
         visibility: (V, P) float32 in [0, 1] (version 2): how much of each emitter part
             with a closed-form highlight each vertex of a glossy object sees.
         textured: a ``TexturedDiffuse`` of V vertices (version 3), or None.
+        emitter_parts: (P,) int32 (version 5): the indices in the solution's
+            ``emitters`` of the parts whose highlights this glossy object holds in
+            closed form, in the order of ``visibility``'s columns, distinct, at most
+            ``MAX_FILE_PARTS``; None: every part of the solution.
 
     Raises ValueError if a shape, dtype kind, face index, direction or radiance value
     (NaN, infinite or negative) breaks the contract.
@@ -163,6 +172,7 @@ class ObjectSolution:
     material: dict = field(default_factory=dict)
     visibility: np.ndarray | None = None
     textured: TexturedDiffuse | None = None
+    emitter_parts: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         name = _check_name(self.name)
@@ -245,6 +255,24 @@ class ObjectSolution:
             if self.is_diffuse:
                 raise _Invalid(f"'{name}/visibility': a diffuse object has none (its emitters' highlights are diffuse)")
             put(self, "visibility", vis)
+        if self.emitter_parts is not None:
+            given = np.asarray(self.emitter_parts)
+            if given.ndim != 1 or given.dtype.kind not in "iu":
+                raise _Invalid(f"'{name}/emitter_parts' must be a list of whole numbers (P,), got {_shape(given)} "
+                               f"{given.dtype}")
+            if self.is_diffuse or self.visibility is None:
+                raise _Invalid(f"'{name}/emitter_parts': only a glossy object with a visibility names its parts")
+            if len(given) != self.visibility.shape[1]:
+                raise _Invalid(f"'{name}/emitter_parts' names {len(given)} parts, its visibility has "
+                               f"{self.visibility.shape[1]}")
+            if len(given) > MAX_FILE_PARTS:
+                raise _Invalid(f"'{name}/emitter_parts' names {len(given)} parts; an object draws at most "
+                               f"{MAX_FILE_PARTS}")
+            if len(given) and (int(given.min()) < 0 or int(given.max()) >= MAX_SCENE_PARTS):
+                raise _Invalid(f"'{name}/emitter_parts' has an index outside [0, {MAX_SCENE_PARTS})")
+            if len(np.unique(given)) != len(given):
+                raise _Invalid(f"'{name}/emitter_parts' names a part twice")
+            put(self, "emitter_parts", given.astype(np.int32))
         if self.textured is not None:
             if not isinstance(self.textured, TexturedDiffuse):
                 raise _Invalid(f"textured must be a TexturedDiffuse, got {type(self.textured).__name__}")
@@ -283,6 +311,8 @@ class ObjectSolution:
         out = {f"{self.name}/{key}": getattr(self, key) for key in ARRAY_KEYS}
         if self.visibility is not None:
             out[f"{self.name}/visibility"] = self.visibility
+        if self.emitter_parts is not None:
+            out[f"{self.name}/emitter_parts"] = self.emitter_parts
         if self.textured is not None:
             out.update(self.textured.arrays(self.name))
         return out
@@ -314,6 +344,7 @@ class Solution:
             holds them evaluated with ``emitter_nodes`` and its ``visibility``, so that a
             display can subtract them on the grid and draw them per pixel. Empty: none
             (every version 1 file).
+            A glossy object that names its ``emitter_parts`` (version 5) holds those alone.
         emitter_nodes: N of the rules they were evaluated with.
         environment: the light from outside the scene (version 3), or None.
         lights: the scene's delta lights (version 4): every point (spot) and direction
@@ -353,19 +384,33 @@ class Solution:
             raise ValueError("lights must be delta emitter parts (points, directions)")
         if not (isinstance(self.emitter_nodes, int) and 1 <= self.emitter_nodes <= MAX_NODES):
             raise ValueError(f"emitter_nodes must be a whole number from 1 to {MAX_NODES}, got {self.emitter_nodes!r}")
+        if len(self.emitters) > MAX_SCENE_PARTS:
+            raise _Invalid(f"{len(self.emitters)} emitter parts; a solution holds at most {MAX_SCENE_PARTS}")
         for o in objects:
             parts = 0 if o.visibility is None else o.visibility.shape[1]
+            if o.emitter_parts is not None:
+                if len(o.emitter_parts) and int(o.emitter_parts.max()) >= len(self.emitters):
+                    raise _Invalid(f"object {o.name!r}: its emitter_parts name part {int(o.emitter_parts.max())}; "
+                                   f"there are {len(self.emitters)}")
+                continue
             if not o.is_diffuse and self.emitters and parts != len(self.emitters):
                 raise _Invalid(
                     f"object {o.name!r}: a glossy object needs a visibility of each of the {len(self.emitters)} emitter "
                     f"parts, has {parts}"
                 )
+            if not o.is_diffuse and len(self.emitters) > MAX_FILE_PARTS:
+                raise _Invalid(f"object {o.name!r}: of {len(self.emitters)} emitter parts a glossy object names its "
+                               f"own (emitter_parts, at most {MAX_FILE_PARTS})")
             if not self.emitters and o.visibility is not None and o.visibility.shape[1]:
                 raise _Invalid(f"object {o.name!r} has a visibility of {o.visibility.shape[1]} parts; there are none")
+
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 4 with a delta light,
-        else 3 with a textured object or an environment, else 2."""
+        """The lowest contract version that holds this solution: 5 where an object names
+        its emitter parts, else 4 with a delta light, else 3 with a textured object or an
+        environment, else 2."""
+        if any(o.emitter_parts is not None for o in self.objects):
+            return 5
         if self.lights or any(p.is_delta for p in self.emitters):
             return 4
         return 3 if self.environment is not None or any(o.textured is not None for o in self.objects) else 2
@@ -399,18 +444,27 @@ class Solution:
             **({"lights": [light.to_dict() for light in self.lights]} if self.lights else {}),
         }
 
+    def parts_of(self, name: str) -> tuple[EmitterPart, ...]:
+        """The emitter parts whose highlights object ``name`` holds in closed form (its
+        ``emitter_parts``, else every part), in the order of its visibility's columns."""
+        o = self.object(name)
+        if o.emitter_parts is None:
+            return self.emitters
+        return tuple(self.emitters[i] for i in o.emitter_parts)
+
     def highlights(self, name: str, vertices: slice = slice(None)) -> np.ndarray:
         """The closed-form emitter highlights (V, D, 3) float64 held in object ``name``'s
         radiance on its grid (zeros where there are none: diffuse objects, version 1);
         of the ``vertices`` alone (a slice) if given, so that a large grid can be read a
         chunk of vertices at a time."""
         o = self.object(name)
-        if o.is_diffuse or not self.emitters:
+        parts = self.parts_of(name)
+        if o.is_diffuse or not parts:
             return np.zeros(o.radiance[vertices].shape)
         m = o.material
         visibility = None if o.visibility is None else o.visibility[vertices]
         return emitter_grid(
-            self.emitters, o.positions[vertices], o.normals[vertices], o.tangents[vertices], o.directions,
+            parts, o.positions[vertices], o.normals[vertices], o.tangents[vertices], o.directions,
             m["specular"], m["exponent"], visibility=visibility, nodes=self.emitter_nodes, source=name,
             fresnel=m.get("fresnel"),
         )
@@ -564,7 +618,7 @@ def _read_header(archive) -> dict:
     camera = camera_from_meta(meta, fail)
     emitters, nodes, lights = (), DEFAULT_NODES, ()
     if meta["version"] >= 2:
-        emitters = parts_from_meta(meta.get("emitters", []), fail, KINDS if meta["version"] >= 4 else AREA_KINDS)
+        emitters = file_parts(meta.get("emitters", []), fail, delta=meta["version"] >= 4, own=meta["version"] >= 5)
         nodes = meta.get("emitter_nodes", DEFAULT_NODES)
         if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
             raise fail(f"meta 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
@@ -587,6 +641,8 @@ def _read_object(archive, name, header) -> ObjectSolution:
     arrays = {k: archive.array(f"{name}/{k}") for k in ARRAY_KEYS}
     if f"{name}/visibility" in archive.keys:
         arrays["visibility"] = archive.array(f"{name}/visibility")
+    if meta["version"] >= 5 and f"{name}/emitter_parts" in archive.keys:
+        arrays["emitter_parts"] = archive.array(f"{name}/emitter_parts")
     if meta["version"] >= 3:
         diffuse = materials[name].get("diffuse") if isinstance(materials[name], dict) else None
         if not (isinstance(diffuse, list) and len(diffuse) == 3):

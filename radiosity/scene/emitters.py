@@ -12,9 +12,11 @@ Each emitting object becomes, in this order of preference:
   any other face its own triangle;
 
 and stays analytic only if it needs at most ``MAX_OBJECT_PARTS`` parts, and the whole
-scene at most ``MAX_PARTS`` (the brightest objects first): the displays evaluate every
-part at every pixel of a glossy object. The emitters left over are not lost: the solver
-gathers their highlights into the direction grid as it always did.
+scene at most ``MAX_PARTS`` (the brightest objects first): the solver evaluates every
+part's highlight in closed form on every glossy object it reaches, and each glossy
+object's displays draw the brightest ``transport.highlights.MAX_RECEIVER_PARTS`` for
+it per pixel. The emitters left over are not lost: the solver gathers their highlights
+into the direction grid as it always did.
 
 The scene's delta lights (``Scene.lights``: points, spots, directions) are parts as they
 are, one each, and come first within ``MAX_PARTS``: the cheapest to draw (no
@@ -34,7 +36,7 @@ from radiosity.scene import geometry
 
 __all__ = ["MAX_OBJECT_PARTS", "MAX_PARTS", "emitter_parts", "object_parts"]
 
-MAX_PARTS = 16
+MAX_PARTS = 1024  # analytic parts in a scene; each glossy object draws its brightest (MAX_RECEIVER_PARTS)
 MAX_OBJECT_PARTS = 8
 SPHERE_TOLERANCE = 0.02  # relative spread of the vertices' distances from the centre
 SPHERE_COVER = 0.9

@@ -17,6 +17,17 @@ is the fraction of the counted points that are unoccluded (1 where none counts: 
 part's highlight is 0 there anyway). The part's own object does not shadow it. A delta
 part (a point, a direction) has no extent: one shadow ray, to the point (1e-4 of its
 length short of it) or along -the direction to infinity, and the value is 0 or 1.
+
+Parts per object (``object_parts``): where the scene has more parts than one object's
+highlight draws (``MAX_RECEIVER_PARTS``), each glossy object keeps the parts brightest
+for it: a coarse visibility (``COARSE_SAMPLES`` rays a vertex and part) finds the parts
+that reach it at all, their full visibility and closed-form highlights are computed
+(every one of them goes into the grid: the gather leaves every analytic part out), and
+the ``MAX_RECEIVER_PARTS`` whose highlights carry the most light over the object (area
+x the mean over the grid of their luminance) are the ones its file names and its
+displays draw per pixel; the others stay in its grid, drawn by its fit. A part that the
+coarse rays find hidden from every vertex is taken as hidden (a sliver seen between
+them is lost to both the grid and the gather).
 """
 
 from __future__ import annotations
@@ -24,8 +35,13 @@ from __future__ import annotations
 import numpy as np
 
 from radiosity.formats.emitters import emitter_grid
+from radiosity.scene.geometry import face_normals
 
-__all__ = ["grid_highlights", "r2_points", "visibility"]
+__all__ = ["COARSE_SAMPLES", "MAX_RECEIVER_PARTS", "grid_highlights", "object_parts", "r2_points", "visibility"]
+
+MAX_RECEIVER_PARTS = 16  # the emitter parts one glossy object's displays draw per pixel, the brightest for it
+COARSE_SAMPLES = 4  # shadow rays a vertex and part that say whether a part reaches an object at all
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709: how the parts are ranked for an object
 
 PLASTIC = 1.324717957244746  # the plastic number: the R2 sequence's generator
 SPHERE_MARGIN = 1.05  # shadow rays to a sphere lamp stop at this times its radius (its mesh lies within)
@@ -145,3 +161,35 @@ def grid_highlights(parts, obj, directions, visible, nodes):
         parts, obj.positions, obj.normals, obj.tangents, directions, material.specular, material.exponent,
         visibility=visible, nodes=nodes, source=obj.name, fresnel=material.fresnel,
     )
+
+
+def object_parts(tracer, parts, obj, directions, samples, epsilon, nodes, *, cap=MAX_RECEIVER_PARTS, drawn=None):
+    """The emitter parts of the glossy object ``obj`` (a ``SceneObject``) when the scene
+    has more than ``cap``: (E (V, D, 3) float64, the highlights on its grid
+    ``directions`` of every part that reaches it; kept (P_o,) int32, the indices of the
+    ``cap`` at most, among the first ``drawn`` of ``parts`` (default: all; the rest are
+    drawn by no display), whose highlights carry the most light over the object,
+    ascending; their visibility (V, P_o) float32). ``samples`` shadow rays a vertex and
+    part for a part that reaches it, ``COARSE_SAMPLES`` to find those."""
+    drawn = len(parts) if drawn is None else drawn
+    coarse = visibility(tracer, parts, obj.positions, obj.normals, min(COARSE_SAMPLES, samples), epsilon,
+                        source=obj.name)
+    reaching = np.flatnonzero(coarse.max(axis=0) > 0) if len(obj.positions) else np.zeros(0, np.int64)
+    v = len(obj.positions)
+    total = np.zeros((v, len(directions), 3))
+    seen = visibility(tracer, [parts[i] for i in reaching], obj.positions, obj.normals, samples, epsilon,
+                      source=obj.name)
+    _, areas = face_normals(obj.positions, obj.faces)
+    area = np.zeros(v)
+    np.add.at(area, np.asarray(obj.faces).ravel(), np.repeat(areas / 3.0, 3))
+    energy = np.zeros(len(reaching))
+    for j, i in enumerate(reaching):
+        if not seen[:, j].any():
+            continue
+        e = grid_highlights([parts[i]], obj, directions, seen[:, j:j + 1], nodes)
+        total += e
+        energy[j] = float(area @ (e @ LUMINANCE).mean(axis=1))
+    order = [j for j in np.argsort(-energy, kind="stable") if energy[j] > 0 and reaching[j] < drawn][:cap]
+    order = sorted(order, key=lambda j: reaching[j])
+    kept = reaching[order].astype(np.int32)
+    return total, kept, np.ascontiguousarray(seen[:, order], np.float32)

@@ -410,9 +410,16 @@ def _solve(scene, settings, runner, progress):
     t0 = time.perf_counter()
     visible = {}
     shadow_rays = 0
+    own_parts = {}  # a glossy object's parts (indices) where the scene has more than one object draws
     if closed and glossy:
         tracer = RayTracer(merged.positions, merged.faces)
         for o, _, dirs in glossy:
+            if len(parts) > highlights.MAX_RECEIVER_PARTS:
+                grid, own_parts[o.name], visible[o.name] = highlights.object_parts(
+                    tracer, closed, o, dirs, settings["visibility_samples"], sa.epsilon, settings["emitter_nodes"],
+                    drawn=len(parts))
+                gathered[o.name] += grid
+                continue
             seen = highlights.visibility(
                 tracer, closed, o.positions, o.normals, settings["visibility_samples"], sa.epsilon, source=o.name
             )
@@ -494,6 +501,7 @@ def _solve(scene, settings, runner, progress):
             material=o.material.to_dict(),
             visibility=visible.get(o.name, np.ones((o.n_vertices, len(parts)), np.float32))
             if o.material.is_glossy and parts else None,
+            emitter_parts=own_parts.get(o.name) if o.material.is_glossy else None,
             textured=textured.get(o.name),
         )
         for o, dirs, radiance in results

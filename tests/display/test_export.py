@@ -20,7 +20,7 @@ import pytest
 import trimesh
 from display_fixtures import CAMERA, assert_refused, listing, lit_model
 
-from display.export import FILE, FORMAT, READS, UNTEXTURED_VERSION, VERSION, export_glb, load_export
+from display.export import DELTA_VERSION, FILE, FORMAT, READS, UNTEXTURED_VERSION, VERSION, export_glb, load_export
 from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table
@@ -158,7 +158,7 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 5
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 6
     assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object, no environment: the version before them
     assert "environment" not in extras
     assert extras["objects"] == list(model.names)
@@ -283,6 +283,49 @@ def test_visibility_of_many_parts_packs_three_to_an_attribute(tmp_path, rng):
         assert bits_equal(b.highlight.visibility, a.highlight.visibility)
 
 
+def own_parts_model(rng, count=40):
+    """``glossy_model`` whose scene has ``count`` small sphere lamps (more than the 31 one
+    object may draw) and each object names its own 16 of them (a version 6 fit): the
+    wall the first 16, the tile every other one from the 9th."""
+    model = glossy_model(True, rng)
+    lamps = tuple(EmitterPart("sphere", [[0.23 * (i % 8) - 0.8, 0.3 * (i // 8) - 0.6, -1.2]], 0.08,
+                              [25.0, 20.0 + 0.2 * i, 15.0], f"lamp{i}") for i in range(count))  # an 8 x 5 grid
+    chosen = (tuple(range(16)), tuple(range(8, 40, 2)))
+    objects = tuple(dataclasses.replace(o, highlight=Highlight(
+        tuple(lamps[i] for i in own), 8, o.highlight.ks, o.highlight.exponent,
+        rng.uniform(0, 1, (len(o.positions), len(own))).astype(np.float32), o.highlight.fresnel, own))
+        for o, own in zip(model.objects, chosen, strict=True))
+    return dataclasses.replace(model, objects=objects, emitters=lamps)
+
+
+def test_objects_own_parts_make_a_version_6_file_that_round_trips(tmp_path, rng):
+    """40 emitter parts, each object drawing its own 16: version 6 (the lowest that holds
+    them), the scene's 40 entries and table rows, each mesh's ``highlight.parts``, its
+    visibility of its own parts; load_export gives the fit back, shading the same, and
+    fit.npz (version 6) too. Said to be version 5, the file is refused in one line."""
+    model = own_parts_model(rng)
+    assert model.version == 6
+    path = tmp_path / FILE
+    path.write_bytes(export_glb(model))
+    meshes, extras = read_with_trimesh(path)
+    assert extras["version"] == VERSION == 6 and len(extras["emitters"]) == len(extras["emitter_table"]) == 40
+    for obj in model.objects:
+        assert meshes[obj.name][1]["highlight"]["parts"] == list(obj.highlight.indices)
+    back = load_export(path)
+    model.save(tmp_path / "fit.npz")
+    again = load_fit(tmp_path / "fit.npz")
+    w = rng.normal(size=(len(model.objects[1].positions), 4, 3))
+    w /= np.linalg.norm(w, axis=-1, keepdims=True)
+    for a, b, c in zip(model.objects, back.objects, again.objects, strict=True):
+        assert b.highlight.indices == c.highlight.indices == a.highlight.indices
+        assert bits_equal(b.highlight.visibility, a.highlight.visibility)
+        ww = w if len(a.positions) == len(w) else w[:len(a.positions)]
+        assert np.array_equal(b.shade(ww), a.shade(ww)) and np.array_equal(c.shade(ww), a.shade(ww))
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=5))
+    with pytest.raises(InputError, match="has 40 parts; a file holds at most 31"):
+        load_export(path)
+
+
 def test_a_highlight_of_other_parts_is_refused(rng):
     """The file holds one list of emitter parts: a highlight of others cannot be written."""
     model = glossy_model(True, rng)
@@ -319,15 +362,15 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2, 3, 4, 5)
+    assert READS == (1, 2, 3, 4, 5, 6)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=6))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4 or 5 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=7))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4, 5 or 6 file"):
         load_export(path)
 
 
@@ -343,7 +386,7 @@ def test_delta_parts_make_a_version_5_file_that_round_trips(tmp_path, rng):
     path = tmp_path / FILE
     path.write_bytes(export_glb(model))
     _, extras = read_with_trimesh(path)
-    assert extras["version"] == VERSION == 5
+    assert extras["version"] == DELTA_VERSION == 5
     assert extras["emitters"] == [part.to_dict() for part in lamps]
     assert extras["emitters"][3]["spot"] == {"axis": list(DELTA_LAMPS[1].spot.axis), "cutoff_deg": 16.0, "beam_deg": 9.0}
     table = np.asarray(extras["emitter_table"], np.float32).reshape(len(lamps), TABLE_WIDTH, 4)

@@ -80,10 +80,10 @@ def ball_model(rng, probe=True, highlight=True, lights=2, fresnel=None, emitters
     return FittedModel(objects=(obj,), source="test", emitters=pp, emitter_nodes=8)
 
 
-def expected_pixels(renderer, obj, view, parts):
-    """The formula at each covered pixel: blended from its triangle's vertices."""
+def expected_pixels(renderer, obj, view, parts, which=0):
+    """The formula at each pixel object ``which`` covers: blended from its triangle's vertices."""
     index, vertices, bary = renderer.render_triangles(view)
-    covered = index == 0
+    covered = index == which
     b = bary[covered].astype(np.float64)
     ids = vertices[covered]
 
@@ -100,7 +100,7 @@ def expected_pixels(renderer, obj, view, parts):
         specular=blend(obj.specular), light_pos=obj.light_pos, light_rgb=obj.light_rgb, shininess=obj.shininess,
         highlight=None if obj.highlight is None else Highlight(obj.highlight.parts, 8, obj.highlight.ks,
                                                                obj.highlight.exponent, blend(obj.highlight.visibility),
-                                                               obj.highlight.fresnel),
+                                                               obj.highlight.fresnel, obj.highlight.indices),
         probe=obj.probe, probe_weight=None if obj.probe is None else blend(obj.probe_weight),
     )
     return blended.shade(w, parts=parts), covered
@@ -122,6 +122,38 @@ def test_per_pixel_equals_the_formula_with_each_part_on_and_off(gl_context, rng,
     if len(off) == 1:
         full = r.render(VIEW, "fitted", "pixel")
         assert np.abs(full - image).max() > 0.01
+    r.release()
+
+
+def test_objects_drawing_their_own_parts_per_pixel_equal_the_formula(gl_context, rng):
+    """A scene of 40 small lamps (more than one object may draw) and two balls, each
+    drawing its own 16 of them (a version 6 fit: a table of its own parts bound for it):
+    per pixel, each ball equals its formula, and each shows a highlight the other's
+    parts would not give it."""
+    lamps = tuple(EmitterPart("sphere", [[0.15 * i - 3.0, 1.5 + 0.02 * i, 2.0]], 0.1, [4.0, 3.0, 2.0 + 0.1 * i],
+                              f"lamp{i}") for i in range(40))
+    chosen = (tuple(range(0, 32, 2)), tuple(range(20, 36)))
+    balls = []
+    for k, own in enumerate(chosen):
+        obj = ball_model(rng, probe=False, lights=1, emitters=tuple(lamps[i] for i in own)).objects[0]
+        h = obj.highlight
+        balls.append(dataclasses.replace(
+            obj, name=f"ball{k}", positions=obj.positions * 0.6 + np.float32([1.4 * k - 0.7, 0.0, 0.0]),
+            highlight=Highlight(h.parts, h.nodes, h.ks, h.exponent, h.visibility, h.fresnel, own)))
+    model = FittedModel(objects=tuple(balls), source="test", emitters=lamps, emitter_nodes=8)
+    assert model.version == 6
+    r = Renderer(gl_context, fit=model, samples=1)
+    image = r.render(VIEW, "fitted", "pixel")
+    for k, ball in enumerate(balls):
+        expected, covered = expected_pixels(r, ball, VIEW, PARTS, which=k)
+        assert covered.sum() > 300
+        diff = np.abs(image[covered] - expected)
+        assert (diff <= RTOL * np.abs(expected) + ATOL).all(), (k, diff.max())
+        other = chosen[1 - k]
+        swapped = dataclasses.replace(ball, highlight=dataclasses.replace(
+            ball.highlight, parts=tuple(lamps[i] for i in other), indices=other))
+        wrong, _ = expected_pixels(r, swapped, VIEW, PARTS, which=k)
+        assert np.abs(wrong - expected).max() > 0.01  # the parts drawn are the object's own
     r.release()
 
 

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from display_fixtures import lit_model
 from PIL import Image
-from test_export import DELTA_LAMPS, LAMPS, glossy_model, rewrite_json
+from test_export import DELTA_LAMPS, LAMPS, glossy_model, own_parts_model, rewrite_json
 from test_export_textures import KDS, textured_model
 
 from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
@@ -494,6 +494,33 @@ def test_version_5_delta_lights_page_equals_render(browser, site_v5, tmp_path, g
     dataclasses.replace(model, objects=objects, emitters=area).save(tmp_path / "area.npz")
     without = rendered(tmp_path, tmp_path / "area.npz")
     assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05
+
+
+@pytest.fixture(scope="module")
+def site_v6(tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene as a version 6 fit: 40 small
+    sphere lamps, each object drawing its own 16 (``own_parts_model``)."""
+    base = tmp_path_factory.mktemp("web-v6")
+    own_parts_model(np.random.default_rng(11)).save(base / "fit.npz")
+    yield from exported_and_served(base)
+
+
+@needs_browser
+@pytest.mark.gl
+def test_version_6_objects_own_parts_page_equals_render(browser, site_v6, tmp_path, gl_context):
+    """Each object drawing its own emitter parts of a scene's 40 on the page as ``vlights
+    render`` draws them; and they show (the emitters' highlights off, the picture changes)."""
+    fit, url = site_v6
+    page = open_page(browser, url, view_query())
+    try:
+        got = screenshot(page)
+        assert page.evaluate("window.vlights.error") in (None, "")
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit)
+    assert_matches(got, want)
+    without = rendered(tmp_path, fit, off=("emitters",))
+    assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.02
 
 
 @needs_browser

@@ -131,15 +131,21 @@ def test_a_scene_lit_by_a_delta_light_alone_solves_without_a_word(tmp_path, caps
 
 
 def test_delta_lights_come_first_among_the_parts_and_count_in_their_limit(tmp_path):
-    """20 point lights and a lamp: 16 parts (MAX_PARTS), the first 16 lights; the lamp and
-    the last 4 lights are left to the grid (the lights' highlights still in closed form)."""
+    """20 point lights and a lamp: every one a part (MAX_PARTS, 1024: each glossy object
+    draws its brightest), the lights first; within a limit of 16, the first 16 lights,
+    the lamp and the last 4 lights left to the grid (the lights' highlights still in
+    closed form)."""
     def points(k):
         return "".join(f'[[lights]]\nkind = "point"\nposition = [{i * 0.1 - 1}, 1, 0]\nintensity = 1\n' for i in range(k))
 
     lamp = '[materials.lamp]\nemission = 5\n[[objects]]\nname = "lamp"\nbuiltin = "quad"\nmaterial = "lamp"\n' \
            'scale = 0.2\nrotate_deg = [180, 0, 0]\ntranslate = [0, 2, 0]\n'
-    parts, analytic = emitter_parts(load_scene(write(tmp_path, PLANE + lamp + points(20))))
-    assert len(parts) == MAX_PARTS == 16 and [p.source for p in parts] == [f"point_light_{i + 1}" for i in range(16)]
+    scene = load_scene(write(tmp_path, PLANE + lamp + points(20)))
+    parts, analytic = emitter_parts(scene)
+    assert MAX_PARTS == 1024 and len(parts) == 21 and analytic == ("lamp",)
+    assert [p.source for p in parts[:20]] == [f"point_light_{i + 1}" for i in range(20)] and parts[20].kind == "polygon"
+    parts, analytic = emitter_parts(scene, max_parts=16)
+    assert len(parts) == 16 and [p.source for p in parts] == [f"point_light_{i + 1}" for i in range(16)]
     assert analytic == ()
     parts, analytic = emitter_parts(load_scene(write(tmp_path, PLANE + lamp + points(2), "few.toml")))
     assert [p.kind for p in parts] == ["point", "point", "polygon"] and analytic == ("lamp",)

@@ -1,0 +1,46 @@
+"""The fit of a solution whose glossy objects name their own emitter parts (solution
+version 5): each object's highlight draws those parts, with their visibility, and the
+fit file (version 6) says which; its displays' colours equal the solution's highlights
+on the grid plus the fitted rest."""
+
+import numpy as np
+import pytest
+from many_lights import solved, two_plates
+
+from display.cli import main
+from fitting import load_fit
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    base = tmp_path_factory.mktemp("object-parts")
+    solution = solved(two_plates(base))
+    solution.save(base / "s.npz")
+    assert main(["fit", str(base / "s.npz"), "-o", str(base / "f.npz"), "--model", "emitters"]) == 0
+    return solution, load_fit(base / "f.npz")
+
+
+def test_each_object_s_highlight_draws_its_own_parts(files):
+    solution, model = files
+    assert model.version == 6 and len(model.emitters) == len(solution.emitters) == 20
+    for side in ("left", "right"):
+        o, f = solution.object(side), model.object(side)
+        assert f.highlight.indices == tuple(int(i) for i in o.emitter_parts)
+        assert [p.to_dict() for p in f.highlight.parts] == [p.to_dict() for p in solution.parts_of(side)]
+        assert np.array_equal(f.highlight.visibility, o.visibility)
+
+
+def test_the_fitted_highlight_is_the_solution_s_on_the_grid(files):
+    """Shaded at the solution's grid directions, the fit's emitter term is the
+    solution's closed form of the object's own parts (``Solution.highlights``)."""
+    solution, model = files
+    for side in ("left", "right"):
+        o, f = solution.object(side), model.object(side)
+        tangents = o.tangents.astype(np.float64)
+        normals = o.normals.astype(np.float64)
+        local = o.directions.astype(np.float64)
+        views = (local[None, :, :1] * tangents[:, None] + local[None, :, 1:2] * np.cross(normals, tangents)[:, None]
+                 + local[None, :, 2:] * normals[:, None])
+        views /= np.linalg.norm(views, axis=2, keepdims=True)
+        drawn = f.highlight.radiance(o.positions[:, None, :], normals[:, None, :], views, side)
+        assert np.allclose(drawn, solution.highlights(side), rtol=1e-6, atol=1e-9)
