@@ -307,8 +307,11 @@ def _highlight_lines(solution):
                 shapes[what] = shapes.get(what, 0) + 1
         described = f"from {len(kinds):,} objects ({', '.join(f'{what} x {n}' for what, n in shapes.items())})"
     st = solution.stats
+    own = [len(o.emitter_parts) for o in solution.objects if o.emitter_parts is not None]
+    drawn = (f"; each glossy object draws the brightest for it per pixel ({min(own)} to {max(own)}), "
+             "its grid holds every one that reaches it" if own else "")
     return [
-        f"  highlights {len(parts)} emitter part(s) in closed form: {described}; "
+        f"  highlights {len(parts)} emitter part(s) in closed form: {described}{drawn}; "
         f"{st.get('visibility_rays', 0):,} shadow rays, {st['time_s'].get('highlights', 0.0):.2f} s"
     ]
 

@@ -82,3 +82,11 @@ def test_a_named_part_out_of_range_or_twice_is_refused(solution, tmp_path):
     # of 20 every object may draw all (as a version 4 file)
     twenty = [dataclasses.replace(a, visibility=a.visibility[:, :20]) for a in alls]
     assert dataclasses.replace(solution, objects=tuple(twenty)).version == 4
+
+
+def test_the_summary_says_each_object_draws_its_brightest(solution):
+    from radiosity.cli import _highlight_lines
+
+    [line] = _highlight_lines(solution)
+    assert "highlights 20 emitter part(s) in closed form" in line
+    assert "each glossy object draws the brightest for it per pixel (16 to 16)" in line
