@@ -23,7 +23,7 @@ from radiosity.formats.sniff import SOLUTION, require_format
 from radiosity.formats.solution import SolutionFile
 
 from .blocks import BLOCK_SAMPLES
-from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_workers, quality_of
+from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_threads, planned_workers, quality_of
 from .glossy import MODEL_TARGET
 from .memory import check_dask_memory, check_fit_memory, cores
 
@@ -230,7 +230,10 @@ def _fit(args):
         quality, chosen_by = fit_quality(args.quality, solution)
         options = fit_options(args, quality)
         if args.scheduler == "threads":
-            workers = check_fit_memory(solution, planned_workers(solution, args.workers or cores()),
+            asked = args.workers or cores()
+            processes = planned_workers(solution, asked)
+            threads = planned_threads(solution, asked) if processes <= 1 else 0
+            workers = check_fit_memory(solution, processes if processes > 1 else threads, threads=processes <= 1,
                                        search_samples=options.search_samples, block_samples=options.block_samples)
             model = fit(solution, options, progress=True, workers=workers)
         else:

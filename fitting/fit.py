@@ -411,7 +411,8 @@ def fit(solution, options=None, progress=False, workers=1, client=None):
     ``options`` None: ``FitOptions.for_quality`` of the quality the solution was solved
     at (``quality_of``), as ``vlights fit`` with no flag.
     ``workers`` > 1 (a ``SolutionFile`` only) fits the glossy objects in that many
-    processes, the costliest first; ``client`` (a ``distributed.Client``, a
+    processes, the costliest first (in that many threads of this process where
+    ``planned_workers`` starts none: one object is most of the work); ``client`` (a ``distributed.Client``, a
     ``SolutionFile`` only) fits them as Dask tasks instead (``fitting.cluster``). The
     model is the same, bit for bit, whichever runs it."""
     options = FitOptions.for_quality(quality_of(solution)[0]) if options is None else options.check()
@@ -490,10 +491,15 @@ def _fit_streamed(source, options, place, bar, workers):
             tick()
 
     cost = costs(source)
-    workers = planned_workers(source, workers, cost)
-    if workers <= 1:
-        here(names)
+    processes = planned_workers(source, workers, cost)
+    if processes <= 1:
+        threads = planned_threads(source, workers, cost)
+        if threads <= 1:
+            here(names)
+        else:
+            _fit_threaded(source, names, (options, place, bar, threads), cost, done)
         return [done[n] for n in names]
+    workers = processes
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -512,6 +518,50 @@ def _fit_streamed(source, options, place, bar, workers):
             done[name] = replace(future.result(), textured=source.textured(name))
             tick()
     return [done[n] for n in names]
+
+
+def _fit_threaded(source, names, how, cost, done):
+    """``_fit_streamed`` in this process: the glossy objects fitted by ``threads``
+    threads, the costliest first, while this thread copies the diffuse ones (the numba
+    kernels release the GIL; the objects share the imports and the scene). how =
+    (options, (scene geometry, probe box), the progress bar or None, threads). The
+    file is read by one thread at a time."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    options, (scene, box), bar, threads = how
+    lock = threading.Lock()
+
+    def read(name, glossy):
+        with lock:
+            return _read(source, name, glossy)
+
+    def fitted(name):
+        obj, alone = read(name, True)
+        return fit_object(obj, options, scene, None, alone, box)
+
+    order = sorted(cost, key=lambda n: -cost[n])
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fit") as pool:
+        futures = {pool.submit(fitted, name): name for name in order}
+        for name in names:
+            if name not in cost:
+                obj, _ = read(name, False)
+                done[name] = fit_object(obj, options, scene, bar, None, box)
+                if bar is not None:
+                    bar.update(1)
+        for future in as_completed(futures):
+            done[futures[future]] = future.result()
+            if bar is not None:
+                bar.update(1)
+
+
+def planned_threads(source, workers, samples=None):
+    """The threads ``fit`` fits the glossy objects of the ``SolutionFile`` ``source``
+    with in this process, where it starts no worker processes (``planned_workers``):
+    ``workers``, at most one per glossy object (the teapot's scene: the tall block
+    fitted while the teapot is)."""
+    samples = costs(source) if samples is None else samples
+    return max(1, min(workers, len(samples)))
 
 
 def planned_workers(source, workers, samples=None):

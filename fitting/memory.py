@@ -69,11 +69,12 @@ def _objects(source):
     return geometry, sorted(glossy, reverse=True)
 
 
-def fit_estimate(source, workers, search_samples=SEARCH_SAMPLES, block_samples=BLOCK_SAMPLES):
+def fit_estimate(source, workers, search_samples=SEARCH_SAMPLES, block_samples=BLOCK_SAMPLES, threads=False):
     """(peak bytes, the costliest object's (name, vertices, directions)) of fitting the
-    ``SolutionFile`` ``source`` with ``workers`` processes, each object's model searched
-    for on at most ``search_samples`` samples and its per-vertex pass in blocks of
-    ``block_samples`` (``fitting.blocks``)."""
+    ``SolutionFile`` ``source`` with ``workers`` processes (``threads``: threads of this
+    process, no process each), each object's model searched for on at most
+    ``search_samples`` samples and its per-vertex pass in blocks of ``block_samples``
+    (``fitting.blocks``)."""
     geometry, glossy = _objects(source)
     main = PROCESS_BYTES + 2 * geometry
     if not glossy:
@@ -85,29 +86,32 @@ def fit_estimate(source, workers, search_samples=SEARCH_SAMPLES, block_samples=B
     busy = sorted(glossy, key=lambda g: -one(*g[2:]))[: max(1, workers)]
     if workers <= 1:
         return main + one(*busy[0][2:]), busy[0][1:]
-    return main + sum(PROCESS_BYTES + one(v, d) for _, _, v, d in busy), busy[0][1:]
+    process = 0 if threads else PROCESS_BYTES
+    return main + sum(process + one(v, d) for _, _, v, d in busy), busy[0][1:]
 
 
 def check_fit_memory(source, workers, available=None, out=None, search_samples=SEARCH_SAMPLES,
-                     block_samples=BLOCK_SAMPLES):
-    """The workers to fit ``source`` with: ``workers``, or fewer if their objects at once
-    would not fit in the memory left (``available`` bytes, default the machine's). Says
-    the estimate (``out``, default a line on stderr, beside the progress bar: stdout
-    is the report); InputError (one line) when even one process would not fit."""
+                     block_samples=BLOCK_SAMPLES, threads=False):
+    """The workers to fit ``source`` with: ``workers`` (processes, or ``threads`` of this
+    process), or fewer if their objects at once would not fit in the memory left
+    (``available`` bytes, default the machine's). Says the estimate (``out``, default a
+    line on stderr, beside the progress bar: stdout is the report); InputError (one
+    line) when even one process would not fit."""
     out = out or (lambda line: print(line, file=sys.stderr))
     available = available_memory() if available is None else available
     chosen = max(1, workers)
-    need, biggest = fit_estimate(source, chosen, search_samples, block_samples)
+    need, biggest = fit_estimate(source, chosen, search_samples, block_samples, threads)
     while available is not None and need > available and chosen > 1:
         chosen -= 1
-        need, biggest = fit_estimate(source, chosen, search_samples, block_samples)
+        need, biggest = fit_estimate(source, chosen, search_samples, block_samples, threads)
     largest = "" if biggest is None else f"; largest glossy object {biggest[0]!r}: {biggest[1]:,} vertices x {biggest[2]:,} directions"
     have = "" if available is None else f" of {available / GIB:.1f} GB available"
     if available is not None and need > available:
         raise InputError(f"fit needs about {need / GIB:.1f} GB{have}{largest}; fit with fewer --search-samples, "
                          "solve with a coarser --grid or a larger --max-edge, or free memory")
     note = f" (fewer than the {workers} asked: memory)" if chosen < workers else ""
-    out(f"fit: about {need / GIB:.2f} GB at most{have}, {chosen} worker{'s' if chosen > 1 else ''}{note}{largest}")
+    kind = "thread" if threads and chosen > 1 else "worker"
+    out(f"fit: about {need / GIB:.2f} GB at most{have}, {chosen} {kind}{'s' if chosen > 1 else ''}{note}{largest}")
     return chosen
 
 

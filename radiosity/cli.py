@@ -306,10 +306,12 @@ def _highlight_lines(solution):
             for what in k:
                 shapes[what] = shapes.get(what, 0) + 1
         described = f"from {len(kinds):,} objects ({', '.join(f'{what} x {n}' for what, n in shapes.items())})"
+    from radiosity.transport.highlights import LEFT_OUT
+
     st = solution.stats
     own = [len(o.emitter_parts) for o in solution.objects if o.emitter_parts is not None]
-    drawn = (f"; each glossy object draws the brightest for it per pixel ({min(own)} to {max(own)}), "
-             "its grid holds every one that reaches it" if own else "")
+    drawn = (f"; each glossy object draws the brightest for it per pixel ({min(own)} to {max(own)}), its grid "
+             f"holds those that reach it (less the dimmest, under {LEFT_OUT:.0%} of its light)" if own else "")
     return [
         f"  highlights {len(parts)} emitter part(s) in closed form: {described}{drawn}; "
         f"{st.get('visibility_rays', 0):,} shadow rays, {st['time_s'].get('highlights', 0.0):.2f} s"

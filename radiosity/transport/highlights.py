@@ -20,14 +20,15 @@ length short of it) or along -the direction to infinity, and the value is 0 or 1
 
 Parts per object (``object_parts``): where the scene has more parts than one object's
 highlight draws (``MAX_RECEIVER_PARTS``), each glossy object keeps the parts brightest
-for it: a coarse visibility (``COARSE_SAMPLES`` rays a vertex and part) finds the parts
-that reach it at all, their full visibility and closed-form highlights are computed
-(every one of them goes into the grid: the gather leaves every analytic part out), and
-the ``MAX_RECEIVER_PARTS`` whose highlights carry the most light over the object (area
-x the mean over the grid of their luminance) are the ones its file names and its
-displays draw per pixel; the others stay in its grid, drawn by its fit. A part that the
-coarse rays find hidden from every vertex is taken as hidden (a sliver seen between
-them is lost to both the grid and the gather).
+for it: a coarse visibility (``COARSE_SAMPLES`` rays a part from at most
+``COARSE_VERTICES`` of its vertices) and an estimate of the light each part sends
+(``incident``) rank them; the dimmest whose light adds up to less than ``LEFT_OUT`` of
+the object's are left out, the others' full visibility and closed-form highlights go
+into the grid (the gather leaves every analytic part out), and the
+``MAX_RECEIVER_PARTS`` brightest are the ones its file names and its displays draw per
+pixel; the others stay in its grid, drawn by its fit. What is left out is lost to both
+the grid and the gather: at most ``LEFT_OUT`` of the object's direct highlights, and a
+part the coarse rays find hidden from every vertex they leave from.
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ from radiosity.scene.geometry import face_normals
 __all__ = ["COARSE_SAMPLES", "MAX_RECEIVER_PARTS", "grid_highlights", "object_parts", "r2_points", "visibility"]
 
 MAX_RECEIVER_PARTS = 16  # the emitter parts one glossy object's displays draw per pixel, the brightest for it
-COARSE_SAMPLES = 4  # shadow rays a vertex and part that say whether a part reaches an object at all
+COARSE_SAMPLES = 4  # shadow rays a vertex and part that say whether a part reaches an object at all ...
+COARSE_VERTICES = 64  # ... from every k-th vertex, at most this many
+LEFT_OUT = 0.01  # the dimmest parts whose light adds up to less than this share of an object's are left out
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709: how the parts are ranked for an object
 
 PLASTIC = 1.324717957244746  # the plastic number: the R2 sequence's generator
@@ -163,33 +166,69 @@ def grid_highlights(parts, obj, directions, visible, nodes):
     )
 
 
+def incident(parts, positions, normals):
+    """(V, P) float64: an estimate of the light each part sends to each point (V, 3) with
+    its unit normal, unshadowed, in luminance: a sphere's or a polygon's radiance times
+    its solid angle seen from the point (its area, foreshortened, over the squared
+    distance to its centre, the distance at least its size), times the cosine at the
+    point; a point's intensity over the squared distance times the cosine; a
+    direction's irradiance times the cosine. What ``object_parts`` ranks the parts by
+    (a glossy lobe's light over all views is about ks times it)."""
+    x = np.asarray(positions, np.float64)
+    n = np.asarray(normals, np.float64)
+    out = np.zeros((len(x), len(parts)))
+    for i, part in enumerate(parts):
+        value = float(part.radiance @ LUMINANCE)
+        if part.kind == "direction":
+            out[:, i] = value * np.maximum(n @ -part.points[0], 0.0)
+            continue
+        to = part.centre[None, :] - x
+        d2 = np.maximum(np.einsum("vi,vi->v", to, to), 1e-300)
+        cos = np.maximum(np.einsum("vi,vi->v", n, to), 0.0) / np.sqrt(d2)
+        if part.kind == "point":
+            out[:, i] = value * cos / d2
+        elif part.kind == "sphere":
+            out[:, i] = value * np.pi * part.radius**2 / np.maximum(d2, part.radius**2) * cos
+        else:
+            facing = np.maximum(-(to @ part.normal), 0.0) / np.sqrt(d2)
+            out[:, i] = value * part.area * facing / np.maximum(d2, part.area) * cos
+    return out
+
+
 def object_parts(tracer, parts, obj, directions, samples, epsilon, nodes, *, cap=MAX_RECEIVER_PARTS, drawn=None):
     """The emitter parts of the glossy object ``obj`` (a ``SceneObject``) when the scene
     has more than ``cap``: (E (V, D, 3) float64, the highlights on its grid
-    ``directions`` of every part that reaches it; kept (P_o,) int32, the indices of the
+    ``directions`` of the parts that reach it; kept (P_o,) int32, the indices of the
     ``cap`` at most, among the first ``drawn`` of ``parts`` (default: all; the rest are
-    drawn by no display), whose highlights carry the most light over the object,
-    ascending; their visibility (V, P_o) float32). ``samples`` shadow rays a vertex and
-    part for a part that reaches it, ``COARSE_SAMPLES`` to find those."""
+    drawn by no display), that send it the most light, ascending; their visibility
+    (V, P_o) float32).
+
+    Which parts reach it and how much: on every k-th vertex (at most
+    ``COARSE_VERTICES``), ``COARSE_SAMPLES`` shadow rays a part and the light it
+    sends (``incident``), summed over the vertices' areas. The dimmest parts whose
+    light adds up to less than ``LEFT_OUT`` of the object's are left out (their light,
+    at most that share, is lost: the gather leaves every analytic part out); every
+    other one's highlight goes into the grid with its full visibility (``samples``
+    rays a vertex)."""
     drawn = len(parts) if drawn is None else drawn
-    coarse = visibility(tracer, parts, obj.positions, obj.normals, min(COARSE_SAMPLES, samples), epsilon,
-                        source=obj.name)
-    reaching = np.flatnonzero(coarse.max(axis=0) > 0) if len(obj.positions) else np.zeros(0, np.int64)
     v = len(obj.positions)
-    total = np.zeros((v, len(directions), 3))
-    seen = visibility(tracer, [parts[i] for i in reaching], obj.positions, obj.normals, samples, epsilon,
-                      source=obj.name)
     _, areas = face_normals(obj.positions, obj.faces)
     area = np.zeros(v)
     np.add.at(area, np.asarray(obj.faces).ravel(), np.repeat(areas / 3.0, 3))
-    energy = np.zeros(len(reaching))
-    for j, i in enumerate(reaching):
-        if not seen[:, j].any():
-            continue
-        e = grid_highlights([parts[i]], obj, directions, seen[:, j:j + 1], nodes)
-        total += e
-        energy[j] = float(area @ (e @ LUMINANCE).mean(axis=1))
-    order = [j for j in np.argsort(-energy, kind="stable") if energy[j] > 0 and reaching[j] < drawn][:cap]
-    order = sorted(order, key=lambda j: reaching[j])
-    kept = reaching[order].astype(np.int32)
-    return total, kept, np.ascontiguousarray(seen[:, order], np.float32)
+    sub = np.arange(0, v, max(1, -(-v // COARSE_VERTICES)))
+    coarse = visibility(tracer, parts, obj.positions[sub], obj.normals[sub], min(COARSE_SAMPLES, samples), epsilon,
+                        source=obj.name)
+    light = area[sub] @ (coarse * incident(parts, obj.positions[sub], obj.normals[sub]))
+    order = np.argsort(light, kind="stable")  # dimmest first
+    total = float(light.sum())
+    dropped = np.cumsum(light[order]) <= LEFT_OUT * total
+    reaching = np.sort(order[~dropped & (light[order] > 0)])
+    seen = visibility(tracer, [parts[i] for i in reaching], obj.positions, obj.normals, samples, epsilon,
+                      source=obj.name)
+    lit = seen.any(axis=0)
+    reaching, seen = reaching[lit], seen[:, lit]
+    grid = (grid_highlights([parts[i] for i in reaching], obj, directions, seen, nodes) if len(reaching)
+            else np.zeros((v, len(directions), 3)))
+    rank = [j for j in np.argsort(-light[reaching], kind="stable") if reaching[j] < drawn][:cap]
+    rank = sorted(rank, key=lambda j: reaching[j])
+    return grid, reaching[rank].astype(np.int32), np.ascontiguousarray(seen[:, rank], np.float32)

@@ -22,7 +22,7 @@ def files(tmp_path_factory):
 
 def test_each_object_s_highlight_draws_its_own_parts(files):
     solution, model = files
-    assert model.version == 6 and len(model.emitters) == len(solution.emitters) == 20
+    assert model.version == 6 and len(model.emitters) == len(solution.emitters) == 24
     for side in ("left", "right"):
         o, f = solution.object(side), model.object(side)
         assert f.highlight.indices == tuple(int(i) for i in o.emitter_parts)

@@ -12,7 +12,7 @@ from test_fit_cli import DIFFUSE_MATERIAL, run
 
 from fitting import lobes, mixed
 from fitting.data import fit_data
-from fitting.fit import FitOptions, fit, planned_workers
+from fitting.fit import FitOptions, fit, planned_threads, planned_workers
 from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate, object_bytes
 from radiosity.formats.errors import InputError
 from radiosity.formats.solution import ObjectSolution, Solution, SolutionFile, load_solution
@@ -191,6 +191,24 @@ def test_workers_are_used_only_where_they_pay(path, tmp_path):
     Solution(objects=whole.objects[1:], settings=whole.settings, scene="test").save(one)  # one glossy dome
     with SolutionFile(one) as f:
         assert planned_workers(f, 2) == 1
+
+
+def test_where_one_object_is_most_of_the_work_threads_fit_the_others_beside_it_bit_for_bit(path, tmp_path, capsys):
+    """A dome of 4 x the other's directions: no worker processes (they would wait for it),
+    but two threads of this process (the small dome fitted beside the large): the same
+    bits as one, and the command says its threads."""
+    whole = load_solution(path)
+    big, _ = synthetic(np.random.default_rng(3), lights=2, shininess=30.0, grid=18, subdivisions=1)
+    objects = (replace(big.objects[0], name="dome_big"), *whole.objects[1:])
+    uneven = tmp_path / "uneven.npz"
+    Solution(objects=objects, settings=whole.settings, scene="test").save(uneven)
+    with SolutionFile(uneven) as f:
+        assert planned_workers(f, 2) == 1 and planned_threads(f, 2) == 2 and planned_threads(f, 8) == 2
+        one = arrays(fit(f, OPTIONS, workers=1), tmp_path, "one.npz")
+        two = arrays(fit(f, OPTIONS, workers=2), tmp_path, "two.npz")
+    same(one, two)
+    code, _, err = run(["fit", str(uneven), "-o", str(tmp_path / "f.npz"), "--workers", "2"], capsys)
+    assert code == 0 and "2 threads" in err, err
 
 
 def test_a_bad_object_anywhere_is_one_line_before_the_estimate(path, tmp_path, capsys):
