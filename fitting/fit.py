@@ -538,10 +538,11 @@ def _fit_threaded(source, names, how, cost, done):
 
     def fitted(name):
         obj, alone = read(name, True)
-        return fit_object(obj, options, scene, None, alone, box)
+        return fit_object(obj, options, scene, bar, alone, box)  # the bar shows its lights as they come
 
     order = sorted(cost, key=lambda n: -cost[n])
-    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fit") as pool:
+    pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fit")
+    try:
         futures = {pool.submit(fitted, name): name for name in order}
         for name in names:
             if name not in cost:
@@ -553,6 +554,12 @@ def _fit_threaded(source, names, how, cost, done):
             done[futures[future]] = future.result()
             if bar is not None:
                 bar.update(1)
+    except BaseException:  # a Ctrl-C (in this thread) or an error: the threads stop at their next evaluation
+        mixed.STOP.set()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        mixed.STOP.clear()
 
 
 def planned_threads(source, workers, samples=None):

@@ -38,6 +38,7 @@ nothing it is dropped.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -55,6 +56,7 @@ AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing
 DUPLICATE_LOBE = 0.25  # two lights of a kind closer than this fraction of their lobe's width (1 / sqrt(p + 1) rad) are one
 POLISH_ITERATIONS = 4
+STOP = threading.Event()  # set: every refinement running in a thread of this process stops at its next evaluation
 PLACEMENT_SAMPLES = 1 << 16  # lights are placed on every k-th vertex of a larger object, about this many samples, then refined on all
 MEETING_RAYS = 256  # the strongest vertices whose mirror rays locate a light
 FAR = 1e4  # a point light with nothing to locate it starts this many object sizes away
@@ -343,6 +345,8 @@ def refine(problem, start, *, per_light_exponents=False, max_iterations=50):
 
     def counted(x):
         nonlocal evaluations
+        if STOP.is_set():  # the fit was interrupted (a Ctrl-C in the thread that started this one)
+            raise KeyboardInterrupt
         evaluations += 1
         loss, grad = objective(problem, params, start.rgb, x)
         return loss * norm, grad * norm

@@ -64,7 +64,8 @@ def test_the_summary_counts_the_objects_of_a_large_scene_instead_of_naming_each(
     from radiosity.cli import LISTED, format_summary
 
     def balls(n):
-        return [SimpleNamespace(name=f"ball_{i}", grid_n=(8, 16, 48)[i % 3], is_diffuse=False) for i in range(n)]
+        return [SimpleNamespace(name=f"ball_{i}", grid_n=(8, 16, 48)[i % 3], is_diffuse=False, emitter_parts=None)
+                for i in range(n)]
 
     def summary(n, lamps):
         times = {"setup": 0.1, "photons": 1.0, "density": 0.5, "gather": 2.0, "highlights": 0.5}
