@@ -119,8 +119,8 @@ def register(subparsers, not_built):
                    help="samples of a block of vertices in the per-vertex pass: memory only, the same model "
                    "whatever N (default: %(default)s)")
     p.add_argument("--workers", type=_workers, default=None, metavar="N",
-                   help="processes fitting glossy objects at once, the costliest first; the model is the same "
-                   "whatever N (default: one per core)")
+                   help="processes fitting glossy objects at once, the costliest first (threads of this one where "
+                   "one object is most of the work); the model is the same whatever N (default: one per core)")
     p.add_argument("--scheduler", default="threads", metavar="WHERE",
                    help="where the glossy objects are fitted: threads (this machine, --workers processes; default), "
                    "dask (a Dask LocalCluster sized to this machine) or tcp://HOST:PORT (a running Dask scheduler); "
