@@ -177,9 +177,10 @@ NO_PROBE = ("diffuse", "emitters", "lights")
 
 def _given(args, names):
     """The flags among ``names`` ((flag, attribute, default)) given a value other than their default."""
-    return [flag for flag, attr, default in names
-            if getattr(args, attr) is not None and getattr(args, attr) != default
-            and not (isinstance(default, tuple) and tuple(getattr(args, attr)) == default)]
+    def value(attr):
+        v = getattr(args, attr)
+        return tuple(v) if isinstance(v, list) else v  # nargs flags come as lists
+    return [flag for flag, attr, default in names if value(attr) is not None and value(attr) != default]
 
 
 def check_combination(args):

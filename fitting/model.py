@@ -61,7 +61,7 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 5
+VERSION = 6  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
 READS = (1, 2, 3, 4, 5, 6)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off

@@ -324,6 +324,11 @@ def test_objects_own_parts_make_a_version_6_file_that_round_trips(tmp_path, rng)
     rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=5))
     with pytest.raises(InputError, match="has 40 parts; a file holds at most 31"):
         load_export(path)
+    path.write_bytes(export_glb(model))  # a mesh naming a part the scene does not have: one line
+    rewrite_json(path, lambda header: header["meshes"][0]["extras"]["highlight"].update(parts=[0, 99]))
+    with pytest.raises(InputError, match="must name at most 31 distinct parts of the scene's 40") as info:
+        load_export(path)
+    assert "\n" not in str(info.value)
 
 
 def test_a_highlight_of_other_parts_is_refused(rng):

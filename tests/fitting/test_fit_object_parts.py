@@ -44,3 +44,23 @@ def test_the_fitted_highlight_is_the_solution_s_on_the_grid(files):
         views /= np.linalg.norm(views, axis=2, keepdims=True)
         drawn = f.highlight.radiance(o.positions[:, None, :], normals[:, None, :], views, side)
         assert np.allclose(drawn, solution.highlights(side), rtol=1e-6, atol=1e-9)
+
+
+def test_a_file_naming_parts_it_does_not_have_is_refused_in_one_line(files, tmp_path):
+    """fit.npz version 6 whose object names a part past the scene's, or one twice."""
+    import json
+
+    from radiosity.formats import InputError
+
+    _, model = files
+    model.save(tmp_path / "f.npz")
+    with np.load(tmp_path / "f.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    for bad, why in (([0, 99], "distinct parts of the 24"), ([3, 3], "distinct parts of the 24")):
+        damaged = dict(arrays)
+        damaged["left/emitter_parts"] = np.asarray(bad + list(arrays["left/emitter_parts"][2:]), np.int32)
+        np.savez(tmp_path / "bad.npz", **damaged)
+        with pytest.raises(InputError, match=why) as info:
+            load_fit(tmp_path / "bad.npz")
+        assert "\n" not in str(info.value) and "left/emitter_parts" in str(info.value)
+    assert json.loads(str(arrays["meta"]))["version"] == 6
