@@ -51,7 +51,10 @@ from radiosity.formats.errors import InputError
 __all__ = [
     "FRESNEL_NORMALISATION",
     "MAX_EXPONENT",
+    "MICROFACET_DISTRIBUTIONS",
+    "MICROFACET_KINDS",
     "Material",
+    "Microfacet",
     "fresnel_kd_limit",
     "fresnel_ks_limit",
     "schlick_albedo",
@@ -73,6 +76,110 @@ FRESNEL_NORMALISATION = 21.0 / 20.0
 """The Fresnel diffuse part's factor: 1 / (2 int_0^1 (1 - (1 - mu)^5) mu dmu)."""
 
 
+MICROFACET_KINDS = ("roughplastic", "roughconductor")
+"""The microfacet models a material may name (Mitsuba 3's, with its parameters)."""
+MICROFACET_DISTRIBUTIONS = ("ggx", "beckmann")
+MIN_ALPHA = 1e-4
+"""The smallest microfacet roughness a material may have (sharper lobes are mirrors)."""
+MAX_ALPHA = 4.0
+"""The largest microfacet roughness a material may have."""
+
+
+@dataclass(frozen=True)
+class Microfacet:
+    """A microfacet model (Walter et al. 2007, as Mitsuba 3 defines it), validated on
+    construction. The kernels evaluate it in ``radiosity.scene.microfacet_kernels``, the
+    numpy oracle in ``radiosity.scene.microfacet``.
+
+    Attributes:
+        kind: ``"roughplastic"`` (a rough dielectric interface over a Lambertian
+            substrate) or ``"roughconductor"``.
+        distribution: ``"ggx"`` or ``"beckmann"`` (isotropic).
+        alpha: the roughness, in [``MIN_ALPHA``, ``MAX_ALPHA``].
+        eta: a plastic's relative index of refraction (interior over exterior, the same
+            in each channel, positive and not 1); a conductor's real index per channel (>= 0).
+        k: a conductor's absorption per channel (>= 0; eta + i k not 0); zeros for a plastic.
+        specular_reflectance: the interface's scale per channel (>= 0; 1 for physics).
+        diffuse_reflectance: a plastic's substrate reflectance in [0, 1] (zeros for a
+            conductor); with a texture, the texture's brightest texel.
+        nonlinear: a plastic's ``nonlinear`` flag (Mitsuba's: kd' = kd / (1 - kd R_int)).
+    """
+
+    kind: str
+    distribution: str
+    alpha: float
+    eta: tuple[float, float, float]
+    k: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    specular_reflectance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    diffuse_reflectance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    nonlinear: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind not in MICROFACET_KINDS:
+            raise ValueError(f"microfacet kind {self.kind!r}: expected one of {', '.join(MICROFACET_KINDS)}")
+        if self.distribution not in MICROFACET_DISTRIBUTIONS:
+            raise ValueError(f"microfacet distribution {self.distribution!r}: expected one of "
+                             f"{', '.join(MICROFACET_DISTRIBUTIONS)}")
+        try:
+            alpha = float(self.alpha)
+        except (TypeError, ValueError):
+            raise ValueError(f"microfacet alpha must be a number, got {self.alpha!r}") from None
+        if not (MIN_ALPHA <= alpha <= MAX_ALPHA):
+            raise ValueError(f"microfacet alpha = {alpha:g} is outside [{MIN_ALPHA:g}, {MAX_ALPHA:g}]")
+        object.__setattr__(self, "alpha", alpha)
+        for field, upper in (("eta", FLOAT32_MAX), ("k", FLOAT32_MAX), ("specular_reflectance", FLOAT32_MAX),
+                             ("diffuse_reflectance", 1.0)):
+            object.__setattr__(self, field, _triple(f"microfacet {field}", getattr(self, field), upper))
+        object.__setattr__(self, "nonlinear", bool(self.nonlinear))
+        if self.kind == "roughplastic":
+            if len(set(self.eta)) != 1 or not self.eta[0] > 0.0 or self.eta[0] == 1.0:
+                raise ValueError(f"a rough plastic's eta must be one positive index other than 1, got {self.eta}")
+            if any(self.k):
+                raise ValueError("a rough plastic has no absorption k")
+        else:
+            if any(e == 0.0 and k == 0.0 for e, k in zip(self.eta, self.k)):
+                raise ValueError("a conductor's index eta + i k must not be 0 in any channel")
+            if any(self.diffuse_reflectance):
+                raise ValueError("a conductor has no diffuse_reflectance")
+
+    def to_dict(self) -> dict:
+        """The model as plain JSON-ready values."""
+        return {"kind": self.kind, "distribution": self.distribution, "alpha": self.alpha,
+                "eta": list(self.eta), "k": list(self.k), "specular_reflectance": list(self.specular_reflectance),
+                "diffuse_reflectance": list(self.diffuse_reflectance), "nonlinear": self.nonlinear}
+
+    @classmethod
+    def from_dict(cls, entry) -> Microfacet:
+        """The model of a ``to_dict`` entry; raises ValueError naming what is wrong."""
+        if not isinstance(entry, dict):
+            raise ValueError(f"microfacet must be an object, got {type(entry).__name__}")
+        known = {"kind", "distribution", "alpha", "eta", "k", "specular_reflectance", "diffuse_reflectance",
+                 "nonlinear"}
+        unknown = sorted(set(entry) - known)
+        if unknown:
+            raise ValueError(f"microfacet has unknown key(s) {', '.join(map(repr, unknown))}")
+        missing = [key for key in ("kind", "distribution", "alpha", "eta") if key not in entry]
+        if missing:
+            raise ValueError(f"microfacet has no {', '.join(map(repr, missing))}")
+        if not isinstance(entry.get("nonlinear", False), bool):
+            raise ValueError("microfacet 'nonlinear' must be true or false")
+        return cls(**entry)
+
+
+def _triple(field: str, value, upper: float) -> tuple[float, float, float]:
+    """Three finite numbers in [0, upper]; raises ValueError naming ``field``."""
+    try:
+        rgb = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be 3 numbers (red, green, blue), got {value!r}") from None
+    if len(rgb) != 3:
+        raise ValueError(f"{field} must be 3 numbers (red, green, blue), got {len(rgb)}")
+    for channel, v in zip(_CHANNELS, rgb):
+        if not math.isfinite(v) or v < 0.0 or v > upper:
+            raise ValueError(f"{field} {channel} = {v!r} is not in [0, {upper:g}]")
+    return rgb
+
+
 @dataclass(frozen=True)
 class Material:
     """A Lambert + modified Phong material; validated on construction.
@@ -87,6 +194,10 @@ class Material:
         fresnel: None (no Fresnel term), or Schlick's F0, RGB in [0, 1]: the specular
             lobe is weighted by F(wi.h) and the diffuse part by the light the interface
             lets through (see the module's docstring); needs a positive ks.
+        microfacet: None (the material is the Phong model above), or the ``Microfacet``
+            model the path tracer evaluates; the Phong fields then hold its stand-in
+            (``radiosity.scene.microfacet.phong_lobe_for``), which the stages that draw
+            Phong lobes use.
 
     All numbers are stored as python floats. Raises ``InputError`` naming the
     material and the problem if a value is missing, not finite, out of range, or if
@@ -100,8 +211,14 @@ class Material:
     exponent: float = 0.0
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fresnel: tuple[float, float, float] | None = None
+    microfacet: Microfacet | None = None
 
     def __post_init__(self) -> None:
+        if self.microfacet is not None and not isinstance(self.microfacet, Microfacet):
+            try:
+                object.__setattr__(self, "microfacet", Microfacet.from_dict(self.microfacet))
+            except (TypeError, ValueError) as exc:
+                raise self._error(str(exc)) from None
         ks_upper = 1.0 if self.fresnel is None else FLOAT32_MAX  # with Fresnel: the energy check bounds it
         for field, upper in (("diffuse", 1.0), ("specular", ks_upper), ("emission", FLOAT32_MAX)):
             object.__setattr__(self, field, self._rgb(field, upper))
@@ -184,7 +301,8 @@ class Material:
 
     def to_dict(self) -> dict:
         """The material as plain JSON-ready values (the name is the caller's key); the key
-        ``fresnel`` only if the material has one, so files without Fresnel stay as they were."""
+        ``fresnel`` only if the material has one, so files without Fresnel stay as they were;
+        likewise ``microfacet``."""
         out = {
             "diffuse": list(self.diffuse),
             "specular": list(self.specular),
@@ -193,6 +311,8 @@ class Material:
         }
         if self.fresnel is not None:
             out["fresnel"] = list(self.fresnel)
+        if self.microfacet is not None:
+            out["microfacet"] = self.microfacet.to_dict()
         return out
 
 

@@ -60,6 +60,39 @@ from radiosity.formats.material import (
     schlick_diffuse,
     specular_albedo,
 )
+from radiosity.scene import microfacet
+from radiosity.scene.columns import (
+    EMISSION,
+    EXPONENT,
+    F0,
+    HAS_FRESNEL,
+    KD,
+    KIND,
+    KIND_PHONG,
+    KIND_ROUGH_CONDUCTOR,
+    KIND_ROUGH_PLASTIC,
+    KS,
+    MF_ALPHA,
+    MF_BECKMANN,
+    MF_DIFFUSE_NORM,
+    MF_DISTRIBUTION,
+    MF_ETA,
+    MF_GGX,
+    MF_K,
+    MF_SPECULAR,
+    MF_SPECULAR_WEIGHT,
+    MF_TABLE,
+    MF_TABLE_SIZE,
+    NCOL,
+    P_SPECULAR,
+)
+from radiosity.scene.microfacet_kernels import (
+    mf_deposit_weight,
+    mf_diffuse_exitance,
+    mf_eval,
+    mf_pdf,
+    mf_sample,
+)
 
 __all__ = [
     "EMISSION",
@@ -67,6 +100,7 @@ __all__ = [
     "F0",
     "HAS_FRESNEL",
     "KD",
+    "KIND",
     "KS",
     "MAX_EXPONENT",
     "NCOL",
@@ -90,25 +124,21 @@ __all__ = [
     "sample",
 ]
 
-# Columns of the packed material table.
-KD = 0  # 3 columns: diffuse reflectance
-KS = 3  # 3 columns: specular reflectance
-EXPONENT = 6  # Phong exponent n
-EMISSION = 7  # 3 columns: emitted radiance
-P_SPECULAR = 10  # probability that brdf_sample picks the specular lobe (without Fresnel)
-F0 = 11  # 3 columns: Schlick's F0 (with Fresnel)
-HAS_FRESNEL = 14  # 1.0 if the material has a Fresnel term, else 0.0
-NCOL = 15
 P_SPECULAR_MIN = 0.05  # with Fresnel, the least probability of the specular lobe (ks > 0)
 
 
-def pack_materials(materials: Sequence[Material]) -> np.ndarray:
+def pack_materials(materials: Sequence[Material], microfacet_models: bool = True) -> np.ndarray:
     """Pack materials into a table for the numba kernels.
 
     Returns a C-contiguous float64 array of shape (M, NCOL); row i describes
-    ``materials[i]`` with the column layout ``KD``, ``KS``, ``EXPONENT``,
-    ``EMISSION``, ``P_SPECULAR``, ``F0``, ``HAS_FRESNEL``. P_SPECULAR = mean(ks) /
-    (mean(kd) + mean(ks)), 0 if both are 0; F0 and HAS_FRESNEL are 0 without Fresnel.
+    ``materials[i]`` with the column layout of ``radiosity.scene.columns``: ``KD``,
+    ``KS``, ``EXPONENT``, ``EMISSION``, ``P_SPECULAR``, ``F0``, ``HAS_FRESNEL`` (the
+    Phong model, or a microfacet material's Phong stand-in), ``KIND`` and the microfacet
+    columns. P_SPECULAR = mean(ks) / (mean(kd) + mean(ks)), 0 if both are 0; F0 and
+    HAS_FRESNEL are 0 without Fresnel. A material with a ``microfacet`` model gets its
+    kind and columns (``_pack_microfacet``) unless ``microfacet_models`` is False: then
+    every row is its Phong model (what the solver's gather and closed-form highlights
+    evaluate).
     """
     table = np.zeros((len(materials), NCOL), dtype=np.float64)
     for row, m in zip(table, materials):
@@ -121,7 +151,48 @@ def pack_materials(materials: Sequence[Material]) -> np.ndarray:
         if m.fresnel is not None:
             row[F0 : F0 + 3] = m.fresnel
             row[HAS_FRESNEL] = 1.0
+        if m.microfacet is not None and microfacet_models:
+            _pack_microfacet(row, m.microfacet)
     return table
+
+
+def _pack_microfacet(row: np.ndarray, model) -> None:
+    """Write a ``Microfacet`` model's kind and columns into ``row`` (its Phong stand-in
+    stays in the first columns, KD replaced by the substrate's): the transmittance table
+    and R_int of a plastic from the oracle (``microfacet.RoughPlastic``, cached per
+    distribution, alpha and eta), KD = kd' / (eta^2 N), N = 1 / (2 int t mu dmu)."""
+    row[MF_DISTRIBUTION] = MF_GGX if model.distribution == "ggx" else MF_BECKMANN
+    row[MF_ALPHA] = model.alpha
+    row[MF_ETA : MF_ETA + 3] = model.eta
+    row[MF_K : MF_K + 3] = model.k
+    row[MF_SPECULAR : MF_SPECULAR + 3] = model.specular_reflectance
+    row[P_SPECULAR] = 0.0
+    if model.kind == "roughconductor":
+        row[KIND] = KIND_ROUGH_CONDUCTOR
+        row[KD : KD + 3] = 0.0
+        row[HAS_FRESNEL] = 0.0
+        return
+    row[KIND] = KIND_ROUGH_PLASTIC
+    brdf = microfacet_reference(model)
+    table = brdf.transmittance(np.linspace(0.0, 1.0, MF_TABLE_SIZE))
+    row[MF_TABLE : MF_TABLE + MF_TABLE_SIZE] = table
+    mu, w = np.polynomial.legendre.leggauss(64)
+    mu = 0.5 * (mu + 1.0)
+    norm = 1.0 / (np.sum(w * mu * np.interp(mu, np.linspace(0.0, 1.0, MF_TABLE_SIZE), table)))
+    row[MF_DIFFUSE_NORM] = norm
+    row[KD : KD + 3] = brdf.substrate / (model.eta[0] ** 2 * norm)
+    row[HAS_FRESNEL] = 1.0
+    s, d = float(np.mean(model.specular_reflectance)), float(np.mean(model.diffuse_reflectance))
+    row[MF_SPECULAR_WEIGHT] = s / (s + d) if s + d > 0.0 else 0.0
+
+
+def microfacet_reference(model):
+    """The numpy oracle (``radiosity.scene.microfacet``) of a ``Microfacet`` model."""
+    if model.kind == "roughconductor":
+        return microfacet.RoughConductor(model.distribution, model.alpha, np.asarray(model.eta), np.asarray(model.k),
+                                         np.asarray(model.specular_reflectance))
+    return microfacet.RoughPlastic(model.distribution, model.alpha, model.eta[0], np.asarray(model.diffuse_reflectance),
+                                   np.asarray(model.specular_reflectance), model.nonlinear)
 
 
 _INV_PI = 1.0 / math.pi
@@ -163,6 +234,8 @@ def deposit_weight(mat, cos_in):
     with it (21/20) b(cos_in), so the estimate E' = (21/20) int b(cos_i) L cos_i dwi is
     what the Fresnel diffuse part reflects, L_d(wo) = kd / pi * b(wo.z) * E' (E' = E
     for uniform light)."""
+    if mat[KIND] != KIND_PHONG:
+        return mf_deposit_weight(mat, cos_in)
     if mat[HAS_FRESNEL] <= 0.0:
         return 1.0
     return FRESNEL_NORMALISATION * fresnel_diffuse(cos_in)
@@ -172,6 +245,8 @@ def deposit_weight(mat, cos_in):
 def diffuse_exitance(mat, cos_out):
     """The factor of kd / pi * E' (``deposit_weight``) in the diffuse radiance leaving at
     cos_out: 1 without Fresnel, b(cos_out) with it."""
+    if mat[KIND] != KIND_PHONG:
+        return mf_diffuse_exitance(mat, cos_out)
     if mat[HAS_FRESNEL] <= 0.0:
         return 1.0
     return fresnel_diffuse(cos_out)
@@ -237,6 +312,8 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     ``mat`` is one row (float64, length NCOL) of ``pack_materials``; wi and wo are
     unit vectors in the shading frame, both pointing away from the surface.
     """
+    if mat[KIND] != KIND_PHONG:
+        return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
     if wiz <= 0.0 or woz <= 0.0:
         return 0.0, 0.0, 0.0
     n = mat[EXPONENT]
@@ -266,6 +343,8 @@ def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
     to 1 over the sphere; if ps > 0 it is also positive below the horizon within 90
     degrees of the mirror direction.
     """
+    if mat[KIND] != KIND_PHONG:
+        return mf_pdf(mat, wox, woy, woz, wix, wiy, wiz)
     cos_alpha = wiz * woz - wix * wox - wiy * woy
     return _mixture_pdf(mat, cos_alpha, wiz, p_specular(mat, woz))
 
@@ -283,6 +362,8 @@ def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     cos alpha rather than one recomputed from the rounded wi. Specular samples may
     lie below the horizon (wiz <= 0); the caller must treat those as absorbed.
     """
+    if mat[KIND] != KIND_PHONG:
+        return mf_sample(mat, wox, woy, woz, u1, u2, u3)
     phi = 2.0 * math.pi * u3
     p_spec = p_specular(mat, woz)
     if u1 < p_spec:
@@ -378,20 +459,25 @@ def sample(material: Material, wo, u) -> tuple[np.ndarray, np.ndarray]:
     return wi, density
 
 
-def albedo(material: Material, cos_theta) -> np.ndarray:
+def albedo(material: Material, cos_theta, microfacet_models: bool = True) -> np.ndarray:
     """Directional albedo rho(wo) = int f(wi, wo) cos(theta_i) dwi over the upper hemisphere.
 
     cos_theta: wo.z, a float or float array of shape (N,), in [0, 1] (at 0 the
     grazing limit). Deterministic quadrature, accurate to ~1e-12. Returns float64
     RGB, shape (3,) for a scalar, (N, 3) for an array: kd + ks * S(theta), where
     S = 1 at normal incidence and falls towards grazing incidence; with Fresnel
-    kd b(theta) + ks (F0 S + (1 - F0) Q) (``radiosity.formats.material``).
+    kd b(theta) + ks (F0 S + (1 - F0) Q) (``radiosity.formats.material``). A material
+    with a microfacet model (and ``microfacet_models``): the oracle's albedo
+    (``microfacet.directional_albedo``, quadrature over microfacet normals, to ~1e-4).
     """
     cos_theta = np.asarray(cos_theta, dtype=np.float64)
     if cos_theta.ndim > 1:
         raise ValueError(f"cos_theta must be a scalar or of shape (N,), got {cos_theta.shape}")
     if not np.all((cos_theta >= 0.0) & (cos_theta <= 1.0)):
         raise ValueError("cos_theta must be in [0, 1]")
+    if material.microfacet is not None and microfacet_models:
+        rho = microfacet.directional_albedo(microfacet_reference(material.microfacet), np.atleast_1d(cos_theta))
+        return rho[0] if cos_theta.ndim == 0 else rho
     specular = specular_albedo(material.exponent, np.atleast_1d(cos_theta))
     if material.fresnel is not None:
         f0 = np.asarray(material.fresnel)
