@@ -30,6 +30,11 @@ Version 5 adds emitter parts per object: a glossy object's ``<name>/emitter_part
 (P_o,) int32 names the parts of ``meta.emitters`` (indices) whose highlights it holds
 in closed form, its ``visibility`` then (V, P_o); ``meta.emitters`` may then hold up to
 ``MAX_SCENE_PARTS`` parts. An object without it has every part (versions 2 to 4).
+Version 6 adds microfacet materials: a material's ``"microfacet"`` entry
+(``radiosity.formats.material.Microfacet.to_dict``: kind, distribution, alpha, eta, k,
+specular_reflectance, diffuse_reflectance, nonlinear) is the model ``vlights truth``
+path-traces; its Phong fields stay the stand-in the other stages draw, so a reader of
+version 5 that ignores the key reads the same Phong material as before.
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -72,12 +77,12 @@ from radiosity.formats.texture import TexturedDiffuse, read_textured
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 4
-READS = (1, 2, 3, 4, 5)
+VERSION = 6  # the newest version written (a file is written with the lowest that holds it)
+READS = (1, 2, 3, 4, 5, 6)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
-_OPTIONAL_MATERIAL_KEYS = ("fresnel",)  # Schlick's F0 (docs/formats.md); absent: no Fresnel
+_OPTIONAL_MATERIAL_KEYS = ("fresnel", "microfacet")  # Schlick's F0; a microfacet model (version 6)
 _UNIT_TOLERANCE = 1e-4  # |direction| within this of 1
 _GRID_TOLERANCE = 1e-5  # stored directions within this of the contract's grid
 
@@ -406,9 +411,11 @@ class Solution:
 
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 5 where an object names
-        its emitter parts, else 4 with a delta light, else 3 with a textured object or an
-        environment, else 2."""
+        """The lowest contract version that holds this solution: 6 where a material has a
+        microfacet model, else 5 where an object names its emitter parts, else 4 with a
+        delta light, else 3 with a textured object or an environment, else 2."""
+        if any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects):
+            return 6
         if any(o.emitter_parts is not None for o in self.objects):
             return 5
         if self.lights or any(p.is_delta for p in self.emitters):

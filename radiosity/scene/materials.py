@@ -92,6 +92,9 @@ from radiosity.scene.microfacet_kernels import (
     mf_eval,
     mf_pdf,
     mf_sample,
+    mf_specular_eval,
+    mf_specular_pdf,
+    mf_specular_sample,
 )
 
 __all__ = [
@@ -120,6 +123,9 @@ __all__ = [
     "pack_materials",
     "schlick",
     "phong_lobe",
+    "specular_eval",
+    "specular_pdf",
+    "specular_sample",
     "pdf",
     "sample",
 ]
@@ -495,7 +501,7 @@ def textured_row(mat, rgb, row):
     ``rgb`` (3-tuple), written into ``row`` (NCOL,) and returned; the probability of
     sampling the specular lobe follows the textured colour (``pack_materials``'s rule).
     """
-    for c in range(NCOL):
+    for c in range(NCOL if mat[KIND] != KIND_PHONG else KIND + 1):  # a Phong row's other columns are unread
         row[c] = mat[c]
     for c in range(3):
         row[KD + c] = mat[KD + c] * rgb[c]
@@ -503,3 +509,53 @@ def textured_row(mat, rgb, row):
     ks = (row[KS] + row[KS + 1] + row[KS + 2]) / 3.0
     row[P_SPECULAR] = ks / (kd + ks) if kd + ks > 0.0 else 0.0
     return row
+
+
+# --- the specular part alone (the gather's glossy hits and grids) ----------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def specular_eval(mat, wix, wiy, wiz, wox, woy, woz):
+    """The specular part of f(wi, wo) per channel (the diffuse part left out): ks F (n +
+    2) / (2 pi) cos^n(alpha) for the Phong kind, the interface's lobe for a microfacet
+    kind; 0 unless wi.z > 0 and wo.z > 0."""
+    if mat[KIND] != KIND_PHONG:
+        return mf_specular_eval(mat, wix, wiy, wiz, wox, woy, woz)
+    if wiz <= 0.0 or woz <= 0.0:
+        return 0.0, 0.0, 0.0
+    n = mat[EXPONENT]
+    lobe = (n + 2.0) * _INV_2PI * phong_lobe(wiz * woz - wix * wox - wiy * woy, n)
+    f0, f1, f2 = 1.0, 1.0, 1.0
+    if mat[HAS_FRESNEL] > 0.0:
+        f0, f1, f2 = schlick(mat, half_cosine(wix * wox + wiy * woy + wiz * woz))
+    return mat[KS] * f0 * lobe, mat[KS + 1] * f1 * lobe, mat[KS + 2] * f2 * lobe
+
+
+@numba.njit(cache=True, nogil=True)
+def specular_pdf(mat, wox, woy, woz, wix, wiy, wiz):
+    """Density of ``specular_sample``'s wi for wo over the whole sphere."""
+    if mat[KIND] != KIND_PHONG:
+        return mf_specular_pdf(mat, wox, woy, woz, wix, wiy, wiz)
+    n = mat[EXPONENT]
+    return (n + 1.0) * _INV_2PI * phong_lobe(wiz * woz - wix * wox - wiy * woy, n)
+
+
+@numba.njit(cache=True, nogil=True)
+def specular_sample(mat, wox, woy, woz, u2, u3):
+    """wi drawn from the specular part alone with uniform numbers (u2, u3): (wix, wiy, wiz,
+    pdf), pdf ``specular_pdf``'s; wi may lie below the horizon (absorbed by the caller)."""
+    if mat[KIND] != KIND_PHONG:
+        return mf_specular_sample(mat, wox, woy, woz, u2, u3)
+    rx, ry, rz = -wox, -woy, woz
+    tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
+    log_cos = math.log(1.0 - u2) / (mat[EXPONENT] + 1.0)
+    cos_alpha = math.exp(log_cos)
+    sin_alpha = math.sqrt(-math.expm1(2.0 * log_cos))
+    phi = 2.0 * math.pi * u3
+    sx = sin_alpha * math.cos(phi)
+    sy = sin_alpha * math.sin(phi)
+    wix = sx * tx + sy * bx + cos_alpha * rx
+    wiy = sx * ty + sy * by + cos_alpha * ry
+    wiz = sx * tz + sy * bz + cos_alpha * rz
+    n = mat[EXPONENT]
+    return wix, wiy, wiz, (n + 1.0) * _INV_2PI * phong_lobe(cos_alpha, n)

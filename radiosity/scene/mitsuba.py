@@ -83,7 +83,7 @@ import numpy as np
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
-from radiosity.formats.material import fresnel_kd_limit, srgb_to_linear
+from radiosity.formats.material import MAX_ALPHA, MIN_ALPHA, Microfacet, fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
@@ -895,13 +895,19 @@ class _Surface:
     visible: bool = True  # False: the shape is left out (a null bsdf, a dielectric)
     fresnel: tuple | None = None  # Schlick's F0 of a mapped plastic or conductor
     texture: _Bitmap | None = None  # multiplies diffuse at each point (``textures``)
+    microfacet: Microfacet | None = None  # a rough plastic's or conductor's own model (the rest its Phong stand-in)
 
     def untextured(self):
         """This surface with its texture folded into the diffuse colour (its mean)."""
         if self.texture is None:
             return self
         diffuse = tuple(float(d * m) for d, m in zip(self.diffuse, self.texture.mean, strict=True))
-        return _Surface(diffuse, self.specular, self.exponent, self.twosided, self.visible, self.fresnel)
+        microfacet = self.microfacet
+        if microfacet is not None and microfacet.kind == "roughplastic":
+            microfacet = replace(microfacet, diffuse_reflectance=tuple(
+                float(d * m) for d, m in zip(microfacet.diffuse_reflectance, self.texture.mean, strict=True)))
+        return _Surface(diffuse, self.specular, self.exponent, self.twosided, self.visible, self.fresnel,
+                        microfacet=microfacet)
 
 
 def _bitmap_property(doc, props, name):
@@ -1017,11 +1023,20 @@ def _microfacet_surface(node, props, kind):
     try:
         kd, ks, exponent, fresnel = microfacet.phong_lobe(kind, distribution, alpha if alpha is not None else 0.1,
                                                           **params)
-    except InputError as exc:
+        model = None
+        if alpha is not None:  # the smooth kinds keep their Phong stand-in (n = MAX_EXPONENT) everywhere
+            reference = microfacet.reference_brdf(kind, distribution, alpha, **params)
+            model = Microfacet(kind, distribution, float(np.clip(alpha, MIN_ALPHA, MAX_ALPHA)),
+                               (reference.eta,) * 3 if kind == "roughplastic" else tuple(reference.eta),
+                               (0.0,) * 3 if kind == "roughplastic" else tuple(reference.k),
+                               tuple(reference.specular_reflectance),
+                               tuple(reference.diffuse_reflectance) if kind == "roughplastic" else (0.0,) * 3,
+                               bool(getattr(reference, "nonlinear", False)))
+    except (InputError, ValueError) as exc:
         raise node.fail(str(exc)) from None
     if bitmap is None:
-        return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel)
-    return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel,
+        return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel, microfacet=model)
+    return _Surface(diffuse=kd, specular=ks, exponent=exponent, fresnel=fresnel, microfacet=model,
                     texture=_plastic_texture(bitmap, kind, distribution, alpha, params))
 
 
@@ -1260,7 +1275,7 @@ def _to_material(shape):
     s = shape.surface
     try:
         return Material(name=shape.name, diffuse=s.diffuse, specular=s.specular, exponent=s.exponent,
-                        emission=shape.emission, fresnel=s.fresnel)
+                        emission=shape.emission, fresnel=s.fresnel, microfacet=s.microfacet)
     except InputError as exc:
         raise InputError(f"{shape.source}: {exc}") from None
 

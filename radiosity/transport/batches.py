@@ -46,14 +46,15 @@ def _emitter_table(power, faces_area2, chosen):
     return cdf, emitting.astype(np.int64), emit_area_pdf
 
 
-def scene_arrays(scene, merged, epsilon, analytic=()):
+def scene_arrays(scene, merged, epsilon, analytic=(), microfacet_models=True):
     """The merged scene as the kernels read it (``SceneArrays``); ``analytic``
     names the emitting objects whose direct glossy highlights the solver adds in closed
-    form (the gather leaves them out)."""
+    form (the gather leaves them out); ``microfacet_models`` False packs every
+    material's Phong model (``pack_materials``), what the solver evaluates."""
     material_names = list(scene.materials)
-    table = pack_materials([scene.materials[n] for n in material_names])
+    table = pack_materials([scene.materials[n] for n in material_names], microfacet_models)
     cos_grid = np.linspace(0.0, 1.0, ALBEDO_TABLE_SIZE)
-    albedo_table = np.stack([albedo(scene.materials[n], cos_grid) for n in material_names])
+    albedo_table = np.stack([albedo(scene.materials[n], cos_grid, microfacet_models) for n in material_names])
     object_material = np.array([material_names.index(o.material.name) for o in scene.objects])
     face_material = object_material[merged.triangle_object].astype(np.int64)
 
@@ -170,7 +171,7 @@ def gather_block(tracer, sa, irradiance, block, material, dirs):
     tracer.count(rays, shadow)
 
     values = np.empty((b, len(dirs), 3))
-    mat = pack_materials([material])[0]
+    mat = pack_materials([material], microfacet_models=False)[0]
     emission = np.asarray(material.emission, dtype=np.float64)
     diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
     variance = np.empty(b if block.measure_noise else 0)

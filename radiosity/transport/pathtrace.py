@@ -594,14 +594,16 @@ class PathTracer:
     """Path-traces a scene (``Scene``) from cameras; build once, render many views.
 
     threads: worker threads (default: one per core); the image does not depend on it.
+    microfacet_models: False renders every microfacet material as its Phong stand-in (what
+    the solver and the displays evaluate), to measure what the stand-in costs.
     """
 
-    def __init__(self, scene, threads=None):
+    def __init__(self, scene, threads=None, microfacet_models=True):
         self.scene = scene
         self.threads = threads or default_threads()
         merged = scene.merged()
         self.tracer = RayTracer(merged.positions, merged.faces, threads=1)
-        self.arrays = scene_arrays(scene, merged, self.tracer.epsilon)
+        self.arrays = scene_arrays(scene, merged, self.tracer.epsilon, microfacet_models=microfacet_models)
 
     def close(self):
         self.tracer.close()

@@ -334,7 +334,9 @@ def _solve(scene, settings, runner, progress):
     # every delta light's direct highlight is in closed form (exact, and nothing else can find
     # it), drawn per pixel where it is a part, else kept in the grid
     closed = parts + tuple(light for light in scene.lights if not any(light is p for p in parts))
-    sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic)
+    # the gather and the closed-form highlights draw Phong lobes: the solver takes every
+    # material's Phong model (a microfacet material's stand-in); ``vlights truth`` its own
+    sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic, microfacet_models=False)
     seed = settings["seed"]
     runner.start(merged, sa, seed)
     times["setup"] = time.perf_counter() - t0

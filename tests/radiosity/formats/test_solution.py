@@ -184,6 +184,47 @@ def test_a_fresnel_material_round_trips_and_files_without_it_have_no_key(tmp_pat
         make_object("floor", 2, bad, 5)
 
 
+MICROFACET = {"kind": "roughconductor", "distribution": "ggx", "alpha": 0.05, "eta": [1.66, 0.88, 0.52],
+              "k": [9.2, 6.3, 4.8], "specular_reflectance": [1.0, 1.0, 1.0], "diffuse_reflectance": [0.0, 0.0, 0.0],
+              "nonlinear": False}
+
+
+def test_a_microfacet_material_is_version_6_round_trips_and_others_stay_as_they_were(tmp_path, saved):
+    metal = {"diffuse": [0.0, 0.0, 0.0], "specular": [1.0, 1.0, 1.0], "exponent": 500.0, "emission": BLACK,
+             "fresnel": [0.9, 0.9, 0.9], "microfacet": MICROFACET}
+    path = tmp_path / "metal.npz"
+    Solution((make_object("plate", 2, metal, 5),)).save(path)
+    loaded = load_solution(path)
+    assert loaded.version == 6 and loaded.object("plate").material == metal
+    assert Material("plate", **loaded.object("plate").material).microfacet.k == (9.2, 6.3, 4.8)
+    assert load_solution(saved).version < 6
+
+
+@pytest.mark.parametrize("change, fragment", [
+    ({"kind": "roughglass"}, "microfacet kind 'roughglass'"),
+    ({"distribution": "phong"}, "microfacet distribution 'phong'"),
+    ({"alpha": 0.0}, "microfacet alpha = 0"),
+    ({"alpha": "rough"}, "microfacet alpha must be a number"),
+    ({"eta": [0.0, 0.88, 0.52], "k": [0.0, 1.0, 1.0]}, "must not be 0"),
+    ({"k": [1.0, float("nan"), 1.0]}, "microfacet k green"),
+    ({"diffuse_reflectance": [0.5, 0.5, 0.5]}, "a conductor has no diffuse_reflectance"),
+    ({"nonlinear": "yes"}, "'nonlinear' must be true or false"),
+    ({"roughness": 1}, "unknown key(s) 'roughness'"),
+])
+def test_a_bad_microfacet_entry_is_refused_in_one_line(tmp_path, solution, change, fragment):
+    meta, arrays = contents(solution)
+    name = next(iter(meta["materials"]))
+    meta["materials"][name]["microfacet"] = dict(MICROFACET, **change)
+    meta["version"] = 6
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), fragment)
+
+
+def test_a_plastic_microfacet_needs_one_index_other_than_1():
+    plastic = dict(MICROFACET, kind="roughplastic", eta=[1.5, 1.5, 1.4], k=[0, 0, 0])
+    with pytest.raises(InputError, match="one positive index other than 1"):
+        Material("p", (0.3,) * 3, (1.0,) * 3, 50.0, fresnel=(0.04,) * 3, microfacet=plastic)
+
+
 def test_a_camera_along_x_keeps_its_axis_and_its_film_s_vertical_fov(tmp_path, solution):
     # a Mitsuba sensor's fov 70 along x on a 1280 x 720 film
     camera = Camera((6.9, 1.65, 2.55), (6.0, 1.65, 2.12), (0.0, 1.0, 0.0), 70.0, 1280, 720, "x")
@@ -397,7 +438,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [6, "1", None, True])
+@pytest.mark.parametrize("version", [7, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version

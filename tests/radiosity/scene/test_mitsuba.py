@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.scene import geometry
+from radiosity.scene import geometry, microfacet
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import albedo
 from radiosity.scene.mitsuba import Tessellation, load_mitsuba, read_serialized
@@ -984,3 +984,25 @@ def test_a_bad_scene_is_exit_2_and_one_line(capsys, name):
     captured = capsys.readouterr()
     lines = captured.err.splitlines()
     assert len(lines) == 1 and str(DATA / name) in lines[0] and lines[0].startswith("vlights scene-info: error: ")
+
+
+def test_rough_plastics_and_conductors_keep_their_own_model_beside_the_phong_stand_in(tmp_path):
+    path = write_scene(tmp_path, """
+        <shape type="rectangle" id="floor"><bsdf type="roughplastic"><string name="distribution" value="ggx"/>
+            <float name="alpha" value="0.15"/><rgb name="diffuse_reflectance" value="0.35, 0.3, 0.25"/>
+            <boolean name="nonlinear" value="true"/></bsdf></shape>
+        <shape type="sphere" id="gold"><bsdf type="twosided"><bsdf type="roughconductor">
+            <float name="alpha" value="0.1"/><string name="material" value="Au"/></bsdf></bsdf></shape>
+        <shape type="sphere" id="mirror"><bsdf type="conductor"/></shape>
+        <shape type="sphere" id="shiny"><bsdf type="plastic"/></shape>""")
+    scene = load_quietly(path)
+    floor, gold = scene.materials["floor"], scene.materials["gold"]
+    assert floor.microfacet.kind == "roughplastic" and floor.microfacet.distribution == "ggx"
+    assert floor.microfacet.alpha == 0.15 and floor.microfacet.nonlinear
+    assert floor.microfacet.eta == pytest.approx((1.49 / 1.000277,) * 3)
+    assert floor.microfacet.diffuse_reflectance == pytest.approx((0.35, 0.3, 0.25))
+    assert floor.fresnel is not None and floor.exponent > 0  # the stand-in beside it
+    assert gold.microfacet.kind == "roughconductor" and gold.microfacet.distribution == "beckmann"
+    assert gold.microfacet.eta == pytest.approx(microfacet.METALS["Au"][0])
+    assert gold.microfacet.k == pytest.approx(microfacet.METALS["Au"][1])
+    assert scene.materials["mirror"].microfacet is None and scene.materials["shiny"].microfacet is None

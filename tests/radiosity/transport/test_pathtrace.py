@@ -127,6 +127,43 @@ def test_glossy_quad_in_an_emitting_enclosure_shows_its_true_albedo(tmp_path, ex
     assert np.all(image.standard_error[sky] == 0)
 
 
+MICROFACET_PLATE = """<?xml version="1.0"?>
+<scene version="3.0.0">
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="rectangle" id="quad">
+        <transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/></transform>
+        {bsdf}
+    </shape>
+</scene>
+"""
+
+
+@pytest.mark.parametrize("bsdf", [
+    '<bsdf type="roughplastic"><string name="distribution" value="ggx"/><float name="alpha" value="0.2"/>'
+    '<rgb name="diffuse_reflectance" value="0.6, 0.3, 0.1"/></bsdf>',
+    '<bsdf type="roughconductor"><float name="alpha" value="0.3"/><string name="material" value="Cu"/></bsdf>',
+])
+def test_a_microfacet_quad_under_a_uniform_sky_shows_its_own_model_s_albedo(tmp_path, bsdf):
+    """Under uniform radiance 1 a convex surface shows its directional albedo: the
+    microfacet model's (the oracle's quadrature), not its Phong stand-in's."""
+    path = tmp_path / "plate.xml"
+    path.write_text(MICROFACET_PLATE.format(bsdf=bsdf))
+    scene = load_scene(path)
+    camera = Camera((0, 0.6, -1.0), (0, 0, 0.6), fov_deg=80, width=24, height=24)
+    image = render(scene, camera, 256)
+    points, d, s = plane_hits(camera, sub=8)
+    inside = ((np.abs(points[..., 0]) < 2) & (np.abs(points[..., 2]) < 2) & (s > 0)).all(axis=2)
+    cos_out = np.clip(-d[..., 1], 0, 1)
+    material = scene.object("quad").material
+    assert material.microfacet is not None
+    expected = np.zeros(image.radiance.shape)
+    expected[inside] = albedo(material, cos_out[inside].ravel()).reshape(-1, 64, 3).mean(axis=1)
+    assert inside.sum() > 150 and cos_out[inside].min() < 0.25
+    assert_within_monte_carlo_error(image, expected, inside)
+    stand_in = albedo(material, cos_out[inside].ravel(), microfacet_models=False).reshape(-1, 64, 3).mean(axis=1)
+    assert np.abs(stand_in - expected[inside]).max() > 0.05  # the test tells the model from the stand-in
+
+
 # -- an emitting square above a diffuse plane -----------------------------------------------
 
 
