@@ -116,6 +116,8 @@ __all__ = [
     "eval_brdf",
     "deposit_weight",
     "diffuse_exitance",
+    "diffuse_exitances",
+    "diffuse_reflectance",
     "fresnel_diffuse",
     "half_cosine",
     "onb",
@@ -559,3 +561,29 @@ def specular_sample(mat, wox, woy, woz, u2, u3):
     wiz = sx * tz + sy * bz + cos_alpha * rz
     n = mat[EXPONENT]
     return wix, wiy, wiz, (n + 1.0) * _INV_2PI * phong_lobe(cos_alpha, n)
+
+
+def diffuse_reflectance(material: Material) -> np.ndarray:
+    """The kd (3,) float64 that multiplies E' / pi in the material's diffuse radiance (the
+    photons' estimate E', ``deposit_weight``): ``material.diffuse`` for the Phong kind, a
+    rough plastic's packed KD (its substrate's, ``_pack_microfacet``), 0 for a conductor."""
+    return pack_materials([material])[0, KD : KD + 3].copy()
+
+
+@numba.njit(cache=True, nogil=True)
+def _exitances(mat, cos_out, out):
+    for k in range(cos_out.shape[0]):
+        out[k] = diffuse_exitance(mat, cos_out[k])
+
+
+def diffuse_exitances(material: Material, cos_out) -> np.ndarray:
+    """``diffuse_exitance`` at each of ``cos_out`` (N,), float64: 1 for the Phong kind,
+    1 - (1 - c)^5 with Fresnel, a rough plastic's t(c)."""
+    cos_out = np.asarray(cos_out, dtype=np.float64)
+    if material.microfacet is None:
+        if material.fresnel is None:
+            return np.ones(len(cos_out))
+        return 1.0 - (1.0 - np.clip(cos_out, 0.0, 1.0)) ** 5
+    out = np.empty(len(cos_out))
+    _exitances(pack_materials([material])[0], np.ascontiguousarray(cos_out), out)
+    return out

@@ -61,6 +61,7 @@ __all__ = [
     "erfinv",
     "fresnel_conductor",
     "fresnel_dielectric",
+    "interface_fresnel",
     "mf_deposit_weight",
     "mf_diffuse_exitance",
     "mf_eval",
@@ -264,7 +265,7 @@ def transmittance(mat, mu):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fresnel(mat, cos_i):
+def interface_fresnel(mat, cos_i):
     """The interface's F times specular_reflectance per channel at wi.h = cos_i."""
     if mat[KIND] == KIND_ROUGH_PLASTIC:
         f = fresnel_dielectric(cos_i, mat[MF_ETA])
@@ -300,7 +301,7 @@ def mf_specular_eval(mat, wix, wiy, wiz, wox, woy, woz):
     if g <= 0.0:
         return 0.0, 0.0, 0.0
     value = ndf(dist, alpha, hz) * g / (4.0 * wiz * woz)
-    f0, f1, f2 = _fresnel(mat, cih)
+    f0, f1, f2 = interface_fresnel(mat, cih)
     return value * f0, value * f1, value * f2
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from radiosity.scene.environment import no_environment
-from radiosity.scene.materials import albedo, pack_materials
+from radiosity.scene.materials import KD, albedo, pack_materials
 from radiosity.scene.textures import atlas
 from radiosity.transport import lights as delta
 from radiosity.transport.gather import gather_outputs, trace_gather
@@ -171,9 +171,9 @@ def gather_block(tracer, sa, irradiance, block, material, dirs):
     tracer.count(rays, shadow)
 
     values = np.empty((b, len(dirs), 3))
-    mat = pack_materials([material], microfacet_models=False)[0]
+    mat = pack_materials([material])[0]
     emission = np.asarray(material.emission, dtype=np.float64)
-    diffuse = (np.asarray(material.diffuse) / np.pi)[None, :] * irradiance[block.vertices]
+    diffuse = (mat[KD : KD + 3] / np.pi)[None, :] * irradiance[block.vertices]  # a rough plastic: its substrate's kd
     variance = np.empty(b if block.measure_noise else 0)
     gather_outputs(mat, emission, diffuse, light, samples, dirs, values, variance)
     return values, variance

@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from radiosity.formats.directions import square_boundary_nb
+from radiosity.scene.columns import KIND, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION
 from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import (
     EMISSION,
@@ -31,7 +32,11 @@ from radiosity.scene.materials import (
     onb,
     phong_lobe,
     schlick,
+    specular_eval,
+    specular_pdf,
+    specular_sample,
 )
+from radiosity.scene.microfacet_kernels import interface_fresnel, ndf, smith_g1
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
 from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
@@ -251,6 +256,27 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             if max(ks0, ks1, ks2) <= 0.0 or depth + 1 >= max_depth:
                 continue
             item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
+            if materials[m, KIND] != KIND_PHONG:
+                traced += _microfacet_hit(
+                    rt, rayhit, sa, materials[m], (px, py, pz), (gx, gy, gz), (nx, ny, nz), d, values[k], target,
+                    seed, item, has_lights, n_delta, incoming,
+                )  # fmt: skip
+                wix, wiy, wiz, pdf, carried, survives = _microfacet_continuation(
+                    materials[m], (nx, ny, nz), d, values[k], seed, item)
+                if not survives:
+                    continue
+                sx, sy, sz = wix, wiy, wiz
+                if not sx * gx + sy * gy + sz * gz > 0.0:
+                    continue
+                out_pdf[n_out] = pdf
+                out_ids[n_out] = target
+                out_origins[n_out, 0] = px + epsilon * gx
+                out_origins[n_out, 1] = py + epsilon * gy
+                out_origins[n_out, 2] = pz + epsilon * gz
+                out_directions[n_out, 0], out_directions[n_out, 1], out_directions[n_out, 2] = sx, sy, sz
+                out_values[n_out, 0], out_values[n_out, 1], out_values[n_out, 2] = carried
+                n_out += 1
+                continue
             exponent = materials[m, EXPONENT]
             if has_lights:
                 # the light sample at the glossy hit
@@ -343,6 +369,84 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     return rays, shadow
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _microfacet_hit(rt, rayhit, sa, mat, point, g, n, d, value, target, seed, item, has_lights, n_delta, incoming):
+    """At a gather path's hit on a microfacet surface (``mat``; the path arriving along
+    d with throughput ``value``): the light sample of an emitter and of a delta light, as
+    ``trace_gather``'s Phong hits, with the kind's specular part (``specular_eval``) and
+    its sampler's density (``specular_pdf``) in the balance heuristic. Adds to
+    ``incoming[target]``; returns the shadow rays traced."""
+    tx, ty, tz, bx, by, bz = onb(n[0], n[1], n[2])
+    wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
+    woy = -(d[0] * bx + d[1] * by + d[2] * bz)
+    woz = -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
+    origin = off_surface(point, g, sa.epsilon)
+    traced = 0
+    if has_lights:
+        tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_GATHER + 2, item, 0))
+        area_pdf = sa.emit_area_pdf[tri]
+        (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
+        if area_pdf > 0.0:
+            (dx, dy, dz), dist, cos_light = toward_light_point(
+                sa.positions, sa.faces, sa.face_normals, sa.epsilon, tri, origin,
+                (rand(seed, STREAM_GATHER + 2, item, 1), rand(seed, STREAM_GATHER + 2, item, 2)),
+            )  # fmt: skip
+        cos_i = dx * n[0] + dy * n[1] + dz * n[2]
+        if dist > 0.0 and cos_light > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
+            wix, wiy = dx * tx + dy * ty + dz * tz, dx * bx + dy * by + dz * bz
+            f = specular_eval(mat, wix, wiy, cos_i, wox, woy, woz)
+            if max(f[0], f[1], f[2]) > 0.0:
+                traced += 1
+                if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist):
+                    p_light = area_pdf * dist * dist / cos_light
+                    p_lobe = specular_pdf(mat, wox, woy, woz, wix, wiy, cos_i)
+                    scale = cos_i / (p_light + p_lobe)
+                    le = sa.materials[sa.face_material[tri]]
+                    for c in range(3):
+                        incoming[target, c] += value[c] * f[c] * le[EMISSION + c] * scale
+    if n_delta > 0:
+        lights = sa.lights
+        j = pick_light(lights.cdf, rand(seed, STREAM_GATHER + 3, item, 0))
+        (dx, dy, dz), dist, le = arriving(lights, j, origin)
+        cos_i = dx * n[0] + dy * n[1] + dz * n[2]
+        if dist > sa.epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
+            wix, wiy = dx * tx + dy * ty + dz * tz, dx * bx + dy * by + dz * bz
+            f = specular_eval(mat, wix, wiy, cos_i, wox, woy, woz)
+            if max(f[0], f[1], f[2]) > 0.0:
+                traced += 1
+                if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist - sa.epsilon):
+                    scale = cos_i / lights.pick[j]
+                    for c in range(3):
+                        incoming[target, c] += value[c] * f[c] * le[c] * scale
+    return traced
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _microfacet_continuation(mat, n, d, value, seed, item):
+    """The gather path's next direction at a microfacet hit: the specular part sampled
+    alone (``specular_sample``), the throughput times f_s cos / pdf, Russian roulette.
+    Returns (world direction, pdf, carried (3-tuple), survives)."""
+    tx, ty, tz, bx, by, bz = onb(n[0], n[1], n[2])
+    wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
+    woy = -(d[0] * bx + d[1] * by + d[2] * bz)
+    woz = -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
+    nothing = (0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), False)
+    wix, wiy, wiz, pdf = specular_sample(
+        mat, wox, woy, woz, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1))
+    if not (wiz > 0.0 and pdf > 0.0):
+        return nothing
+    f = specular_eval(mat, wix, wiy, wiz, wox, woy, woz)
+    scale = wiz / pdf
+    q = (value[0] * f[0] * scale, value[1] * f[1] * scale, value[2] * f[2] * scale)
+    survives, carried = roulette(q, 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+    if not survives:
+        return nothing
+    sx = wix * tx + wiy * bx + wiz * n[0]
+    sy = wix * ty + wiy * by + wiz * n[1]
+    sz = wix * tz + wiy * bz + wiz * n[2]
+    return sx, sy, sz, pdf, carried, True
+
+
 @numba.njit(cache=True, nogil=True)
 def lobe_window(rx, ry, rz, cone, grid_n):
     """(i_lo, i_hi, j_lo, j_hi): the cells of the n x n direction grid whose centres
@@ -421,6 +525,9 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     whose terms x_s sum to S1 and their squares to S2 adds S2 - S1^2 / m (samples that
     brought nothing count as zeros). Stratification makes the true variance lower.
     """
+    if mat[KIND] != KIND_PHONG:
+        _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance)
+        return
     n_blocks = out.shape[0]
     n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
     n_gather = samples.wi.shape[0] // n_blocks if n_blocks > 0 else 0
@@ -517,3 +624,136 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
                     acc[d, c] = emission[c] + diffuse + norm * mat[KS + c] * acc[d, c]
                 else:
                     acc[d, c] = emission[c] + diffuse_radiance[b, c] + norm * mat[KS + c] * acc[d, c]
+
+
+FRESNEL_TABLE = 1024  # a microfacet grid's Fresnel values per channel over wi.h in [0, 1]
+
+
+@numba.njit(cache=True, nogil=True)
+def microfacet_cone(mat):
+    """The angle from a sample's mirror direction beyond which the microfacet lobe's D
+    is below ``LOBE_CUTOFF`` of its peak at every half vector (a reflected direction
+    turns by at most twice its normal's turn): 2 theta_h, theta_h the largest of 512
+    angles where D(theta_h) >= LOBE_CUTOFF D(0); pi where D never falls so far."""
+    dist, alpha = mat[MF_DISTRIBUTION], mat[MF_ALPHA]
+    peak = ndf(dist, alpha, 1.0)
+    last = 0.0
+    for k in range(512):
+        theta = (k + 1) * 0.5 * math.pi / 513
+        if ndf(dist, alpha, math.cos(theta)) >= LOBE_CUTOFF * peak:
+            last = theta
+    step = 0.5 * math.pi / 513
+    return min(math.pi, 2.0 * (last + step))
+
+
+@numba.njit(cache=True, nogil=True)
+def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance):
+    """``gather_outputs`` for a microfacet material: each sample (light samples weighted
+    by the balance heuristic against the gather rays, gather rays by pi / n_gather, as the
+    Phong kind's) adds f_s(wi, wo_d) times its weight to every grid direction d within
+    ``microfacet_cone`` of its mirror direction (all of them for a cone of
+    WHOLE_GRID_CONE or wider), f_s = F D G1(wi) G1(wo) / (4 cos_i cos_o): G1 of every
+    direction and of every sample computed once, F from a table over wi.h (linear, 1024
+    entries), D skipped below LOBE_CUTOFF of its peak. The diffuse radiance is scaled by
+    ``diffuse_exitance`` per direction (a plastic's t(cos_o)); the noise measure as
+    ``gather_outputs``'."""
+    n_blocks = out.shape[0]
+    n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
+    n_gather = samples.wi.shape[0] // n_blocks if n_blocks > 0 else 0
+    grid_n = int(round(math.sqrt(directions.shape[0])))
+    n_dirs = directions.shape[0]
+    dist, alpha = mat[MF_DISTRIBUTION], mat[MF_ALPHA]
+    d_floor = LOBE_CUTOFF * ndf(dist, alpha, 1.0)
+    cone = microfacet_cone(mat)
+    whole = cone >= WHOLE_GRID_CONE
+    fresnel = np.empty((FRESNEL_TABLE, 3))
+    for k in range(FRESNEL_TABLE):
+        fresnel[k, 0], fresnel[k, 1], fresnel[k, 2] = interface_fresnel(mat, k / (FRESNEL_TABLE - 1.0))
+    g_out = np.empty(n_dirs)
+    exitance = np.empty(n_dirs)
+    for d in range(n_dirs):
+        cz = directions[d, 2]
+        g_out[d] = smith_g1(dist, alpha, cz, 1.0) if cz > 0.0 else 0.0  # the masking's sign test is per pair
+        exitance[d] = diffuse_exitance(mat, cz)
+    n_samples = n_light + n_gather
+    wi = np.empty((n_samples, 3))
+    weight = np.empty((n_samples, 3))
+    g_in = np.empty(n_samples)
+    moments = np.empty((4, n_dirs))
+    measure = variance.shape[0] > 0
+    for b in range(n_blocks):
+        used = 0
+        for m in range(n_light):
+            i = b * n_light + m
+            p = light.pdf[i]
+            if p <= 0.0 or not light.visible[i]:
+                continue
+            wz = light.wi[i, 2]
+            p_gather = wz / math.pi
+            scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
+            wi[used, 0], wi[used, 1], wi[used, 2] = light.wi[i, 0], light.wi[i, 1], wz
+            for c in range(3):
+                weight[used, c] = scale * light.radiance[i, c]
+            used += 1
+        used_light = used
+        for k in range(n_gather):
+            i = b * n_gather + k
+            incoming = samples.incoming
+            if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
+                continue
+            wi[used, 0], wi[used, 1], wi[used, 2] = samples.wi[i, 0], samples.wi[i, 1], samples.wi[i, 2]
+            for c in range(3):
+                weight[used, c] = math.pi / n_gather * incoming[i, c]
+            used += 1
+        for s in range(used):
+            g_in[s] = smith_g1(dist, alpha, wi[s, 2], 1.0) if wi[s, 2] > 0.0 else 0.0
+        acc = out[b]
+        acc[:, :] = 0.0
+        moments[:, :] = 0.0
+        for s in range(used):
+            if g_in[s] <= 0.0:
+                continue
+            s1 = moments[0] if s < used_light else moments[2]
+            s2 = moments[1] if s < used_light else moments[3]
+            ix, iy, iz = wi[s, 0], wi[s, 1], wi[s, 2]
+            if whole:
+                i_lo, i_hi, j_lo, j_hi = 0, grid_n - 1, 0, grid_n - 1
+            else:
+                i_lo, i_hi, j_lo, j_hi = lobe_window(-ix, -iy, iz, cone, grid_n)
+            w0, w1, w2 = weight[s, 0], weight[s, 1], weight[s, 2]
+            for j in range(j_lo, j_hi + 1):
+                for i in range(i_lo, i_hi + 1):
+                    d = j * grid_n + i
+                    ox, oy, oz = directions[d, 0], directions[d, 1], directions[d, 2]
+                    if oz <= 0.0 or g_out[d] <= 0.0:
+                        continue
+                    hx, hy, hz = ix + ox, iy + oy, iz + oz
+                    norm = math.sqrt(hx * hx + hy * hy + hz * hz)
+                    if norm <= 0.0:
+                        continue
+                    hz /= norm
+                    dv = ndf(dist, alpha, hz)
+                    if dv < d_floor:
+                        continue
+                    cih = (ix * hx + iy * hy + iz * hz * norm) / norm
+                    if cih <= 0.0:
+                        continue
+                    x = min(cih, 1.0) * (FRESNEL_TABLE - 1)
+                    kf = min(int(x), FRESNEL_TABLE - 2)
+                    t = x - kf
+                    lobe = dv * g_in[s] * g_out[d] / (4.0 * iz * oz)
+                    f0 = fresnel[kf, 0] + t * (fresnel[kf + 1, 0] - fresnel[kf, 0])
+                    f1 = fresnel[kf, 1] + t * (fresnel[kf + 1, 1] - fresnel[kf, 1])
+                    f2 = fresnel[kf, 2] + t * (fresnel[kf + 1, 2] - fresnel[kf, 2])
+                    acc[d, 0] += lobe * f0 * w0
+                    acc[d, 1] += lobe * f1 * w1
+                    acc[d, 2] += lobe * f2 * w2
+                    if measure:
+                        y = lobe * (LUMINANCE[0] * f0 * w0 + LUMINANCE[1] * f1 * w1 + LUMINANCE[2] * f2 * w2)
+                        s1[d] += y
+                        s2[d] += y * y
+        if measure:
+            variance[b] = _variance_sum(moments, n_light, n_gather)
+        for d in range(n_dirs):
+            for c in range(3):
+                acc[d, c] = emission[c] + diffuse_radiance[b, c] * exitance[d] + acc[d, c]

@@ -691,7 +691,7 @@ def scene_of_solution(solution):
         m = o.material
         material = Material(
             name=o.name, diffuse=m["diffuse"], specular=m["specular"], exponent=m["exponent"], emission=m["emission"],
-            fresnel=m.get("fresnel"),
+            fresnel=m.get("fresnel"), microfacet=m.get("microfacet"),
         )
         objects.append(
             SceneObject(

@@ -43,6 +43,7 @@ from radiosity.formats.material import FLOAT32_MAX
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.formats.texture import TexturedDiffuse
 from radiosity.scene.emitters import emitter_parts
+from radiosity.scene.materials import diffuse_exitances, diffuse_reflectance
 from radiosity.transport import density, highlights, regather
 from radiosity.transport import lights as delta_lights
 from radiosity.transport.batches import (  # noqa: F401 (the units of work, importable from the solver too)
@@ -334,9 +335,7 @@ def _solve(scene, settings, runner, progress):
     # every delta light's direct highlight is in closed form (exact, and nothing else can find
     # it), drawn per pixel where it is a part, else kept in the grid
     closed = parts + tuple(light for light in scene.lights if not any(light is p for p in parts))
-    # the gather and the closed-form highlights draw Phong lobes: the solver takes every
-    # material's Phong model (a microfacet material's stand-in); ``vlights truth`` its own
-    sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic, microfacet_models=False)
+    sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic)
     seed = settings["seed"]
     runner.start(merged, sa, seed)
     times["setup"] = time.perf_counter() - t0
@@ -433,21 +432,21 @@ def _solve(scene, settings, runner, progress):
     textured = {}
     for i, o in enumerate(refined.objects):
         sl = slice(offsets[i], offsets[i + 1])
-        diffuse = np.asarray(o.material.diffuse) / np.pi * irradiance[sl]
+        kd = diffuse_reflectance(o.material)  # the kd the photons' estimate is for (a rough plastic's own)
+        diffuse = kd / np.pi * irradiance[sl]
         if o.texture is not None:
             # the display multiplies kd * texture(uv) / pi * E per pixel: the radiance
             # keeps the rest (the gather added kd / pi * E to every direction)
-            textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=o.material.diffuse)
+            textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=tuple(kd))
             diffuse = np.zeros_like(diffuse)
         if o.material.is_glossy:
             dirs = glossy_dirs[o.name]
             radiance = gathered.pop(o.name)  # not held twice where the texture is taken out below
             if o.texture is not None:
-                # what the gather added: kd / pi * E in every direction (times b(cos_o) with Fresnel)
-                exitance = np.ones(len(dirs))
-                if o.material.fresnel is not None:
-                    exitance = 1.0 - (1.0 - np.clip(np.asarray(dirs, np.float64)[:, 2], 0.0, 1.0)) ** 5
-                added = (np.asarray(o.material.diffuse) / np.pi * irradiance[sl])[:, None, :] * exitance[None, :, None]
+                # what the gather added: kd / pi * E in every direction, times the diffuse
+                # part's exitance (b(cos_o) with Fresnel, a rough plastic's t(cos_o))
+                exitance = diffuse_exitances(o.material, np.asarray(dirs, np.float64)[:, 2])
+                added = (kd / np.pi * irradiance[sl])[:, None, :] * exitance[None, :, None]
                 radiance = np.maximum(radiance - added, 0.0)
         else:
             dirs = directions.DIFFUSE_DIRECTIONS
