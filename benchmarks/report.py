@@ -472,6 +472,32 @@ def mitsuba(rows):
     return out + [""]
 
 
+def materials(rows):
+    out = ["## The materials' own models against their Phong stand-ins", "",
+           where("bench_materials.py", ["materials.jsonl"]), machine(rows), "",
+           "The path tracer on the scene's own camera, with every material's own model (rough plastics and "
+           "conductors as microfacet lobes) and with the Phong stand-ins, at the same samples and seed, each "
+           "against the published render box-averaged to the same size (target: lower FLIP with the models).", ""]
+    out += table(["scene", "model", "spp", "size", "FLIP", "mean ratio", "seconds"],
+                 [[r["scene"], r["model"], r["spp"], "x".join(map(str, r["size"])), num(r["flip"], 4),
+                   num(r["mean_ratio"], 4), num(r["seconds"], 1)] for r in rows if "model" in r])
+    return out + [""]
+
+
+def checkouts(rows):
+    out = ["## Two checkouts, interleaved", "", where("bench_checkouts.py", ["checkouts.jsonl"]), machine(rows), ""]
+    if rows:
+        out += [f"Old: `{rows[0]['old']}`; new: `{rows[0]['new']}`. Medians of the runs, alternating old and new "
+                "(target: within 5 %).", ""]
+    out += table(["case", "runs", "old wall (s)", "new wall (s)", "wall new / old", "old reported (s)",
+                  "new reported (s)", "reported new / old"],
+                 [[r["case"], r["repeats"], num(r["wall"]["old_s"], 2), num(r["wall"]["new_s"], 2),
+                   num(r["wall"]["ratio"], 3),
+                   num(r.get("reported", {}).get("old_s"), 2), num(r.get("reported", {}).get("new_s"), 2),
+                   num(r.get("reported", {}).get("ratio"), 3)] for r in rows if "case" in r])
+    return out + [""]
+
+
 def interiors(rows):
     out = ["## The field's interiors", "", where("bench_interiors.py", ["interiors.jsonl", "interiors.png",
                                                                        "interiors_<scene>.png"]), machine(rows)]
@@ -618,6 +644,8 @@ SECTIONS = (
     ("trade.jsonl", trade),
     ("trade_truth.jsonl", trade_truth),
     ("mitsuba_validation.jsonl", mitsuba),
+    ("materials.jsonl", materials),
+    ("checkouts.jsonl", checkouts),
     ("load.jsonl", load),
     ("textures.jsonl", textures),
     ("scale.jsonl", scale),

@@ -264,8 +264,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             item = (vertices[target // n_gather] * n_gather + target % n_gather) * max_depth + depth
             if materials[m, KIND] != KIND_PHONG:
                 traced += _microfacet_hit(
-                    rt, rayhit, sa, materials[m], (px, py, pz), (gx, gy, gz), (nx, ny, nz), d, values[k], target,
-                    seed, item, has_lights, n_delta, incoming,
+                    (rt, rayhit, sa), materials[m], ((px, py, pz), (gx, gy, gz), (nx, ny, nz), d),
+                    (values[k], target, incoming), (seed, item, has_lights, n_delta),
                 )  # fmt: skip
                 wix, wiy, wiz, pdf, carried, survives = _microfacet_continuation(
                     materials[m], (nx, ny, nz), d, values[k], seed, item)
@@ -376,12 +376,18 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _microfacet_hit(rt, rayhit, sa, mat, point, g, n, d, value, target, seed, item, has_lights, n_delta, incoming):
-    """At a gather path's hit on a microfacet surface (``mat``; the path arriving along
-    d with throughput ``value``): the light sample of an emitter and of a delta light, as
-    ``trace_gather``'s Phong hits, with the kind's specular part (``specular_eval``) and
-    its sampler's density (``specular_pdf``) in the balance heuristic. Adds to
+def _microfacet_hit(tracing, mat, where, path, numbers):
+    """At a gather path's hit on a microfacet surface (``mat``): the light sample of an
+    emitter and of a delta light, as ``trace_gather``'s Phong hits, with the kind's
+    specular part (``specular_eval``) and its sampler's density (``specular_pdf``) in the
+    balance heuristic. tracing = (rt, rayhit, sa); where = (point, geometric normal,
+    shading normal, d the path's direction); path = (its throughput, its target,
+    ``incoming``); numbers = (seed, item, has_lights, n_delta). Adds to
     ``incoming[target]``; returns the shadow rays traced."""
+    rt, rayhit, sa = tracing
+    point, g, n, d = where
+    value, target, incoming = path
+    seed, item, has_lights, n_delta = numbers
     tx, ty, tz, bx, by, bz = onb(n[0], n[1], n[2])
     wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
     woy = -(d[0] * bx + d[1] * by + d[2] * bz)

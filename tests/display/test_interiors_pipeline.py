@@ -50,7 +50,9 @@ def test_a_mitsuba_04_scene_goes_through_every_step(tmp_path, cli, gl_context):
     assert set(displays) >= {"fitted", "diffuse", "path_tracer"}
     for name in ("fitted", "path_tracer"):  # the same scene, the same camera: as much light, within the noise
         assert displays[name]["mean_ratio"] == pytest.approx(1, abs=0.1), name
-    assert displays["diffuse"]["mean_ratio"] < displays["fitted"]["mean_ratio"]  # without the plates' highlights
+    # the rough plates' reflections (their lamps' highlights gathered into their grids) turn with
+    # the view: the diffuse walkthrough, which has none, is the furthest from the truth
+    assert displays["diffuse"]["flip_mean"] > 1.5 * displays["fitted"]["flip_mean"]
     assert numbers["reference_image"]["camera"]["eye"] == [0.0, 2.0, 14.0]
 
 
