@@ -32,7 +32,7 @@ CASES = {
               r"^\s*total\s+([0-9.]+) s"),
     "solve-plates": (["solve", "plates", "--quality", "draft", "-o", "{out}/solution.npz"],
                      r"^\s*total\s+([0-9.]+) s"),
-    "truth": (["truth", "cornell-teapot", "--spp", "16", "--size", "256x256", "-o", "{out}/truth.png"],
+    "truth": (["truth", "cornell-teapot", "--spp", "32", "--size", "512x512", "-o", "{out}/truth.png"],
               r"path traced .* in ([0-9.]+) s"),
 }
 

@@ -60,7 +60,6 @@ from radiosity.formats.material import (
     schlick_diffuse,
     specular_albedo,
 )
-from radiosity.scene import microfacet
 from radiosity.scene.columns import (
     EMISSION,
     EXPONENT,
@@ -196,6 +195,7 @@ def _pack_microfacet(row: np.ndarray, model) -> None:
 
 def microfacet_reference(model):
     """The numpy oracle (``radiosity.scene.microfacet``) of a ``Microfacet`` model."""
+    from radiosity.scene import microfacet  # scipy's: imported where a microfacet material is
     if model.kind == "roughconductor":
         return microfacet.RoughConductor(model.distribution, model.alpha, np.asarray(model.eta), np.asarray(model.k),
                                          np.asarray(model.specular_reflectance))
@@ -484,7 +484,9 @@ def albedo(material: Material, cos_theta, microfacet_models: bool = True) -> np.
     if not np.all((cos_theta >= 0.0) & (cos_theta <= 1.0)):
         raise ValueError("cos_theta must be in [0, 1]")
     if material.microfacet is not None and microfacet_models:
-        rho = microfacet.directional_albedo(microfacet_reference(material.microfacet), np.atleast_1d(cos_theta))
+        from radiosity.scene.microfacet import directional_albedo
+
+        rho = directional_albedo(microfacet_reference(material.microfacet), np.atleast_1d(cos_theta))
         return rho[0] if cos_theta.ndim == 0 else rho
     specular = specular_albedo(material.exponent, np.atleast_1d(cos_theta))
     if material.fresnel is not None:
