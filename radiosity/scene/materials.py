@@ -313,6 +313,13 @@ def _mixture_pdf(mat, cos_alpha, wiz, p_spec):
     return (1.0 - p_spec) * diffuse + p_spec * specular
 
 
+@numba.njit(cache=True, nogil=True)
+def _other_kind_eval(mat, wix, wiy, wiz, wox, woy, woz):
+    """``brdf_eval`` of the kinds other than Phong (kept out of its body, so that the
+    Phong kind's evaluation compiles as before)."""
+    return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
+
+
 @numba.njit(cache=True, fastmath=False)
 def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     """BRDF value f(wi, wo) as an (r, g, b) tuple; 0 unless wi.z > 0 and wo.z > 0.
@@ -320,10 +327,10 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     ``mat`` is one row (float64, length NCOL) of ``pack_materials``; wi and wo are
     unit vectors in the shading frame, both pointing away from the surface.
     """
-    if mat[KIND] != KIND_PHONG:
-        return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
     if wiz <= 0.0 or woz <= 0.0:
         return 0.0, 0.0, 0.0
+    if mat[KIND] != KIND_PHONG:
+        return _other_kind_eval(mat, wix, wiy, wiz, wox, woy, woz)
     n = mat[EXPONENT]
     cos_alpha = wiz * woz - wix * wox - wiy * woy
     specular = (n + 2.0) * _INV_2PI * phong_lobe(cos_alpha, n)
