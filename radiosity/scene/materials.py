@@ -320,7 +320,7 @@ def _other_kind_eval(mat, wix, wiy, wiz, wox, woy, woz):
     return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, inline="always")
 def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     """BRDF value f(wi, wo) as an (r, g, b) tuple; 0 unless wi.z > 0 and wo.z > 0.
 
@@ -349,7 +349,7 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     )
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, inline="always")
 def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
     """Density, per unit solid angle over the whole sphere, of ``brdf_sample``'s wi for this wo.
 
@@ -364,7 +364,7 @@ def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
     return _mixture_pdf(mat, cos_alpha, wiz, p_specular(mat, woz))
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, inline="always")
 def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     """Sample wi for the outgoing direction wo from uniform numbers u1, u2, u3 in [0, 1).
 
