@@ -24,6 +24,8 @@ def describe(scene, refined, max_edge, how, adaptive=None):
     materials = {}
     for name, m in scene.materials.items():
         kind = "glossy" if m.is_glossy else ("diffuse" if m.is_reflective else "black")
+        if m.microfacet is not None:  # its own model (the table's kd, ks and n: its Phong stand-in)
+            kind = f"{m.microfacet.kind} {m.microfacet.distribution} {m.microfacet.alpha:g}"
         materials[name] = {
             **m.to_dict(),
             "kind": kind + (" emitter" if m.is_emitter else ""),
@@ -119,6 +121,9 @@ def format_description(info):
     )
     out += ["", f"materials ({len(info['materials'])})"]
     out.append(f"  {'name':<14} {'kind':<16} {'diffuse kd':<20} {'specular ks':<20} {'n':>7}  {'albedo 0/60 deg':<15} emission")
+    if any("microfacet" in m for m in info["materials"].values()):
+        out.append("  (a rough plastic's or conductor's kd, ks and n are the Phong lobe its displays draw its delta "
+                   "lights' highlights with; its albedo is its own model's)")
     for name, m in info["materials"].items():
         glossy = any(m["specular"])
         specular = _v(m["specular"], "{:.3f}") if glossy else "-"

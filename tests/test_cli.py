@@ -38,6 +38,23 @@ def test_scene_info_describes_the_demo_scene(capsys):
     assert info["totals"]["refined_triangles"] > info["totals"]["triangles"]
 
 
+def test_scene_info_names_a_microfacet_material_s_own_model_and_its_albedo(capsys):
+    from pathlib import Path
+
+    from radiosity.scene.kinds import oracle
+    from radiosity.scene.loaders import load_scene
+
+    xml = Path(__file__).parent / "data" / "mitsuba" / "validate_kinds.xml"
+    code, out, err = run(["scene-info", str(xml), "--json"], capsys)
+    assert code == 0, err
+    m = json.loads(out)["materials"]["ball_conductor_beckmann"]
+    assert m["kind"] == "roughconductor beckmann 0.25" and m["microfacet"]["kind"] == "roughconductor"
+    own = oracle(load_scene(xml).materials["ball_conductor_beckmann"]).albedo(0.5)[0]
+    assert m["albedo_60deg"] == pytest.approx(list(own), abs=1e-4)
+    code, out, _ = run(["scene-info", str(xml)], capsys)
+    assert "roughplastic ggx 0.12" in out and "Phong lobe its displays draw" in out
+
+
 def test_quality_presets_refine_more_as_quality_rises(capsys):
     counts = []
     for quality in ("draft", "medium", "high"):
