@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -109,6 +110,7 @@ __all__ = [
     "P_SPECULAR",
     "Material",
     "albedo",
+    "albedo_table",
     "brdf_eval",
     "brdf_pdf",
     "brdf_sample",
@@ -596,3 +598,19 @@ def diffuse_exitances(material: Material, cos_out) -> np.ndarray:
     out = np.empty(len(cos_out))
     _exitances(pack_materials([material])[0], np.ascontiguousarray(cos_out), out)
     return out
+
+
+@lru_cache(maxsize=64)
+def _microfacet_albedos(model, size: int) -> np.ndarray:
+    return albedo(Material("albedo", (0.0,) * 3, (1.0,) * 3, 1.0, fresnel=(0.5,) * 3, microfacet=model),
+                  np.linspace(0.0, 1.0, size))
+
+
+def albedo_table(material: Material, size: int, microfacet_models: bool = True) -> np.ndarray:
+    """The directional albedo (size, 3) at cos theta = k / (size - 1), what the photons
+    tally absorption with: ``albedo`` at every node, a microfacet model's remembered per
+    model (the shapes of a scene that share a bsdf share it; its quadrature takes about
+    half a second)."""
+    if material.microfacet is None or not microfacet_models:
+        return albedo(material, np.linspace(0.0, 1.0, size), microfacet_models)
+    return _microfacet_albedos(material.microfacet, size).copy()

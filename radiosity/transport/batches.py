@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from radiosity.scene.environment import no_environment
-from radiosity.scene.materials import KD, albedo, pack_materials
+from radiosity.scene.materials import KD, albedo_table, pack_materials
 from radiosity.scene.textures import atlas
 from radiosity.transport import lights as delta
 from radiosity.transport.gather import gather_outputs, trace_gather
@@ -53,8 +53,7 @@ def scene_arrays(scene, merged, epsilon, analytic=(), microfacet_models=True):
     material's Phong model (``pack_materials``), what the solver evaluates."""
     material_names = list(scene.materials)
     table = pack_materials([scene.materials[n] for n in material_names], microfacet_models)
-    cos_grid = np.linspace(0.0, 1.0, ALBEDO_TABLE_SIZE)
-    albedo_table = np.stack([albedo(scene.materials[n], cos_grid, microfacet_models) for n in material_names])
+    albedos = np.stack([albedo_table(scene.materials[n], ALBEDO_TABLE_SIZE, microfacet_models) for n in material_names])
     object_material = np.array([material_names.index(o.material.name) for o in scene.objects])
     face_material = object_material[merged.triangle_object].astype(np.int64)
 
@@ -76,7 +75,7 @@ def scene_arrays(scene, merged, epsilon, analytic=(), microfacet_models=True):
         face_normals=face_normals,
         face_material=face_material,
         materials=table,
-        albedo_table=albedo_table,
+        albedo_table=albedos,
         emit_cdf=cdf,
         emit_triangles=emitting,
         emit_area_pdf=emit_area_pdf,

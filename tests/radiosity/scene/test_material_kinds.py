@@ -230,3 +230,12 @@ def test_monte_carlo_albedo_equals_the_oracle_and_stays_below_one(name):
         assert np.all(estimate <= 1.0 + 4 * error + 1e-3), f"{name} theta {theta}: albedo {estimate}"
         assert np.all(np.abs(estimate - exact) <= 4 * error + 3e-3), (
             f"{name} theta {theta}: Monte Carlo {estimate} +- {error}, oracle {exact}")
+
+
+@pytest.mark.parametrize("name", [n for n in MATERIALS if "plastic" in n or "conductor" in n])
+def test_the_photons_albedo_table_is_the_oracle_s_albedo(name):
+    from radiosity.scene.materials import albedo_table
+
+    material = MATERIALS[name]
+    cos = np.linspace(0.0, 1.0, 129)
+    np.testing.assert_allclose(albedo_table(material, 129), oracle(material).albedo(cos), atol=2e-3)
