@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from radiosity.formats.directions import square_boundary_nb
-from radiosity.scene.columns import KIND, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION
+from radiosity.scene.columns import KIND, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION, MF_GGX
 from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import (
     EMISSION,
@@ -36,7 +36,7 @@ from radiosity.scene.materials import (
     specular_pdf,
     specular_sample,
 )
-from radiosity.scene.microfacet_kernels import interface_fresnel, ndf, smith_g1
+from radiosity.scene.microfacet_kernels import interface_fresnel, smith_g1
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
 from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
@@ -643,19 +643,18 @@ FRESNEL_TABLE = 1024  # a microfacet grid's Fresnel values per channel over wi.h
 
 @numba.njit(cache=True, nogil=True)
 def microfacet_cone(mat):
-    """The angle from a sample's mirror direction beyond which the microfacet lobe's D
-    is below ``LOBE_CUTOFF`` of its peak at every half vector (a reflected direction
-    turns by at most twice its normal's turn): 2 theta_h, theta_h the largest of 512
-    angles where D(theta_h) >= LOBE_CUTOFF D(0); pi where D never falls so far."""
-    dist, alpha = mat[MF_DISTRIBUTION], mat[MF_ALPHA]
-    peak = ndf(dist, alpha, 1.0)
-    last = 0.0
-    for k in range(512):
-        theta = (k + 1) * 0.5 * math.pi / 513
-        if ndf(dist, alpha, math.cos(theta)) >= LOBE_CUTOFF * peak:
-            last = theta
-    step = 0.5 * math.pi / 513
-    return min(math.pi, 2.0 * (last + step))
+    """The angle from a sample's mirror direction beyond which the microfacet lobe holds
+    less than ``LOBE_CUTOFF`` of its energy: 2 atan(t), t the tangent of the half-vector
+    angle that leaves that share of the projected distribution D cos beyond it (GGX:
+    alpha^2 / (alpha^2 + t^2) = cutoff; Beckmann: exp(-t^2 / alpha^2) = cutoff), a reflected
+    direction turning by at most twice its normal's turn. GGX's long tail makes it wide:
+    every direction of the grid for alpha above about 0.02."""
+    alpha = mat[MF_ALPHA]
+    if mat[MF_DISTRIBUTION] == MF_GGX:
+        t = alpha * math.sqrt((1.0 - LOBE_CUTOFF) / LOBE_CUTOFF)
+    else:
+        t = alpha * math.sqrt(-math.log(LOBE_CUTOFF))
+    return min(math.pi, 2.0 * math.atan(t))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -664,10 +663,12 @@ def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directi
     by the balance heuristic against the gather rays, gather rays by pi / n_gather, as the
     Phong kind's) adds f_s(wi, wo_d) times its weight to every grid direction d within
     ``microfacet_cone`` of its mirror direction (all of them for a cone of
-    WHOLE_GRID_CONE or wider), f_s = F D G1(wi) G1(wo) / (4 cos_i cos_o): G1 of every
-    direction and of every sample computed once, F from a table over wi.h (linear, 1024
-    entries), D skipped below LOBE_CUTOFF of its peak. The diffuse radiance is scaled by
-    ``diffuse_exitance`` per direction (a plastic's t(cos_o)); the noise measure as
+    WHOLE_GRID_CONE or wider; the light beyond it is at most LOBE_CUTOFF of the lobe's),
+    f_s = F D G1(wi) G1(wo) / (4 cos_i cos_o). Per pair it
+    needs only wi.wo: with x = (1 + wi.wo) / 2 = (wi.h)^2, cos^2 theta_h = (wi.z + wo.z)^2
+    / (4 x) gives D, and F is read from a table over x (linear, 1024 entries); G1 / cos
+    of every direction and every sample is computed once. The diffuse radiance is scaled
+    by ``diffuse_exitance`` per direction (a plastic's t(cos_o)); the noise measure as
     ``gather_outputs``'."""
     n_blocks = out.shape[0]
     n_light = light.pdf.shape[0] // n_blocks if n_blocks > 0 else 0
@@ -675,17 +676,18 @@ def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directi
     grid_n = int(round(math.sqrt(directions.shape[0])))
     n_dirs = directions.shape[0]
     dist, alpha = mat[MF_DISTRIBUTION], mat[MF_ALPHA]
-    d_floor = LOBE_CUTOFF * ndf(dist, alpha, 1.0)
+    a2 = alpha * alpha
+    ggx = dist == MF_GGX
     cone = microfacet_cone(mat)
     whole = cone >= WHOLE_GRID_CONE
     fresnel = np.empty((FRESNEL_TABLE, 3))
     for k in range(FRESNEL_TABLE):
-        fresnel[k, 0], fresnel[k, 1], fresnel[k, 2] = interface_fresnel(mat, k / (FRESNEL_TABLE - 1.0))
-    g_out = np.empty(n_dirs)
+        fresnel[k, 0], fresnel[k, 1], fresnel[k, 2] = interface_fresnel(mat, math.sqrt(k / (FRESNEL_TABLE - 1.0)))
+    g_out = np.empty(n_dirs)  # G1(wo) / (4 pi cos_o): D's 1 / pi folded in
     exitance = np.empty(n_dirs)
     for d in range(n_dirs):
         cz = directions[d, 2]
-        g_out[d] = smith_g1(dist, alpha, cz, 1.0) if cz > 0.0 else 0.0  # the masking's sign test is per pair
+        g_out[d] = smith_g1(dist, alpha, cz, 1.0) / (4.0 * math.pi * cz) if cz > 0.0 else 0.0
         exitance[d] = diffuse_exitance(mat, cz)
     n_samples = n_light + n_gather
     wi = np.empty((n_samples, 3))
@@ -718,7 +720,7 @@ def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directi
                 weight[used, c] = math.pi / n_gather * incoming[i, c]
             used += 1
         for s in range(used):
-            g_in[s] = smith_g1(dist, alpha, wi[s, 2], 1.0) if wi[s, 2] > 0.0 else 0.0
+            g_in[s] = smith_g1(dist, alpha, wi[s, 2], 1.0) / wi[s, 2] if wi[s, 2] > 0.0 else 0.0
         acc = out[b]
         acc[:, :] = 0.0
         moments[:, :] = 0.0
@@ -732,31 +734,26 @@ def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directi
                 i_lo, i_hi, j_lo, j_hi = 0, grid_n - 1, 0, grid_n - 1
             else:
                 i_lo, i_hi, j_lo, j_hi = lobe_window(-ix, -iy, iz, cone, grid_n)
-            w0, w1, w2 = weight[s, 0], weight[s, 1], weight[s, 2]
+            w0, w1, w2 = weight[s, 0] * g_in[s], weight[s, 1] * g_in[s], weight[s, 2] * g_in[s]
             for j in range(j_lo, j_hi + 1):
                 for i in range(i_lo, i_hi + 1):
                     d = j * grid_n + i
-                    ox, oy, oz = directions[d, 0], directions[d, 1], directions[d, 2]
-                    if oz <= 0.0 or g_out[d] <= 0.0:
+                    x = 0.5 * (1.0 + ix * directions[d, 0] + iy * directions[d, 1] + iz * directions[d, 2])
+                    if g_out[d] <= 0.0 or x <= 0.0:
                         continue
-                    hx, hy, hz = ix + ox, iy + oy, iz + oz
-                    norm = math.sqrt(hx * hx + hy * hy + hz * hz)
-                    if norm <= 0.0:
-                        continue
-                    hz /= norm
-                    dv = ndf(dist, alpha, hz)
-                    if dv < d_floor:
-                        continue
-                    cih = (ix * hx + iy * hy + iz * hz * norm) / norm
-                    if cih <= 0.0:
-                        continue
-                    x = min(cih, 1.0) * (FRESNEL_TABLE - 1)
-                    kf = min(int(x), FRESNEL_TABLE - 2)
-                    t = x - kf
-                    lobe = dv * g_in[s] * g_out[d] / (4.0 * iz * oz)
-                    f0 = fresnel[kf, 0] + t * (fresnel[kf + 1, 0] - fresnel[kf, 0])
-                    f1 = fresnel[kf, 1] + t * (fresnel[kf + 1, 1] - fresnel[kf, 1])
-                    f2 = fresnel[kf, 2] + t * (fresnel[kf + 1, 2] - fresnel[kf, 2])
+                    sz = iz + directions[d, 2]
+                    c2 = min(sz * sz / (4.0 * x), 1.0)  # cos^2 of the half vector's angle
+                    if ggx:
+                        t = a2 * c2 + 1.0 - c2
+                        lobe = a2 / (t * t) * g_out[d]
+                    else:
+                        lobe = math.exp((c2 - 1.0) / (c2 * a2)) / (a2 * c2 * c2) * g_out[d] if c2 > 0.0 else 0.0
+                    u = min(x, 1.0) * (FRESNEL_TABLE - 1)
+                    kf = min(int(u), FRESNEL_TABLE - 2)
+                    f = u - kf
+                    f0 = fresnel[kf, 0] + f * (fresnel[kf + 1, 0] - fresnel[kf, 0])
+                    f1 = fresnel[kf, 1] + f * (fresnel[kf + 1, 1] - fresnel[kf, 1])
+                    f2 = fresnel[kf, 2] + f * (fresnel[kf + 1, 2] - fresnel[kf, 2])
                     acc[d, 0] += lobe * f0 * w0
                     acc[d, 1] += lobe * f1 * w1
                     acc[d, 2] += lobe * f2 * w2

@@ -177,3 +177,21 @@ def test_without_closed_forms_a_microfacet_object_keeps_the_delta_lights_in_its_
     plate = solution.object("plate")
     assert solution.emitters == () and plate.emitter_parts is None and plate.visibility is None
     assert plate.radiance.max() > 0.1
+
+
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
+@pytest.mark.parametrize("alpha", [0.005, 0.05, 0.3])
+def test_the_grid_s_lobe_cone_leaves_out_at_most_the_cutoff_of_the_lobe(distribution, alpha):
+    """What lies beyond half the cone, in the projected distribution of normals D cos
+    (the share of reflected light a direction that far from the mirror could get), is the
+    gather's LOBE_CUTOFF, to 1 %."""
+    from radiosity.scene.materials import pack_materials
+    from radiosity.transport.gather import LOBE_CUTOFF, microfacet_cone
+
+    material = Material("m", (0.0,) * 3, (1.0,) * 3, 10.0, fresnel=(0.9,) * 3,
+                        microfacet=Microfacet("roughconductor", distribution, alpha, AU[0], AU[1]))
+    half = 0.5 * microfacet_cone(pack_materials([material])[0])
+    theta = np.linspace(half, 0.5 * np.pi, 200_001)
+    density = microfacet.ndf(distribution, alpha, np.cos(theta)) * np.cos(theta) * np.sin(theta) * 2 * np.pi
+    beyond = np.trapezoid(density, theta)
+    assert beyond == pytest.approx(LOBE_CUTOFF, rel=0.01)
