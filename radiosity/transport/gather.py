@@ -510,6 +510,39 @@ def _variance_sum(moments, n_light, n_gather):
     return total
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _vertex_samples(b, light, samples, n_light, n_gather, sign, where, weight):
+    """Vertex b's samples that brought light, light samples first: their directions into
+    ``where`` (wi, with x and y times ``sign``: -1 gives the mirror direction) and their
+    weights into ``weight``: a light sample's balance-heuristic weight against the gather
+    rays times its radiance over its density, a gather ray's pi / n_gather times what it
+    brought. Returns (how many, how many of them are light samples)."""
+    used = 0
+    for m in range(n_light):
+        i = b * n_light + m
+        p = light.pdf[i]
+        if p <= 0.0 or not light.visible[i]:
+            continue
+        wz = light.wi[i, 2]
+        p_gather = wz / math.pi
+        scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
+        where[used, 0], where[used, 1], where[used, 2] = sign * light.wi[i, 0], sign * light.wi[i, 1], wz
+        for c in range(3):
+            weight[used, c] = scale * light.radiance[i, c]
+        used += 1
+    used_light = used
+    incoming, wi = samples.incoming, samples.wi
+    for k in range(n_gather):
+        i = b * n_gather + k
+        if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
+            continue
+        where[used, 0], where[used, 1], where[used, 2] = sign * wi[i, 0], sign * wi[i, 1], wi[i, 2]
+        for c in range(3):
+            weight[used, c] = math.pi / n_gather * incoming[i, c]
+        used += 1
+    return used, used_light
+
+
 @numba.njit(cache=True, nogil=True)
 def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, out, variance):
     """Outgoing radiance of a block of B vertices in every direction of an n x n grid.
@@ -566,30 +599,7 @@ def gather_outputs(mat, emission, diffuse_radiance, light, samples, directions, 
     total_ks = lum_ks[0] + lum_ks[1] + lum_ks[2]
     lum_f0 = (lum_ks[0] / total_ks, lum_ks[1] / total_ks, lum_ks[2] / total_ks) if total_ks > 0.0 else (1 / 3, 1 / 3, 1 / 3)
     for b in range(n_blocks):
-        used = 0
-        for m in range(n_light):
-            i = b * n_light + m
-            p = light.pdf[i]
-            if p <= 0.0 or not light.visible[i]:
-                continue
-            wz = light.wi[i, 2]
-            p_gather = wz / math.pi
-            scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
-            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -light.wi[i, 0], -light.wi[i, 1], wz
-            for c in range(3):
-                weight[used, c] = scale * light.radiance[i, c]
-            used += 1
-        used_light = used
-        for k in range(n_gather):
-            i = b * n_gather + k
-            incoming = samples.incoming
-            if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
-                continue
-            wi = samples.wi
-            mirror[used, 0], mirror[used, 1], mirror[used, 2] = -wi[i, 0], -wi[i, 1], wi[i, 2]
-            for c in range(3):
-                weight[used, c] = math.pi / n_gather * incoming[i, c]
-            used += 1
+        used, used_light = _vertex_samples(b, light, samples, n_light, n_gather, -1.0, mirror, weight)
         acc = out[b]
         acc[:, :] = 0.0
         moments[:, :] = 0.0
@@ -696,29 +706,7 @@ def _microfacet_outputs(mat, emission, diffuse_radiance, light, samples, directi
     moments = np.empty((4, n_dirs))
     measure = variance.shape[0] > 0
     for b in range(n_blocks):
-        used = 0
-        for m in range(n_light):
-            i = b * n_light + m
-            p = light.pdf[i]
-            if p <= 0.0 or not light.visible[i]:
-                continue
-            wz = light.wi[i, 2]
-            p_gather = wz / math.pi
-            scale = wz / (p * n_light) * (n_light * p / (n_light * p + n_gather * p_gather))
-            wi[used, 0], wi[used, 1], wi[used, 2] = light.wi[i, 0], light.wi[i, 1], wz
-            for c in range(3):
-                weight[used, c] = scale * light.radiance[i, c]
-            used += 1
-        used_light = used
-        for k in range(n_gather):
-            i = b * n_gather + k
-            incoming = samples.incoming
-            if incoming[i, 0] == 0.0 and incoming[i, 1] == 0.0 and incoming[i, 2] == 0.0:
-                continue
-            wi[used, 0], wi[used, 1], wi[used, 2] = samples.wi[i, 0], samples.wi[i, 1], samples.wi[i, 2]
-            for c in range(3):
-                weight[used, c] = math.pi / n_gather * incoming[i, c]
-            used += 1
+        used, used_light = _vertex_samples(b, light, samples, n_light, n_gather, 1.0, wi, weight)
         for s in range(used):
             g_in[s] = smith_g1(dist, alpha, wi[s, 2], 1.0) / wi[s, 2] if wi[s, 2] > 0.0 else 0.0
         acc = out[b]
