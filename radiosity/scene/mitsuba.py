@@ -1026,6 +1026,9 @@ def _microfacet_surface(node, props, kind):
         model = None
         if alpha is not None:  # the smooth kinds keep their Phong stand-in (n = MAX_EXPONENT) everywhere
             reference = microfacet.reference_brdf(kind, distribution, alpha, **params)
+            if not MIN_ALPHA <= alpha <= MAX_ALPHA:
+                node.warn(f"roughness alpha {alpha:g} taken as {float(np.clip(alpha, MIN_ALPHA, MAX_ALPHA)):g}, "
+                          f"the nearest the microfacet model holds ({MIN_ALPHA:g} to {MAX_ALPHA:g})")
             model = Microfacet(kind, distribution, float(np.clip(alpha, MIN_ALPHA, MAX_ALPHA)),
                                (reference.eta,) * 3 if kind == "roughplastic" else tuple(reference.eta),
                                (0.0,) * 3 if kind == "roughplastic" else tuple(reference.k),

@@ -1006,3 +1006,12 @@ def test_rough_plastics_and_conductors_keep_their_own_model_beside_the_phong_sta
     assert gold.microfacet.eta == pytest.approx(microfacet.METALS["Au"][0])
     assert gold.microfacet.k == pytest.approx(microfacet.METALS["Au"][1])
     assert scene.materials["mirror"].microfacet is None and scene.materials["shiny"].microfacet is None
+
+
+def test_a_roughness_beyond_the_model_s_range_is_clipped_with_a_warning(tmp_path):
+    path = write_scene(tmp_path, """
+        <shape type="sphere" id="glassy"><bsdf type="roughconductor"><float name="alpha" value="1e-6"/></bsdf></shape>
+        <shape type="sphere" id="chalky"><bsdf type="roughplastic"><float name="alpha" value="9"/></bsdf></shape>""")
+    scene, warned = load_warned(path)
+    assert scene.materials["glassy"].microfacet.alpha == 1e-4 and scene.materials["chalky"].microfacet.alpha == 4.0
+    assert any("alpha 1e-06 taken as 0.0001" in w for w in warned) and any("alpha 9 taken as 4" in w for w in warned)
