@@ -167,20 +167,29 @@ def pack_materials(materials: Sequence[Material], microfacet_models: bool = True
 
 def _pack_microfacet(row: np.ndarray, model) -> None:
     """Write a ``Microfacet`` model's kind and columns into ``row`` (its Phong stand-in
-    stays in the first columns, KD replaced by the substrate's): the transmittance table
-    and R_int of a plastic from the oracle (``microfacet.RoughPlastic``, cached per
-    distribution, alpha and eta), KD = kd' / (eta^2 N), N = 1 / (2 int t mu dmu)."""
+    stays in the first columns, KD replaced by the substrate's; ``_microfacet_columns``)."""
+    kd, has_fresnel, tail = _microfacet_columns(model)
+    row[KD : KD + 3] = kd
+    row[HAS_FRESNEL] = has_fresnel
+    row[P_SPECULAR] = 0.0
+    row[KIND:] = tail
+
+
+@lru_cache(maxsize=256)
+def _microfacet_columns(model) -> tuple[np.ndarray, float, np.ndarray]:
+    """(KD (3,), HAS_FRESNEL, the columns from KIND on) of a ``Microfacet`` model,
+    remembered per model (the solver packs an object's material for every gather block):
+    the transmittance table and R_int of a plastic from the oracle (``microfacet.RoughPlastic``),
+    KD = kd' / (eta^2 N), N = 1 / (2 int t mu dmu); a conductor has no diffuse part."""
+    row = np.zeros(NCOL)
     row[MF_DISTRIBUTION] = MF_GGX if model.distribution == "ggx" else MF_BECKMANN
     row[MF_ALPHA] = model.alpha
     row[MF_ETA : MF_ETA + 3] = model.eta
     row[MF_K : MF_K + 3] = model.k
     row[MF_SPECULAR : MF_SPECULAR + 3] = model.specular_reflectance
-    row[P_SPECULAR] = 0.0
     if model.kind == "roughconductor":
         row[KIND] = KIND_ROUGH_CONDUCTOR
-        row[KD : KD + 3] = 0.0
-        row[HAS_FRESNEL] = 0.0
-        return
+        return np.zeros(3), 0.0, row[KIND:]
     row[KIND] = KIND_ROUGH_PLASTIC
     brdf = microfacet_reference(model)
     table = brdf.transmittance(np.linspace(0.0, 1.0, MF_TABLE_SIZE))
@@ -189,10 +198,9 @@ def _pack_microfacet(row: np.ndarray, model) -> None:
     mu = 0.5 * (mu + 1.0)
     norm = 1.0 / (np.sum(w * mu * np.interp(mu, np.linspace(0.0, 1.0, MF_TABLE_SIZE), table)))
     row[MF_DIFFUSE_NORM] = norm
-    row[KD : KD + 3] = brdf.substrate / (model.eta[0] ** 2 * norm)
-    row[HAS_FRESNEL] = 1.0
     s, d = float(np.mean(model.specular_reflectance)), float(np.mean(model.diffuse_reflectance))
     row[MF_SPECULAR_WEIGHT] = s / (s + d) if s + d > 0.0 else 0.0
+    return brdf.substrate / (model.eta[0] ** 2 * norm), 1.0, row[KIND:]
 
 
 def microfacet_reference(model):
@@ -315,13 +323,6 @@ def _mixture_pdf(mat, cos_alpha, wiz, p_spec):
     return (1.0 - p_spec) * diffuse + p_spec * specular
 
 
-@numba.njit(cache=True, nogil=True)
-def _other_kind_eval(mat, wix, wiy, wiz, wox, woy, woz):
-    """``brdf_eval`` of the kinds other than Phong (kept out of its body, so that the
-    Phong kind's evaluation compiles as before)."""
-    return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
-
-
 @numba.njit(cache=True, fastmath=False, inline="always")
 def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     """BRDF value f(wi, wo) as an (r, g, b) tuple; 0 unless wi.z > 0 and wo.z > 0.
@@ -332,7 +333,7 @@ def brdf_eval(mat, wix, wiy, wiz, wox, woy, woz):
     if wiz <= 0.0 or woz <= 0.0:
         return 0.0, 0.0, 0.0
     if mat[KIND] != KIND_PHONG:
-        return _other_kind_eval(mat, wix, wiy, wiz, wox, woy, woz)
+        return mf_eval(mat, wix, wiy, wiz, wox, woy, woz)
     n = mat[EXPONENT]
     cos_alpha = wiz * woz - wix * wox - wiy * woy
     specular = (n + 2.0) * _INV_2PI * phong_lobe(cos_alpha, n)
@@ -367,6 +368,21 @@ def brdf_pdf(mat, wox, woy, woz, wix, wiy, wiz):
 
 
 @numba.njit(cache=True, fastmath=False, inline="always")
+def _phong_lobe_direction(mat, wox, woy, woz, u2, phi):
+    """A direction of the Phong lobe about reflect(wo): cos alpha = (1 - u2)^(1/(n+1)) at
+    azimuth phi. Returns (wix, wiy, wiz, cos alpha), cos alpha the sampled one."""
+    rx, ry, rz = -wox, -woy, woz
+    tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
+    # log(cos alpha); sin^2 alpha = 1 - cos^2 alpha without cancellation for huge n.
+    log_cos = math.log(1.0 - u2) / (mat[EXPONENT] + 1.0)
+    cos_alpha = math.exp(log_cos)
+    sin_alpha = math.sqrt(-math.expm1(2.0 * log_cos))
+    sx = sin_alpha * math.cos(phi)
+    sy = sin_alpha * math.sin(phi)
+    return sx * tx + sy * bx + cos_alpha * rx, sx * ty + sy * by + cos_alpha * ry, sx * tz + sy * bz + cos_alpha * rz, cos_alpha
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
 def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     """Sample wi for the outgoing direction wo from uniform numbers u1, u2, u3 in [0, 1).
 
@@ -384,17 +400,7 @@ def brdf_sample(mat, wox, woy, woz, u1, u2, u3):
     phi = 2.0 * math.pi * u3
     p_spec = p_specular(mat, woz)
     if u1 < p_spec:
-        rx, ry, rz = -wox, -woy, woz
-        tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
-        # log(cos alpha); sin^2 alpha = 1 - cos^2 alpha without cancellation for huge n.
-        log_cos = math.log(1.0 - u2) / (mat[EXPONENT] + 1.0)
-        cos_alpha = math.exp(log_cos)
-        sin_alpha = math.sqrt(-math.expm1(2.0 * log_cos))
-        sx = sin_alpha * math.cos(phi)
-        sy = sin_alpha * math.sin(phi)
-        wix = sx * tx + sy * bx + cos_alpha * rx
-        wiy = sx * ty + sy * by + cos_alpha * ry
-        wiz = sx * tz + sy * bz + cos_alpha * rz
+        wix, wiy, wiz, cos_alpha = _phong_lobe_direction(mat, wox, woy, woz, u2, phi)
         return wix, wiy, wiz, _mixture_pdf(mat, cos_alpha, wiz, p_spec)
     radius = math.sqrt(u2)
     wix = radius * math.cos(phi)
@@ -559,17 +565,7 @@ def specular_sample(mat, wox, woy, woz, u2, u3):
     pdf), pdf ``specular_pdf``'s; wi may lie below the horizon (absorbed by the caller)."""
     if mat[KIND] != KIND_PHONG:
         return mf_specular_sample(mat, wox, woy, woz, u2, u3)
-    rx, ry, rz = -wox, -woy, woz
-    tx, ty, tz, bx, by, bz = onb(rx, ry, rz)
-    log_cos = math.log(1.0 - u2) / (mat[EXPONENT] + 1.0)
-    cos_alpha = math.exp(log_cos)
-    sin_alpha = math.sqrt(-math.expm1(2.0 * log_cos))
-    phi = 2.0 * math.pi * u3
-    sx = sin_alpha * math.cos(phi)
-    sy = sin_alpha * math.sin(phi)
-    wix = sx * tx + sy * bx + cos_alpha * rx
-    wiy = sx * ty + sy * by + cos_alpha * ry
-    wiz = sx * tz + sy * bz + cos_alpha * rz
+    wix, wiy, wiz, cos_alpha = _phong_lobe_direction(mat, wox, woy, woz, u2, 2.0 * math.pi * u3)
     n = mat[EXPONENT]
     return wix, wiy, wiz, (n + 1.0) * _INV_2PI * phong_lobe(cos_alpha, n)
 
@@ -602,8 +598,9 @@ def diffuse_exitances(material: Material, cos_out) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _microfacet_albedos(model, size: int) -> np.ndarray:
-    return albedo(Material("albedo", (0.0,) * 3, (1.0,) * 3, 1.0, fresnel=(0.5,) * 3, microfacet=model),
-                  np.linspace(0.0, 1.0, size))
+    from radiosity.scene.microfacet import directional_albedo
+
+    return directional_albedo(microfacet_reference(model), np.linspace(0.0, 1.0, size))
 
 
 def albedo_table(material: Material, size: int, microfacet_models: bool = True) -> np.ndarray:

@@ -211,7 +211,6 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             break
         intersect_rays(rt, paths.origins, paths.directions, hits, 0, n)
         ids, values, origins, directions = paths.ids, paths.values, paths.origins, paths.directions
-        out_ids, out_values, out_origins, out_directions = spare.ids, spare.values, spare.origins, spare.directions
         n_out = 0
         traced = 0
         for k in range(n):
@@ -271,16 +270,10 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                     materials[m], (nx, ny, nz), d, values[k], seed, item)
                 if not survives:
                     continue
-                sx, sy, sz = wix, wiy, wiz
-                if not sx * gx + sy * gy + sz * gz > 0.0:
+                if not wix * gx + wiy * gy + wiz * gz > 0.0:
                     continue
-                out_pdf[n_out] = pdf
-                out_ids[n_out] = target
-                out_origins[n_out, 0] = px + epsilon * gx
-                out_origins[n_out, 1] = py + epsilon * gy
-                out_origins[n_out, 2] = pz + epsilon * gz
-                out_directions[n_out, 0], out_directions[n_out, 1], out_directions[n_out, 2] = sx, sy, sz
-                out_values[n_out, 0], out_values[n_out, 1], out_values[n_out, 2] = carried
+                _push_path(spare, out_pdf, n_out, target, (px, py, pz), (gx, gy, gz), epsilon, (wix, wiy, wiz), pdf,
+                           carried)
                 n_out += 1
                 continue
             exponent = materials[m, EXPONENT]
@@ -359,13 +352,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             if not survives:
                 continue
             cos_alpha = min(max(-wix * wox - wiy * woy + wiz * woz, 0.0), 1.0)
-            out_pdf[n_out] = (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent)
-            out_ids[n_out] = target
-            out_origins[n_out, 0] = px + epsilon * gx
-            out_origins[n_out, 1] = py + epsilon * gy
-            out_origins[n_out, 2] = pz + epsilon * gz
-            out_directions[n_out, 0], out_directions[n_out, 1], out_directions[n_out, 2] = sx, sy, sz
-            out_values[n_out, 0], out_values[n_out, 1], out_values[n_out, 2] = carried
+            _push_path(spare, out_pdf, n_out, target, (px, py, pz), (gx, gy, gz), epsilon, (sx, sy, sz),
+                       (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent), carried)
             n_out += 1
         rays += n + traced
         shadow += traced
@@ -373,6 +361,19 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
         path_pdf, out_pdf = out_pdf, path_pdf
         n = n_out
     return rays, shadow
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _push_path(paths, pdfs, n, target, point, g, epsilon, direction, pdf, value):
+    """Slot n of the next depth's ``paths`` (and of its ``pdfs``): a path of ``target``
+    leaving ``point`` (offset ``epsilon`` along the geometric normal g) along ``direction``,
+    sampled with density ``pdf``, carrying ``value``."""
+    pdfs[n] = pdf
+    paths.ids[n] = target
+    for c in range(3):
+        paths.origins[n, c] = point[c] + epsilon * g[c]
+        paths.directions[n, c] = direction[c]
+        paths.values[n, c] = value[c]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

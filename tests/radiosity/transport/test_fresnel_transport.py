@@ -31,6 +31,19 @@ def scene_from(tmp_path, text):
     return load_scene(path)
 
 
+EMITTING_SPHERE = """
+    [materials.wall]
+    diffuse = 0.5
+    emission = 1.0
+    [[objects]]
+    name = "sphere"
+    builtin = "sphere"
+    subdivisions = 3
+    flip = true
+    material = "wall"
+"""
+
+
 def with_material(scene, name, material):
     """The scene with material ``name`` replaced (TOML scenes have no Fresnel key)."""
     objects = tuple(
@@ -66,20 +79,7 @@ def fresnel_furnace_reference(kd, ks, n, f0, le, nodes=160, phi_points=2048):
 def test_fresnel_glossy_furnace_matches_the_integral_equation(tmp_path):
     ks, n = 1.0, 10.0
     kd = min(0.6, float(fresnel_kd_limit([ks] * 3, [F0] * 3, n)[0]))
-    scene = scene_from(
-        tmp_path,
-        """
-        [materials.wall]
-        diffuse = 0.5
-        emission = 1.0
-        [[objects]]
-        name = "sphere"
-        builtin = "sphere"
-        subdivisions = 3
-        flip = true
-        material = "wall"
-        """,
-    )
+    scene = scene_from(tmp_path, EMITTING_SPHERE)
     wall = Material("wall", diffuse=(kd,) * 3, specular=(ks,) * 3, exponent=n, emission=(1.0,) * 3, fresnel=(F0,) * 3)
     scene = with_material(scene, "wall", wall)
     opts = SolveOptions(photons=200_000, gather_samples=64, light_samples=8, grid=8, max_edge=10.0, seed=2)

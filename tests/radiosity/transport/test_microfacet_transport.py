@@ -11,10 +11,10 @@ must all be right for the solver's grid to match it; the Phong stand-in does not
 """
 
 import dataclasses
-import textwrap
 
 import numpy as np
 import pytest
+from test_fresnel_transport import EMITTING_SPHERE, scene_from, with_material
 
 from radiosity.formats.material import Material, Microfacet
 from radiosity.scene import microfacet
@@ -22,18 +22,6 @@ from radiosity.scene.kinds import oracle
 from radiosity.scene.loaders import load_scene
 from radiosity.transport.pathtrace import scene_of_solution
 from radiosity.transport.solve import SolveOptions, solve
-
-SPHERE = """
-    [materials.wall]
-    diffuse = 0.5
-    emission = 1.0
-    [[objects]]
-    name = "sphere"
-    builtin = "sphere"
-    subdivisions = 3
-    flip = true
-    material = "wall"
-"""
 
 
 def furnace_reference(material, nodes=96, phi_points=256):
@@ -56,11 +44,8 @@ def furnace_reference(material, nodes=96, phi_points=256):
 
 
 def sphere_of(tmp_path, material):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(SPHERE))
-    scene = load_scene(path)
-    objects = tuple(dataclasses.replace(o, material=material) for o in scene.objects)
-    return dataclasses.replace(scene, objects=objects)
+    """The Fresnel tests' emitting sphere (seen from inside) made of ``material``."""
+    return with_material(scene_from(tmp_path, EMITTING_SPHERE), "wall", dataclasses.replace(material, name="wall"))
 
 
 AU = microfacet.METALS["Au"]
