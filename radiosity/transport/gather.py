@@ -272,8 +272,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                     continue
                 if not wix * gx + wiy * gy + wiz * gz > 0.0:
                     continue
-                _push_path(spare, out_pdf, n_out, target, (px, py, pz), (gx, gy, gz), epsilon, (wix, wiy, wiz), pdf,
-                           carried)
+                _push_path(spare, out_pdf, n_out, target, ((px, py, pz), (gx, gy, gz), epsilon),
+                           ((wix, wiy, wiz), pdf, carried))
                 n_out += 1
                 continue
             exponent = materials[m, EXPONENT]
@@ -352,8 +352,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             if not survives:
                 continue
             cos_alpha = min(max(-wix * wox - wiy * woy + wiz * woz, 0.0), 1.0)
-            _push_path(spare, out_pdf, n_out, target, (px, py, pz), (gx, gy, gz), epsilon, (sx, sy, sz),
-                       (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent), carried)
+            _push_path(spare, out_pdf, n_out, target, ((px, py, pz), (gx, gy, gz), epsilon),
+                       ((sx, sy, sz), (exponent + 1.0) / (2.0 * math.pi) * phong_lobe(cos_alpha, exponent), carried))
             n_out += 1
         rays += n + traced
         shadow += traced
@@ -364,10 +364,12 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _push_path(paths, pdfs, n, target, point, g, epsilon, direction, pdf, value):
+def _push_path(paths, pdfs, n, target, start, step):
     """Slot n of the next depth's ``paths`` (and of its ``pdfs``): a path of ``target``
-    leaving ``point`` (offset ``epsilon`` along the geometric normal g) along ``direction``,
-    sampled with density ``pdf``, carrying ``value``."""
+    leaving start = (point, geometric normal g, epsilon; offset epsilon along g) by step =
+    (direction, its sampling density, the value carried)."""
+    point, g, epsilon = start
+    direction, pdf, value = step
     pdfs[n] = pdf
     paths.ids[n] = target
     for c in range(3):
