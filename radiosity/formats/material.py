@@ -52,7 +52,9 @@ __all__ = [
     "FRESNEL_NORMALISATION",
     "MAX_EXPONENT",
     "MICROFACET_DISTRIBUTIONS",
+    "GLASS_KINDS",
     "MICROFACET_KINDS",
+    "Glass",
     "Material",
     "Microfacet",
     "fresnel_kd_limit",
@@ -166,6 +168,79 @@ class Microfacet:
         return cls(**entry)
 
 
+GLASS_KINDS = ("dielectric", "thindielectric", "roughdielectric")
+"""The glass models a material may name (Mitsuba 3's, with its parameters)."""
+
+
+@dataclass(frozen=True)
+class Glass:
+    """A dielectric interface that reflects and transmits (Mitsuba 3's models), validated
+    on construction. The kernels evaluate it in ``radiosity.scene.glass_kernels``, the numpy
+    oracle in ``radiosity.scene.glass``.
+
+    Attributes:
+        kind: ``"dielectric"`` (a smooth interface between the outside and the inside of a
+            closed shape, its normals pointing out), ``"thindielectric"`` (a thin smooth
+            sheet: light passes straight through, the reflections between its two faces
+            summed) or ``"roughdielectric"`` (a microfacet interface, Walter et al. 2007).
+        eta: the relative index of refraction, inside over outside (positive, not 1).
+        distribution: ``"ggx"`` or ``"beckmann"`` (a rough dielectric's; kept for the others).
+        alpha: a rough dielectric's roughness in [``MIN_ALPHA``, ``MAX_ALPHA``]; 0 for the
+            smooth kinds.
+        specular_reflectance, specular_transmittance: the scales of the reflected and the
+            transmitted light per channel (in [0, 1]; 1 for physics).
+    """
+
+    kind: str
+    eta: float
+    distribution: str = "beckmann"
+    alpha: float = 0.0
+    specular_reflectance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    specular_transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in GLASS_KINDS:
+            raise ValueError(f"glass kind {self.kind!r}: expected one of {', '.join(GLASS_KINDS)}")
+        if self.distribution not in MICROFACET_DISTRIBUTIONS:
+            raise ValueError(f"glass distribution {self.distribution!r}: expected one of "
+                             f"{', '.join(MICROFACET_DISTRIBUTIONS)}")
+        for field in ("eta", "alpha"):
+            try:
+                object.__setattr__(self, field, float(getattr(self, field)))
+            except (TypeError, ValueError):
+                raise ValueError(f"glass {field} must be a number, got {getattr(self, field)!r}") from None
+        if not (math.isfinite(self.eta) and 0.0 < self.eta <= 1e3 and self.eta != 1.0):
+            raise ValueError(f"glass eta = {self.eta:g} must be a positive index of refraction other than 1 "
+                             "(at most 1000)")
+        if self.kind == "roughdielectric":
+            if not (MIN_ALPHA <= self.alpha <= MAX_ALPHA):
+                raise ValueError(f"glass alpha = {self.alpha:g} is outside [{MIN_ALPHA:g}, {MAX_ALPHA:g}]")
+        elif self.alpha != 0.0:
+            raise ValueError(f"a smooth glass ({self.kind}) has alpha 0, got {self.alpha:g}")
+        for field in ("specular_reflectance", "specular_transmittance"):
+            object.__setattr__(self, field, _triple(f"glass {field}", getattr(self, field), 1.0))
+
+    def to_dict(self) -> dict:
+        """The model as plain JSON-ready values."""
+        return {"kind": self.kind, "eta": self.eta, "distribution": self.distribution, "alpha": self.alpha,
+                "specular_reflectance": list(self.specular_reflectance),
+                "specular_transmittance": list(self.specular_transmittance)}
+
+    @classmethod
+    def from_dict(cls, entry) -> Glass:
+        """The model of a ``to_dict`` entry; raises ValueError naming what is wrong."""
+        if not isinstance(entry, dict):
+            raise ValueError(f"glass must be an object, got {type(entry).__name__}")
+        known = {"kind", "eta", "distribution", "alpha", "specular_reflectance", "specular_transmittance"}
+        unknown = sorted(set(entry) - known)
+        if unknown:
+            raise ValueError(f"glass has unknown key(s) {', '.join(map(repr, unknown))}")
+        missing = [key for key in ("kind", "eta") if key not in entry]
+        if missing:
+            raise ValueError(f"glass has no {', '.join(map(repr, missing))}")
+        return cls(**entry)
+
+
 def _triple(field: str, value, upper: float) -> tuple[float, float, float]:
     """Three finite numbers in [0, upper]; raises ValueError naming ``field``."""
     try:
@@ -198,6 +273,9 @@ class Material:
             model the path tracer evaluates; the Phong fields then hold its stand-in
             (``radiosity.scene.microfacet.phong_lobe_for``), which the stages that draw
             Phong lobes use.
+        glass: None, or the ``Glass`` interface the transport traces through (reflecting
+            and transmitting); such a material has no Phong part (kd = ks = 0), reflects
+            nothing the per-vertex stages store, and no microfacet model.
 
     All numbers are stored as python floats. Raises ``InputError`` naming the
     material and the problem if a value is missing, not finite, out of range, or if
@@ -212,8 +290,14 @@ class Material:
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fresnel: tuple[float, float, float] | None = None
     microfacet: Microfacet | None = None
+    glass: Glass | None = None
 
     def __post_init__(self) -> None:
+        if self.glass is not None and not isinstance(self.glass, Glass):
+            try:
+                object.__setattr__(self, "glass", Glass.from_dict(self.glass))
+            except (TypeError, ValueError) as exc:
+                raise self._error(str(exc)) from None
         if self.microfacet is not None and not isinstance(self.microfacet, Microfacet):
             try:
                 object.__setattr__(self, "microfacet", Microfacet.from_dict(self.microfacet))
@@ -223,6 +307,8 @@ class Material:
         for field, upper in (("diffuse", 1.0), ("specular", ks_upper), ("emission", FLOAT32_MAX)):
             object.__setattr__(self, field, self._rgb(field, upper))
         object.__setattr__(self, "exponent", self._exponent())
+        if self.glass is not None and (self.is_reflective or self.microfacet is not None or self.fresnel is not None):
+            raise self._error("a glass material has no diffuse, specular, fresnel or microfacet part")
         if self.fresnel is not None:
             object.__setattr__(self, "fresnel", self._rgb("fresnel", 1.0))
             self._check_fresnel_energy()
@@ -295,6 +381,11 @@ class Material:
         return any(v > 0.0 for v in self.emission)
 
     @property
+    def is_glass(self) -> bool:
+        """True if the material is a glass interface (``glass``)."""
+        return self.glass is not None
+
+    @property
     def is_reflective(self) -> bool:
         """True if the material reflects any light (diffusely or glossily)."""
         return self.is_glossy or any(v > 0.0 for v in self.diffuse)
@@ -302,7 +393,7 @@ class Material:
     def to_dict(self) -> dict:
         """The material as plain JSON-ready values (the name is the caller's key); the key
         ``fresnel`` only if the material has one, so files without Fresnel stay as they were;
-        likewise ``microfacet``."""
+        likewise ``microfacet`` and ``glass``."""
         out = {
             "diffuse": list(self.diffuse),
             "specular": list(self.specular),
@@ -313,6 +404,8 @@ class Material:
             out["fresnel"] = list(self.fresnel)
         if self.microfacet is not None:
             out["microfacet"] = self.microfacet.to_dict()
+        if self.glass is not None:
+            out["glass"] = self.glass.to_dict()
         return out
 
 

@@ -35,6 +35,13 @@ Version 6 adds microfacet materials: a material's ``"microfacet"`` entry
 specular_reflectance, diffuse_reflectance, nonlinear) is the model ``vlights truth``
 path-traces; its Phong fields stay the stand-in the other stages draw, so a reader of
 version 5 that ignores the key reads the same Phong material as before.
+Version 7 adds glass: a material's ``"glass"`` entry
+(``radiosity.formats.material.Glass.to_dict``: kind dielectric, thindielectric or
+roughdielectric, eta, distribution, alpha, specular_reflectance, specular_transmittance)
+is an interface ``vlights truth`` traces through (reflecting and refracting); its Phong
+fields are zero and its object diffuse with zero radiance (nothing of its appearance is
+stored per vertex: a reader of version 6 that ignores the key sees a black object, and
+should draw nothing where the key is; the displays leave glass objects out).
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -77,12 +84,12 @@ from radiosity.formats.texture import TexturedDiffuse, read_textured
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 6  # the newest version written (a file is written with the lowest that holds it)
-READS = (1, 2, 3, 4, 5, 6)
+VERSION = 7  # the newest version written (a file is written with the lowest that holds it)
+READS = (1, 2, 3, 4, 5, 6, 7)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
-_OPTIONAL_MATERIAL_KEYS = ("fresnel", "microfacet")  # Schlick's F0; a microfacet model (version 6)
+_OPTIONAL_MATERIAL_KEYS = ("fresnel", "microfacet", "glass")  # Schlick's F0; a microfacet model (6); glass (7)
 _UNIT_TOLERANCE = 1e-4  # |direction| within this of 1
 _GRID_TOLERANCE = 1e-5  # stored directions within this of the contract's grid
 
@@ -411,9 +418,11 @@ class Solution:
 
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 6 where a material has a
-        microfacet model, else 5 where an object names its emitter parts, else 4 with a
+        """The lowest contract version that holds this solution: 7 where a material is glass,
+        6 where a material has a microfacet model, else 5 where an object names its emitter parts, else 4 with a
         delta light, else 3 with a textured object or an environment, else 2."""
+        if any(isinstance(o.material, dict) and "glass" in o.material for o in self.objects):
+            return 7
         if any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects):
             return 6
         if any(o.emitter_parts is not None for o in self.objects):

@@ -5,7 +5,8 @@ The first columns hold the modified-Phong model (``KD`` .. ``HAS_FRESNEL``); eve
 material has them: a microfacet material keeps its Phong stand-in there for the stages
 that draw Phong (the emitters' closed-form highlights, the fit, the displays). ``KIND``
 says which model the transport kernels evaluate (``KIND_PHONG``, ``KIND_ROUGH_PLASTIC``,
-``KIND_ROUGH_CONDUCTOR``); the microfacet kinds' own parameters follow it. Kept in a
+``KIND_ROUGH_CONDUCTOR``, and the glass kinds from ``KIND_DIELECTRIC`` on, which
+reflect and transmit on both faces); the other kinds' own parameters follow it. Kept in a
 module of its own so that the kinds' kernels (``radiosity.scene.microfacet_kernels``)
 and the dispatch (``radiosity.scene.materials``) share them without importing each other.
 """
@@ -22,6 +23,7 @@ MF_DISTRIBUTION = 16  # MF_GGX or MF_BECKMANN
 MF_ALPHA = 17  # the microfacet roughness alpha (isotropic)
 MF_ETA = 18  # 3 columns: a conductor's index eta per channel; a plastic's relative index in each
 MF_K = 21  # 3 columns: a conductor's absorption k per channel
+GLASS_TRANSMITTANCE = MF_K  # 3 columns: a glass's specular_transmittance (its eta in MF_ETA, reflectance in MF_SPECULAR)
 MF_SPECULAR = 24  # 3 columns: specular_reflectance, the interface's scale
 MF_SPECULAR_WEIGHT = 27  # a rough plastic's share of specular samples before Fresnel (Mitsuba's rule)
 MF_DIFFUSE_NORM = 28  # a rough plastic: 1 / (2 int t(mu) mu dmu); KD holds kd' / eta^2 / MF_DIFFUSE_NORM
@@ -32,5 +34,8 @@ NCOL = MF_TABLE + MF_TABLE_SIZE
 KIND_PHONG = 0.0
 KIND_ROUGH_PLASTIC = 1.0
 KIND_ROUGH_CONDUCTOR = 2.0
+KIND_DIELECTRIC = 3.0  # the glass kinds, from KIND_DIELECTRIC on (``radiosity.scene.glass_kernels``)
+KIND_THIN_DIELECTRIC = 4.0
+KIND_ROUGH_DIELECTRIC = 5.0
 MF_GGX = 0.0
 MF_BECKMANN = 1.0

@@ -65,12 +65,16 @@ from radiosity.scene.columns import (
     EMISSION,
     EXPONENT,
     F0,
+    GLASS_TRANSMITTANCE,
     HAS_FRESNEL,
     KD,
     KIND,
+    KIND_DIELECTRIC,
     KIND_PHONG,
     KIND_ROUGH_CONDUCTOR,
+    KIND_ROUGH_DIELECTRIC,
     KIND_ROUGH_PLASTIC,
+    KIND_THIN_DIELECTRIC,
     KS,
     MF_ALPHA,
     MF_BECKMANN,
@@ -162,7 +166,20 @@ def pack_materials(materials: Sequence[Material], microfacet_models: bool = True
             row[HAS_FRESNEL] = 1.0
         if m.microfacet is not None and microfacet_models:
             _pack_microfacet(row, m.microfacet)
+        if m.glass is not None:
+            _pack_glass(row, m.glass)
     return table
+
+
+def _pack_glass(row: np.ndarray, glass) -> None:
+    """Write a ``Glass`` model's kind and columns into ``row`` (its Phong part is zero)."""
+    row[KIND] = {"dielectric": KIND_DIELECTRIC, "thindielectric": KIND_THIN_DIELECTRIC,
+                 "roughdielectric": KIND_ROUGH_DIELECTRIC}[glass.kind]
+    row[MF_DISTRIBUTION] = MF_GGX if glass.distribution == "ggx" else MF_BECKMANN
+    row[MF_ALPHA] = glass.alpha
+    row[MF_ETA : MF_ETA + 3] = glass.eta
+    row[MF_SPECULAR : MF_SPECULAR + 3] = glass.specular_reflectance
+    row[GLASS_TRANSMITTANCE : GLASS_TRANSMITTANCE + 3] = glass.specular_transmittance
 
 
 def _pack_microfacet(row: np.ndarray, model) -> None:
