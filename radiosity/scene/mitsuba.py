@@ -25,8 +25,10 @@ Materials (onto Lambert + modified Phong, ``radiosity.scene.microfacet`` measure
 lobes): ``diffuse``; ``twosided`` (the surface gets a back: a second, reversed copy
     a hair behind it, unless the mesh is closed and its inside never seen);
     ``plastic`` / ``roughplastic`` and ``conductor`` / ``roughconductor`` by the rule
-    of ``microfacet.phong_lobe_for``; anything else (dielectrics, masks, bump and
-    normal maps, blends, principled, ...) approximated with one warning saying how.
+    of ``microfacet.phong_lobe_for`` (the rough ones keep their own model beside it);
+    ``dielectric``, ``thindielectric`` and ``roughdielectric`` as ``Glass`` (int_ior
+    over ext_ior, named indices as Mitsuba's); anything else (masks, bump and normal
+    maps, blends, principled, ...) approximated with one warning saying how.
 Textures
     A ``bitmap`` as a ``diffuse`` bsdf's ``reflectance`` (also inside ``twosided``,
     ``bumpmap``, ``normalmap`` and ``mask``) or a plastic's ``diffuse_reflectance``
@@ -83,7 +85,7 @@ import numpy as np
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
-from radiosity.formats.material import MAX_ALPHA, MIN_ALPHA, Microfacet, fresnel_kd_limit, srgb_to_linear
+from radiosity.formats.material import MAX_ALPHA, MIN_ALPHA, Glass, Microfacet, fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
@@ -896,6 +898,7 @@ class _Surface:
     fresnel: tuple | None = None  # Schlick's F0 of a mapped plastic or conductor
     texture: _Bitmap | None = None  # multiplies diffuse at each point (``textures``)
     microfacet: Microfacet | None = None  # a rough plastic's or conductor's own model (the rest its Phong stand-in)
+    glass: Glass | None = None  # a dielectric, thin dielectric or rough dielectric (no Phong part)
 
     def untextured(self):
         """This surface with its texture folded into the diffuse colour (its mean)."""
@@ -938,7 +941,10 @@ def _make_surface(doc, node):
             raise node.fail("needs the <bsdf> it makes two-sided")
         if len(inner) > 1:
             node.warn("a different bsdf on each side: the front's is used on both")
-        return replace(_surface(doc, inner[0]), twosided=True)
+        surface = _surface(doc, inner[0])
+        if surface.glass is not None:  # glass has two faces already
+            return surface
+        return replace(surface, twosided=True)
     if kind == "diffuse":
         bitmap = _bitmap_property(doc, props, "reflectance")
         if bitmap is not None:
@@ -949,9 +955,7 @@ def _make_surface(doc, node):
     if kind == "null":
         return _Surface(diffuse=(0.0, 0.0, 0.0), visible=False)
     if kind in ("dielectric", "thindielectric", "roughdielectric"):
-        node.warn("transmission is not modelled: the shape is left out, so light passes as through clear glass "
-                  "(its reflections are lost)")
-        return _Surface(visible=False)
+        return _glass_surface(node, props, kind)
     if kind in ("bumpmap", "normalmap"):
         if not inner:
             raise node.fail("needs the <bsdf> it perturbs")
@@ -989,19 +993,58 @@ def _make_surface(doc, node):
     return _Surface(diffuse=colour or (0.5, 0.5, 0.5))
 
 
+def _roughness(node, props):
+    """A rough bsdf's isotropic alpha (Mitsuba's default 0.1; alpha_u and alpha_v as their
+    geometric mean, with a warning where they differ)."""
+    alpha = props.float("alpha")
+    if alpha is None and props.float("alpha_u") is not None:
+        au, av = props.float("alpha_u"), props.float("alpha_v", props.float("alpha_u"))
+        alpha = math.sqrt(au * av)
+        if au != av:
+            node.warn(f"anisotropic roughness ({au:g}, {av:g}) taken as isotropic {alpha:.4g}")
+    return 0.1 if alpha is None else alpha
+
+
+def _glass_surface(node, props, kind):
+    """dielectric, thindielectric, roughdielectric: a ``Glass`` interface (Mitsuba's
+    defaults: int_ior bk7, ext_ior air, a rough one's beckmann 0.1)."""
+    eta = _ior(props, "int_ior", 1.5046) / _ior(props, "ext_ior", 1.000277)
+    if eta == 1.0:
+        node.warn("int_ior equals ext_ior: the interface bends and reflects nothing, so the shape is left out")
+        return _Surface(visible=False)
+    distribution, alpha = props.string("distribution", "beckmann"), 0.0
+    if kind == "roughdielectric":
+        alpha = _roughness(node, props)
+        if distribution == "phong":
+            node.warn("the phong distribution is mapped as beckmann of the same alpha")
+            distribution = "beckmann"
+        if not MIN_ALPHA <= alpha <= MAX_ALPHA:
+            clipped = float(np.clip(alpha, MIN_ALPHA, MAX_ALPHA))
+            node.warn(f"roughness alpha {alpha:g} taken as {clipped:g}, the nearest the microfacet model holds "
+                      f"({MIN_ALPHA:g} to {MAX_ALPHA:g})")
+            alpha = clipped
+    elif distribution not in ("ggx", "beckmann"):
+        distribution = "beckmann"
+    for name in ("specular_reflectance", "specular_transmittance"):
+        item = props.named.get(name)
+        if item is not None and item[1].tag == "texture":
+            node.warn(f"a textured {name} is taken as its mean colour")
+    try:
+        glass = Glass(kind, eta, distribution, alpha,
+                      tuple(min(c, 1.0) for c in props.colour("specular_reflectance", 1.0)),
+                      tuple(min(c, 1.0) for c in props.colour("specular_transmittance", 1.0)))
+    except ValueError as exc:
+        raise node.fail(str(exc)) from None
+    return _Surface(diffuse=(0.0, 0.0, 0.0), glass=glass)
+
+
 def _microfacet_surface(node, props, kind):
     """plastic, roughplastic, conductor, roughconductor by ``microfacet.phong_lobe_for``'s
     measured rule (the exponent that matches the lobe's half-maximum solid angle, ks
     and kd fitted to the original's albedos over incidence)."""
     alpha, distribution = None, props.string("distribution", "beckmann")
     if kind.startswith("rough"):
-        alpha = props.float("alpha")
-        if alpha is None and props.float("alpha_u") is not None:
-            au, av = props.float("alpha_u"), props.float("alpha_v", props.float("alpha_u"))
-            alpha = math.sqrt(au * av)
-            if au != av:
-                node.warn(f"anisotropic roughness ({au:g}, {av:g}) taken as isotropic {alpha:.4g}")
-        alpha = 0.1 if alpha is None else alpha
+        alpha = _roughness(node, props)
         if distribution == "phong":  # Mitsuba 0.x's third distribution: close to Beckmann's at the same alpha
             node.warn("the phong distribution is mapped as beckmann of the same alpha")
             distribution = "beckmann"
@@ -1058,8 +1101,11 @@ def _plastic_texture(bitmap, kind, distribution, alpha, params):
     return bitmap.scaled(np.clip(g(texels) / g(brightest), 0.0, 1.0))
 
 
-_NAMED_IOR = {"vacuum": 1.0, "bk7": 1.5046, "glass": 1.5046, "acrylic glass": 1.49, "polypropylene": 1.49,
-              "water": 1.333, "air": 1.000277, "diamond": 2.419, "pet": 1.575, "polycarbonate": 1.58}
+_NAMED_IOR = {"vacuum": 1.0, "helium": 1.000036, "hydrogen": 1.000132, "air": 1.000277, "carbon dioxide": 1.00045,
+              "water": 1.333, "acetone": 1.36, "ethanol": 1.361, "carbon tetrachloride": 1.461, "glycerol": 1.4729,
+              "benzene": 1.501, "silicone oil": 1.52045, "bromine": 1.661, "water ice": 1.31, "fused quartz": 1.458,
+              "pyrex": 1.47, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "glass": 1.5046,
+              "sodium chloride": 1.544, "amber": 1.55, "pet": 1.575, "polycarbonate": 1.58, "diamond": 2.419}
 
 
 def _ior(props, name, default):
@@ -1278,7 +1324,7 @@ def _to_material(shape):
     s = shape.surface
     try:
         return Material(name=shape.name, diffuse=s.diffuse, specular=s.specular, exponent=s.exponent,
-                        emission=shape.emission, fresnel=s.fresnel, microfacet=s.microfacet)
+                        emission=shape.emission, fresnel=s.fresnel, microfacet=s.microfacet, glass=s.glass)
     except InputError as exc:
         raise InputError(f"{shape.source}: {exc}") from None
 

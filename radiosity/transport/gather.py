@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from radiosity.formats.directions import square_boundary_nb
-from radiosity.scene.columns import KIND, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION, MF_GGX
+from radiosity.scene.columns import KIND, KIND_DIELECTRIC, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION, MF_GGX
 from radiosity.scene.environment import env_lookup
 from radiosity.scene.materials import (
     EMISSION,
@@ -43,6 +43,7 @@ from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
 from radiosity.transport.sampling import (
     cosine_direction,
     facing,
+    glass_bounce,
     hit_texel,
     lerp3,
     off_surface,
@@ -148,7 +149,9 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     lobe's light is in the irradiance), with Russian roulette, so light that passes
     from glossy to glossy is not lost. A path that leaves the scene brings the
     environment's radiance along its direction (``sa.env``; nothing without one): the
-    light samples never pick the environment, so it counts in full.
+    light samples never pick the environment, so it counts in full. Glass (either face)
+    passes a path on, reflected or refracted (``sampling.glass_bounce``), with no light
+    sample there: the emission it meets next counts in full.
 
     There a light sample also catches the emitters the lobe reflects (without it, a
     lamp seen in a glossy neighbour was found only by chance and made the heavy-tailed
@@ -224,13 +227,36 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 continue
             d = (directions[k, 0], directions[k, 1], directions[k, 2])
             gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+            m = face_material[t]
+            if materials[m, KIND] >= KIND_DIELECTRIC:
+                # glass, either face: on through it, reflected or refracted, with no light
+                # sample there (so the emission found next counts in full: pdf -1)
+                if depth + 1 >= max_depth:
+                    continue
+                item = (vertices[ids[k] // n_gather] * n_gather + ids[k] % n_gather) * max_depth + depth
+                weight3, origin, direction, _ = glass_bounce(
+                    positions, normals, faces, face_normals, epsilon, materials[m], t,
+                    np.float64(hit_u[k]), np.float64(hit_v[k]), d,
+                    (rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1),
+                     rand(seed, STREAM_GATHER + 1, item, 2)), True)
+                survives, carried = roulette(
+                    (values[k, 0] * weight3[0], values[k, 1] * weight3[1], values[k, 2] * weight3[2]), 1.0,
+                    rand(seed, STREAM_GATHER + 1, item, 3))
+                if survives:
+                    spare.ids[n_out] = ids[k]
+                    for c in range(3):
+                        spare.values[n_out, c] = carried[c]
+                        spare.origins[n_out, c] = origin[c]
+                        spare.directions[n_out, c] = direction[c]
+                    out_pdf[n_out] = -1.0
+                    n_out += 1
+                continue
             if d[0] * gx + d[1] * gy + d[2] * gz >= 0.0:
                 continue
             uk, vk = np.float64(hit_u[k]), np.float64(hit_v[k])
             w = 1.0 - uk - vk
             i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
             px, py, pz = lerp3(positions, i0, i1, i2, w, uk, vk)
-            m = face_material[t]
             fresnel = materials[m, HAS_FRESNEL] > 0.0
             target = ids[k]
             weight = 1.0
@@ -244,7 +270,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                     p_light = direct_area_pdf[t] * dist * dist / cos_light
                     p_gather = sample_wi[target, 2] / math.pi
                     weight = n_gather * p_gather / (n_gather * p_gather + n_light * p_light)
-                elif lobe_light:
+                elif lobe_light and path_pdf[k] >= 0.0:  # -1: the segment left glass, which made no light sample
                     p_light = emit_area_pdf[t] * dist * dist / cos_light
                     weight = path_pdf[k] / (path_pdf[k] + p_light)
             nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, uk, vk), d, (gx, gy, gz))

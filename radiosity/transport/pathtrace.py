@@ -7,7 +7,7 @@ directions, which no ray can hit, so their estimate is unweighted), Russian roul
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
 (``materials``: eval, sample, pdf), Embree wrapper and counter-based random numbers
 as the solver, so both see the same scene the same way: one-sided surfaces (backs
-absorb and do not emit), interpolated shading normals, light that must leave above
+absorb and do not emit) but glass, which reflects and refracts on both faces, interpolated shading normals, light that must leave above
 both the shading and the true surface.
 
 Work is split into tiles: a run of pixels (row-major) and a run of sample numbers.
@@ -37,6 +37,7 @@ import numpy as np
 from radiosity.formats.errors import InputError
 from radiosity.formats.limits import check_seed
 from radiosity.formats.material import Material
+from radiosity.scene.columns import KIND, KIND_DIELECTRIC
 from radiosity.scene.environment import Environment, env_lookup, env_pdf, env_sample
 from radiosity.scene.materials import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
 from radiosity.scene.model import Scene, SceneObject
@@ -54,6 +55,7 @@ from radiosity.transport.lights import arriving, pick_light
 from radiosity.transport.rng import rand
 from radiosity.transport.sampling import (
     barycentric_point,
+    glass_bounce,
     hit_texel,
     off_surface,
     pick_emitter,
@@ -357,6 +359,37 @@ def _escaped(env, paths, k, radiance):
         radiance[path, c] += weight * paths.throughput[k, c] * le[c]
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _through_glass(sa, tile, depth, paths, hits, k, mat, d, out, n_out):
+    """Path k met glass (either face): it goes on reflected or refracted
+    (``sampling.glass_bounce``, radiance's 1 / eta^2), with Russian roulette from bounce
+    ROULETTE_DEPTH on; no light sample is made there, so an emitter it meets next counts
+    in full (last_pdf 0). Returns the paths going on."""
+    path = paths.ids[k]
+    key = _key(tile, path)
+    base = depth * DIMS_PER_BOUNCE
+    rnd = (rand(tile.seed, STREAM_PATH, key, base + 3), rand(tile.seed, STREAM_PATH, key, base + 4),
+           rand(tile.seed, STREAM_PATH, key, base + 5))
+    weight, origin, direction, _ = glass_bounce(
+        sa.positions, sa.normals, sa.faces, sa.face_normals, sa.epsilon, mat, hits.triangle[k],
+        np.float64(hits.u[k]), np.float64(hits.v[k]), d, rnd, True)
+    carried = (paths.throughput[k, 0] * weight[0], paths.throughput[k, 1] * weight[1],
+               paths.throughput[k, 2] * weight[2])
+    if depth + 1 >= ROULETTE_DEPTH:
+        survives, carried = roulette(carried, 1.0, rand(tile.seed, STREAM_PATH, key, base + 6))
+        if not survives:
+            return n_out
+    if carried[0] <= 0.0 and carried[1] <= 0.0 and carried[2] <= 0.0:
+        return n_out
+    out.ids[n_out] = path
+    for c in range(3):
+        out.origins[n_out, c] = origin[c]
+        out.directions[n_out, c] = direction[c]
+        out.throughput[n_out, c] = carried[c]
+    out.last_pdf[n_out] = 0.0
+    return n_out + 1
+
+
 @numba.njit(cache=True, nogil=True)
 def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     """One bounce of the paths in flight; returns (shadow rays written, paths going on).
@@ -370,7 +403,8 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
     sample the previous vertex made (in full for camera rays); then, unless the path
     has reached MAX_DEPTH segments, one light sample and one BRDF sample (the path's
     bounce depth + 1), which from bounce ROULETTE_DEPTH on must survive Russian roulette
-    on its throughput. Back faces end the path (backs absorb); so do misses, which
+    on its throughput. Glass (either face) reflects or refracts the path on
+(``_through_glass``). Other back faces end the path (backs absorb); so do misses, which
     see the environment (``_escaped``; the background is black without one). On a textured
     triangle the diffuse colour is kd * texture(uv at the hit) (``textured_row``), for
     the light sample, the BRDF sample and the roulette alike.
@@ -390,12 +424,16 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
             continue
         d = (np.float64(paths.directions[k, 0]), np.float64(paths.directions[k, 1]), np.float64(paths.directions[k, 2]))
         g = sa.face_normals[t]
+        mat = sa.materials[sa.face_material[t]]
+        if mat[KIND] >= KIND_DIELECTRIC:
+            if depth + 1 < MAX_DEPTH:
+                n_out = _through_glass(sa, tile, depth, paths, hits, k, mat, d, out, n_out)
+            continue
         cos_in = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
         if cos_in <= 0.0:
             continue
         path = paths.ids[k]
         key = _key(tile, path)
-        mat = sa.materials[sa.face_material[t]]
         throughput = (paths.throughput[k, 0], paths.throughput[k, 1], paths.throughput[k, 2])
         emits = mat[EMISSION] > 0.0 or mat[EMISSION + 1] > 0.0 or mat[EMISSION + 2] > 0.0
         if emits:

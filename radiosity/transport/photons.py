@@ -21,6 +21,7 @@ import math
 import numba
 import numpy as np
 
+from radiosity.scene.columns import KIND, KIND_DIELECTRIC
 from radiosity.scene.environment import env_lookup, env_sample
 from radiosity.scene.materials import (
     EMISSION,
@@ -45,7 +46,15 @@ from radiosity.transport.records import (
     T_TERMINATED,
 )
 from radiosity.transport.rng import STREAM_BOUNCE, STREAM_EMIT, rand
-from radiosity.transport.sampling import cosine_direction, facing, hit_texel, lerp3, pick_emitter, prefetch_row
+from radiosity.transport.sampling import (
+    cosine_direction,
+    facing,
+    glass_bounce,
+    hit_texel,
+    lerp3,
+    pick_emitter,
+    prefetch_row,
+)
 
 PREFETCH_AHEAD = 4  # hits ahead whose data the wave's shading loop asks the cache for
 
@@ -220,6 +229,35 @@ def trace_photons(rt, sa, batch, acc):
                 tally[T_HITS] += 1.0
                 dx, dy, dz = np.float64(ray[k, 3]), np.float64(ray[k, 4]), np.float64(ray[k, 5])
                 gx, gy, gz = face_normals[t, 0], face_normals[t, 1], face_normals[t, 2]
+                m = face_material[t]
+                if materials[m, KIND] >= KIND_DIELECTRIC:
+                    # glass, either face: no deposit, reflected or refracted on
+                    base = depth * 8
+                    weight, origin, direction, _ = glass_bounce(
+                        positions, normals, faces, face_normals, epsilon, materials[m], t,
+                        np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1]), (dx, dy, dz),
+                        (rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
+                         rand(seed, STREAM_BOUNCE, pid, base + 2)), False)
+                    q0, q1, q2 = p0 * weight[0], p1 * weight[1], p2 * weight[2]
+                    tally[T_ABSORBED] += p0 - q0
+                    tally[T_ABSORBED + 1] += p1 - q1
+                    tally[T_ABSORBED + 2] += p2 - q2
+                    if depth + 1 >= max_depth:
+                        tally[T_TERMINATED] += q0
+                        tally[T_TERMINATED + 1] += q1
+                        tally[T_TERMINATED + 2] += q2
+                        continue
+                    reference = max(p0, p1, p2)
+                    survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
+                    if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
+                        continue
+                    ids[survivors] = pid
+                    power[survivors, 0], power[survivors, 1], power[survivors, 2] = q0 / survive, q1 / survive, q2 / survive
+                    for c in range(3):
+                        ray[survivors, c] = origin[c]
+                        ray[survivors, 3 + c] = direction[c]
+                    survivors += 1
+                    continue
                 if dx * gx + dy * gy + dz * gz >= 0.0:
                     tally[T_BACKFACE] += p0
                     tally[T_BACKFACE + 1] += p1
@@ -229,7 +267,6 @@ def trace_photons(rt, sa, batch, acc):
                 w = 1.0 - u - v
                 i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
                 px, py, pz = lerp3(positions, i0, i1, i2, w, u, v)
-                m = face_material[t]
                 # the shading frame
                 nx, ny, nz = facing(lerp3(normals, i0, i1, i2, w, u, v), (dx, dy, dz), (gx, gy, gz))
                 if materials[m, HAS_FRESNEL] > 0.0:

@@ -1,6 +1,7 @@
 """Small inlined helpers of the transport kernels (the solver's photons and gather,
 and the path tracer): barycentric points, texture coordinates and shading normals at hits, the cosine
-direction, Russian roulette, choosing a point on an emitter, and a cache hint.
+direction, Russian roulette, choosing a point on an emitter, a path's way through glass
+(``glass_bounce``), and a cache hint.
 
 They take arrays and numbers, not records: a named tuple handed to an inlined helper
 costs a reference-count update (an atomic operation) of each of its arrays at every
@@ -17,6 +18,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from radiosity.scene.glass_kernels import glass_sample
+from radiosity.scene.materials import onb
 from radiosity.scene.textures import texel
 
 
@@ -173,3 +176,39 @@ def toward_light_point(positions, faces, face_normals, epsilon, tri, origin, rnd
         return (0.0, 0.0, 0.0), 0.0, 0.0
     dx, dy, dz = dx / dist, dy / dist, dz / dist
     return (dx, dy, dz), dist, -(dx * gl0 + dy * gl1 + dz * gl2)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def glass_bounce(positions, normals, faces, face_normals, epsilon, mat, tri, u, v, d, rnd, radiance):
+    """A path meeting a glass triangle ``tri`` (material row ``mat`` of a glass kind) at
+    barycentrics (u, v), arriving along d, goes on by ``glass_kernels.glass_sample`` with
+    the uniform numbers rnd = (u1, u2, u3) (``radiance``: a camera path's 1 / eta^2 on
+    refraction). The frame's normal is the interpolated one turned to the triangle's
+    outward side (the geometric normal where it is degenerate), so either face may be hit.
+    Returns (weight RGB, the new ray's origin, its direction, the sample's density: 0 for
+    a smooth kind); a weight of 0 where the sample is absorbed or would leave on the
+    true surface's wrong side (reflected through it or refracted back)."""
+    g = face_normals[tri]
+    i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
+    w = 1.0 - u - v
+    nx, ny, nz = lerp3(normals, i0, i1, i2, w, u, v)
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length > 0.0 and nx * g[0] + ny * g[1] + nz * g[2] > 0.0:
+        nx, ny, nz = nx / length, ny / length, nz / length
+    else:
+        nx, ny, nz = g[0], g[1], g[2]
+    tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
+    wox = -(d[0] * tx + d[1] * ty + d[2] * tz)
+    woy = -(d[0] * bx + d[1] * by + d[2] * bz)
+    woz = -(d[0] * nx + d[1] * ny + d[2] * nz)
+    wix, wiy, wiz, w0, w1, w2, pdf = glass_sample(mat, wox, woy, woz, rnd[0], rnd[1], rnd[2], radiance)
+    sx = wix * tx + wiy * bx + wiz * nx
+    sy = wix * ty + wiy * by + wiz * ny
+    sz = wix * tz + wiy * bz + wiz * nz
+    out = sx * g[0] + sy * g[1] + sz * g[2]  # the side it leaves on
+    came = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])  # the side it came from
+    if (wiz * woz > 0.0) != (out * came > 0.0) or out == 0.0:
+        w0, w1, w2 = 0.0, 0.0, 0.0
+    px, py, pz = lerp3(positions, i0, i1, i2, w, u, v)
+    e = epsilon if out > 0.0 else -epsilon
+    return (w0, w1, w2), (px + e * g[0], py + e * g[1], pz + e * g[2]), (sx, sy, sz), pdf

@@ -21,6 +21,7 @@ import numpy as np
 
 import radiosity
 from radiosity import jit_cache
+from radiosity.scene.columns import KIND, KIND_DIELECTRIC
 from radiosity.scene.materials import (
     EMISSION,
     EXPONENT,
@@ -51,6 +52,7 @@ from radiosity.transport.sampling import (
     barycentric_point,
     cosine_direction,
     facing,
+    glass_bounce,
     lerp3,
     off_surface,
     pick_emitter,
@@ -182,13 +184,34 @@ def bounce_photons(sa, batch, depth, photons, hits, acc, out):
         tally[T_HITS] += 1.0
         d = (photons.directions[k, 0], photons.directions[k, 1], photons.directions[k, 2])
         g = sa.face_normals[t]
+        m = sa.face_material[t]
+        if sa.materials[m, KIND] >= KIND_DIELECTRIC:  # glass, either face: no deposit, on through it
+            base = depth * 8
+            weight, origin, direction, _ = glass_bounce(
+                sa.positions, sa.normals, sa.faces, sa.face_normals, sa.epsilon, sa.materials[m], t,
+                np.float64(hits.u[k]), np.float64(hits.v[k]), d,
+                (rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
+                 rand(seed, STREAM_BOUNCE, pid, base + 2)), False)
+            scattered = (power[0] * weight[0], power[1] * weight[1], power[2] * weight[2])
+            for c in range(3):
+                tally[T_ABSORBED + c] += power[c] - scattered[c]
+            if depth + 1 >= max_depth:
+                for c in range(3):
+                    tally[T_TERMINATED + c] += scattered[c]
+                continue
+            survives, carried = roulette(
+                scattered, max(power[0], power[1], power[2]), rand(seed, STREAM_BOUNCE, pid, base + 3)
+            )
+            if survives:
+                _push_ray(out, n_out, pid, origin, direction, carried)
+                n_out += 1
+            continue
         if d[0] * g[0] + d[1] * g[1] + d[2] * g[2] >= 0.0:
             for c in range(3):
                 tally[T_BACKFACE + c] += power[c]
             continue
         uk, vk = np.float64(hits.u[k]), np.float64(hits.v[k])
         point = barycentric_point(sa, t, uk, vk)
-        m = sa.face_material[t]
         deposited = power
         if sa.materials[m, HAS_FRESNEL] > 0.0:
             n = facing(lerp3(sa.normals, sa.faces[t, 0], sa.faces[t, 1], sa.faces[t, 2], 1.0 - uk - vk, uk, vk), d, g)

@@ -219,6 +219,37 @@ def test_a_bad_microfacet_entry_is_refused_in_one_line(tmp_path, solution, chang
     refused(write_npz(tmp_path / "s.npz", meta, arrays), fragment)
 
 
+GLASS = {"kind": "roughdielectric", "eta": 1.5, "distribution": "ggx", "alpha": 0.2,
+         "specular_reflectance": [1.0, 1.0, 1.0], "specular_transmittance": [0.9, 0.8, 0.7]}
+
+
+def test_a_glass_material_is_version_7_round_trips_and_others_stay_as_they_were(tmp_path, saved):
+    glass = {"diffuse": BLACK, "specular": BLACK, "exponent": 0.0, "emission": BLACK, "glass": GLASS}
+    path = tmp_path / "glass.npz"
+    Solution((make_object("ball", 1, glass, 5),)).save(path)
+    loaded = load_solution(path)
+    assert loaded.version == 7 and loaded.object("ball").material == glass
+    assert Material("ball", **loaded.object("ball").material).glass.specular_transmittance == (0.9, 0.8, 0.7)
+    assert load_solution(saved).version < 7
+
+
+@pytest.mark.parametrize("change, fragment", [
+    ({"kind": "crystal"}, "glass kind 'crystal'"),
+    ({"eta": 1.0}, "glass eta = 1"),
+    ({"alpha": 0.0}, "glass alpha = 0"),
+    ({"kind": "dielectric"}, "a smooth glass (dielectric) has alpha 0"),
+    ({"specular_transmittance": [1.0, 2.0, 1.0]}, "glass specular_transmittance green"),
+    ({"tint": 1}, "unknown key(s) 'tint'"),
+])
+def test_a_bad_glass_entry_is_refused_in_one_line(tmp_path, solution, change, fragment):
+    meta, arrays = contents(solution)
+    name = next(iter(meta["materials"]))
+    meta["materials"][name] = {"diffuse": BLACK, "specular": BLACK, "exponent": 0.0, "emission": BLACK,
+                               "glass": dict(GLASS, **change)}
+    meta["version"] = 7
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), fragment)
+
+
 def test_a_plastic_microfacet_needs_one_index_other_than_1():
     plastic = dict(MICROFACET, kind="roughplastic", eta=[1.5, 1.5, 1.4], k=[0, 0, 0])
     with pytest.raises(InputError, match="one positive index other than 1"):
@@ -438,7 +469,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [7, "1", None, True])
+@pytest.mark.parametrize("version", [8, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version

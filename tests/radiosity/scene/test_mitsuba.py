@@ -658,11 +658,42 @@ def test_twosided_closed_mesh_gets_no_back(materials):
     assert "box" in names and "box (back)" not in names
 
 
-def test_dielectric_is_left_out_with_a_warning_naming_its_line(materials):
+def test_a_dielectric_is_glass_of_mitsuba_s_indices_without_a_warning(materials):
     scene, messages = materials
-    assert "glass" not in [o.name for o in scene.objects]
-    (warning,) = [m for m in messages if "dielectric" in m]
-    assert warning.startswith(f"{DATA / 'materials.xml'}:21: <bsdf type='dielectric'>: ")
+    glass = scene.object("glass").material
+    assert glass.is_glass and glass.glass.kind == "dielectric" and not glass.is_reflective
+    assert glass.glass.eta == pytest.approx(1.5 / 1.000277)  # ext_ior: Mitsuba's default, air
+    assert not [m for m in messages if "dielectric" in m]
+
+
+@pytest.mark.parametrize("bsdf, expected", [
+    ('<bsdf type="thindielectric"><float name="int_ior" value="1.52"/><string name="ext_ior" value="vacuum"/></bsdf>',
+     dict(kind="thindielectric", eta=1.52, alpha=0.0)),
+    ('<bsdf type="roughdielectric"><string name="int_ior" value="water"/><float name="alpha_u" value="0.2"/>'
+     '<rgb name="specular_transmittance" value="0.5, 0.6, 0.7"/></bsdf>',
+     dict(kind="roughdielectric", eta=1.333 / 1.000277, alpha=0.2, distribution="beckmann",
+          specular_transmittance=(0.5, 0.6, 0.7))),
+    ('<bsdf type="twosided"><bsdf type="dielectric"><string name="int_ior" value="diamond"/></bsdf></bsdf>',
+     dict(kind="dielectric", eta=2.419 / 1.000277)),
+])
+def test_the_glass_kinds_keep_their_parameters(tmp_path, bsdf, expected):
+    path = write_scene(tmp_path, f'<shape type="sphere" id="ball">{bsdf}</shape>')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_mitsuba(path)
+    glass = scene.object("ball").material.glass
+    for key, value in expected.items():
+        assert getattr(glass, key) == (pytest.approx(value) if isinstance(value, float) else value), key
+    assert len(scene.objects) == 1 and not caught  # no back added to a two-sided glass, no warning
+
+
+def test_an_interface_of_equal_indices_is_left_out_with_a_warning(tmp_path):
+    path = write_scene(tmp_path, '<shape type="rectangle" id="kept"/><shape type="sphere" id="ball">'
+                       '<bsdf type="dielectric"><float name="int_ior" value="1.3"/><float name="ext_ior" value="1.3"/>'
+                       '</bsdf></shape>')
+    with pytest.warns(SceneWarning, match="int_ior equals ext_ior"):
+        scene = load_mitsuba(path)
+    assert [o.name for o in scene.objects] == ["kept"]
 
 
 def test_approximated_bsdfs_warn_and_keep_what_they_can(materials):
@@ -674,7 +705,7 @@ def test_approximated_bsdfs_warn_and_keep_what_they_can(materials):
     assert scene.object("bumpy").material.diffuse == (0.6, 0.5, 0.4)
     np.testing.assert_allclose(scene.object("blend").material.diffuse, 0.75 * 0.8 + 0.25 * 0.4)
     assert scene.object("unknown").material.diffuse == (0.5, 0.5, 0.5)
-    assert len(messages) == 5  # dielectric, mask, bumpmap, blendbsdf, hair: one each
+    assert len(messages) == 4  # mask, bumpmap, blendbsdf, hair: one each
 
 
 def test_a_mostly_transparent_mask_leaves_the_shape_out(tmp_path):
