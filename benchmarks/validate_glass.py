@@ -1,0 +1,179 @@
+"""A glass sphere's caustic on a diffuse floor: its power in Mitsuba 3, in the project's
+path tracer and in the solver's solution (photons, density estimation), on the same XML.
+
+The scene (tests/data/mitsuba/validate_glass.xml) is rendered with the glass sphere and
+without it (the same file with the sphere's shape taken out) by each renderer at the
+film's size. The caustic is the largest connected region where Mitsuba's converged image
+with the sphere (smoothed over a pixel) is brighter than without it by more than
+``--threshold`` (25 %), the sphere's own pixels left out (a ray-sphere test from the
+scene's camera, one pixel of margin), grown by ``--grow`` pixels (3) so that a
+renderer that blurs it (the solver's density estimation) keeps its power inside; the
+caustic's power is the sum over those pixels of (with - without), each renderer's own
+pair (so the light the sphere takes from the floor there counts against it in every
+renderer alike). Reported: each renderer's caustic power over Mitsuba's (target: within
+5 %), the same over the region not grown, the whole image's mean ratio and HDR-FLIP
+against Mitsuba's, the seconds; and a figure of the pictures and the region.
+
+Mitsuba is not a dependency (see validate_mitsuba.py for its venv); without it the
+script says so and exits 0.
+
+    python benchmarks/validate_glass.py                       # 4096 spp Mitsuba, 1024 ours
+    python benchmarks/validate_glass.py --variant llvm_ad_rgb --qualities draft medium
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render, run_vlights  # noqa: E402
+
+SCENE = Path(__file__).resolve().parent.parent / "tests" / "data" / "mitsuba" / "validate_glass.xml"
+BALL = "glass_ball"
+
+
+def without_ball(xml: Path, out: Path) -> Path:
+    text, count = re.subn(rf'<shape type="sphere" id="{BALL}">.*?</shape>', "", xml.read_text(), flags=re.S)
+    if count != 1:
+        raise SystemExit(f"{xml}: no shape {BALL!r} to take out")
+    out.write_text(text)
+    return out
+
+
+def ball_pixels(xml: Path) -> np.ndarray:
+    """(H, W) bool: the pixels whose centre's camera ray meets the ball, grown by a pixel."""
+    from scipy.ndimage import binary_dilation
+
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.pathtrace import camera_rays
+
+    scene = load_scene(xml)
+    ball = scene.object(BALL).positions
+    centre = ball.mean(axis=0)
+    radius = np.linalg.norm(ball - centre, axis=1).max()
+    camera = scene.camera
+    rays = camera_rays(camera)
+    sx = (np.arange(camera.width) + 0.5) / camera.width * 2 - 1
+    sy = 1 - (np.arange(camera.height) + 0.5) / camera.height * 2
+    d = rays.forward + sx[None, :, None] * rays.right + sy[:, None, None] * rays.up
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    to_centre = centre - rays.eye
+    hit = (d @ to_centre) ** 2 - (to_centre @ to_centre - radius**2) > 0
+    return binary_dilation(hit, iterations=1)
+
+
+def vlights(args, cwd):
+    run = run_vlights(args, cwd)
+    if run.exit_code != 0:
+        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {run.last_line}")
+    return run.seconds
+
+
+def caustic_region(reference, empty, ball, threshold, grow):
+    """(the region grown, the region): the largest connected set of pixels where the
+    smoothed reference with the ball is brighter than without it by ``threshold``."""
+    from scipy.ndimage import binary_dilation, gaussian_filter, label
+
+    brighter = gaussian_filter(reference.mean(axis=2), 1.0) > (1 + threshold) * gaussian_filter(empty.mean(axis=2), 1.0)
+    labels, count = label(brighter & ~ball)
+    if count == 0:
+        raise SystemExit("no caustic found in Mitsuba's image")
+    largest = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    return binary_dilation(largest, iterations=grow) & ~ball if grow else largest, largest
+
+
+def caustic(with_ball, without, mask):
+    return float(np.sum((with_ball - without)[mask]))
+
+
+def figure(panels, mask, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from display.renderer import tonemap
+
+    fig, axes = plt.subplots(1, len(panels) + 1, figsize=(3.2 * (len(panels) + 1), 2.2))
+    for ax, (title, image) in zip(axes, panels, strict=False):
+        ax.imshow(tonemap(image))
+        ax.set_title(title, fontsize=8)
+        ax.axis("off")
+    axes[-1].imshow(mask, cmap="gray")
+    axes[-1].set_title("the caustic's pixels", fontsize=8)
+    axes[-1].axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scene", type=Path, default=SCENE)
+    parser.add_argument("--spp", type=int, default=1024, help="the path tracer's samples (Mitsuba's: 4x)")
+    parser.add_argument("--qualities", nargs="*", default=["draft", "medium"], help="the solver's presets")
+    parser.add_argument("--threshold", type=float, default=0.25, help="how much brighter a caustic pixel is")
+    parser.add_argument("--grow", type=int, default=3, help="pixels the caustic's region is grown by")
+    parser.add_argument("--variant", default="scalar_rgb", help="Mitsuba variant (default scalar_rgb)")
+    parser.add_argument("--mitsuba-python", help="the Python of a venv with mitsuba installed")
+    args = parser.parse_args(argv)
+    python, version = mitsuba_python(args.mitsuba_python)
+    if python is None:
+        print("mitsuba is not installed (see validate_mitsuba.py's docstring): nothing to compare")
+        return 0
+    from display.metrics import metrics
+
+    record = Recorder(benchmark="glass_caustic", mitsuba=version, variant=args.variant, spp=args.spp)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        scenes = {"with": args.scene.resolve(), "without": without_ball(args.scene, tmp / "without.xml")}
+        images, seconds = {}, {}
+        for key, xml in scenes.items():
+            seconds[f"mitsuba_{key}"], images[("mitsuba", key)] = mitsuba_render(
+                python, args.variant, xml, 4 * args.spp, 1, tmp / f"mitsuba_{key}.npy")
+            out = tmp / f"truth_{key}.npy"
+            seconds[f"truth_{key}"] = vlights(["truth", xml, "--spp", args.spp, "--seed", 3, "--hdr", out,
+                                              "-o", out.with_suffix(".png")], tmp)
+            images[("truth", key)] = np.load(out)
+            height, width = images[("mitsuba", key)].shape[:2]
+            for quality in args.qualities:
+                solution, out = tmp / f"{quality}_{key}.npz", tmp / f"{quality}_{key}.npy"
+                start = time.perf_counter()
+                vlights(["solve", xml, "--quality", quality, "-o", solution], tmp)
+                seconds[f"solve_{quality}_{key}"] = time.perf_counter() - start
+                vlights(["render", solution, "--size", f"{width}x{height}", "--hdr", out,
+                         "-o", out.with_suffix(".png")], tmp)
+                images[(f"solution {quality}", key)] = np.load(out)
+        reference, empty = images[("mitsuba", "with")], images[("mitsuba", "without")]
+        mask, strict = caustic_region(reference, empty, ball_pixels(args.scene), args.threshold, args.grow)
+        power, strict_power = caustic(reference, empty, mask), caustic(reference, empty, strict)
+        panels = [("Mitsuba 3", reference)]
+        for name in ["truth"] + [f"solution {q}" for q in args.qualities]:
+            mine = images[(name, "with")]
+            ratio = caustic(mine, images[(name, "without")], mask) / power
+            numbers, _ = metrics(reference, mine)
+            row = record({"renderer": name, "caustic_pixels": int(mask.sum()), "caustic_ratio": ratio,
+                          "strict_pixels": int(strict.sum()),
+                          "strict_ratio": caustic(mine, images[(name, "without")], strict) / strict_power,
+                          "within_5pct": abs(ratio - 1) <= 0.05, "mean_ratio": float(mine.mean() / reference.mean()),
+                          "flip": numbers["flip_mean"], "seconds": seconds})
+            print(f"{name}: caustic {row['caustic_ratio']:.4f} of Mitsuba's over {row['caustic_pixels']} pixels "
+                  f"({row['strict_ratio']:.4f} over the {row['strict_pixels']} not grown), "
+                  f"mean ratio {row['mean_ratio']:.4f}, FLIP {row['flip']:.4f}", flush=True)
+            panels.append((f"{name}: caustic x{ratio:.3f}", mine))
+    record.save("glass_caustic.jsonl")
+    figure(panels, mask, RESULTS / "glass_caustic.png")
+    print(json.dumps({"figure": str(RESULTS / "glass_caustic.png")}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
