@@ -48,15 +48,16 @@ def without_ball(xml: Path, out: Path) -> Path:
     return out
 
 
-def ball_pixels(xml: Path) -> np.ndarray:
-    """(H, W) bool: the pixels whose centre's camera ray meets the ball, grown by a pixel."""
+def ball_pixels(xml: Path, name=BALL, grow=1) -> np.ndarray:
+    """(H, W) bool: the pixels whose centre's camera ray meets the sphere ``name``, grown by
+    ``grow`` pixels (shrunk where negative)."""
     from scipy.ndimage import binary_dilation
 
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.pathtrace import camera_rays
 
     scene = load_scene(xml)
-    ball = scene.object(BALL).positions
+    ball = scene.object(name).positions
     centre = ball.mean(axis=0)
     radius = np.linalg.norm(ball - centre, axis=1).max()
     camera = scene.camera
@@ -67,7 +68,11 @@ def ball_pixels(xml: Path) -> np.ndarray:
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     to_centre = centre - rays.eye
     hit = (d @ to_centre) ** 2 - (to_centre @ to_centre - radius**2) > 0
-    return binary_dilation(hit, iterations=1)
+    if grow < 0:
+        from scipy.ndimage import binary_erosion
+
+        return binary_erosion(hit, iterations=-grow)
+    return binary_dilation(hit, iterations=grow) if grow else hit
 
 
 def vlights(args, cwd):
@@ -94,6 +99,34 @@ def caustic(with_ball, without, mask):
     return float(np.sum((with_ball - without)[mask]))
 
 
+def display_approaches(solution_path, size, samples=4, frames=5):
+    """{approach: (image, seconds of the first frame (its probes drawn), median seconds of
+    ``frames`` more)} of the solution display of ``solution_path`` at its camera."""
+    from display.commands.common import headless
+    from display.glass import APPROACHES
+    from display.renderer import Renderer
+    from radiosity.formats.solution import load_solution
+
+    solution = load_solution(solution_path)
+    out = {}
+    with headless(size, samples) as ctx:
+        view = solution.camera.sized(*size)
+        for approach in APPROACHES:
+            renderer = Renderer(ctx, solution=solution, samples=samples)
+            renderer.glass_approach = approach
+            start = time.perf_counter()
+            image = renderer.render(view, "reference")
+            first = time.perf_counter() - start
+            times = []
+            for _ in range(frames):
+                start = time.perf_counter()
+                renderer.render(view, "reference")
+                times.append(time.perf_counter() - start)
+            out[approach] = (image, first, float(np.median(times)))
+            renderer.release()
+    return out
+
+
 def figure(panels, mask, path):
     import matplotlib
 
@@ -102,14 +135,17 @@ def figure(panels, mask, path):
 
     from display.renderer import tonemap
 
-    fig, axes = plt.subplots(1, len(panels) + 1, figsize=(3.2 * (len(panels) + 1), 2.2))
+    columns = 4
+    rows = -(-(len(panels) + 1) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.2 * columns, 2.0 * rows), squeeze=False)
+    axes = axes.ravel()
     for ax, (title, image) in zip(axes, panels, strict=False):
         ax.imshow(tonemap(image))
         ax.set_title(title, fontsize=8)
+    axes[len(panels)].imshow(mask, cmap="gray")
+    axes[len(panels)].set_title("the caustic's pixels", fontsize=8)
+    for ax in axes:
         ax.axis("off")
-    axes[-1].imshow(mask, cmap="gray")
-    axes[-1].set_title("the caustic's pixels", fontsize=8)
-    axes[-1].axis("off")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -169,6 +205,27 @@ def main(argv=None):
                   f"({row['strict_ratio']:.4f} over the {row['strict_pixels']} not grown), "
                   f"mean ratio {row['mean_ratio']:.4f}, FLIP {row['flip']:.4f}", flush=True)
             panels.append((f"{name}: caustic x{ratio:.3f}", mine))
+        # the walkthrough's glass, each approach, against Mitsuba and the path tracer on the glass balls
+        truth = images[("truth", "with")]
+        balls = ball_pixels(args.scene, grow=-1) | ball_pixels(args.scene, "rough_ball", grow=-1)
+        quality = args.qualities[-1]
+        height, width = reference.shape[:2]
+        for approach, (mine, first, frame) in display_approaches(tmp / f"{quality}_with.npz", (width, height)).items():
+            against_mitsuba, _ = metrics(reference, mine, mask=balls)
+            against_truth, _ = metrics(truth, mine, mask=balls)
+            on = balls[..., None]
+            row = record({"renderer": f"solution {quality} display, glass {approach}", "glass_pixels": int(balls.sum()),
+                          "flip_glass": against_mitsuba["flip_mean_glossy"], "flip": against_mitsuba["flip_mean"],
+                          "flip_glass_vs_truth": against_truth["flip_mean_glossy"],
+                          "mean_ratio_glass": float((mine * on).sum() / (reference * on).sum()),
+                          "first_frame_s": first, "frame_s": frame})
+            print(f"glass {approach}: FLIP on the glass balls {row['flip_glass']:.4f} against Mitsuba "
+                  f"({row['flip_glass_vs_truth']:.4f} against our path tracer), their mean ratio "
+                  f"{row['mean_ratio_glass']:.3f}; whole image {row['flip']:.4f}; frame {1e3 * frame:.1f} ms "
+                  f"(first, with its probes, {1e3 * first:.0f} ms)", flush=True)
+            panels.append((f"display, glass {approach}", mine))
+        truth_balls, _ = metrics(reference, truth, mask=balls)
+        print(f"our path tracer on the glass balls: FLIP {truth_balls['flip_mean_glossy']:.4f} against Mitsuba")
     record.save("glass_caustic.jsonl")
     figure(panels, mask, RESULTS / "glass_caustic.png")
     print(json.dumps({"figure": str(RESULTS / "glass_caustic.png")}))

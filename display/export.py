@@ -702,6 +702,15 @@ def run_export_command(args):
     if args.page:
         check_page_textures(sizes)
     model = load_fit(args.fit)
+    glass = [o.name for o in model.objects if o.glass is not None]
+    if glass:  # the page has no glass shading yet: left out, as clear glass (vlights view and render draw it)
+        from dataclasses import replace
+
+        if len(glass) == len(model.objects):
+            raise InputError(f"{args.fit}: every object is glass, which the page does not draw yet")
+        model = replace(model, objects=tuple(o for o in model.objects if o.glass is None))
+        print(f"left out {len(glass)} glass object(s) ({', '.join(glass[:4])}{', ...' if len(glass) > 4 else ''}): "
+              "the page does not draw glass yet ('vlights view' and 'vlights render' do)")
     server = None
     if args.serve:
         from display.serve import start

@@ -66,6 +66,7 @@ from fitting.model import PARTS
 from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
+from . import glass
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
 from .glsl import emitter_table, stage
 from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_memory, context_limits, store_layout
@@ -104,6 +105,8 @@ PROGRAMS = {
     "back-attributes": dict(vertex_shader="back_vertex.glsl", fragment_shader="back_fragment.glsl",
                             defines=("VL_ATTRIBUTES",)),
     "tonemap": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="tonemap_fragment.glsl"),
+    # a glass object, either face, from its probe (display.glass)
+    "glass": dict(vertex_shader="glass_vertex.glsl", fragment_shader="glass_fragment.glsl"),
 }
 STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
 
@@ -213,6 +216,8 @@ class _Object:
         self.highlight = {}
         self.probe = None  # (row in the atlas, M, centre, lo, hi, albedo) of the fitted probe
         self.glossy = False  # a glossy object: lights, a probe or highlights in the fit, a grid in the solution
+        self.glass = None  # its ``Glass``: drawn as glass (``display.glass``), after everything else
+        self.slab, self.sphere = False, None  # its proxy (``display.glass.proxy``)
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
 
@@ -439,6 +444,13 @@ class Renderer:
         self.estimate = _estimate(fit, solution, self.layout)
         check_memory(self.estimate, self.layout, say=say)
         self.objects = [_Object(ctx, o.name, o.positions, o.normals, o.faces) for o in source.objects]
+        by_name = {o.name: o for o in solution.objects} if solution is not None else {}
+        for obj, o in zip(self.objects, source.objects, strict=True):
+            obj.glass = glass.glass_of(o) or glass.glass_of(by_name.get(o.name))
+            if obj.glass is not None:
+                obj.slab, obj.sphere = glass.proxy(obj.positions.astype(np.float64))
+        self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
+        self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
         positions = np.concatenate([o.positions for o in self.objects])
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
         self.store = None
@@ -738,13 +750,15 @@ class Renderer:
         self._full_screen(program)
 
     def draw(self, view, mode="fitted", shading="pixel", lights=None, *, targets=1, program_key=None, mask=None,
-             samples=None, parts=PARTS):
+             samples=None, parts=PARTS, with_glass=True):
         """Draw, average the samples, and return the float framebuffer holding the image
         (colour attachment 0, a texture of the view's size; reused between calls, released
         with the renderer). ``samples`` per pixel (None: the renderer's). With ``mask`` (a
         set of object names) every object is drawn flat: 1 for those named, 0 for the others.
         ``parts``: the parts of the model drawn (of ``PARTS``: "lights", "probe", "emitters";
-        the solution display has the emitters' highlights only)."""
+        the solution display has the emitters' highlights only). Glass objects are drawn last,
+        from their probes (``display.glass``, ``glass_approach``), unless ``with_glass`` is
+        False (their probes are drawn so) or the draw is a mask's or the attributes'."""
         unknown = set(parts) - set(PARTS)
         if unknown:
             raise InputError(f"unknown part {sorted(unknown)[0]!r} of the model; the parts are {', '.join(PARTS)}")
@@ -756,6 +770,9 @@ class Renderer:
         if shading not in SHADINGS:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx
+        glassy = [o for o in self.objects if o.glass is not None] if (
+            with_glass and mask is None and program_key is None and targets == 1 and self.glass_approach != "none") else []
+        probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]  # drawn before this frame's
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
         ctx.viewport = (0, 0, *fbs.scene.size)
@@ -764,6 +781,8 @@ class Renderer:
             self._draw_objects(view, mode, shading, lights, program_key, mask, parts)
             if self.environment is not None and mask is None and program_key is None and targets == 1:
                 self._draw_background(view, fbs.scene.size)
+            if glassy:
+                self._draw_glass(view, glassy, probes)
             ctx.depth_func = "<"  # moderngl's default, for whatever draws next with the context
         return self._average(fbs)
 
@@ -785,6 +804,8 @@ class Renderer:
         eye = tuple(float(v) for v in view.eye)
         ready = set()
         for index, obj in enumerate(self.objects):
+            if obj.glass is not None:
+                continue  # drawn last, from its probe (``_draw_glass``)
             key = program_key
             n = self._light_count(obj, mode, lights)
             # per-light coefficients and the emitters' visibility: by vertex ids and barycentrics
@@ -831,6 +852,8 @@ class Renderer:
         ctx.cull_face = "front"
         ctx.polygon_offset = self.depth.back_offset
         for obj in self.objects:
+            if obj.glass is not None:
+                continue
             if program not in obj.back_vaos:
                 obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
             obj.back_vaos[program].render(moderngl.TRIANGLES)
@@ -838,14 +861,59 @@ class Renderer:
         ctx.cull_face = "back"
         ctx.disable(moderngl.CULL_FACE)
 
-    def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS):
+    def _glass_probe(self, obj, mode, shading, lights, parts):
+        """The probe texture of glass object ``obj`` for this way of drawing: the scene
+        without its glass drawn from the object's centre (``display.glass``), made on first
+        use and kept."""
+        key = (obj.name, mode, shading, lights, tuple(parts))
+        if key not in self._glass_probes:
+            views = glass.cube_views(obj.sphere[0], glass.PROBE_SIZE)
+            faces = [self.render(v, mode, shading, lights, samples=1, parts=parts, with_glass=False) for v in views]
+            self._glass_probes[key] = glass.probe_texture(self.ctx, glass.octahedral_from_faces(faces, views))
+        return self._glass_probes[key]
+
+    def _draw_glass(self, view, objects, probes):
+        """The glass ``objects`` over what is drawn (either face, depth-tested): from their
+        ``probes``, sheets and slabs blended over what is behind them where ``glass_approach``
+        is "blend" (glass.glsl)."""
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.depth_func = self.depth.nearer
+        program = self._program("glass")
+        program["mvp"].write(self._matrices(view))
+        self._set(program, "eye", tuple(float(v) for v in view.eye))
+        lo, hi = self.bounds
+        for obj, probe in zip(objects, probes, strict=True):
+            g = obj.glass
+            blend = self.glass_approach == "blend" and (obj.slab or g.kind == "thindielectric")
+            probe.use(location=8)
+            values = {"glass_probe": 8, "glass_size": glass.PROBE_SIZE, "glass_centre": tuple(map(float, obj.sphere[0])),
+                      "glass_lo": tuple(map(float, lo)), "glass_hi": tuple(map(float, hi)),
+                      "glass_kind": {"dielectric": 0, "thindielectric": 1, "roughdielectric": 2}[g.kind],
+                      "glass_eta": float(g.eta), "glass_alpha": float(g.alpha),
+                      "glass_reflectance": g.specular_reflectance, "glass_transmittance": g.specular_transmittance,
+                      "glass_proxy": int(not (obj.slab or g.kind == "thindielectric")),
+                      "glass_sphere": (*map(float, obj.sphere[0]), float(obj.sphere[1])), "glass_blend": int(blend)}
+            for name, value in values.items():
+                self._set(program, name, value)
+            if blend:
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
+            vao = obj.vao(ctx, program, ("in_position", "in_normal"))
+            vao.render(moderngl.TRIANGLES)
+            vao.release()
+            ctx.disable(moderngl.BLEND)
+
+    def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS,
+               with_glass=True):
         """Linear radiance (H, W, 3) float32, row 0 at the top, the background the
         environment (or 0): each pixel
         the mean of its ``samples`` (None: the renderer's).
 
         ``lights``: use only the first K lights of each object (None: all); ``parts``: the
         parts of the model drawn (``draw``)."""
-        return self._read(self.draw(view, mode, shading, lights, samples=samples, parts=parts), 0)
+        return self._read(self.draw(view, mode, shading, lights, samples=samples, parts=parts, with_glass=with_glass), 0)
 
     def object_mask(self, view, names):
         """(H, W) bool: pixels whose centre sees one of the objects ``names`` (one sample)."""
@@ -937,7 +1005,8 @@ class Renderer:
         self.images.release()
         for p in self._programs.values():
             p.release()
-        for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values()):
+        for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values(),
+                        *self._glass_probes.values()):
             if texture is not None:
                 texture.release()
         for resource in (self._scratch, *self._full_screens.values()):

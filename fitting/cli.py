@@ -280,6 +280,10 @@ def format_report(model, path):
         if o.info.get("method") == "diffuse":
             lines.append(f"{o.name:<14} {'diffuse':<13} {'-':>3} (a diffuse material: one colour per vertex)")
             continue
+        if o.glass is not None:
+            lines.append(f"{o.name:<14} {'glass':<13} {'-':>3} ({o.glass.kind} eta {o.glass.eta:.3g}: drawn as glass, "
+                         "reflecting and refracting its surroundings)")
+            continue
         e = o.info["error"]
         exps = o.info["shininess"]
         shown = "-" if not exps else (f"{exps[0]:.4g}" if len(set(exps)) == 1 else f"{min(exps):.3g} .. {max(exps):.3g}")

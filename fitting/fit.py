@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from radiosity.formats.errors import InputError
+from radiosity.formats.material import Glass
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import SolutionFile
 
@@ -197,7 +198,14 @@ def _json_number(value):
 def fit_object(obj, options, scene=None, progress=None, solution=None, box=None):
     """FittedObject for one ``ObjectSolution``; ``scene`` the ``mixed.SceneGeometry`` of
     the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None;
-    ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models with emitters and a probe."""
+    ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models with emitters and a probe.
+    A glass object is not fitted: the displays draw it as glass (``display.glass``)."""
+    glass = obj.material.get("glass") if isinstance(obj.material, dict) else None
+    if glass is not None:
+        zeros = np.zeros((obj.num_vertices, 3))
+        info = {"model": "glass", "method": "none", "chosen_by": f"{glass['kind']}: drawn as glass", "time_s": 0.0}
+        return replace(_fitted_object(obj, zeros, zeros, (np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)), info),
+                       glass=Glass.from_dict(glass), textured=None)
     if not obj.is_diffuse and options.glossy_model != "lights":
         return _fit_components(obj, options, scene, progress, solution, box)
     t0 = time.perf_counter()

@@ -27,6 +27,12 @@ Version 6 adds emitter parts per object, as the solution's version 5 has them: a
 object's ``<name>/emitter_parts`` (P_o,) int32 names the parts of ``meta.emitters``
 (indices) its highlight draws, its ``visibility`` then (V, P_o); ``meta.emitters`` may
 then hold up to ``MAX_SCENE_PARTS``. An object without it draws every part.
+Version 7 adds glass, as the solution's version 7 has it: ``meta.objects[name].glass``
+(``radiosity.formats.material.Glass.to_dict``: kind, eta, distribution, alpha,
+specular_reflectance, specular_transmittance) marks an object the displays draw as glass
+(reflecting and refracting what is around it: ``display.glass``) instead of by this
+formula; its arrays are a diffuse object's with ``emitted`` 0, so a reader of version 6
+that ignores the key sees a black object.
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -54,6 +60,7 @@ import numpy as np
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS, MAX_NODES, emitter_radiance, file_parts
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
+from radiosity.formats.material import Glass
 from radiosity.formats.npz import open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
 
@@ -61,8 +68,8 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 6  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
-READS = (1, 2, 3, 4, 5, 6)
+VERSION = 7  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
+READS = (1, 2, 3, 4, 5, 6, 7)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -173,6 +180,7 @@ class FittedObject:
     probe: Probe | None = None  # version 3: the reflection probe ...
     probe_weight: np.ndarray | None = None  # ... and its per-vertex weight s (V, 3)
     textured: TexturedDiffuse | None = None  # version 4: a textured object's diffuse term
+    glass: Glass | None = None  # version 7: drawn as glass (its arrays a black diffuse object's)
 
     def __post_init__(self):
         v, k = len(self.positions), len(self.light_pos)
@@ -295,6 +303,8 @@ class FittedObject:
             out["probe"] = self.probe.to_meta()
         if self.textured is not None:
             out["textured"] = {"diffuse": list(self.textured.kd)}
+        if self.glass is not None:
+            out["glass"] = self.glass.to_dict()
         return out
 
 
@@ -321,9 +331,11 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 6 where an object names its
-        emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
+        """The lowest contract version that holds this model: 7 with a glass object, 6 where
+        an object names its emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
         an environment, else 3."""
+        if any(o.glass is not None for o in self.objects):
+            return 7
         if any(o.highlight is not None and o.highlight.indices is not None for o in self.objects):
             return 6
         if any(p.is_delta for p in self.emitters):
@@ -456,11 +468,18 @@ def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES)
         textured = read_textured(archive, name, n_v, diffuse)
         if textured is None:
             raise fail(f"object {name!r} is textured in meta 'objects' but has no '{name}/uvs'")
+    glass = None
+    if version >= 7 and "glass" in info:
+        try:
+            glass = Glass.from_dict(info["glass"])
+        except (TypeError, ValueError) as exc:
+            raise fail(f"meta 'objects' {name!r}: {exc}") from None
     try:
         return FittedObject(
             name=name,
-            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured")},
+            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured", "glass")},
             textured=textured,
+            glass=glass,
             highlight=highlight,
             probe=probe,
             probe_weight=weight,

@@ -13,7 +13,7 @@ from radiosity.formats import InputError
 from radiosity.formats.camera import FOV_AXES
 
 __all__ = [
-    "FIT", "SOLUTION", "add_camera_flags", "add_samples_flag", "check_drawable", "check_model_files", "check_output_file",
+    "FIT", "SOLUTION", "add_camera_flags", "add_glass_flag", "add_samples_flag", "check_drawable", "check_model_files", "check_output_file",
     "input_format", "read_model_files", "rendering", "resolve_view", "size", "sniff",
 ]
 
@@ -64,6 +64,16 @@ def add_camera_flags(parser, default_size):
     parser.add_argument("--view", metavar="NAME", help="a named view from --views")
     parser.add_argument("--views", metavar="FILE", help='JSON of named views: {"name": {"eye": [..], "look_at": [..], '
                         '"up": [..], "fov_y_deg": d}} (or "fov_deg": d, "fov_axis": "x" for a fov along the width)')
+
+
+def add_glass_flag(parser):
+    """--glass APPROACH: how glass objects are drawn (``display.glass``)."""
+    from display.glass import APPROACHES
+
+    parser.add_argument("--glass", choices=APPROACHES, default=APPROACHES[0],
+                        help="how glass is drawn: blend (reflections and refractions from a probe of the scene "
+                        "around it, sheets and slabs blended over what is behind them; the default), probe (what "
+                        "is behind a sheet from the probe too), none (left out, as clear glass)")
 
 
 def add_samples_flag(parser):
@@ -196,6 +206,7 @@ def rendering(args):
         mode = args.mode or ("fitted" if fit is not None else "reference")
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples,
                             say=lambda line: print(line, file=sys.stderr))  # a large upload's estimate
+        renderer.glass_approach = getattr(args, "glass", renderer.glass_approach)
         try:
             yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
         finally:

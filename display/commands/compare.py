@@ -15,6 +15,7 @@ from .common import (
     FIT,
     SOLUTION,
     add_camera_flags,
+    add_glass_flag,
     add_samples_flag,
     check_drawable,
     headless,
@@ -48,6 +49,7 @@ def add_command(subparsers):
     p.add_argument("--shading", choices=("gouraud", "pixel"), default="pixel",
                    help="gouraud: per vertex, as in 1997; pixel: per pixel (default: %(default)s)")
     add_samples_flag(p)
+    add_glass_flag(p)
     p.add_argument("--truth", nargs="+", metavar="FILE.npy",
                    help="path-traced images of figure 5's views, in order (from 'vlights truth --hdr' with the same "
                    "camera and size): every display is also measured against them")
@@ -162,6 +164,7 @@ def run(args):
         if image is not None:
             check_reference_camera(args, fit, solution)
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
+        renderer.glass_approach = args.glass
         view = resolve_view(args, renderer.bounds, fit, solution)
         views = figure5_views(view)
         reference = None if image is None else ReferenceImage(image, view, str(args.reference), factor)

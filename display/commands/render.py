@@ -10,7 +10,7 @@ from fitting.model import PARTS
 from radiosity.formats import InputError
 from radiosity.formats.limits import check_exposure
 
-from .common import add_camera_flags, add_samples_flag, check_output_file, display_mode, rendering
+from .common import add_camera_flags, add_glass_flag, add_samples_flag, check_output_file, display_mode, rendering
 
 __all__ = ["add_command", "run"]
 
@@ -40,6 +40,7 @@ def add_command(subparsers):
     p.add_argument("--off", nargs="+", default=[], metavar="PART", choices=PARTS,
                    help="draw the model without these parts: emitters (their highlights), probe, lights")
     add_samples_flag(p)
+    add_glass_flag(p)
     p.set_defaults(func=run)
 
     p.add_argument("--video", metavar="FILE.mp4", help="instead of one picture, a walkthrough video along a smooth path from the camera")

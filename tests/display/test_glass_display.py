@@ -1,0 +1,146 @@
+"""Glass at display (``display.glass``, glass.glsl) against its numpy statement.
+
+Under a constant environment of radiance 1 the probe of a glass object is 1 in every
+direction, so what the shader draws is its weights alone: a thin pane shows F + (1 - F)
+= 1 drawn either way ("blend" over the background, "probe"), and a solid ball F + (1 - F)
+(1 - F_exit) T^2 at each pixel, computed here from the ray's hit on the true sphere. The
+octahedral resampling of the six views is held to the directions it encodes, the fit
+file keeps an object's glass (version 7), and the export leaves glass out saying so.
+"""
+
+import numpy as np
+import pytest
+
+from display.glass import cube_views, octahedral_from_faces, proxy
+from display.renderer import Renderer
+from fitting import FitOptions, fit
+from fitting.model import load_fit
+from fitting.probe import decode
+from radiosity.formats import Camera
+from radiosity.formats.environment import EnvironmentLight
+from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.scene import builtins
+from radiosity.scene.microfacet import fresnel_dielectric
+
+BLACK = [0.0, 0.0, 0.0]
+
+
+def _glass_object(name, positions, normals, faces, glass):
+    material = {"diffuse": BLACK, "specular": BLACK, "exponent": 0.0, "emission": BLACK, "glass": glass}
+    tangents = np.cross(normals, [0.3, 0.5, 0.8])
+    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    return ObjectSolution(name=name, positions=positions, normals=normals, tangents=tangents, faces=faces,
+                          directions=np.array([[0.0, 0.0, 1.0]]), radiance=np.zeros((len(positions), 1, 3)),
+                          material=material)
+
+
+def _ball(eta=1.5, transmittance=(1.0, 1.0, 1.0)):
+    positions, faces = builtins.mesh("sphere", subdivisions=5)[:2]
+    positions = np.asarray(positions, np.float64)
+    normals = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    return _glass_object("ball", normals.copy(), normals, np.asarray(faces), {
+        "kind": "dielectric", "eta": eta, "specular_transmittance": list(transmittance)})
+
+
+def _pane():
+    positions = np.array([[-2.0, -0.8, 1.5], [-1.2, -0.8, 1.5], [-1.2, 0.8, 1.5], [-2.0, 0.8, 1.5]])
+    return _glass_object("pane", positions, np.tile([0.0, 0.0, 1.0], (4, 1)), np.array([[0, 1, 2], [0, 2, 3]]),
+                         {"kind": "thindielectric", "eta": 1.5})
+
+
+def _furnace(*objects):
+    return Solution(objects=objects, scene="glass", environment=EnvironmentLight(np.ones((4, 8, 3), np.float32), 1.0,
+                                                                                 np.eye(3)))
+
+
+CAMERA = Camera((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), fov_deg=40, width=64, height=48)
+
+
+def _expected_ball(camera, eta, transmittance):
+    """Per pixel centre: F + (1 - F)(1 - F_exit) T^2 where the ray meets the unit sphere, NaN elsewhere."""
+    d = camera.pixel_rays()
+    eye = np.asarray(camera.eye)
+    b = d @ eye
+    disc = b**2 - (eye @ eye - 1.0)
+    s = -b - np.sqrt(np.maximum(disc, 0))
+    n = eye + s[..., None] * d
+    c = np.sum(-d * n, axis=-1)
+    f = fresnel_dielectric(c, eta)
+    sin_t = np.sqrt(np.clip(1 - c**2, 0, 1)) / eta
+    f_exit = fresnel_dielectric(np.sqrt(1 - sin_t**2), 1 / eta)
+    value = f[..., None] + ((1 - f) * (1 - f_exit))[..., None] * np.asarray(transmittance) ** 2
+    return np.where((disc > 0)[..., None], value, np.nan), c
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("approach", ["blend", "probe"])
+@pytest.mark.parametrize("eta, transmittance", [(1.5, (1.0, 1.0, 1.0)), (2.4, (0.9, 0.6, 0.3))])
+def test_glass_in_a_constant_environment_shows_its_weights(gl_context, approach, eta, transmittance):
+    solution = _furnace(_ball(eta, transmittance), _pane())
+    renderer = Renderer(gl_context, solution=solution, samples=1)
+    renderer.glass_approach = approach
+    image = renderer.render(CAMERA, "reference").astype(np.float64)
+    expected, cos = _expected_ball(CAMERA, eta, transmittance)
+    inside = np.isfinite(expected[..., 0]) & (cos > 0.3)  # off the tessellated silhouette
+    assert inside.sum() > 500
+    np.testing.assert_allclose(image[inside], expected[inside], atol=0.02)
+    pane = np.zeros(image.shape[:2], bool)
+    pane[18:30, 3:8] = True  # well inside the pane's image (x -2 .. -1.2 at z 1.5 seen from z 4)
+    np.testing.assert_allclose(image[pane], 1.0, atol=0.01)
+    renderer.glass_approach = "none"  # left out: the environment behind
+    np.testing.assert_allclose(renderer.render(CAMERA, "reference")[inside], 1.0, atol=1e-6)
+    renderer.release()
+
+
+@pytest.mark.gl
+def test_a_fitted_glass_object_draws_as_the_solution_s(gl_context, tmp_path):
+    solution = _furnace(_ball(), _pane())
+    model = fit(solution, FitOptions.for_quality("draft"))
+    path = tmp_path / "fit.npz"
+    model.save(path)
+    loaded = load_fit(path)
+    assert loaded.version == 7 and loaded.object("ball").glass.kind == "dielectric"
+    assert loaded.object("ball").n_lights == 0 and not loaded.object("ball").emitted.any()
+    fitted = Renderer(gl_context, fit=loaded, samples=1)
+    reference = Renderer(gl_context, solution=solution, samples=1)
+    np.testing.assert_allclose(fitted.render(CAMERA, "fitted"), reference.render(CAMERA, "reference"), atol=1e-5)
+    fitted.release()
+    reference.release()
+
+
+def test_the_octahedral_map_holds_the_directions_the_six_views_saw():
+    views = cube_views((0.5, -1.0, 2.0), 64)
+    faces = []
+    for view in views:
+        d = view.pixel_rays()
+        faces.append((0.5 + 0.5 * d).astype(np.float32))  # each pixel's colour: its direction
+    m = 48
+    image = octahedral_from_faces(faces, views, m)
+    uv = (np.stack(np.meshgrid(np.arange(m), np.arange(m)), axis=-1) + 0.5) / m
+    np.testing.assert_allclose(image, 0.5 + 0.5 * decode(uv), atol=0.02)
+
+
+def test_a_sheet_or_a_slab_passes_light_straight_and_a_ball_refracts():
+    ball = _ball()
+    assert not proxy(ball.positions)[0]
+    centre, radius = proxy(ball.positions)[1]
+    assert np.allclose(centre, 0, atol=1e-9) and radius == pytest.approx(1.0)
+    slab = np.array([[x, y, z] for x in (0, 2) for y in (0, 1) for z in (0, 0.05)], float)
+    assert proxy(slab)[0]
+
+
+def test_the_export_leaves_glass_out_saying_so(tmp_path, cli):
+    model = fit(_furnace(_ball(), _pane(), *_opaque()), FitOptions.for_quality("draft"))
+    model.save(tmp_path / "fit.npz")
+    code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "page", "--no-page")
+    assert code == 0, err
+    assert "left out 2 glass object(s) (ball, pane)" in out
+    assert "1 objects" in out
+
+
+def _opaque():
+    positions = np.array([[-3.0, -1.5, -1.0], [3.0, -1.5, -1.0], [3.0, -1.5, 1.0]])
+    material = {"diffuse": [0.5, 0.5, 0.5], "specular": BLACK, "exponent": 0.0, "emission": BLACK}
+    return (ObjectSolution(name="floor", positions=positions, normals=np.tile([0.0, 1, 0], (3, 1)),
+                           tangents=np.tile([1.0, 0, 0], (3, 1)), faces=np.array([[0, 2, 1]]),
+                           directions=np.array([[0.0, 0.0, 1.0]]), radiance=np.full((3, 1, 3), 0.3), material=material),)
