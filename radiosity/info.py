@@ -26,11 +26,18 @@ def describe(scene, refined, max_edge, how, adaptive=None):
         kind = "glossy" if m.is_glossy else ("diffuse" if m.is_reflective else "black")
         if m.microfacet is not None:  # its own model (the table's kd, ks and n: its Phong stand-in)
             kind = f"{m.microfacet.kind} {m.microfacet.distribution} {m.microfacet.alpha:g}"
+        rho = (albedo(m, 1.0), albedo(m, 0.5))
+        if m.glass is not None:  # what it reflects (the rest it transmits)
+            from radiosity.scene.glass import reflectance
+
+            kind = f"{m.glass.kind} {m.glass.eta:.3g}" + (f" {m.glass.distribution} {m.glass.alpha:g}"
+                                                          if m.glass.kind == "roughdielectric" else "")
+            rho = tuple(float(reflectance(m.glass, c)) * np.asarray(m.glass.specular_reflectance) for c in (1.0, 0.5))
         materials[name] = {
             **m.to_dict(),
             "kind": kind + (" emitter" if m.is_emitter else ""),
-            "albedo_normal": _round(albedo(m, 1.0), 4),
-            "albedo_60deg": _round(albedo(m, 0.5), 4),
+            "albedo_normal": _round(rho[0], 4),
+            "albedo_60deg": _round(rho[1], 4),
         }
     objects = []
     for o, r in zip(scene.objects, refined.objects):
@@ -124,6 +131,8 @@ def format_description(info):
     if any("microfacet" in m for m in info["materials"].values()):
         out.append("  (a rough plastic's or conductor's kd, ks and n are the Phong lobe its displays draw its delta "
                    "lights' highlights with; its albedo is its own model's)")
+    if any("glass" in m for m in info["materials"].values()):
+        out.append("  (a glass's albedo is what it reflects; the rest it transmits, times its transmittance)")
     for name, m in info["materials"].items():
         glossy = any(m["specular"])
         specular = _v(m["specular"], "{:.3f}") if glossy else "-"

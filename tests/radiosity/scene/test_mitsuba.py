@@ -995,6 +995,18 @@ def test_scene_info_reads_a_mitsuba_scene(capsys):
     assert "floor" in out and "lamp" in out
 
 
+def test_scene_info_names_a_glass_and_what_it_reflects(tmp_path, capsys):
+    from display.cli import main
+
+    path = write_scene(tmp_path, '<shape type="rectangle" id="floor"/><shape type="sphere" id="ball">'
+                       '<bsdf type="roughdielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/>'
+                       '<string name="distribution" value="ggx"/><float name="alpha" value="0.2"/></bsdf></shape>')
+    assert main(["scene-info", str(path)]) == 0
+    ball = next(line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("ball ")
+                and "roughdielectric" in line)
+    assert "roughdielectric 1.5 ggx 0.2" in ball and "0.040 / 0.089" in ball  # Fresnel at 0 and 60 degrees
+
+
 def test_truth_renders_at_the_film_size(tmp_path, capsys):
     from PIL import Image
 
