@@ -66,7 +66,7 @@ from fitting.model import PARTS
 from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 
-from . import glass
+from . import glass, mirror
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
 from .glsl import emitter_table, stage
 from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_memory, context_limits, store_layout
@@ -79,6 +79,7 @@ MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "
 SHADINGS = ("gouraud", "pixel")
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
+GL_CLIP_DISTANCE0 = 0x3000  # OpenGL's enum: clip by gl_ClipDistance[0] (a flat mirror's reflected view)
 
 # The programs: a shader file per stage (display/shaders), compiled with ``display.glsl``'s
 # defines for the object's parts and emitter nodes, and the variants named in "defines".
@@ -107,6 +108,8 @@ PROGRAMS = {
     "tonemap": dict(vertex_shader="full_screen_vertex.glsl", fragment_shader="tonemap_fragment.glsl"),
     # a glass object, either face, from its probe (display.glass)
     "glass": dict(vertex_shader="glass_vertex.glsl", fragment_shader="glass_fragment.glsl"),
+    # a perfect mirror, from the scene reflected in its plane or its probe (display.mirror)
+    "mirror": dict(vertex_shader="glass_vertex.glsl", fragment_shader="mirror_fragment.glsl"),
 }
 STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
 
@@ -218,6 +221,8 @@ class _Object:
         self.glossy = False  # a glossy object: lights, a probe or highlights in the fit, a grid in the solution
         self.glass = None  # its ``Glass``: drawn as glass (``display.glass``), after everything else
         self.slab, self.sphere = False, None  # its proxy (``display.glass.proxy``)
+        self.mirror = None  # (ks, F0 or None) of a perfect mirror: drawn by what it reflects (``display.mirror``)
+        self.plane = None  # a flat mirror's (point, unit normal)
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
 
@@ -447,10 +452,15 @@ class Renderer:
         by_name = {o.name: o for o in solution.objects} if solution is not None else {}
         for obj, o in zip(self.objects, source.objects, strict=True):
             obj.glass = glass.glass_of(o) or glass.glass_of(by_name.get(o.name))
-            if obj.glass is not None:
+            obj.mirror = mirror.mirror_of(o) or mirror.mirror_of(by_name.get(o.name))
+            if obj.glass is not None or obj.mirror is not None:
                 obj.slab, obj.sphere = glass.proxy(obj.positions.astype(np.float64))
+            if obj.mirror is not None:
+                obj.plane = mirror.plane_of(o.positions, o.normals)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
+        self._clip = None  # a flat mirror's plane (n, -n . p) while its reflected view is drawn
+        self._mirror_images = {}  # a flat mirror's name -> the texture of its reflected view (remade every frame)
         positions = np.concatenate([o.positions for o in self.objects])
         self.bounds = np.stack([positions.min(axis=0), positions.max(axis=0)]).astype(np.float64)
         self.store = None
@@ -770,9 +780,12 @@ class Renderer:
         if shading not in SHADINGS:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx
-        glassy = [o for o in self.objects if o.glass is not None] if (
-            with_glass and mask is None and program_key is None and targets == 1 and self.glass_approach != "none") else []
-        probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]  # drawn before this frame's
+        shown = with_glass and mask is None and program_key is None and targets == 1
+        glassy = [o for o in self.objects if o.glass is not None] if shown and self.glass_approach != "none" else []
+        mirrors = [o for o in self.objects if o.mirror is not None] if shown else []
+        # what they show is drawn before this frame: probes once, a flat mirror's reflected view every frame
+        probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]
+        seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
         ctx.viewport = (0, 0, *fbs.scene.size)
@@ -781,6 +794,8 @@ class Renderer:
             self._draw_objects(view, mode, shading, lights, program_key, mask, parts)
             if self.environment is not None and mask is None and program_key is None and targets == 1:
                 self._draw_background(view, fbs.scene.size)
+            if mirrors:
+                self._draw_mirrors(view, mirrors, seen)
             if glassy:
                 self._draw_glass(view, glassy, probes)
             ctx.depth_func = "<"  # moderngl's default, for whatever draws next with the context
@@ -803,9 +818,10 @@ class Renderer:
         mvp = self._matrices(view)
         eye = tuple(float(v) for v in view.eye)
         ready = set()
+        clip = ("VL_CLIP",) if self._clip is not None else ()
         for index, obj in enumerate(self.objects):
-            if obj.glass is not None:
-                continue  # drawn last, from its probe (``_draw_glass``)
+            if obj.glass is not None or obj.mirror is not None:
+                continue  # drawn last, from what they show (``_draw_glass``, ``_draw_mirrors``)
             key = program_key
             n = self._light_count(obj, mode, lights)
             # per-light coefficients and the emitters' visibility: by vertex ids and barycentrics
@@ -821,9 +837,10 @@ class Renderer:
                 key = "gouraud" if shading == "gouraud" and mask is None else "fitted-pixel" if pixel else "fitted"
             drawn = self._drawn_parts(obj, mode, parts, n) if mask is None else ()
             textured = obj.textured is not None and mask is None and key != "attributes" and key != "attributes-pixel"
-            program = self._program(key, drawn, textured)
+            program = self._program(key, drawn, textured, clip)
             if (key, drawn, textured) not in ready:
                 program["mvp"].write(mvp)
+                self._set(program, "clip_plane", self._clip)
                 self._set(program, "eye", eye)
                 self._set(program, "gouraud", int(shading == "gouraud"))
                 ready.add((key, drawn, textured))
@@ -847,13 +864,14 @@ class Renderer:
             vao.render(moderngl.TRIANGLES)
             vao.release()
         # the backs, after every front: black where nearer than every front (strictly)
-        program = self._program("back-attributes" if program_key == "attributes" else "back")
+        program = self._program("back-attributes" if program_key == "attributes" else "back", extra=clip)
         program["mvp"].write(mvp)
+        self._set(program, "clip_plane", self._clip)
         ctx.cull_face = "front"
         ctx.polygon_offset = self.depth.back_offset
         for obj in self.objects:
-            if obj.glass is not None:
-                continue
+            if obj.glass is not None or obj.mirror is not None:
+                continue  # glass has no back; a mirror's is drawn with it, and never inside its own probe
             if program not in obj.back_vaos:
                 obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
             obj.back_vaos[program].render(moderngl.TRIANGLES)
@@ -871,6 +889,58 @@ class Renderer:
             faces = [self.render(v, mode, shading, lights, samples=1, parts=parts, with_glass=False) for v in views]
             self._glass_probes[key] = glass.probe_texture(self.ctx, glass.octahedral_from_faces(faces, views))
         return self._glass_probes[key]
+
+    def _mirror_image(self, obj, view, mode, shading, lights, samples, parts):
+        """What mirror ``obj`` shows in ``view``: a flat one's (texture, the reflected view's
+        model-view-projection), the scene drawn from the eye reflected in its plane with what
+        lies behind the plane clipped away; a curved one's probe (``_glass_probe``), None."""
+        if obj.plane is None:
+            return self._glass_probe(obj, mode, shading, lights, parts), None
+        p, n = obj.plane
+        reflected = mirror.mirrored_view(view, obj.plane)
+        self._clip = tuple(float(v) for v in (*n, -float(n @ p)))
+        self.ctx.enable_direct(GL_CLIP_DISTANCE0)
+        try:
+            image = self.render(reflected, mode, shading, lights, samples=samples, parts=parts, with_glass=False)
+        finally:
+            self.ctx.disable_direct(GL_CLIP_DISTANCE0)
+            self._clip = None
+        old = self._mirror_images.pop(obj.name, None)
+        if old is not None:
+            old.release()
+        texture = self.ctx.texture((view.width, view.height), 3, np.ascontiguousarray(image[::-1]).tobytes(), dtype="f4")
+        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        texture.repeat_x = texture.repeat_y = False
+        self._mirror_images[obj.name] = texture
+        return texture, self._matrices(reflected)
+
+    def _draw_mirrors(self, view, objects, seen):
+        """The perfect mirrors ``objects`` over what is drawn (depth-tested, their backs
+        black): ks F times what ``seen`` holds for each (``_mirror_image``; mirror_fragment.glsl)."""
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.depth_func = self.depth.nearer
+        program = self._program("mirror")
+        program["mvp"].write(self._matrices(view))
+        self._set(program, "eye", tuple(float(v) for v in view.eye))
+        lo, hi = self.bounds
+        for obj, (texture, reflected_mvp) in zip(objects, seen, strict=True):
+            ks, f0 = obj.mirror
+            planar = reflected_mvp is not None
+            texture.use(location=9 if planar else 8)
+            values = {"mirror_planar": int(planar), "mirror_image": 9, "glass_probe": 8, "glass_size": glass.PROBE_SIZE,
+                      "mirror_ks": tuple(map(float, ks)), "mirror_fresnel": int(f0 is not None),
+                      "mirror_f0": tuple(map(float, f0)) if f0 is not None else (0.0, 0.0, 0.0),
+                      "glass_centre": tuple(map(float, obj.sphere[0])), "glass_lo": tuple(map(float, lo)),
+                      "glass_hi": tuple(map(float, hi))}
+            for name, value in values.items():
+                self._set(program, name, value)
+            if planar and "mirror_mvp" in program:
+                program["mirror_mvp"].write(reflected_mvp)
+            vao = obj.vao(ctx, program, ("in_position", "in_normal"))
+            vao.render(moderngl.TRIANGLES)
+            vao.release()
 
     def _draw_glass(self, view, objects, probes):
         """The glass ``objects`` over what is drawn (either face, depth-tested): from their
@@ -1006,7 +1076,7 @@ class Renderer:
         for p in self._programs.values():
             p.release()
         for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values(),
-                        *self._glass_probes.values()):
+                        *self._glass_probes.values(), *self._mirror_images.values()):
             if texture is not None:
                 texture.release()
         for resource in (self._scratch, *self._full_screens.values()):

@@ -284,6 +284,9 @@ def format_report(model, path):
             lines.append(f"{o.name:<14} {'glass':<13} {'-':>3} ({o.glass.kind} eta {o.glass.eta:.3g}: drawn as glass, "
                          "reflecting and refracting its surroundings)")
             continue
+        if o.mirror is not None:
+            lines.append(f"{o.name:<14} {'mirror':<13} {'-':>3} (a perfect mirror: drawn by what it reflects)")
+            continue
         e = o.info["error"]
         exps = o.info["shininess"]
         shown = "-" if not exps else (f"{exps[0]:.4g}" if len(set(exps)) == 1 else f"{min(exps):.3g} .. {max(exps):.3g}")

@@ -18,14 +18,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import Glass
+from radiosity.formats.material import Material
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import SolutionFile
 
 from . import blocks, glossy, loss, mixed, paper
 from .data import ErrorSums, fit_data, object_areas, relative_error
 from .memory import cores, costs
-from .model import FittedModel, FittedObject, Highlight, directional
+from .model import FittedModel, FittedObject, Highlight, Mirror, directional
 
 METHODS = ("paper", "refined", "per-light")
 MODELS = ("auto", *glossy.MODELS)
@@ -199,13 +199,17 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     """FittedObject for one ``ObjectSolution``; ``scene`` the ``mixed.SceneGeometry`` of
     the whole solution (where point lights are seeded); ``progress`` a tqdm bar or None;
     ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models with emitters and a probe.
-    A glass object is not fitted: the displays draw it as glass (``display.glass``)."""
-    glass = obj.material.get("glass") if isinstance(obj.material, dict) else None
-    if glass is not None:
+    A glass object or a perfect mirror is not fitted: the displays draw what it shows
+    (``display.glass``, ``display.mirror``)."""
+    material = Material(obj.name, **obj.material) if isinstance(obj.material, dict) else None
+    if material is not None and (material.is_glass or material.is_mirror):
         zeros = np.zeros((obj.num_vertices, 3))
-        info = {"model": "glass", "method": "none", "chosen_by": f"{glass['kind']}: drawn as glass", "time_s": 0.0}
+        kind = "glass" if material.is_glass else "mirror"
+        info = {"model": kind, "method": "none", "time_s": 0.0,
+                "chosen_by": f"{material.glass.kind if material.is_glass else 'a perfect mirror'}: drawn as {kind}"}
+        mirror = None if material.is_glass else Mirror(material.specular, material.fresnel)
         return replace(_fitted_object(obj, zeros, zeros, (np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)), info),
-                       glass=Glass.from_dict(glass), textured=None)
+                       glass=material.glass, mirror=mirror, textured=None)
     if not obj.is_diffuse and options.glossy_model != "lights":
         return _fit_components(obj, options, scene, progress, solution, box)
     t0 = time.perf_counter()

@@ -32,7 +32,10 @@ Version 7 adds glass, as the solution's version 7 has it: ``meta.objects[name].g
 specular_reflectance, specular_transmittance) marks an object the displays draw as glass
 (reflecting and refracting what is around it: ``display.glass``) instead of by this
 formula; its arrays are a diffuse object's with ``emitted`` 0, so a reader of version 6
-that ignores the key sees a black object.
+that ignores the key sees a black object. It adds mirrors too: ``meta.objects[name].mirror``
+= {"specular": [r, g, b], "fresnel": [r, g, b] (optional)} (the material's ks and Schlick
+F0) marks a perfect mirror (a smooth conductor: ``Material.is_mirror``) the displays draw
+by what it reflects (``display.mirror``), its arrays a black diffuse object's likewise.
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -161,6 +164,32 @@ class Highlight:
         return out.reshape(shape)
 
 
+@dataclass(frozen=True)
+class Mirror:
+    """A perfect mirror's reflectance: ``specular`` ks (3,) and, where the material has one,
+    Schlick's F0 ``fresnel`` (3,): it reflects ks F(w.n) of what it mirrors."""
+
+    specular: tuple[float, float, float]
+    fresnel: tuple[float, float, float] | None = None
+
+    def to_dict(self):
+        return {"specular": list(self.specular), **({"fresnel": list(self.fresnel)} if self.fresnel else {})}
+
+    @classmethod
+    def from_dict(cls, entry):
+        """The mirror of a ``to_dict`` entry; ValueError naming what is wrong."""
+        if not isinstance(entry, dict) or set(entry) - {"specular", "fresnel"} or "specular" not in entry:
+            raise ValueError('mirror must be {"specular": [r, g, b], "fresnel": [r, g, b] (optional)}')
+        values = {}
+        for key in ("specular", "fresnel"):
+            if key in entry:
+                v = _finite_numbers(entry[key], 3)
+                if v is None or (v < 0).any() or (key == "fresnel" and (v > 1).any()):
+                    raise ValueError(f"mirror {key} must be 3 numbers" + (" in [0, 1]" if key == "fresnel" else " >= 0"))
+                values[key] = tuple(float(c) for c in v)
+        return cls(**values)
+
+
 @dataclass(frozen=True, eq=False)
 class FittedObject:
     """One object's fitted model; arrays as in the module docstring (``light_pos`` (K, 4),
@@ -181,6 +210,7 @@ class FittedObject:
     probe_weight: np.ndarray | None = None  # ... and its per-vertex weight s (V, 3)
     textured: TexturedDiffuse | None = None  # version 4: a textured object's diffuse term
     glass: Glass | None = None  # version 7: drawn as glass (its arrays a black diffuse object's)
+    mirror: Mirror | None = None  # version 7: drawn as a mirror (likewise)
 
     def __post_init__(self):
         v, k = len(self.positions), len(self.light_pos)
@@ -305,6 +335,8 @@ class FittedObject:
             out["textured"] = {"diffuse": list(self.textured.kd)}
         if self.glass is not None:
             out["glass"] = self.glass.to_dict()
+        if self.mirror is not None:
+            out["mirror"] = self.mirror.to_dict()
         return out
 
 
@@ -331,10 +363,10 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 7 with a glass object, 6 where
+        """The lowest contract version that holds this model: 7 with a glass object or a mirror, 6 where
         an object names its emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
         an environment, else 3."""
-        if any(o.glass is not None for o in self.objects):
+        if any(o.glass is not None or o.mirror is not None for o in self.objects):
             return 7
         if any(o.highlight is not None and o.highlight.indices is not None for o in self.objects):
             return 6
@@ -468,18 +500,21 @@ def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES)
         textured = read_textured(archive, name, n_v, diffuse)
         if textured is None:
             raise fail(f"object {name!r} is textured in meta 'objects' but has no '{name}/uvs'")
-    glass = None
-    if version >= 7 and "glass" in info:
-        try:
+    glass = mirror = None
+    try:
+        if version >= 7 and "glass" in info:
             glass = Glass.from_dict(info["glass"])
-        except (TypeError, ValueError) as exc:
-            raise fail(f"meta 'objects' {name!r}: {exc}") from None
+        if version >= 7 and "mirror" in info:
+            mirror = Mirror.from_dict(info["mirror"])
+    except (TypeError, ValueError) as exc:
+        raise fail(f"meta 'objects' {name!r}: {exc}") from None
     try:
         return FittedObject(
             name=name,
-            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured", "glass")},
+            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured", "glass", "mirror")},
             textured=textured,
             glass=glass,
+            mirror=mirror,
             highlight=highlight,
             probe=probe,
             probe_weight=weight,

@@ -2,6 +2,7 @@
 // alone, shaded at the vertex (Gouraud; its transform feedback gives vertex_colours);
 // otherwise the attributes for the fragments, and the colour too where gouraud == 1.
 uniform mat4 mvp;
+#include "clip.glsl"
 uniform vec3 eye;
 #include "fitted_attributes.glsl"
 #ifndef VL_GOURAUD
@@ -21,6 +22,7 @@ vec3 shade_vertex() {   // a vertex's weights: its own id, (1, 0, 0)
 }
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
+    VL_CLIP_VERTEX(in_position);
 #ifdef VL_TEXTURED
     v_uv = in_uv;
     v_irradiance = in_irradiance;

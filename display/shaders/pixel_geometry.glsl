@@ -1,6 +1,7 @@
 // Per pixel with per-vertex texture values (per-light coefficients, the emitters'
 // visibility): each fragment gets its triangle's three vertex ids (flat) and its
 // barycentrics (interpolated like any varying), and blends the three vertices' values.
+#include "clip.glsl"
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 3) out;
 in vec3 g_position[];
@@ -18,6 +19,7 @@ in vec3 g_irradiance[];
 void main() {
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
+        VL_CLIP_PASS(i);
         v_position = g_position[i];
         v_normal = g_normal[i];
         v_emitted = g_emitted[i];

@@ -1,6 +1,7 @@
 // The fitted model per pixel with a geometry shader (pixel_geometry.glsl): the attributes
 // and the vertex's id, handed on as they are.
 uniform mat4 mvp;
+#include "clip.glsl"
 #include "fitted_attributes.glsl"
 out vec3 g_position;
 out vec3 g_normal;
@@ -14,6 +15,7 @@ out vec3 g_irradiance;
 #endif
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
+    VL_CLIP_VERTEX(in_position);
     g_position = in_position;
     g_normal = in_normal;
     g_emitted = in_emitted;

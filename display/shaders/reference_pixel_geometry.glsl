@@ -1,5 +1,6 @@
 // Each fragment gets its triangle's three vertex ids, normals and tangents (flat) and its
 // barycentrics: it reads the three vertices' grids with its own view direction.
+#include "clip.glsl"
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 3) out;
 in vec3 g_position[];
@@ -24,6 +25,7 @@ flat out vec3 f_t2;
 void main() {
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
+        VL_CLIP_PASS(i);
         f_position = g_position[i];
         f_bary = vec3(i == 0, i == 1, i == 2);
 #ifdef VL_TEXTURED

@@ -1,6 +1,7 @@
 // The reference display per pixel (with reference_pixel_geometry.glsl): the attributes
 // and the vertex's id, handed on.
 uniform mat4 mvp;
+#include "clip.glsl"
 in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_tangent;
@@ -16,6 +17,7 @@ out vec3 g_irradiance;
 #endif
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
+    VL_CLIP_VERTEX(in_position);
     g_position = in_position;
     g_normal = in_normal;
     g_tangent = in_tangent;

@@ -2,6 +2,7 @@
 // vertex_colours): the vertex's grid read for its view direction, plus the emitters'
 // highlights (the grid holds the rest: the solution minus them).
 uniform mat4 mvp;
+#include "clip.glsl"
 uniform vec3 eye;
 in vec3 in_position;
 in vec3 in_normal;
@@ -17,6 +18,7 @@ centroid out vec3 v_irradiance;
 #include "emitters.glsl"
 void main() {
     gl_Position = mvp * vec4(in_position, 1.0);
+    VL_CLIP_VERTEX(in_position);
 #ifdef VL_TEXTURED
     v_uv = in_uv;
     v_irradiance = in_irradiance;

@@ -52,6 +52,7 @@ __all__ = [
     "FRESNEL_NORMALISATION",
     "MAX_EXPONENT",
     "MICROFACET_DISTRIBUTIONS",
+    "MIRROR_EXPONENT",
     "GLASS_KINDS",
     "MICROFACET_KINDS",
     "Glass",
@@ -66,6 +67,10 @@ __all__ = [
 
 MAX_EXPONENT = 1e6
 """Largest Phong exponent a material may have."""
+
+MIRROR_EXPONENT = 1e5
+"""A material with no diffuse part and a Phong exponent this high or higher is a mirror
+(a smooth conductor's stand-in): the displays draw what it reflects (``display.mirror``)."""
 
 FLOAT32_MAX = 3.4028234663852886e38
 """Largest value a float32 array (the solver's and the files') can hold."""
@@ -379,6 +384,11 @@ class Material:
     def is_emitter(self) -> bool:
         """True if some emission channel is positive."""
         return any(v > 0.0 for v in self.emission)
+
+    @property
+    def is_mirror(self) -> bool:
+        """True for a perfect mirror: glossy, no diffuse part, exponent >= MIRROR_EXPONENT."""
+        return self.is_glossy and not any(self.diffuse) and self.exponent >= MIRROR_EXPONENT
 
     @property
     def is_glass(self) -> bool:

@@ -17,6 +17,7 @@ from fitting import FitOptions, fit
 from fitting.model import load_fit
 from fitting.probe import decode
 from radiosity.formats import Camera
+from radiosity.formats.directions import grid_directions
 from radiosity.formats.environment import EnvironmentLight
 from radiosity.formats.solution import ObjectSolution, Solution
 from radiosity.scene import builtins
@@ -144,3 +145,79 @@ def _opaque():
     return (ObjectSolution(name="floor", positions=positions, normals=np.tile([0.0, 1, 0], (3, 1)),
                            tangents=np.tile([1.0, 0, 0], (3, 1)), faces=np.array([[0, 2, 1]]),
                            directions=np.array([[0.0, 0.0, 1.0]]), radiance=np.full((3, 1, 3), 0.3), material=material),)
+
+
+# -- perfect mirrors ----------------------------------------------------------------------
+
+KS, F0 = (0.9, 0.8, 0.7), (0.6, 0.7, 0.8)
+
+
+def _mirror_material():
+    return {"diffuse": BLACK, "specular": list(KS), "exponent": 1e6, "emission": BLACK, "fresnel": list(F0)}
+
+
+def _quad(name, corners, normal, radiance, material=None):
+    positions = np.asarray(corners, float)
+    material = material or {"diffuse": [0.5, 0.5, 0.5], "specular": BLACK, "exponent": 0.0, "emission": BLACK}
+    directions, values = np.array([[0.0, 0.0, 1.0]]), np.tile(radiance, (4, 1, 1)).astype(float)
+    if material["exponent"] > 0:  # a glossy object's 2 x 2 grid (a mirror's values are not drawn)
+        directions, values = grid_directions(2).astype(np.float32), np.zeros((4, 4, 3))
+    tangent = np.cross(normal, [0.3, 0.5, 0.8])
+    return ObjectSolution(name=name, positions=positions, normals=np.tile(normal, (4, 1)),
+                          tangents=np.tile(tangent / np.linalg.norm(tangent), (4, 1)),
+                          faces=np.array([[0, 1, 2], [0, 2, 3]]), directions=directions, radiance=values,
+                          material=material)
+
+
+def _schlick(c):
+    return np.asarray(F0) + (1 - np.asarray(F0)) * (1 - c[..., None]) ** 5
+
+
+@pytest.mark.gl
+def test_a_flat_mirror_shows_the_scene_reflected_in_its_plane_and_not_what_is_behind_it(gl_context):
+    mirror = _quad("mirror", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _mirror_material())
+    # a green panel in front of the mirror, off the camera's line of sight, facing the mirror
+    panel = _quad("panel", [[-3, -2, 2.5], [-3, 2, 2.5], [-1.2, 2, 2.5], [-1.2, -2, 2.5]], [0.0, 0.0, -1.0],
+                  [0.1, 0.8, 0.2])
+    # a wall just behind the mirror, facing the room: hidden by the mirror, and clipped from its reflected view
+    wall = _quad("wall", [[-4, -3, -0.01], [4, -3, -0.01], [4, 3, -0.01], [-4, 3, -0.01]], [0.0, 0.0, 1.0],
+                 [0.3, 0.3, 0.3])
+    solution = Solution(objects=(mirror, panel, wall), scene="mirror",
+                        environment=EnvironmentLight(np.full((4, 8, 3), 2.0, np.float32), 1.0, np.eye(3)))
+    camera = Camera((1.0, 0.2, 3.0), (0.0, 0.0, 0.0), fov_deg=45, width=64, height=48)
+    renderer = Renderer(gl_context, solution=solution, samples=1)
+    image = renderer.render(camera, "reference").astype(np.float64)
+    d = camera.pixel_rays()
+    eye = np.asarray(camera.eye)
+    s = -eye[2] / d[..., 2]
+    hit = eye + s[..., None] * d
+    on_mirror = (np.abs(hit[..., 0]) < 0.95) & (np.abs(hit[..., 1]) < 0.95) & (s > 0)
+    r = d * np.array([1.0, 1.0, -1.0])  # reflected in z = 0
+    t = (2.5 - hit[..., 2]) / r[..., 2]
+    at = hit + t[..., None] * r
+    sees_panel = (at[..., 0] > -2.95) & (at[..., 0] < -1.25) & (np.abs(at[..., 1]) < 1.95)
+    near_edge = (np.abs(at[..., 0] + 1.2) < 0.1) | (np.abs(at[..., 0] + 3) < 0.1)
+    c = d[..., 2] * -1.0
+    seen = np.where(sees_panel[..., None], [0.1, 0.8, 0.2], 2.0)
+    expected = np.asarray(KS) * _schlick(c) * seen
+    check = on_mirror & ~near_edge
+    assert (check & sees_panel).sum() > 50 and (check & ~sees_panel).sum() > 50
+    np.testing.assert_allclose(image[check], expected[check], rtol=0.02, atol=0.01)
+    renderer.release()
+
+
+@pytest.mark.gl
+def test_a_curved_mirror_in_a_constant_environment_shows_ks_times_fresnel(gl_context):
+    ball = _ball()
+    positions = ball.positions
+    material = _mirror_material()
+    chrome = ObjectSolution(name="chrome", positions=positions, normals=ball.normals, tangents=ball.tangents,
+                            faces=ball.faces, directions=grid_directions(1).astype(np.float32),
+                            radiance=np.zeros((len(positions), 1, 3)), material=material)
+    solution = _furnace(chrome)
+    renderer = Renderer(gl_context, solution=solution, samples=1)
+    image = renderer.render(CAMERA, "reference").astype(np.float64)
+    _, cos = _expected_ball(CAMERA, 1.5, (1, 1, 1))
+    inside = np.isfinite(cos) & (cos > 0.3)
+    np.testing.assert_allclose(image[inside], (np.asarray(KS) * _schlick(cos))[inside], rtol=0.02)
+    renderer.release()

@@ -1,0 +1,74 @@
+"""Perfect mirrors at display, as real-time renderers draw them.
+
+A perfect mirror (a smooth conductor: ``Material.is_mirror``, no diffuse part, a Phong
+stand-in of exponent >= ``MIRROR_EXPONENT``) holds nothing a per-vertex model can show:
+what it shows is the scene reflected. The renderer draws it after every other surface
+(``mirror_fragment.glsl``): ks F(w.n) (Schlick's F0 where the material has one) times
+
+- for a flat mirror (``plane_of``: its normals one direction, its points on one plane),
+  the scene drawn from the eye reflected in the mirror's plane (``mirrored_view``), what
+  lies behind the plane clipped away (``clip.glsl``), looked up where the pixel's point
+  projects in that view: exact, up to the reflected view's own sampling;
+- for a curved one, the probe of the scene around it (``display.glass``), along the
+  mirror direction, parallax-corrected against the scene's box.
+
+Glass and other mirrors are missing from what a mirror shows (one bounce of reflection).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from radiosity.formats.material import Material
+
+__all__ = ["FLAT_COSINE", "mirror_of", "mirrored_view", "plane_of"]
+
+FLAT_COSINE = 0.9999  # every normal within about 0.8 degrees of the mean: flat
+FLAT_DISTANCE = 1e-4  # every point within this fraction of the mirror's size of its plane
+
+
+def mirror_of(source):
+    """(ks (3,), F0 (3,) or None) of a perfect mirror: a fitted object's ``mirror`` or a
+    solution object's material; None for anything else."""
+    mirror = getattr(source, "mirror", None)
+    if mirror is not None:
+        return tuple(mirror.specular), mirror.fresnel
+    material = getattr(source, "material", None)
+    if isinstance(material, dict) and "glass" not in material and "microfacet" not in material:
+        m = Material(getattr(source, "name", "mirror"), **material)
+        if m.is_mirror:
+            return m.specular, m.fresnel
+    return None
+
+
+def plane_of(positions, normals):
+    """(a point, the unit normal) of a flat mirror, else None."""
+    positions, normals = np.asarray(positions, np.float64), np.asarray(normals, np.float64)
+    n = normals.mean(axis=0)
+    length = np.linalg.norm(n)
+    if length == 0:
+        return None
+    n /= length
+    unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    if (unit @ n).min() < FLAT_COSINE:
+        return None
+    centre = positions.mean(axis=0)
+    size = np.linalg.norm(positions.max(axis=0) - positions.min(axis=0))
+    if np.abs((positions - centre) @ n).max() > FLAT_DISTANCE * size:
+        return None
+    return centre, n
+
+
+def mirrored_view(view, plane):
+    """The camera ``view`` (``Camera``) with its eye, target and up reflected in ``plane``
+    (a point, a unit normal): it sees through the mirror what the mirror shows."""
+    p, n = (np.asarray(v, np.float64) for v in plane)
+
+    def point(x):
+        x = np.asarray(x, np.float64)
+        return tuple(x - 2.0 * ((x - p) @ n) * n)
+
+    up = np.asarray(view.up, np.float64)
+    return replace(view, eye=point(view.eye), look_at=point(view.look_at), up=tuple(up - 2.0 * (up @ n) * n))
