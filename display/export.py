@@ -702,15 +702,16 @@ def run_export_command(args):
     if args.page:
         check_page_textures(sizes)
     model = load_fit(args.fit)
-    glass = [o.name for o in model.objects if o.glass is not None]
-    if glass:  # the page has no glass shading yet: left out, as clear glass (vlights view and render draw it)
+    glass = [o.name for o in model.objects if o.glass is not None or o.mirror is not None]
+    if glass:  # the page has no glass or mirror shading yet: left out (vlights view and render draw them)
         from dataclasses import replace
 
         if len(glass) == len(model.objects):
-            raise InputError(f"{args.fit}: every object is glass, which the page does not draw yet")
-        model = replace(model, objects=tuple(o for o in model.objects if o.glass is None))
-        print(f"left out {len(glass)} glass object(s) ({', '.join(glass[:4])}{', ...' if len(glass) > 4 else ''}): "
-              "the page does not draw glass yet ('vlights view' and 'vlights render' do)")
+            raise InputError(f"{args.fit}: every object is glass or a mirror, which the page does not draw yet")
+        model = replace(model, objects=tuple(o for o in model.objects if o.glass is None and o.mirror is None))
+        print(f"left out {len(glass)} glass object(s) and mirror(s) ({', '.join(glass[:4])}"
+              f"{', ...' if len(glass) > 4 else ''}): the page does not draw them yet ('vlights view' and "
+              "'vlights render' do)")
     server = None
     if args.serve:
         from display.serve import start

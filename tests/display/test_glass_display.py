@@ -135,7 +135,7 @@ def test_the_export_leaves_glass_out_saying_so(tmp_path, cli):
     model.save(tmp_path / "fit.npz")
     code, out, err = cli("export", tmp_path / "fit.npz", "-o", tmp_path / "page", "--no-page")
     assert code == 0, err
-    assert "left out 2 glass object(s) (ball, pane)" in out
+    assert "left out 2 glass object(s) and mirror(s) (ball, pane)" in out
     assert "1 objects" in out
 
 
