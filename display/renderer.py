@@ -458,6 +458,7 @@ class Renderer:
             if obj.mirror is not None:
                 obj.plane = mirror.plane_of(o.positions, o.normals)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
+        self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
         self._clip = None  # a flat mirror's plane (n, -n . p) while its reflected view is drawn
         self._mirror_images = {}  # a flat mirror's name -> the texture of its reflected view (remade every frame)
@@ -782,7 +783,7 @@ class Renderer:
         ctx = self.ctx
         shown = with_glass and mask is None and program_key is None and targets == 1
         glassy = [o for o in self.objects if o.glass is not None] if shown and self.glass_approach != "none" else []
-        mirrors = [o for o in self.objects if o.mirror is not None] if shown else []
+        mirrors = [o for o in self.objects if o.mirror is not None] if shown and self.mirrors else []
         # what they show is drawn before this frame: probes once, a flat mirror's reflected view every frame
         probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]
         seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]
@@ -820,7 +821,7 @@ class Renderer:
         ready = set()
         clip = ("VL_CLIP",) if self._clip is not None else ()
         for index, obj in enumerate(self.objects):
-            if obj.glass is not None or obj.mirror is not None:
+            if obj.glass is not None or (obj.mirror is not None and self.mirrors):
                 continue  # drawn last, from what they show (``_draw_glass``, ``_draw_mirrors``)
             key = program_key
             n = self._light_count(obj, mode, lights)
@@ -870,7 +871,7 @@ class Renderer:
         ctx.cull_face = "front"
         ctx.polygon_offset = self.depth.back_offset
         for obj in self.objects:
-            if obj.glass is not None or obj.mirror is not None:
+            if obj.glass is not None or (obj.mirror is not None and self.mirrors):
                 continue  # glass has no back; a mirror's is drawn with it, and never inside its own probe
             if program not in obj.back_vaos:
                 obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
