@@ -5,8 +5,10 @@ project's validate_kinds.xml, whose reference is Mitsuba 3's render of the same 
 Mitsuba is installed): ``vlights truth``'s path tracer renders the scene's own camera at
 its film's size shrunk by a whole factor to at most --max-side, at --spp samples, twice
 in one process, alternating: with every material's own model (rough plastics and
-conductors as microfacet lobes: what ``vlights truth`` renders) and with the Phong
-stand-ins the solver and the displays draw (what it rendered before). Each against the
+conductors as microfacet lobes, glass as glass: what ``vlights truth`` renders), with the
+Phong stand-ins the solver's grids and the displays draw, and with its glass shapes left
+out (as the reader had them before glass was modelled: light passing as through clear
+glass, no reflection). Each against the
 published render box-averaged to that size: FLIP and the mean ratio (ours / published),
 and the seconds.
 
@@ -36,7 +38,9 @@ COLLECTION = {
     "staircase": ("staircase/scene.xml", "staircase/TungstenRender.exr"),
     "veach_mi": ("veach_mi/scene.xml", None),
 }
-MODELS = {"own models": True, "phong stand-ins": False}
+# label: (own microfacet models, glass kept): what vlights truth renders, the Phong stand-ins the solver's
+# grids and the displays draw, and its glass left out as the reader left it before glass was modelled
+MODELS = {"own models": (True, True), "phong stand-ins": (False, True), "glass left out": (True, False)}
 
 
 def shrink_factor(width, height, max_side):
@@ -54,6 +58,14 @@ def render(scene, camera, spp, seed, microfacet_models):
     with PathTracer(scene, microfacet_models=microfacet_models) as tracer:
         image = tracer.render(camera, spp, seed).radiance
     return image, time.perf_counter() - start
+
+
+def without_glass(scene):
+    """``scene`` with its glass objects left out, None where it has none."""
+    from dataclasses import replace
+
+    kept = tuple(o for o in scene.objects if not o.material.is_glass)
+    return None if len(kept) == len(scene.objects) else replace(scene, objects=kept)
 
 
 def figure(name, reference, images, numbers, path):
@@ -109,8 +121,11 @@ def main():
         camera = scene.camera.sized(width // factor, height // factor)
         reference, _ = reference_at(reference, (camera.width, camera.height), str(published))
         images, numbers = {}, {}
-        for label, own in MODELS.items():
-            image, seconds = render(scene, camera, args.spp, args.seed, own)
+        for label, (own, glass) in MODELS.items():
+            shown = scene if glass else without_glass(scene)
+            if shown is None:
+                continue  # no glass to leave out: the same picture as the own models'
+            image, seconds = render(shown, camera, args.spp, args.seed, own)
             values, _ = metrics(reference, image)
             numbers[label] = {"flip": values["flip_mean"], "mean_ratio": float(image.mean() / reference.mean()),
                               "seconds": round(seconds, 2)}

@@ -94,14 +94,18 @@ def test_glass_in_a_constant_environment_shows_its_weights(gl_context, approach,
 
 
 @pytest.mark.gl
-def test_a_fitted_glass_object_draws_as_the_solution_s(gl_context, tmp_path):
-    solution = _furnace(_ball(), _pane())
+def test_a_fitted_glass_object_or_mirror_draws_as_the_solution_s(gl_context, tmp_path):
+    mirror = _quad("mirror", [[1.2, -1, -1], [2, -1, -1], [2, 1, -1], [1.2, 1, -1]], [0.0, 0.0, 1.0], 0.0,
+                   _mirror_material())
+    solution = _furnace(_ball(), _pane(), mirror)
     model = fit(solution, FitOptions.for_quality("draft"))
     path = tmp_path / "fit.npz"
     model.save(path)
     loaded = load_fit(path)
     assert loaded.version == 7 and loaded.object("ball").glass.kind == "dielectric"
     assert loaded.object("ball").n_lights == 0 and not loaded.object("ball").emitted.any()
+    assert loaded.object("mirror").mirror.specular == KS and loaded.object("mirror").mirror.fresnel == F0
+    assert loaded.object("mirror").n_lights == 0 and loaded.object("mirror").info["model"] == "mirror"
     fitted = Renderer(gl_context, fit=loaded, samples=1)
     reference = Renderer(gl_context, solution=solution, samples=1)
     np.testing.assert_allclose(fitted.render(CAMERA, "fitted"), reference.render(CAMERA, "reference"), atol=1e-5)
