@@ -5,7 +5,7 @@ stand-in of exponent >= ``MIRROR_EXPONENT``) holds nothing a per-vertex model ca
 what it shows is the scene reflected. The renderer draws it after every other surface
 (``mirror_fragment.glsl``): ks F(w.n) (Schlick's F0 where the material has one) times
 
-- for a flat mirror (``plane_of``: its normals one direction, its points on one plane),
+- for a flat mirror (``plane_of``: its points within a hundredth of its size of one plane),
   the scene drawn from the eye reflected in the mirror's plane (``mirrored_view``), what
   lies behind the plane clipped away (``clip.glsl``), looked up where the pixel's point
   projects in that view: exact, up to the reflected view's own sampling;
@@ -23,10 +23,9 @@ import numpy as np
 
 from radiosity.formats.material import Material
 
-__all__ = ["FLAT_COSINE", "mirror_of", "mirrored_view", "plane_of"]
+__all__ = ["FLAT_THICKNESS", "mirror_of", "mirrored_view", "plane_of"]
 
-FLAT_COSINE = 0.9999  # every normal within about 0.8 degrees of the mean: flat
-FLAT_DISTANCE = 1e-4  # every point within this fraction of the mirror's size of its plane
+FLAT_THICKNESS = 0.01  # a mirror whose points lie within this fraction of its size of one plane is flat
 
 
 def mirror_of(source):
@@ -43,22 +42,23 @@ def mirror_of(source):
     return None
 
 
-def plane_of(positions, normals):
-    """(a point, the unit normal) of a flat mirror, else None."""
-    positions, normals = np.asarray(positions, np.float64), np.asarray(normals, np.float64)
-    n = normals.mean(axis=0)
+def plane_of(positions, faces):
+    """(a point of its front surface, the unit normal) of a flat mirror, else None: flat
+    where every point lies within ``FLAT_THICKNESS`` of its size of the plane whose normal is
+    the faces' area-weighted mean normal (a mirror with a thin back and edges is flat; its
+    front is its points farthest along the normal)."""
+    positions = np.asarray(positions, np.float64)
+    corners = positions[np.asarray(faces)]
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).sum(axis=0)
     length = np.linalg.norm(n)
-    if length == 0:
+    size = np.linalg.norm(positions.max(axis=0) - positions.min(axis=0))
+    if length <= 1e-6 * size * size:
         return None
     n /= length
-    unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    if (unit @ n).min() < FLAT_COSINE:
+    height = positions @ n
+    if np.ptp(height) > FLAT_THICKNESS * size:
         return None
-    centre = positions.mean(axis=0)
-    size = np.linalg.norm(positions.max(axis=0) - positions.min(axis=0))
-    if np.abs((positions - centre) @ n).max() > FLAT_DISTANCE * size:
-        return None
-    return centre, n
+    return positions[np.argmax(height)], n
 
 
 def mirrored_view(view, plane):

@@ -456,7 +456,7 @@ class Renderer:
             if obj.glass is not None or obj.mirror is not None:
                 obj.slab, obj.sphere = glass.proxy(obj.positions.astype(np.float64))
             if obj.mirror is not None:
-                obj.plane = mirror.plane_of(o.positions, o.normals)
+                obj.plane = mirror.plane_of(o.positions, o.faces)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
@@ -783,7 +783,9 @@ class Renderer:
         ctx = self.ctx
         shown = with_glass and mask is None and program_key is None and targets == 1
         glassy = [o for o in self.objects if o.glass is not None] if shown and self.glass_approach != "none" else []
-        mirrors = [o for o in self.objects if o.mirror is not None] if shown and self.mirrors else []
+        eye = np.asarray(view.eye, np.float64)
+        mirrors = [o for o in self.objects if o.mirror is not None and (  # a flat one facing away shows nothing
+            o.plane is None or (eye - o.plane[0]) @ o.plane[1] > 0)] if shown and self.mirrors else []
         # what they show is drawn before this frame: probes once, a flat mirror's reflected view every frame
         probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]
         seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]

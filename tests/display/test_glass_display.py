@@ -225,3 +225,18 @@ def test_a_curved_mirror_in_a_constant_environment_shows_ks_times_fresnel(gl_con
     inside = np.isfinite(cos) & (cos > 0.3)
     np.testing.assert_allclose(image[inside], (np.asarray(KS) * _schlick(cos))[inside], rtol=0.02)
     renderer.release()
+
+
+def test_a_mirror_with_a_thin_back_is_flat_and_its_plane_is_its_front():
+    from display.mirror import mirrored_view, plane_of
+
+    # a 2 x 1 mirror 0.01 thick: a closed box whose front faces +z at z = 0
+    x, y, z = np.meshgrid([0.0, 2.0], [0.0, 1.0], [-0.01, 0.0], indexing="ij")
+    corners = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)  # index 4i + 2j + k
+    front = [[1, 5, 7], [1, 7, 3]]  # z = 0, counter-clockwise seen from +z
+    point, normal = plane_of(corners, np.array(front))
+    assert np.allclose(normal, [0, 0, 1]) and point[2] == 0.0
+    ball = _ball()
+    assert plane_of(ball.positions, ball.faces) is None
+    view = mirrored_view(Camera((0.5, 0.2, 3.0), (0.0, 0.0, 0.0)), (point, normal))
+    assert np.allclose(view.eye, (0.5, 0.2, -3.0)) and np.allclose(view.look_at, (0.0, 0.0, 0.0))
