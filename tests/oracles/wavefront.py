@@ -7,7 +7,11 @@ emit every photon (``emit_photons``), then per depth trace them all (with embree
 ``RayTracer.intersect``, outside) and deposit and scatter each (``bounce_photons``);
 likewise one depth of gather paths (``shade_paths``). The tests hold the product
 kernels to these bit for bit (tests/radiosity/transport/test_direct_tracing.py), and
-the benchmarks replay the photons' rays through bare Embree with them.
+the benchmarks replay the photons' rays through bare Embree with them. The photons' oracle
+has every material kind's scattering (through the dispatch) and glass; the gather's has
+the Phong kind's glossy hits alone (its microfacet and glass branches are held to their
+answers by tests/radiosity/transport/test_microfacet_transport.py and
+test_glass_transport.py).
 
 Cached like the product kernels, and as safely: ``radiosity.jit_cache`` stamps these
 kernels with the sources of this directory and of radiosity/, every file they inline.
