@@ -115,6 +115,15 @@ def run_vlights(args, cwd, timeout=None):
     return Run(seconds, usage.ru_maxrss / 1024.0, peak[0] / 2**20, os.waitstatus_to_exitcode(status), stderr)
 
 
+def vlights_or_exit(args, cwd):
+    """``run_vlights``, ending the benchmark (SystemExit naming the command and its last
+    line) where the command fails; returns its seconds."""
+    run = run_vlights(args, cwd)
+    if run.exit_code != 0:
+        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {run.last_line}")
+    return run.seconds
+
+
 class Recorder:
     """Rows of one benchmark run: each printed as it comes, all saved at the end."""
 

@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render, run_vlights  # noqa: E402
+from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render  # noqa: E402
+from _common import vlights_or_exit as vlights
 
 SCENE = Path(__file__).resolve().parent.parent / "tests" / "data" / "mitsuba" / "validate_glass.xml"
 BALL = "glass_ball"
@@ -74,12 +75,6 @@ def ball_pixels(xml: Path, name=BALL, grow=1) -> np.ndarray:
         return binary_erosion(hit, iterations=-grow)
     return binary_dilation(hit, iterations=grow) if grow else hit
 
-
-def vlights(args, cwd):
-    run = run_vlights(args, cwd)
-    if run.exit_code != 0:
-        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {run.last_line}")
-    return run.seconds
 
 
 def caustic_region(reference, empty, ball, threshold, grow):

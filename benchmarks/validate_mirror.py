@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render, run_vlights  # noqa: E402
+from _common import RESULTS, Recorder, mitsuba_python, mitsuba_render  # noqa: E402
+from _common import vlights_or_exit as vlights
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = {
@@ -37,12 +38,6 @@ SCENES = {
     "living-room": (Path("living-room/scene.xml"), Path("living-room/TungstenRender.exr")),
 }
 
-
-def vlights(args, cwd):
-    run = run_vlights(args, cwd)
-    if run.exit_code != 0:
-        raise SystemExit(f"vlights {' '.join(map(str, args))} failed: {run.last_line}")
-    return run.seconds
 
 
 def shrunk(image, max_side):

@@ -917,17 +917,21 @@ class Renderer:
         self._mirror_images[obj.name] = texture
         return texture, self._matrices(reflected)
 
+    def _last_pass(self, key, view):
+        """Program ``key`` ready for a pass over what is drawn: depth-tested, both faces, the
+        view's matrices and eye set."""
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.ctx.depth_func = self.depth.nearer
+        program = self._program(key)
+        program["mvp"].write(self._matrices(view))
+        self._set(program, "eye", tuple(float(v) for v in view.eye))
+        return program
+
     def _draw_mirrors(self, view, objects, seen):
         """The perfect mirrors ``objects`` over what is drawn (depth-tested, their backs
         black): ks F times what ``seen`` holds for each (``_mirror_image``; mirror_fragment.glsl)."""
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        ctx.depth_func = self.depth.nearer
-        program = self._program("mirror")
-        program["mvp"].write(self._matrices(view))
-        self._set(program, "eye", tuple(float(v) for v in view.eye))
-        lo, hi = self.bounds
+        ctx, program, (lo, hi) = self.ctx, self._last_pass("mirror", view), self.bounds
         for obj, (texture, reflected_mvp) in zip(objects, seen, strict=True):
             ks, f0 = obj.mirror
             planar = reflected_mvp is not None
@@ -949,14 +953,7 @@ class Renderer:
         """The glass ``objects`` over what is drawn (either face, depth-tested): from their
         ``probes``, sheets and slabs blended over what is behind them where ``glass_approach``
         is "blend" (glass.glsl)."""
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        ctx.depth_func = self.depth.nearer
-        program = self._program("glass")
-        program["mvp"].write(self._matrices(view))
-        self._set(program, "eye", tuple(float(v) for v in view.eye))
-        lo, hi = self.bounds
+        ctx, program, (lo, hi) = self.ctx, self._last_pass("glass", view), self.bounds
         for obj, probe in zip(objects, probes, strict=True):
             g = obj.glass
             blend = self.glass_approach == "blend" and (obj.slab or g.kind == "thindielectric")

@@ -54,6 +54,7 @@ from radiosity.transport.sampling import (
     lerp3,
     pick_emitter,
     prefetch_row,
+    roulette,
 )
 
 PREFETCH_AHEAD = 4  # hits ahead whose data the wave's shading loop asks the cache for
@@ -73,6 +74,24 @@ def _prefetch_hit(t, faces, face_normals, face_material, positions, moment0, mom
         prefetch_row(positions, vert)
         prefetch_row(moment0, vert)
         prefetch_row(moment1, vert)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _go_on(wave, survivors, pid, scattered, reference, u, origin, direction):
+    """Russian roulette (``sampling.roulette``) on a photon's ``scattered`` power against
+    its power before the bounce (``reference``); a survivor goes on from slot
+    ``survivors`` of the wave's buffers (ids, power, ray), which is at most the photon's
+    own: it is read already. Returns the survivors' count."""
+    ids, power, ray = wave
+    survives, carried = roulette(scattered, reference, u)
+    if not survives:
+        return survivors
+    ids[survivors] = pid
+    for c in range(3):
+        power[survivors, c] = carried[c]
+        ray[survivors, c] = origin[c]
+        ray[survivors, 3 + c] = direction[c]
+    return survivors + 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -247,16 +266,8 @@ def trace_photons(rt, sa, batch, acc):
                         tally[T_TERMINATED + 1] += q1
                         tally[T_TERMINATED + 2] += q2
                         continue
-                    reference = max(p0, p1, p2)
-                    survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
-                    if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
-                        continue
-                    ids[survivors] = pid
-                    power[survivors, 0], power[survivors, 1], power[survivors, 2] = q0 / survive, q1 / survive, q2 / survive
-                    for c in range(3):
-                        ray[survivors, c] = origin[c]
-                        ray[survivors, 3 + c] = direction[c]
-                    survivors += 1
+                    survivors = _go_on((ids, power, ray), survivors, pid, (q0, q1, q2), max(p0, p1, p2),
+                                       rand(seed, STREAM_BOUNCE, pid, base + 3), origin, direction)
                     continue
                 if dx * gx + dy * gy + dz * gz >= 0.0:
                     tally[T_BACKFACE] += p0
@@ -342,18 +353,8 @@ def trace_photons(rt, sa, batch, acc):
                 fr, fg, fb = brdf_eval(mat, wix, wiy, wiz, wox, woy, woz)
                 scale = wiz / pdf
                 q0, q1, q2 = p0 * fr * scale, p1 * fg * scale, p2 * fb * scale
-                # Russian roulette (``sampling.roulette``)
-                reference = max(p0, p1, p2)
-                survive = min(1.0, max(q0, q1, q2) / reference) if reference > 0.0 else 0.0
-                if survive <= 0.0 or rand(seed, STREAM_BOUNCE, pid, base + 3) >= survive:
-                    continue
-                # the survivor goes on from slot ``survivors`` <= k: photon k is read already
-                ids[survivors] = pid
-                power[survivors, 0], power[survivors, 1], power[survivors, 2] = q0 / survive, q1 / survive, q2 / survive
-                ray[survivors, 0] = px + epsilon * gx
-                ray[survivors, 1] = py + epsilon * gy
-                ray[survivors, 2] = pz + epsilon * gz
-                ray[survivors, 3], ray[survivors, 4], ray[survivors, 5] = sx, sy, sz
-                survivors += 1
+                survivors = _go_on((ids, power, ray), survivors, pid, (q0, q1, q2), max(p0, p1, p2),
+                                   rand(seed, STREAM_BOUNCE, pid, base + 3),
+                                   (px + epsilon * gx, py + epsilon * gy, pz + epsilon * gz), (sx, sy, sz))
             n = survivors
     return rays
