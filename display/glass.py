@@ -13,8 +13,7 @@ renderer draws it after every other surface and the background (``glass.glsl``):
   against the scene's box, times the specular reflectance, weighted by Fresnel's
   reflectance F (exact dielectric; a thin sheet's 2F / (1 + F));
 - what passes through, weighted by 1 - F and the transmittance: for a sheet or a slab (a
-  thin dielectric, or an object whose box's least side is under ``SLAB_RATIO`` of its
-  largest) straight through, the framebuffer behind blended ("blend", the default) or the
+  thin dielectric, or a thin object: ``proxy``) straight through, the framebuffer behind blended ("blend", the default) or the
   probe along the view ("probe"); for a solid, refracted in at the point and out through
   its bounding sphere (the proxy), 1 - F again at the exit, the probe along the ray that
   leaves.
@@ -39,7 +38,7 @@ __all__ = ["APPROACHES", "PROBE_SIZE", "SLAB_RATIO", "cube_views", "glass_of", "
 
 APPROACHES = ("blend", "probe", "none")
 PROBE_SIZE = 128  # texels of a side of the octahedral map (and pixels of a side of each of the six views)
-SLAB_RATIO = 0.2  # an object whose box's least side is under this of its largest passes light straight
+SLAB_RATIO = 0.15  # an object whose mean thickness is under this of its box's largest side passes light straight
 _AXES = np.eye(3)
 
 
@@ -90,14 +89,22 @@ def octahedral_from_faces(faces, views, m=PROBE_SIZE):
     return out.reshape(m, m, 3)
 
 
-def proxy(positions):
-    """(slab, (centre, radius)): whether the object passes light straight (its box's least
-    side under SLAB_RATIO of its largest), and its bounding sphere about its box's centre."""
+def proxy(positions, faces):
+    """(slab, (centre, radius)): whether the object passes light straight, and its bounding
+    sphere about its box's centre. A slab is thin: its mean thickness 2 V / A (V the volume
+    its triangles enclose, A their area; 0 for an open sheet) under ``SLAB_RATIO`` of its
+    box's largest side (a pane, a railing of panels, thin-walled glassware; a ball's or a
+    cube's is a third of it)."""
+    positions = np.asarray(positions, np.float64)
     lo, hi = positions.min(axis=0), positions.max(axis=0)
     centre = 0.5 * (lo + hi)
     radius = float(np.linalg.norm(positions - centre, axis=1).max())
-    sides = hi - lo
-    return bool(sides.min() < SLAB_RATIO * sides.max()), (centre, radius)
+    a, b, c = (positions[np.asarray(faces)[:, k]] - centre for k in range(3))
+    cross = np.cross(b - a, c - a)
+    area = 0.5 * np.linalg.norm(cross, axis=1).sum()
+    volume = abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
+    thickness = 2.0 * volume / area if area > 0 else 0.0
+    return bool(thickness < SLAB_RATIO * (hi - lo).max()), (centre, radius)
 
 
 def probe_texture(ctx, image):

@@ -454,7 +454,7 @@ class Renderer:
             obj.glass = glass.glass_of(o) or glass.glass_of(by_name.get(o.name))
             obj.mirror = mirror.mirror_of(o) or mirror.mirror_of(by_name.get(o.name))
             if obj.glass is not None or obj.mirror is not None:
-                obj.slab, obj.sphere = glass.proxy(obj.positions.astype(np.float64))
+                obj.slab, obj.sphere = glass.proxy(obj.positions, o.faces)
             if obj.mirror is not None:
                 obj.plane = mirror.plane_of(o.positions, o.faces)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)

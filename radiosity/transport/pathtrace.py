@@ -729,7 +729,7 @@ def scene_of_solution(solution):
         m = o.material
         material = Material(
             name=o.name, diffuse=m["diffuse"], specular=m["specular"], exponent=m["exponent"], emission=m["emission"],
-            fresnel=m.get("fresnel"), microfacet=m.get("microfacet"),
+            fresnel=m.get("fresnel"), microfacet=m.get("microfacet"), glass=m.get("glass"),
         )
         objects.append(
             SceneObject(

@@ -125,13 +125,20 @@ def test_the_octahedral_map_holds_the_directions_the_six_views_saw():
     np.testing.assert_allclose(image, 0.5 + 0.5 * decode(uv), atol=0.02)
 
 
-def test_a_sheet_or_a_slab_passes_light_straight_and_a_ball_refracts():
+def test_a_sheet_or_a_slab_passes_light_straight_and_a_ball_or_a_cube_refracts():
     ball = _ball()
-    assert not proxy(ball.positions)[0]
-    centre, radius = proxy(ball.positions)[1]
+    assert not proxy(ball.positions, ball.faces)[0]
+    centre, radius = proxy(ball.positions, ball.faces)[1]
     assert np.allclose(centre, 0, atol=1e-9) and radius == pytest.approx(1.0)
-    slab = np.array([[x, y, z] for x in (0, 2) for y in (0, 1) for z in (0, 0.05)], float)
-    assert proxy(slab)[0]
+    cube, cube_faces = builtins.mesh("cube")[:2]
+    assert not proxy(cube, cube_faces)[0]
+    for thickness in (0.05, 0.0):  # a closed slab, and an open sheet
+        slab = np.asarray(cube, float) * [1.0, 1.0, thickness]
+        assert proxy(slab, cube_faces)[0]
+    # two thin panels at a right angle (a railing): a box far from thin, yet a slab
+    panels = np.concatenate([np.asarray(cube, float) * [1.0, 1.0, 0.02], np.asarray(cube, float)[:, [2, 1, 0]] * [0.02, 1.0, 1.0]])
+    faces = np.concatenate([np.asarray(cube_faces), np.asarray(cube_faces) + len(cube)])
+    assert proxy(panels, faces)[0]
 
 
 def test_the_export_leaves_glass_out_saying_so(tmp_path, cli):

@@ -17,7 +17,7 @@ import pytest
 from radiosity.formats.camera import Camera
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.microfacet import fresnel_dielectric
-from radiosity.transport.pathtrace import PathTracer, camera_rays
+from radiosity.transport.pathtrace import PathTracer, camera_rays, scene_of_solution
 from radiosity.transport.solve import SolveOptions, solve
 
 FURNACE = """<?xml version="1.0"?>
@@ -130,6 +130,8 @@ def test_a_thin_pane_passes_one_minus_its_reflectance_in_the_photons(tmp_path):
             np.testing.assert_allclose(closes, e["emitted"], rtol=0.01)
             glass = solution.object("pane")
             assert np.all(glass.radiance == 0.0) and glass.material["glass"]["kind"] == "thindielectric"
+            # the truth of a solution (vlights truth, compare) traces the same glass
+            assert scene_of_solution(solution).object("pane").material.glass.kind == "thindielectric"
     assert PANE_TRANSMITS * 0.98 < centre[1] / centre[0] < PANE_TRANSMITS * 1.04 * 1.02, (centre, PANE_TRANSMITS)
 
 
