@@ -235,8 +235,8 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                     continue
                 item = (vertices[ids[k] // n_gather] * n_gather + ids[k] % n_gather) * max_depth + depth
                 weight3, origin, direction, _ = glass_bounce(
-                    positions, normals, faces, face_normals, epsilon, materials[m], t,
-                    np.float64(hit_u[k]), np.float64(hit_v[k]), d,
+                    (positions, normals, faces, face_normals), epsilon, materials[m],
+                    (t, np.float64(hit_u[k]), np.float64(hit_v[k])), d,
                     (rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1),
                      rand(seed, STREAM_GATHER + 1, item, 2)), True)
                 survives, carried = roulette(

@@ -360,19 +360,20 @@ def _escaped(env, paths, k, radiance):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _through_glass(sa, tile, depth, paths, hits, k, mat, d, out, n_out):
-    """Path k met glass (either face): it goes on reflected or refracted
+def _through_glass(sa, tile, depth, at, mat, d, out, n_out):
+    """Path k of ``at`` = (paths, hits, k) met glass (either face): it goes on reflected or refracted
     (``sampling.glass_bounce``, radiance's 1 / eta^2), with Russian roulette from bounce
     ROULETTE_DEPTH on; no light sample is made there, so an emitter it meets next counts
     in full (last_pdf 0). Returns the paths going on."""
+    paths, hits, k = at
     path = paths.ids[k]
     key = _key(tile, path)
     base = depth * DIMS_PER_BOUNCE
     rnd = (rand(tile.seed, STREAM_PATH, key, base + 3), rand(tile.seed, STREAM_PATH, key, base + 4),
            rand(tile.seed, STREAM_PATH, key, base + 5))
     weight, origin, direction, _ = glass_bounce(
-        sa.positions, sa.normals, sa.faces, sa.face_normals, sa.epsilon, mat, hits.triangle[k],
-        np.float64(hits.u[k]), np.float64(hits.v[k]), d, rnd, True)
+        (sa.positions, sa.normals, sa.faces, sa.face_normals), sa.epsilon, mat,
+        (hits.triangle[k], np.float64(hits.u[k]), np.float64(hits.v[k])), d, rnd, True)
     carried = (paths.throughput[k, 0] * weight[0], paths.throughput[k, 1] * weight[1],
                paths.throughput[k, 2] * weight[2])
     if depth + 1 >= ROULETTE_DEPTH:
@@ -427,7 +428,7 @@ def shade(sa, tile, depth, paths, hits, radiance, shadow, out):
         mat = sa.materials[sa.face_material[t]]
         if mat[KIND] >= KIND_DIELECTRIC:
             if depth + 1 < MAX_DEPTH:
-                n_out = _through_glass(sa, tile, depth, paths, hits, k, mat, d, out, n_out)
+                n_out = _through_glass(sa, tile, depth, (paths, hits, k), mat, d, out, n_out)
             continue
         cos_in = -(d[0] * g[0] + d[1] * g[1] + d[2] * g[2])
         if cos_in <= 0.0:

@@ -253,8 +253,8 @@ def trace_photons(rt, sa, batch, acc):
                     # glass, either face: no deposit, reflected or refracted on
                     base = depth * 8
                     weight, origin, direction, _ = glass_bounce(
-                        positions, normals, faces, face_normals, epsilon, materials[m], t,
-                        np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1]), (dx, dy, dz),
+                        (positions, normals, faces, face_normals), epsilon, materials[m],
+                        (t, np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1])), (dx, dy, dz),
                         (rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
                          rand(seed, STREAM_BOUNCE, pid, base + 2)), False)
                     q0, q1, q2 = p0 * weight[0], p1 * weight[1], p2 * weight[2]

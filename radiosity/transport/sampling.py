@@ -179,15 +179,18 @@ def toward_light_point(positions, faces, face_normals, epsilon, tri, origin, rnd
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def glass_bounce(positions, normals, faces, face_normals, epsilon, mat, tri, u, v, d, rnd, radiance):
-    """A path meeting a glass triangle ``tri`` (material row ``mat`` of a glass kind) at
-    barycentrics (u, v), arriving along d, goes on by ``glass_kernels.glass_sample`` with
+def glass_bounce(mesh, epsilon, mat, hit, d, rnd, radiance):
+    """A path meeting a glass triangle (material row ``mat`` of a glass kind) at ``hit`` =
+    (triangle, u, v) of ``mesh`` = (positions, normals, faces, face_normals), arriving along
+    d, goes on by ``glass_kernels.glass_sample`` with
     the uniform numbers rnd = (u1, u2, u3) (``radiance``: a camera path's 1 / eta^2 on
     refraction). The frame's normal is the interpolated one turned to the triangle's
     outward side (the geometric normal where it is degenerate), so either face may be hit.
     Returns (weight RGB, the new ray's origin, its direction, the sample's density: 0 for
     a smooth kind); a weight of 0 where the sample is absorbed or would leave on the
     true surface's wrong side (reflected through it or refracted back)."""
+    positions, normals, faces, face_normals = mesh
+    tri, u, v = hit
     g = face_normals[tri]
     i0, i1, i2 = faces[tri, 0], faces[tri, 1], faces[tri, 2]
     w = 1.0 - u - v

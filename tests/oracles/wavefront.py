@@ -192,8 +192,8 @@ def bounce_photons(sa, batch, depth, photons, hits, acc, out):
         if sa.materials[m, KIND] >= KIND_DIELECTRIC:  # glass, either face: no deposit, on through it
             base = depth * 8
             weight, origin, direction, _ = glass_bounce(
-                sa.positions, sa.normals, sa.faces, sa.face_normals, sa.epsilon, sa.materials[m], t,
-                np.float64(hits.u[k]), np.float64(hits.v[k]), d,
+                (sa.positions, sa.normals, sa.faces, sa.face_normals), sa.epsilon, sa.materials[m],
+                (t, np.float64(hits.u[k]), np.float64(hits.v[k])), d,
                 (rand(seed, STREAM_BOUNCE, pid, base), rand(seed, STREAM_BOUNCE, pid, base + 1),
                  rand(seed, STREAM_BOUNCE, pid, base + 2)), False)
             scattered = (power[0] * weight[0], power[1] * weight[1], power[2] * weight[2])
