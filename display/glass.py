@@ -5,7 +5,9 @@ A glass object (a solution's material with ``glass``, a fitted object's ``glass`
 nothing per vertex: what it shows is what is around it, reflected and refracted. The
 renderer draws it after every other surface and the background (``glass.glsl``):
 
-- its probe: the scene without its glass, drawn from the object's bounding-box centre in
+- each of its pieces (``components``: the panes of a railing) on its own: a flat piece's
+  reflection is the scene drawn from the eye reflected in its plane (``display.mirror``);
+- else its probe: the scene without its glass, drawn from the piece's bounding-box centre in
   the mode being drawn, six 90-degree views (``cube_views``) resampled into an octahedral
   map (``octahedral_from_faces``, the fitted probe's parametrisation, ``fitting.probe``),
   mipmapped (a rough glass reads a blurrier level, log2(alpha M));
@@ -34,7 +36,8 @@ from fitting.probe import decode
 from radiosity.formats.camera import Camera
 from radiosity.formats.material import Glass
 
-__all__ = ["APPROACHES", "PROBE_SIZE", "SLAB_RATIO", "cube_views", "glass_of", "octahedral_from_faces"]
+__all__ = ["APPROACHES", "PROBE_SIZE", "SLAB_RATIO", "components", "cube_views", "glass_of", "octahedral_from_faces",
+           "probe_texture", "proxy"]
 
 APPROACHES = ("blend", "probe", "none")
 PROBE_SIZE = 128  # texels of a side of the octahedral map (and pixels of a side of each of the six views)
@@ -105,6 +108,33 @@ def proxy(positions, faces):
     volume = abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
     thickness = 2.0 * volume / area if area > 0 else 0.0
     return bool(thickness < SLAB_RATIO * (hi - lo).max()), (centre, radius)
+
+
+def components(positions, faces):
+    """The pieces of a mesh that touch nowhere: [(positions, faces)] of each connected set of
+    triangles, corners at the same place joined (a box's faces with their own vertices are one
+    piece). A glass object of several panes is drawn pane by pane, each with its own plane or
+    probe."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    positions, faces = np.asarray(positions, np.float64), np.asarray(faces)
+    size = np.linalg.norm(positions.max(axis=0) - positions.min(axis=0)) or 1.0
+    _, place = np.unique(np.round(positions / (1e-6 * size)), axis=0, return_inverse=True)
+    corners = place.reshape(-1)[faces]
+    edges = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]]])
+    n = int(place.max()) + 1
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    piece = label[corners[:, 0]]
+    out = []
+    for k in range(count):
+        mine = faces[piece == k]
+        if len(mine) == 0:
+            continue
+        used, local = np.unique(mine, return_inverse=True)
+        out.append((used, local.reshape(-1, 3)))
+    return out
 
 
 def probe_texture(ctx, image):

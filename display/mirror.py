@@ -25,7 +25,7 @@ from radiosity.formats.material import Material
 
 __all__ = ["FLAT_THICKNESS", "mirror_of", "mirrored_view", "plane_of"]
 
-FLAT_THICKNESS = 0.01  # a mirror whose points lie within this fraction of its size of one plane is flat
+FLAT_THICKNESS = 0.01  # an object whose points lie within this fraction of its size of one plane is flat
 
 
 def mirror_of(source):
@@ -43,22 +43,28 @@ def mirror_of(source):
 
 
 def plane_of(positions, faces):
-    """(a point of its front surface, the unit normal) of a flat mirror, else None: flat
-    where every point lies within ``FLAT_THICKNESS`` of its size of the plane whose normal is
-    the faces' area-weighted mean normal (a mirror with a thin back and edges is flat; its
-    front is its points farthest along the normal)."""
+    """(a point, the unit normal) of a flat object, else None: flat where every point lies
+    within ``FLAT_THICKNESS`` of its size of the plane of least spread through its points (a
+    mirror with a thin back and edges, a pane of glass as a thin closed box). The normal is
+    turned to the side its faces face, and the point is its front (its points farthest
+    along the normal) where they face one side; a closed slab's faces face both: its middle."""
     positions = np.asarray(positions, np.float64)
-    corners = positions[np.asarray(faces)]
-    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).sum(axis=0)
-    length = np.linalg.norm(n)
+    centre = positions.mean(axis=0)
     size = np.linalg.norm(positions.max(axis=0) - positions.min(axis=0))
-    if length <= 1e-6 * size * size:
+    if size == 0:
         return None
-    n /= length
-    height = positions @ n
+    spread = positions - centre
+    n = np.linalg.eigh(spread.T @ spread)[1][:, 0]
+    height = spread @ n
     if np.ptp(height) > FLAT_THICKNESS * size:
         return None
-    return positions[np.argmax(height)], n
+    corners = positions[np.asarray(faces)]
+    facing = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).sum(axis=0)
+    if facing @ n < 0:
+        n, height = -n, -height
+    one_sided = abs(facing @ n) > 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                                                corners[:, 2] - corners[:, 0]), axis=1).sum()
+    return (positions[np.argmax(height)] if one_sided else centre), n
 
 
 def mirrored_view(view, plane):

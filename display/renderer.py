@@ -453,10 +453,22 @@ class Renderer:
         for obj, o in zip(self.objects, source.objects, strict=True):
             obj.glass = glass.glass_of(o) or glass.glass_of(by_name.get(o.name))
             obj.mirror = mirror.mirror_of(o) or mirror.mirror_of(by_name.get(o.name))
-            if obj.glass is not None or obj.mirror is not None:
-                obj.slab, obj.sphere = glass.proxy(obj.positions, o.faces)
             if obj.mirror is not None:
+                obj.slab, obj.sphere = glass.proxy(obj.positions, o.faces)
                 obj.plane = mirror.plane_of(o.positions, o.faces)
+        # a glass object is drawn piece by piece (the panes of a railing), each with its own plane or probe
+        self.glass_pieces = []
+        for obj, o in zip(self.objects, source.objects, strict=True):
+            if obj.glass is None:
+                continue
+            pieces = glass.components(o.positions, o.faces)
+            for k, (used, faces) in enumerate(pieces):
+                piece = _Object(ctx, obj.name if len(pieces) == 1 else f"{obj.name}#{k}", np.asarray(o.positions)[used],
+                                np.asarray(o.normals)[used], faces)
+                piece.glass = obj.glass
+                piece.slab, piece.sphere = glass.proxy(piece.positions, faces)
+                piece.plane = mirror.plane_of(piece.positions, faces)
+                self.glass_pieces.append(piece)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
@@ -782,12 +794,15 @@ class Renderer:
             raise InputError(f"unknown shading {shading!r}; choose one of {', '.join(SHADINGS)}")
         ctx = self.ctx
         shown = with_glass and mask is None and program_key is None and targets == 1
-        glassy = [o for o in self.objects if o.glass is not None] if shown and self.glass_approach != "none" else []
+        glassy = self.glass_pieces if shown and self.glass_approach != "none" else []
         eye = np.asarray(view.eye, np.float64)
         mirrors = [o for o in self.objects if o.mirror is not None and (  # a flat one facing away shows nothing
             o.plane is None or (eye - o.plane[0]) @ o.plane[1] > 0)] if shown and self.mirrors else []
-        # what they show is drawn before this frame: probes once, a flat mirror's reflected view every frame
-        probes = [self._glass_probe(o, mode, shading, lights, parts) for o in glassy]
+        # what they show is drawn before this frame: probes once, a flat piece's reflected view every frame
+        probes = [self._glass_probe(o, mode, shading, lights, parts)
+                  if o.plane is None or self.glass_approach == "probe" else None for o in glassy]
+        planes = [self._mirror_image(o, view, mode, shading, lights, samples, parts) if o.plane is not None else None
+                  for o in glassy]
         seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
@@ -800,7 +815,7 @@ class Renderer:
             if mirrors:
                 self._draw_mirrors(view, mirrors, seen)
             if glassy:
-                self._draw_glass(view, glassy, probes)
+                self._draw_glass(view, glassy, probes, planes)
             ctx.depth_func = "<"  # moderngl's default, for whatever draws next with the context
         return self._average(fbs)
 
@@ -894,14 +909,16 @@ class Renderer:
         return self._glass_probes[key]
 
     def _mirror_image(self, obj, view, mode, shading, lights, samples, parts):
-        """What mirror ``obj`` shows in ``view``: a flat one's (texture, the reflected view's
-        model-view-projection), the scene drawn from the eye reflected in its plane with what
-        lies behind the plane clipped away; a curved one's probe (``_glass_probe``), None."""
+        """What a mirror or a glass piece ``obj`` reflects in ``view``: a flat one's (texture,
+        the reflected view's model-view-projection), the scene drawn from the eye reflected in
+        its plane with what lies beyond the plane from the eye clipped away; a curved one's
+        probe (``_glass_probe``), None."""
         if obj.plane is None:
             return self._glass_probe(obj, mode, shading, lights, parts), None
         p, n = obj.plane
         reflected = mirror.mirrored_view(view, obj.plane)
-        self._clip = tuple(float(v) for v in (*n, -float(n @ p)))
+        side = 1.0 if (np.asarray(view.eye, np.float64) - p) @ n >= 0 else -1.0
+        self._clip = tuple(side * float(v) for v in (*n, -float(n @ p)))
         self.ctx.enable_direct(GL_CLIP_DISTANCE0)
         try:
             image = self.render(reflected, mode, shading, lights, samples=samples, parts=parts, with_glass=False)
@@ -936,29 +953,36 @@ class Renderer:
             ks, f0 = obj.mirror
             planar = reflected_mvp is not None
             texture.use(location=9 if planar else 8)
-            values = {"mirror_planar": int(planar), "mirror_image": 9, "glass_probe": 8, "glass_size": glass.PROBE_SIZE,
+            values = {"glass_planar": int(planar), "glass_image": 9, "glass_probe": 8, "glass_size": glass.PROBE_SIZE,
                       "mirror_ks": tuple(map(float, ks)), "mirror_fresnel": int(f0 is not None),
                       "mirror_f0": tuple(map(float, f0)) if f0 is not None else (0.0, 0.0, 0.0),
                       "glass_centre": tuple(map(float, obj.sphere[0])), "glass_lo": tuple(map(float, lo)),
                       "glass_hi": tuple(map(float, hi))}
             for name, value in values.items():
                 self._set(program, name, value)
-            if planar and "mirror_mvp" in program:
-                program["mirror_mvp"].write(reflected_mvp)
+            if planar and "glass_mvp" in program:
+                program["glass_mvp"].write(reflected_mvp)
             vao = obj.vao(ctx, program, ("in_position", "in_normal"))
             vao.render(moderngl.TRIANGLES)
             vao.release()
 
-    def _draw_glass(self, view, objects, probes):
-        """The glass ``objects`` over what is drawn (either face, depth-tested): from their
-        ``probes``, sheets and slabs blended over what is behind them where ``glass_approach``
-        is "blend" (glass.glsl)."""
+    def _draw_glass(self, view, objects, probes, planes):
+        """The glass pieces ``objects`` over what is drawn (either face, depth-tested): what they
+        reflect from ``planes`` (a flat piece's reflected view, ``_mirror_image``) or their
+        ``probes``, what passes through from the probes or, for sheets and slabs where
+        ``glass_approach`` is "blend", blended over what is behind them (glass.glsl)."""
         ctx, program, (lo, hi) = self.ctx, self._last_pass("glass", view), self.bounds
-        for obj, probe in zip(objects, probes, strict=True):
+        for obj, probe, plane in zip(objects, probes, planes, strict=True):
             g = obj.glass
             blend = self.glass_approach == "blend" and (obj.slab or g.kind == "thindielectric")
-            probe.use(location=8)
-            values = {"glass_probe": 8, "glass_size": glass.PROBE_SIZE, "glass_centre": tuple(map(float, obj.sphere[0])),
+            if probe is not None:
+                probe.use(location=8)
+            if plane is not None:
+                plane[0].use(location=9)
+                if "glass_mvp" in program:
+                    program["glass_mvp"].write(plane[1])
+            values = {"glass_planar": int(plane is not None), "glass_image": 9,
+                      "glass_probe": 8, "glass_size": glass.PROBE_SIZE, "glass_centre": tuple(map(float, obj.sphere[0])),
                       "glass_lo": tuple(map(float, lo)), "glass_hi": tuple(map(float, hi)),
                       "glass_kind": {"dielectric": 0, "thindielectric": 1, "roughdielectric": 2}[g.kind],
                       "glass_eta": float(g.eta), "glass_alpha": float(g.alpha),
@@ -1070,7 +1094,7 @@ class Renderer:
         return np.ascontiguousarray(data[..., :components])
 
     def release(self):
-        for o in self.objects:
+        for o in (*self.objects, *self.glass_pieces):
             o.release()
         self.images.release()
         for p in self._programs.values():

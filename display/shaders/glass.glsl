@@ -9,7 +9,8 @@
 // glass_proxy (0: a slab or a sheet, the light behind it passes straight; 1: a solid,
 // refracted in and out through its bounding sphere glass_sphere = (centre, radius)),
 // glass_blend (1: what passes straight is the framebuffer behind, blended: alpha carries
-// its weight), eye.
+// its weight), glass_planar (1: a flat piece's reflection is glass_image, the scene drawn
+// with glass_mvp from the eye reflected in its plane, where the point projects), eye.
 uniform sampler2D glass_probe;
 uniform int glass_size;
 uniform vec3 glass_centre;
@@ -23,6 +24,9 @@ uniform vec3 glass_transmittance;
 uniform int glass_proxy;
 uniform vec4 glass_sphere;
 uniform int glass_blend;
+uniform int glass_planar;
+uniform sampler2D glass_image;
+uniform mat4 glass_mvp;
 float glass_fresnel(float cos_i, float eta) {   // radiosity.scene.microfacet_kernels.fresnel_dielectric
     float c = min(abs(cos_i), 1.0);
     float g2 = eta * eta - 1.0 + c * c;
@@ -49,13 +53,20 @@ vec3 glass_lookup(vec3 x, vec3 r, float lod) {   // from x along unit r, box-pro
     float dl = length(d);
     return textureLod(glass_probe, glass_octahedral(dl > 0.0 ? d / dl : r), lod).rgb;
 }
+vec3 glass_reflection(vec3 x, vec3 r, float lod) {   // what is seen along the mirror direction r from x
+    if (glass_planar == 1) {
+        vec4 p = glass_mvp * vec4(x, 1.0);
+        return texture(glass_image, 0.5 * p.xy / p.w + 0.5).rgb;
+    }
+    return glass_lookup(x, r, lod);
+}
 // (colour, alpha): alpha 1 but where glass_blend leaves (1 - alpha) of the framebuffer behind
 vec4 glass_colour(vec3 x, vec3 n, vec3 w) {
     float eta = glass_eta;
     float c = dot(n, w);
     if (c < 0.0) { n = -n; c = -c; eta = 1.0 / eta; }   // seen from inside
     float lod = glass_kind == 2 ? max(log2(glass_alpha * float(glass_size)), 0.0) : 0.0;
-    vec3 reflected = glass_reflectance * glass_lookup(x, reflect(-w, n), lod);
+    vec3 reflected = glass_reflectance * glass_reflection(x, reflect(-w, n), lod);
     float f;
     if (glass_kind == 1) {
         f = glass_fresnel(c, glass_eta);

@@ -1,12 +1,8 @@
 // A perfect mirror (display.mirror), its front: ks F(w.n) times what it reflects, F
-// Schlick's with mirror_f0 where mirror_fresnel is 1 (else 1). A flat mirror reads the
-// scene drawn from the eye reflected in its plane (mirror_image, drawn with
-// mirror_mvp) where the point projects; a curved one its probe (glass.glsl's look-up).
-// Its back is black, as every back.
+// Schlick's with mirror_f0 where mirror_fresnel is 1 (else 1): a flat mirror the scene drawn
+// from the eye reflected in its plane, a curved one its probe (glass.glsl's
+// glass_reflection). Its back is black, as every back.
 uniform vec3 eye;
-uniform int mirror_planar;
-uniform sampler2D mirror_image;
-uniform mat4 mirror_mvp;
 uniform vec3 mirror_ks;
 uniform vec3 mirror_f0;
 uniform int mirror_fresnel;
@@ -24,12 +20,5 @@ void main() {
     }
     vec3 f = vec3(1.0);
     if (mirror_fresnel == 1) f = mirror_f0 + (1.0 - mirror_f0) * pow(1.0 - min(c, 1.0), 5.0);
-    vec3 seen;
-    if (mirror_planar == 1) {
-        vec4 p = mirror_mvp * vec4(v_position, 1.0);
-        seen = texture(mirror_image, 0.5 * p.xy / p.w + 0.5).rgb;
-    } else {
-        seen = glass_lookup(v_position, reflect(-w, n), 0.0);
-    }
-    f_colour = vec4(mirror_ks * f * seen, 1.0);
+    f_colour = vec4(mirror_ks * f * glass_reflection(v_position, reflect(-w, n), 0.0), 1.0);
 }

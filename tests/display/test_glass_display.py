@@ -234,6 +234,17 @@ def test_a_curved_mirror_in_a_constant_environment_shows_ks_times_fresnel(gl_con
     renderer.release()
 
 
+def test_a_glass_object_is_drawn_piece_by_piece():
+    from display.glass import components
+
+    cube, faces = builtins.mesh("cube")[:2]
+    cube, faces = np.asarray(cube, float), np.asarray(faces)
+    two = np.concatenate([cube * [1, 1, 0.01], cube * [1, 1, 0.01] + [3.0, 0, 0]])
+    pieces = components(two, np.concatenate([faces, faces + len(cube)]))
+    assert len(pieces) == 2 and all(len(f) == len(faces) for _, f in pieces)
+    assert sorted(len(used) for used, _ in pieces) == [len(cube), len(cube)]
+
+
 def test_a_mirror_with_a_thin_back_is_flat_and_its_plane_is_its_front():
     from display.mirror import mirrored_view, plane_of
 
