@@ -258,3 +258,30 @@ def test_a_mirror_with_a_thin_back_is_flat_and_its_plane_is_its_front():
     assert plane_of(ball.positions, ball.faces) is None
     view = mirrored_view(Camera((0.5, 0.2, 3.0), (0.0, 0.0, 0.0)), (point, normal))
     assert np.allclose(view.eye, (0.5, 0.2, -3.0)) and np.allclose(view.look_at, (0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("key, entry, fragment", [
+    ("glass", {"kind": "crystal", "eta": 1.5}, "glass kind 'crystal'"),
+    ("glass", {"kind": "dielectric", "eta": 1.0}, "glass eta = 1"),
+    ("mirror", {"specular": [1, 1]}, "mirror specular must be 3 numbers"),
+    ("mirror", {"specular": [1, 1, 1], "fresnel": [0.5, 2.0, 0.5]}, "mirror fresnel must be 3 numbers in [0, 1]"),
+    ("mirror", {"shine": 1}, "mirror must be"),
+])
+def test_a_bad_glass_or_mirror_entry_in_a_fit_is_refused_in_one_line(tmp_path, key, entry, fragment):
+    import json
+
+    from radiosity.formats.errors import InputError
+    from radiosity.formats.npz import write_archive
+
+    model = fit(_furnace(_ball(), *_opaque()), FitOptions.for_quality("draft"))
+    model.save(tmp_path / "fit.npz")
+    with np.load(tmp_path / "fit.npz", allow_pickle=False) as f:
+        arrays = {k: f[k] for k in f.files if k != "meta"}
+        meta = json.loads(str(f["meta"]))
+    meta["objects"]["ball"].pop("glass")
+    meta["objects"]["ball"][key] = entry
+    write_archive(tmp_path / "bad.npz", meta, arrays)
+    with pytest.raises(InputError) as refused:
+        load_fit(tmp_path / "bad.npz")
+    message = str(refused.value)
+    assert fragment in message and "\n" not in message and "bad.npz" in message
