@@ -508,7 +508,8 @@ def mirrors(rows):
     out = ["## Perfect mirrors at display", "", where("validate_mirror.py", ["mirrors.jsonl", "mirrors.png"]),
            machine(rows), "",
            "On the mirrors' pixels: the path tracer, and the solution display with the mirrors drawn by what they "
-           "reflect and, as before, from the solution's grid, against the reference (Mitsuba 3 on the project's "
+           "reflect and from what the solution stores (\"grid\": their grid, as before solution version 7; "
+           "\"stored\": nothing since), against the reference (Mitsuba 3 on the project's "
            "scene, the published render on the living room) and the display against the path tracer.", ""]
     out += table(["scene", "renderer", "reference", "mirror pixels", "FLIP there", "against the path tracer",
                   "mean ratio there", "whole image FLIP"],

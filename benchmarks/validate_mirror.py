@@ -7,8 +7,9 @@ For each scene: the reference (Mitsuba at 4 x ``--spp``, or the published render
 by a whole factor to at most ``--max-side`` pixels), ``vlights truth`` at ``--spp`` at
 that size, ``vlights solve`` at ``--quality``, and the solution display at the scene's
 camera twice: the mirrors drawn by what they reflect (``display.mirror``: the scene
-reflected in a flat mirror's plane, a curved one's probe) and, as before, from the
-solution's grid (``Renderer.mirrors`` False). On the mirrors' pixels (the camera's rays
+reflected in a flat mirror's plane, a curved one's probe) and from what the solution stores
+for them (``Renderer.mirrors`` False: their grid before solution version 7, which was black
+and blotched; nothing since, black). On the mirrors' pixels (the camera's rays
 whose first hit is a mirror, Embree on the solution's meshes): HDR-FLIP and mean ratio
 against the reference and against the path tracer; the whole image's FLIP; a figure.
 
@@ -82,7 +83,7 @@ def displays(solution_path, size, samples=4):
     camera = solution.camera.sized(*size)
     out = {}
     with headless(size, samples) as ctx:
-        for name, on in (("reflected", True), ("grid", False)):
+        for name, on in (("reflected", True), ("stored", False)):
             renderer = Renderer(ctx, solution=solution, samples=samples)
             renderer.mirrors = on
             start = time.perf_counter()

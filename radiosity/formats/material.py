@@ -387,8 +387,17 @@ class Material:
 
     @property
     def is_mirror(self) -> bool:
-        """True for a perfect mirror: glossy, no diffuse part, exponent >= MIRROR_EXPONENT."""
-        return self.is_glossy and not any(self.diffuse) and self.exponent >= MIRROR_EXPONENT
+        """True for a perfect mirror: glossy, no diffuse part, exponent >= MIRROR_EXPONENT, no
+        microfacet model of its own (a smooth conductor's stand-in)."""
+        return (self.is_glossy and not any(self.diffuse) and self.exponent >= MIRROR_EXPONENT
+                and self.microfacet is None)
+
+    @property
+    def has_grid(self) -> bool:
+        """True if the solver gathers the material's directional radiance into a grid: glossy
+        and not a perfect mirror (a mirror's appearance is what it reflects, drawn by the
+        displays; it stores its diffuse part, none)."""
+        return self.is_glossy and not self.is_mirror
 
     @property
     def is_glass(self) -> bool:

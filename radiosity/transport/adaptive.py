@@ -245,7 +245,7 @@ def value_noise(obj, values, photon_power, gather_samples, rings):
     mass = density.widen(obj.positions, obj.normals, obj.tangents, obj.faces, moments, rings)[2]
     # value = kd / pi * E and E * mass / photon_power photons: sigma = value / sqrt(photons)
     photon = np.sqrt(np.maximum(values, 0.0) * kd / np.pi * photon_power / np.maximum(mass, 1e-300))
-    if obj.material.is_glossy:
+    if obj.material.has_grid:
         return np.hypot(photon, GATHER_NOISE / np.sqrt(gather_samples) * values)
     return photon
 

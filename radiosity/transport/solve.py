@@ -205,11 +205,11 @@ class SolveOptions:
 
 
 def _glossy_sizes(objects, settings):
-    """[(name, vertices, grid n)] of the glossy objects."""
+    """[(name, vertices, grid n)] of the glossy objects (``Material.has_grid``: a perfect mirror has none)."""
     return [
         (o.name, o.n_vertices, settings["grid"] or directions.grid_size(o.material.exponent, settings["quality"]))
         for o in objects
-        if o.material.is_glossy
+        if o.material.has_grid
     ]
 
 
@@ -396,7 +396,7 @@ def _solve(scene, settings, runner, progress):
     glossy = [
         (o, offsets[i], directions.grid_directions(grid_sizes[o.name]))
         for i, o in enumerate(refined.objects)
-        if o.material.is_glossy
+        if o.material.has_grid
     ]
     try:
         gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
@@ -449,7 +449,7 @@ def _solve(scene, settings, runner, progress):
             # keeps the rest (the gather added kd / pi * E to every direction)
             textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=tuple(kd))
             diffuse = np.zeros_like(diffuse)
-        if o.material.is_glossy:
+        if o.material.has_grid:
             dirs = glossy_dirs[o.name]
             radiance = gathered.pop(o.name)  # not held twice where the texture is taken out below
             if o.texture is not None:
@@ -511,8 +511,8 @@ def _solve(scene, settings, runner, progress):
             radiance=np.asarray(radiance, dtype=np.float32),
             material=o.material.to_dict(),
             visibility=visible.get(o.name, np.ones((o.n_vertices, len(parts)), np.float32))
-            if o.material.is_glossy and parts else None,
-            emitter_parts=own_parts.get(o.name) if o.material.is_glossy else None,
+            if o.material.has_grid and parts else None,
+            emitter_parts=own_parts.get(o.name) if o.material.has_grid else None,
             textured=textured.get(o.name),
         )
         for o, dirs, radiance in results

@@ -145,3 +145,40 @@ def test_absorbing_glass_adds_what_it_keeps_to_the_absorbed_power(tmp_path):
     # the lamp's light meets the pane first: what it does not reflect it absorbs in blue, half in red
     assert e["absorbed"][2] > 0.6 * e["emitted"][2]
     assert e["absorbed"][0] < e["absorbed"][1] < e["absorbed"][2]
+
+
+MIRROR_ROOM = """<?xml version="1.0"?>
+<scene version="3.0.0">
+    <shape type="rectangle" id="floor"><transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
+    <shape type="rectangle" id="mirror"><transform name="to_world"><scale value="0.5"/><translate y="0.5" z="-1"/></transform>
+        <bsdf type="conductor"><string name="material" value="Ag"/></bsdf></shape>
+    <shape type="rectangle" id="lamp">
+        <transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/><translate y="2"/></transform>
+        <emitter type="area"><rgb name="radiance" value="20"/></emitter>
+    </shape>
+</scene>
+"""
+
+
+def test_a_perfect_mirror_is_stored_without_a_grid_and_still_reflects_light(tmp_path):
+    """The solver gathers no grid for a perfect mirror (the displays draw what it reflects):
+    its object holds D = 1 and radiance 0 (solution version 7); its photons still reflect, so
+    the floor under the lamp is brighter with the mirror than without it."""
+    options = SolveOptions(quality="draft", photons=200_000, threads=2, max_edge=0.3, seed=2)
+    with_mirror = solve(_scene(tmp_path, MIRROR_ROOM, "mirror.xml"), options)
+    mirror = with_mirror.object("mirror")
+    assert mirror.radiance.shape[1] == 1 and not mirror.radiance.any()
+    assert mirror.visibility is None and mirror.emitter_parts is None
+    path = tmp_path / "s.npz"
+    with_mirror.save(path)
+    from radiosity.formats.solution import load_solution
+
+    assert load_solution(path).version == 7
+    scene = _scene(tmp_path, MIRROR_ROOM.replace('<bsdf type="conductor"><string name="material" value="Ag"/></bsdf>',
+                                                 '<bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>'),
+                   "black.xml")
+    without = solve(scene, options)
+    floor = with_mirror.object("floor")
+    near = floor.positions[:, 2] < -0.5  # the floor in front of the mirror
+    assert floor.radiance[near, 0, 0].mean() > 1.01 * without.object("floor").radiance[near, 0, 0].mean()
