@@ -11,6 +11,7 @@ from radiosity.formats.limits import check_exposure
 
 from .common import (
     add_camera_flags,
+    add_glass_flag,
     add_samples_flag,
     check_model_files,
     check_output_file,
@@ -42,6 +43,7 @@ def add_command(subparsers):
     p.add_argument("--screenshot", metavar="FILE.png", help="with --frames: save the last frame")
     p.add_argument("--press", default="", metavar="KEYS", help="press these keys (m g l + - p 1 2 3) after the first frame")
     add_samples_flag(p)
+    add_glass_flag(p)
     p.set_defaults(func=run)
 
 
@@ -70,7 +72,7 @@ def run(args):
     positions = np.concatenate([o.positions for o in (fit or solution).objects])
     view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), fit, solution)
     Walkthrough.configure(fit, solution, view, exposure=args.exposure, frames=args.frames, screenshot=args.screenshot,
-                          mode=args.mode, press=args.press, samples=args.samples)
+                          mode=args.mode, press=args.press, samples=args.samples, glass=args.glass)
     open_window()
     if Walkthrough.failure is not None:
         raise Walkthrough.failure

@@ -223,3 +223,31 @@ def test_the_window_keeps_the_scene_fov_along_its_axis_as_render_does(x_display,
     diff = np.abs(shot[40:] - want[40:])  # below the status line
     assert diff.mean() <= 1.0 and np.mean(diff.max(axis=2) > 16) < 0.01, diff.mean()
     assert np.mean(want[40:].max(axis=2) > 10) > 0.3  # not vacuous: the scene is in the frame
+
+
+@pytest.mark.skipif(shutil.which("vlights") is None, reason="the vlights entry point is not installed")
+def test_the_window_draws_glass_as_render_does(x_display, tmp_path, gl_context):
+    """A glass ball in a white environment: the window's screenshot (below its status line)
+    is `vlights render`'s picture for each --glass, and the approaches differ."""
+    from test_glass_display import _ball, _furnace, _opaque
+
+    from display.renderer import Renderer, tonemap
+    from fitting import FitOptions, fit
+    from radiosity.formats import Camera
+
+    solution = _furnace(_ball(), *_opaque())
+    model = fit(solution, FitOptions.for_quality("draft"))
+    model.save(tmp_path / "fit.npz")
+    camera = Camera((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), fov_deg=40, width=160, height=120)
+    flags = ["--eye", "0", "0.5", "4", "--look-at", "0", "0", "0", "--up", "0", "1", "0", "--fov", "40", "--samples", "1"]
+    shots = {}
+    for approach in ("blend", "none"):
+        got = view(x_display, tmp_path / "fit.npz", tmp_path, approach, *flags, "--glass", approach)[..., :3]
+        renderer = Renderer(gl_context, fit=model, samples=1)
+        renderer.glass_approach = approach
+        want = tonemap(renderer.render(camera, "fitted"))
+        renderer.release()
+        diff = np.abs(got.astype(int) - want.astype(int)).max(axis=2)[40:]
+        assert np.mean(diff <= 1) > 0.98, (approach, np.mean(diff <= 1))
+        shots[approach] = got
+    assert np.abs(shots["blend"].astype(int) - shots["none"].astype(int)).max() > 10
