@@ -35,7 +35,7 @@ def mirror_of(source):
     if mirror is not None:
         return tuple(mirror.specular), mirror.fresnel
     material = getattr(source, "material", None)
-    if isinstance(material, dict) and "glass" not in material and "microfacet" not in material:
+    if isinstance(material, dict):
         m = Material(getattr(source, "name", "mirror"), **material)
         if m.is_mirror:
             return m.specular, m.fresnel

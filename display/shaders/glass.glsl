@@ -41,17 +41,10 @@ vec2 glass_octahedral(vec3 u) {   // fitting.probe.encode
     if (u.z < 0.0) p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
     return 0.5 * (p + 1.0);
 }
+#include "box.glsl"
 vec3 glass_lookup(vec3 x, vec3 r, float lod) {   // from x along unit r, box-projected
-    float inset = 1e-6 * length(glass_hi - glass_lo);
-    x = clamp(x, glass_lo + inset, glass_hi - inset);
-    float t = 1e38;
-    for (int k = 0; k < 3; ++k) {
-        if (r[k] != 0.0) t = min(t, ((r[k] > 0.0 ? glass_hi[k] : glass_lo[k]) - x[k]) / r[k]);
-    }
-    t = t < 1e38 ? max(t, 0.0) : 0.0;
-    vec3 d = x + t * r - glass_centre;
-    float dl = length(d);
-    return textureLod(glass_probe, glass_octahedral(dl > 0.0 ? d / dl : r), lod).rgb;
+    vec3 u = box_direction(x, r, glass_lo, glass_hi, glass_centre);
+    return textureLod(glass_probe, glass_octahedral(u), lod).rgb;
 }
 vec3 glass_reflection(vec3 x, vec3 r, float lod) {   // what is seen along the mirror direction r from x
     if (glass_planar == 1) {

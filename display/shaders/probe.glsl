@@ -13,7 +13,7 @@ uniform vec3 probe_centre;
 uniform vec3 probe_lo;
 uniform vec3 probe_hi;
 uniform float probe_albedo[VL_ALBEDO_POINTS];   // S at n . w = 0, 1 / (VL_ALBEDO_POINTS - 1), ..., 1
-const float PROBE_INSET = 1e-6;
+#include "box.glsl"
 vec2 octahedral(vec3 u) {   // fitting.probe.encode
     vec2 p = u.xy / (abs(u.x) + abs(u.y) + abs(u.z));
     if (u.z < 0.0) p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
@@ -28,19 +28,10 @@ vec3 probe_texel(int i, int j) {   // fitting.probe._wrap: the octahedron's cont
     return texelFetch(probes, ivec2(i, probe_row + j), 0).rgb;
 }
 vec3 probe_direction(vec3 x, vec3 n, vec3 w) {   // fitting.probe.box_directions
-    float inset = PROBE_INSET * length(probe_hi - probe_lo);
-    x = clamp(x, probe_lo + inset, probe_hi - inset);
     vec3 r = 2.0 * dot(n, w) * n - w;
     float rl = length(r);
     if (rl > 0.0) r /= rl;
-    float t = 1e38;
-    for (int k = 0; k < 3; ++k) {
-        if (r[k] != 0.0) t = min(t, ((r[k] > 0.0 ? probe_hi[k] : probe_lo[k]) - x[k]) / r[k]);
-    }
-    t = t < 1e38 ? max(t, 0.0) : 0.0;
-    vec3 d = x + t * r - probe_centre;
-    float dl = length(d);
-    return dl > 0.0 ? d / dl : r;
+    return box_direction(x, r, probe_lo, probe_hi, probe_centre);
 }
 vec3 probe_lookup(vec3 u) {   // fitting.probe.look_up: bilinear, texel centres at (i + 0.5) / M
     vec2 f = octahedral(u) * float(probe_size) - 0.5;

@@ -77,7 +77,7 @@ from radiosity.formats.emitters import (
 )
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import MIRROR_EXPONENT, Material
+from radiosity.formats.material import Material
 from radiosity.formats.npz import check_member_name, open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
 
@@ -125,13 +125,6 @@ def _check_name(name: Any) -> str:
     except ValueError as exc:
         raise _Invalid(f"object name {name!r}: {exc}") from None
     return name
-
-
-def _is_mirror(material: dict) -> bool:
-    """A material dict of a perfect mirror (``Material.is_mirror``): stored without a grid
-    since version 7."""
-    return (not any(material["diffuse"]) and any(material["specular"]) and material["exponent"] >= MIRROR_EXPONENT
-            and "glass" not in material and "microfacet" not in material)
 
 
 def _material_dict(name: str, material: Any) -> dict:
@@ -429,7 +422,7 @@ class Solution:
         a perfect mirror,
         6 where a material has a microfacet model, else 5 where an object names its emitter parts, else 4 with a
         delta light, else 3 with a textured object or an environment, else 2."""
-        if any(isinstance(o.material, dict) and ("glass" in o.material or _is_mirror(o.material))
+        if any(isinstance(o.material, dict) and ("glass" in o.material or Material(o.name, **o.material).is_mirror)
                for o in self.objects):
             return 7
         if any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects):
