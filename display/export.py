@@ -5,10 +5,14 @@ three.js modules it needs, copied from ``display/web``, the renderer's shader fi
 fit's emitter quadrature: the directory works offline, served by ``vlights serve DIR``
 or any static server).
 
-Schema (format ``vlights.fit.gltf``, version 6; docs/formats.md). V is an
+Schema (format ``vlights.fit.gltf``, version 7; docs/formats.md). V is an
 object's vertex count, K its number of virtual lights, P the number of emitter parts
 its highlight draws (the scene's, or its own: version 6), M an object's probe size. A
-file is written with the lowest version that holds it: 6 where an object names its own
+file is written with the lowest version that holds it: 7 where a highlight has a
+microfacet lobe (its mesh extras' ``highlight.microfacet``, the fit's model, and
+``highlight.lobe`` = {"code": 1 GGX or 2 Beckmann, "alpha", "ks", "f0"}, what the page
+draws it with: ``radiosity.formats.ltc.highlight_lobe``; the table of
+linearly transformed cosines is ``shading.js``'s ``LTC_TABLE``), else 6 where an object names its own
 emitter parts (its mesh extras' ``highlight.parts``: indices into the scene's
 ``emitters`` and ``emitter_table``, which may then hold more than 31), else 5 with a
 delta emitter part (a point, a spot, a direction: version 5 adds those
@@ -89,19 +93,23 @@ merged, so no attribute value is lost) and moved into place only when complete.
 
 from __future__ import annotations
 
+import base64
 import json
 from pathlib import Path
 
 import numpy as np
 
 from radiosity.formats import InputError
+from radiosity.formats.ltc import highlight_lobe
+from radiosity.formats.material import Microfacet
 
 __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 6
-READS = (1, 2, 3, 4, 5, 6)
+VERSION = 7
+READS = (1, 2, 3, 4, 5, 6, 7)
+OWN_PARTS_VERSION = 6  # the version of a file where an object names its own emitter parts and no lobe
 DELTA_VERSION = 5  # the version of a file with a delta emitter part and no object's own parts
 ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delta part
 TEXTURED_VERSION = 3  # the version of a file with a textured object and no environment
@@ -191,6 +199,11 @@ def mesh_extras(obj):
             extras["highlight"]["fresnel"] = _doubles(obj.highlight.fresnel)
         if obj.highlight.indices is not None:
             extras["highlight"]["parts"] = [int(i) for i in obj.highlight.indices]
+        if obj.highlight.microfacet is not None:
+            lobe = highlight_lobe(obj.highlight.microfacet)
+            extras["highlight"]["microfacet"] = obj.highlight.microfacet.to_dict()
+            extras["highlight"]["lobe"] = {"code": int(lobe.code), "alpha": float(lobe.alpha), "ks": _doubles(lobe.ks),
+                                           "f0": _doubles(lobe.f0)}
     if obj.probe is not None:
         p = obj.probe
         extras["probe"] = {
@@ -219,11 +232,13 @@ def _check_highlights(model):
 
 
 def file_version(model):
-    """The lowest version of the schema that holds ``model``: 6 where an object names its
-    own emitter parts, 5 with a delta emitter part, 4 with an environment, 3 with a
-    textured object, else 2."""
-    if any(o.highlight is not None and o.highlight.indices is not None for o in model.objects):
+    """The lowest version of the schema that holds ``model``: 7 where a highlight has a
+    microfacet lobe, 6 where an object names its own emitter parts, 5 with a delta
+    emitter part, 4 with an environment, 3 with a textured object, else 2."""
+    if any(o.highlight is not None and o.highlight.microfacet is not None for o in model.objects):
         return VERSION
+    if any(o.highlight is not None and o.highlight.indices is not None for o in model.objects):
+        return OWN_PARTS_VERSION
     if any(p.is_delta for p in model.emitters):
         return DELTA_VERSION
     if model.environment is not None:
@@ -393,15 +408,19 @@ def shading_module(nodes=None):
     from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, defines
     from fitting.probe import ALBEDO_POINTS
     from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS
+    from radiosity.formats.ltc import table_texture
 
     nodes = DEFAULT_NODES if nodes is None else int(nodes)
+    ltc = table_texture()  # (2 S, 2 S, 4): the microfacet lobes' table (ltc.glsl), little-endian float32 in base64
     return ("// Written by `vlights export` (display/export.py): the #define lines of display/glsl.py.\n"
             f"export const DEFINES = {json.dumps(defines(nodes))};\n"
             f"export const TEXTURE_WIDTH = {FLOAT_TEXTURE_WIDTH};\n"
             f"export const EMITTER_NODES = {nodes};\n"
             f"export const TABLE_WIDTH = {TABLE_WIDTH};\n"
             f"export const ALBEDO_POINTS = {ALBEDO_POINTS};\n"
-            f"export const MAX_OBJECT_PARTS = {MAX_FILE_PARTS};\n")
+            f"export const MAX_OBJECT_PARTS = {MAX_FILE_PARTS};\n"
+            f"export const LTC_SIZE = {ltc.shape[0] // 2};\n"
+            f"export const LTC_TABLE = '{base64.b64encode(ltc.astype('<f4').tobytes()).decode()}';\n")
 
 
 def write_files(model, directory, page=True):
@@ -506,6 +525,12 @@ def _read_highlight(info, attributes, v, parts, nodes, fail):
         fresnel = None if entry.get("fresnel") is None else np.asarray(entry["fresnel"], np.float64).reshape(3)
     except (KeyError, TypeError, ValueError):
         raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent' (and 'fresnel' [r, g, b] if given)") from None
+    microfacet = None
+    if entry.get("microfacet") is not None:
+        try:
+            microfacet = Microfacet.from_dict(entry["microfacet"])
+        except ValueError as exc:
+            raise fail(f"'highlight' {exc}") from None
     indices = entry.get("parts")
     if indices is not None:
         if not (isinstance(indices, list) and len(indices) <= MAX_FILE_PARTS and len(set(indices)) == len(indices)
@@ -520,7 +545,8 @@ def _read_highlight(info, attributes, v, parts, nodes, fail):
     p = len(parts)
     columns = [_attribute(attributes, key, v, fail) for key in visibility_attributes(np.zeros((0, p)))]
     visibility = np.concatenate(columns, axis=1)[:, :p] if columns else np.zeros((v, 0), np.float32)
-    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel, indices)
+    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel, indices,
+                     microfacet)
 
 
 def _read_probe(info, attributes, v, fail):

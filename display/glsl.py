@@ -15,6 +15,8 @@ never code written from Python:
     VL_CULL, VL_MAX_POLYGON_VERTICES    radiosity.formats.emitters' constants
     VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W, VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W
                               the emitter quadrature of N nodes (``rules(N)``)
+    VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES, VL_LTC_SPHERE_SCALE, VL_LTC_MAX
+                              radiosity.formats.ltc's constants (ltc.glsl)
     VL_NO_LIGHTS, VL_NO_PROBE, VL_NO_EMITTERS    the parts of the model left out
     VL_TRIANGLE, VL_GOURAUD, VL_OUT, VL_ATTRIBUTES    variants of a stage (the files say which)
     VL_REVERSED_Z             the depth convention is reversed Z (the background's far plane
@@ -34,6 +36,7 @@ import numpy as np
 
 from fitting.model import PARTS
 from fitting.probe import ALBEDO_POINTS
+from radiosity.formats import ltc
 from radiosity.formats.emitters import CULL, DEFAULT_NODES, MAX_POLYGON_VERTICES, PackedParts, rules
 
 SHADERS = Path(__file__).with_name("shaders")
@@ -85,6 +88,10 @@ def defines(nodes=DEFAULT_NODES, parts=PARTS, extra=()):
         "VL_SECTOR_NODES": len(sector_s),
         "VL_SECTOR_S": _floats(sector_s),
         "VL_SECTOR_W": _floats(sector_w),
+        "VL_LTC_ALPHA_MIN": repr(float(ltc.ALPHA_MIN)),
+        "VL_LTC_SPHERE_SIDES": ltc.SPHERE_SIDES,
+        "VL_LTC_SPHERE_SCALE": repr(float(ltc.SPHERE_SCALE)),
+        "VL_LTC_MAX": ltc.MAX_CLIPPED,
     }
     lines = [f"#define {k} {v}\n" for k, v in values.items()]
     lines += [f"#define VL_NO_{p.upper()}\n" for p in PARTS if p not in parts]

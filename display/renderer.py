@@ -65,6 +65,8 @@ import numpy as np
 from fitting.model import PARTS
 from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
+from radiosity.formats.ltc import highlight_lobe
+from radiosity.formats.ltc import table_texture as ltc_table_texture
 
 from . import glass, mirror
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
@@ -77,6 +79,7 @@ MODES = ("fitted", "diffuse", "reference")
 MODE_WORDS = {"fitted": "fitted", "reference": "solution", "diffuse": "diffuse"}
 MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "reference"}
 SHADINGS = ("gouraud", "pixel")
+LTC_UNIT = 4  # the texture unit of the microfacet lobes' table
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
 GL_CLIP_DISTANCE0 = 0x3000  # OpenGL's enum: clip by gl_ClipDistance[0] (a flat mirror's reflected view)
@@ -480,6 +483,7 @@ class Renderer:
         self.probes = None
         self.emitter_tables = {}  # (mode, a list of parts) -> the emitter parts' texture (``_emitter_table``)
         self.default_tables = {}  # mode -> the table of all its parts
+        self.ltc = None  # the microfacet lobes' table (``_ltc_texture``), made where an object draws one
         environment = solution.environment if solution is not None else None
         if environment is None and fit is not None:
             environment = fit.environment
@@ -498,16 +502,31 @@ class Renderer:
         self._scratch = None
         self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
-    def _highlight(self, mode, obj, parts, visibility, ks, exponent, plan, *, fresnel=None):
+    def _highlight(self, mode, obj, parts, visibility, ks, exponent, plan, *, fresnel=None, microfacet=None):
         """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) a block of the
-        store's ``plan``; ``fresnel`` the material's Schlick F0 or None."""
+        store's ``plan``; ``fresnel`` the material's Schlick F0 or None; ``microfacet``:
+        None, or the ``Microfacet`` (or its dict) whose own lobe draws it (ks, exponent
+        and fresnel then ignored: ``radiosity.formats.ltc.highlight_lobe``)."""
         values = np.asarray(visibility, np.float32).reshape(-1)
         base = plan.add(len(values), lambda: (values,))
         own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
         f0 = (-1.0, -1.0, -1.0) if fresnel is None else tuple(float(v) for v in fresnel)  # < 0: no Fresnel
+        lobe = (0, 0.0)
+        if microfacet is not None:
+            hl = highlight_lobe(microfacet)
+            ks, f0, lobe = hl.ks, tuple(float(v) for v in hl.f0), (hl.code, hl.alpha)
+            self._ltc_texture()
         # the object's own parts (a file's version that names them) get their own table, one per distinct list
         table = self._emitter_table(mode, parts)
-        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0, table)
+        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0, table, lobe)
+
+    def _ltc_texture(self):
+        """The microfacet lobes' table (``display/shaders/ltc.glsl``), made once."""
+        if self.ltc is None:
+            table = ltc_table_texture()
+            self.ltc = self.ctx.texture((table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
+            self.ltc.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return self.ltc
 
     def _emitter_table(self, mode, parts):
         """The emitter table texture of ``parts`` (``display.glsl.emitter_table``) in
@@ -531,7 +550,8 @@ class Renderer:
                 obj.add_textured(ctx, f.textured, self.images)
             if f.highlight is not None:
                 h = f.highlight
-                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, plan, fresnel=h.fresnel)
+                self._highlight("fitted", obj, h.parts, h.visibility, h.ks, h.exponent, plan, fresnel=h.fresnel,
+                                microfacet=h.microfacet)
             obj.glossy = obj.glossy or bool(f.n_lights or f.probe is not None or f.highlight is not None)
             weight = np.zeros((obj.n_vertices, 3), np.float32)
             if f.probe is not None:
@@ -593,7 +613,7 @@ class Renderer:
             if split:
                 m = s.material
                 self._highlight("reference", obj, parts, s.visibility, m["specular"], m["exponent"],
-                                plan, fresnel=m.get("fresnel"))
+                                plan, fresnel=m.get("fresnel"), microfacet=solution.lobe_of(s.name))
 
     @property
     def uploaded_bytes(self):
@@ -604,7 +624,7 @@ class Renderer:
         total += self.store.nbytes
         if self.probes is not None:
             total += self.probes.width * self.probes.height * 12
-        total += sum(t.width * t.height * 16 for t in self.emitter_tables.values())
+        total += sum(t.width * t.height * 16 for t in (*self.emitter_tables.values(), *(() if self.ltc is None else (self.ltc,))))
         return total
 
     def _program(self, key, parts=PARTS, textured=False, extra=()):
@@ -663,6 +683,11 @@ class Renderer:
             self._set(program, "emitter_ks", h[3])
             self._set(program, "emitter_exponent", h[4])
             self._set(program, "emitter_f0", h[5])
+            self._set(program, "emitter_lobe", h[7][0])
+            self._set(program, "emitter_alpha", h[7][1])
+            if h[7][0]:
+                self.ltc.use(location=LTC_UNIT)
+            self._set(program, "ltc_table", LTC_UNIT)
 
     def _bind_probe(self, program, obj, on):
         p = obj.probe if on else None
@@ -1099,7 +1124,7 @@ class Renderer:
         self.images.release()
         for p in self._programs.values():
             p.release()
-        for texture in (self.store, self.probes, self._environment_texture, *self.emitter_tables.values(),
+        for texture in (self.store, self.probes, self._environment_texture, self.ltc, *self.emitter_tables.values(),
                         *self._glass_probes.values(), *self._mirror_images.values()):
             if texture is not None:
                 texture.release()

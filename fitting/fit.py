@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import Material
+from radiosity.formats.material import Material, Microfacet
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import SolutionFile
 
@@ -331,9 +331,11 @@ def _fit_components(obj, options, scene, progress, solution, box):
     if c.emitters and parts:
         m = obj.material
         indices = None if obj.emitter_parts is None else tuple(int(i) for i in obj.emitter_parts)
+        lobe = solution.lobe_of(obj.name)
         highlight = Highlight(tuple(own), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
                               float(m["exponent"]), np.asarray(obj.visibility, np.float32),
-                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64), indices)
+                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64), indices,
+                              None if lobe is None else Microfacet.from_dict(lobe))
     per_light = c.n_lights and c.specular.ndim == 3
     info = {
         "model": c.model,

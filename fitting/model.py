@@ -36,6 +36,11 @@ that ignores the key sees a black object. It adds mirrors too: ``meta.objects[na
 = {"specular": [r, g, b], "fresnel": [r, g, b] (optional)} (the material's ks and Schlick
 F0) marks a perfect mirror (a smooth conductor: ``Material.is_mirror``) the displays draw
 by what it reflects (``display.mirror``), its arrays a black diffuse object's likewise.
+Version 8 adds a microfacet lobe to a highlight, as the solution's version 8 has it:
+``meta.objects[name].highlight.microfacet`` (``radiosity.formats.material.Microfacet.
+to_dict``) draws the highlights with that lobe (``radiosity.formats.ltc``: its
+specular reflectance and exact normal reflectance; "specular", "exponent" and "fresnel"
+keep the Phong stand-in, which a reader of version 7 that ignores the key draws).
 
 The shading formula (the paper's equation 1, Blinn-Phong half vector, no n.l gate, no
 distance attenuation), at a surface point x with unit normal n:
@@ -63,7 +68,7 @@ import numpy as np
 from radiosity.formats.camera import Camera, camera_from_meta
 from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS, MAX_NODES, emitter_radiance, file_parts
 from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
-from radiosity.formats.material import Glass
+from radiosity.formats.material import Glass, Microfacet
 from radiosity.formats.npz import open_archive, write_archive
 from radiosity.formats.texture import TexturedDiffuse, read_textured
 
@@ -71,8 +76,8 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 7  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
-READS = (1, 2, 3, 4, 5, 6, 7)
+VERSION = 8  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
+READS = (1, 2, 3, 4, 5, 6, 7, 8)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -138,7 +143,8 @@ class Highlight:
     specular part; visibility (V, P) float32: how much of each part each vertex sees;
     fresnel: None, or the material's Schlick F0 (3,); indices: where ``parts`` are the
     object's own (version 6), their indices in the model's ``emitters`` (None: parts are
-    all of them, in order)."""
+    all of them, in order); microfacet: None, or the ``Microfacet`` whose own lobe draws
+    the highlights (version 8; ks, exponent and fresnel then the stand-in's, unused)."""
 
     parts: tuple
     nodes: int
@@ -147,6 +153,7 @@ class Highlight:
     visibility: np.ndarray
     fresnel: np.ndarray | None = None  # Schlick's F0 (3,) of a Fresnel material: ks weighted by F(w.n)
     indices: tuple | None = None  # version 6: the parts' indices in the model's emitters (None: all, in order)
+    microfacet: Microfacet | None = None  # version 8: the lobe that draws them
 
     def radiance(self, positions, normals, views, source):
         """E (..., 3) float64 at points (..., 3) with unit normals, unit views, the
@@ -160,6 +167,7 @@ class Highlight:
             self.parts, np.broadcast_to(positions, shape).reshape(-1, 3), np.broadcast_to(normals, shape).reshape(-1, 3),
             np.broadcast_to(views, shape).reshape(-1, 3), self.ks, self.exponent,
             visibility=vis.reshape(-1, len(self.parts)), nodes=self.nodes, source=source, fresnel=self.fresnel,
+            microfacet=self.microfacet,
         )
         return out.reshape(shape)
 
@@ -298,7 +306,8 @@ class FittedObject:
             )
         if self.highlight is not None and "emitters" in parts:
             h = self.highlight
-            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index], h.fresnel, h.indices)
+            vis = Highlight(h.parts, h.nodes, h.ks, h.exponent, np.asarray(h.visibility)[index], h.fresnel, h.indices,
+                            h.microfacet)
             out = out + vis.radiance(positions, normals, w, self.name)
         if self.textured is not None:
             out = out + self.textured.radiance(index)[extra]
@@ -329,6 +338,8 @@ class FittedObject:
             out["highlight"] = {"specular": [float(v) for v in self.highlight.ks], "exponent": float(self.highlight.exponent)}
             if self.highlight.fresnel is not None:
                 out["highlight"]["fresnel"] = [float(v) for v in self.highlight.fresnel]
+            if self.highlight.microfacet is not None:
+                out["highlight"]["microfacet"] = self.highlight.microfacet.to_dict()
         if self.probe is not None:
             out["probe"] = self.probe.to_meta()
         if self.textured is not None:
@@ -363,9 +374,12 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 7 with a glass object or a mirror, 6 where
+        """The lowest contract version that holds this model: 8 where a highlight has a microfacet lobe,
+        else 7 with a glass object or a mirror, else 6 where
         an object names its emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
         an environment, else 3."""
+        if any(o.highlight is not None and o.highlight.microfacet is not None for o in self.objects):
+            return 8
         if any(o.glass is not None or o.mirror is not None for o in self.objects):
             return 7
         if any(o.highlight is not None and o.highlight.indices is not None for o in self.objects):
@@ -553,6 +567,12 @@ def _read_highlight(archive, name, info, n_v, emitters, nodes):
         fresnel = _finite_numbers(entry["fresnel"], 3)
         if fresnel is None or (fresnel < 0).any() or (fresnel > 1).any():
             raise fail(f"meta 'objects': object {name!r}'s 'highlight' 'fresnel' must be [r, g, b] in [0, 1]")
+    microfacet = None
+    if archive.meta["version"] >= 8 and "microfacet" in entry:
+        try:
+            microfacet = Microfacet.from_dict(entry["microfacet"])
+        except ValueError as exc:
+            raise fail(f"meta 'objects': object {name!r}'s 'highlight' {exc}") from None
     if key not in archive.keys:
         raise fail(f"object {name!r} has a 'highlight' but no '{key}' array")
     indices, parts = None, emitters
@@ -570,7 +590,7 @@ def _read_highlight(archive, name, info, n_v, emitters, nodes):
     vis = archive.array(key, "fiu", (n_v, len(parts)))
     if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
         raise fail(f"'{key}' has values outside [0, 1]")
-    return Highlight(parts, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel, indices)
+    return Highlight(parts, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel, indices, microfacet)
 
 
 def _read_probe(archive, name, info, n_v):

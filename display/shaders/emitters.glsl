@@ -18,6 +18,9 @@
 //   emitter_ks        the object's specular colour ks (0: a diffuse object: no highlights)
 //   emitter_exponent  its modified-Phong exponent
 //   emitter_f0        its Schlick F0 (a Fresnel material: ks weighted by F(n.w)); < 0: no Fresnel
+//   emitter_lobe, emitter_alpha, ltc_table   a microfacet lobe (ltc.glsl; 0: the Phong lobe
+//                     above): emitter_ks then its specular reflectance, emitter_f0 its
+//                     exact normal reflectance
 //   visibility_base   vertex v's fraction of part i is the red of value visibility_base +
 //                     v * n_parts + i: on the desktop, of the renderer's float store
 //                     (store.glsl; visibility_base an address, (layer, texel)); on the page, of
@@ -126,6 +129,7 @@ float sphere_integral(vec3 centre, float radius, vec3 x, vec3 n, vec3 r, float p
     return total / p1;
 }
 vec3 emitter_point(int part, int k) { return texelFetch(emitter_table, ivec2(3 + k, part), 0).xyz; }
+#include "ltc.glsl"
 float polygon_integral(int part, int count, vec3 x, vec3 n, vec3 r, float p) {
     vec3 t, b;
     lobe_frame(r, t, b);
@@ -192,22 +196,28 @@ float spot_falloff(float theta, float cutoff, float beam) {   // Mitsuba 3's spo
     if (theta <= beam) return 1.0;
     return (cutoff - theta) / (cutoff - beam);
 }
+// where a delta part's light comes from at x: the unit wi toward it, and the factor its
+// Le is weighted by (1 / d^2 times the spot's profile for a point, 1 for a direction; 0:
+// unusable) (radiosity.formats.emitters.delta_incidence)
+float delta_incidence(int part, bool direction, vec3 x, out vec3 wi) {
+    vec3 q = emitter_point(part, 0);
+    wi = -q;
+    if (direction) return 1.0;
+    vec3 to = q - x;
+    float d2 = dot(to, to);
+    if (!(d2 > 0.0)) return 0.0;
+    wi = to / sqrt(d2);
+    float scale = 1.0 / d2;
+    vec3 spot = emitter_point(part, 2);
+    vec3 axis = emitter_point(part, 1);
+    if (spot.z > 0.0) scale *= spot_falloff(atan2_(length(cross(wi, axis)), -dot(wi, axis)), spot.x, spot.y);
+    return scale;
+}
 // a delta part's J: the lobe and the cosine at its one direction, times 1 / d^2 and the
 // spot's profile for a point (radiosity.formats.emitters.delta_integral)
 float delta_integral(int part, bool direction, vec3 x, vec3 n, vec3 r, float p) {
-    vec3 q = emitter_point(part, 0);
-    vec3 wi = -q;
-    float scale = 1.0;
-    if (!direction) {
-        vec3 to = q - x;
-        float d2 = dot(to, to);
-        if (!(d2 > 0.0)) return 0.0;
-        wi = to / sqrt(d2);
-        scale = 1.0 / d2;
-        vec3 spot = emitter_point(part, 2);
-        vec3 axis = emitter_point(part, 1);
-        if (spot.z > 0.0) scale *= spot_falloff(atan2_(length(cross(wi, axis)), -dot(wi, axis)), spot.x, spot.y);
-    }
+    vec3 wi;
+    float scale = delta_incidence(part, direction, x, wi);
     float cos_n = dot(wi, n), cos_a = dot(wi, r);
     if (!(cos_n > 0.0 && cos_a > 0.0 && scale > 0.0)) return 0.0;
     return scale * cos_n * pow(min(cos_a, 1.0), p);
@@ -227,12 +237,55 @@ float visibility_at(int vertex, int part) {
     return texelFetch(visibility, ivec2(i % VISIBILITY_WIDTH, i / VISIBILITY_WIDTH), 0).r;
 #endif
 }
+float part_visibility(int i, ivec3 vertices, vec3 weights) {
+    float v = weights.x * visibility_at(vertices.x, i);
+    if (weights.y != 0.0) v += weights.y * visibility_at(vertices.y, i);
+    if (weights.z != 0.0) v += weights.z * visibility_at(vertices.z, i);
+    return v;
+}
+// a microfacet lobe's highlights (radiosity.formats.emitters._microfacet_radiance): an
+// area part by linearly transformed cosines with Schlick's curve through emitter_f0
+// integrated over the lobe, a delta part the lobe at its direction with F(wi.h)
+vec3 microfacet_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
+    vec3 colour = vec3(0.0);
+    float wn = dot(n, w);
+    if (!(wn > 0.0)) return colour;
+    vec4 k;
+    vec2 m;
+    ltc_cell(emitter_lobe, emitter_alpha, wn, k, m);
+    vec3 area = emitter_ks * (emitter_f0 * m.x + (1.0 - emitter_f0) * m.y);
+    vec3 t, b;
+    ltc_view_frame(n, w, t, b);
+    for (int i = 0; i < n_parts; ++i) {
+        if (((own_parts >> i) & 1) == 1) continue;
+        float v = part_visibility(i, vertices, weights);
+        if (!(v > 0.0)) continue;
+        vec4 head = texelFetch(emitter_table, ivec2(0, i), 0);
+        vec3 le = texelFetch(emitter_table, ivec2(1, i), 0).rgb;
+        if (head.x > 1.5) {   // a point or a direction
+            vec3 wi;
+            float scale = delta_incidence(i, head.x > 2.5, x, wi);
+            if (!(scale > 0.0)) continue;
+            float cih;
+            float value = ltc_lobe_value(emitter_lobe, emitter_alpha, wi, w, n, cih);
+            float x5 = pow(1.0 - clamp(cih, 0.0, 1.0), 5.0);
+            colour += (value * scale * v) * emitter_ks * (emitter_f0 + (1.0 - emitter_f0) * x5) * le;
+            continue;
+        }
+        vec3 f = head.x < 0.5 ? ltc_sphere_integral(emitter_point(i, 0), head.z, x, t, b, n, k, emitter_alpha)
+                              : ltc_polygon_integral(i, int(head.y + 0.5), x, t, b, n, k, emitter_alpha);
+        float ratio = ltc_lobe_ratio(f, k, emitter_lobe, emitter_alpha, wn, m.x);
+        colour += (f.z * (ratio + (1.0 - ratio) * f.z) * v) * area * le;
+    }
+    return colour;
+}
 // the emitters' highlights at x (unit normal n, unit w towards the eye), each part's
 // visibility blended from the vertices by weights (per pixel: barycentrics; at a vertex:
 // (v, v, v), (1, 0, 0))
 vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
     vec3 colour = vec3(0.0);
     if (n_parts == 0 || all(equal(emitter_ks, vec3(0.0)))) return colour;
+    if (emitter_lobe != 0) return microfacet_term(x, n, w, vertices, weights);
     vec3 r = 2.0 * dot(n, w) * n - w;
     float rl = length(r);
     if (!(rl > 0.0)) return colour;
@@ -246,9 +299,7 @@ vec3 emitter_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
     }
     for (int i = 0; i < n_parts; ++i) {
         if (((own_parts >> i) & 1) == 1) continue;
-        float v = weights.x * visibility_at(vertices.x, i);
-        if (weights.y != 0.0) v += weights.y * visibility_at(vertices.y, i);
-        if (weights.z != 0.0) v += weights.z * visibility_at(vertices.z, i);
+        float v = part_visibility(i, vertices, weights);
         if (!(v > 0.0)) continue;
         vec4 head = texelFetch(emitter_table, ivec2(0, i), 0);
         float j;

@@ -75,10 +75,10 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { PointerLockControls } from 'three/addons/controls/PointerLockControls.js';
 // written by `vlights export`: the #define lines of display/glsl.py for this fit's
 // emitter nodes, and the constants of the textures' layout
-import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, MAX_OBJECT_PARTS, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
+import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, LTC_SIZE, LTC_TABLE, MAX_OBJECT_PARTS, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3, 4, 5, 6]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4, 5, 6, 7]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -368,6 +368,15 @@ function diffuseTexture(material, info, where) {
 }
 
 const EMPTY = floatTexture(new Float32Array(4), 1, 1);
+// the microfacet lobes' table (ltc.glsl; shading.js's LTC_TABLE: little-endian float32 in base64), made where one draws
+let ltcTexture = null;
+function ltcTable() {
+    if (ltcTexture === null) {
+        const bytes = Uint8Array.from(atob(LTC_TABLE), (c) => c.charCodeAt(0));
+        ltcTexture = floatTexture(new Float32Array(bytes.buffer), 2 * LTC_SIZE, 2 * LTC_SIZE);
+    }
+    return ltcTexture;
+}
 
 // ------------------------------------------------------------------------- texture limits
 
@@ -451,9 +460,13 @@ function makeObject(node, info, fit) {
             emitter_table: { value: table },
             n_parts: { value: parts },
             own_parts: { value: own },
-            emitter_ks: { value: new THREE.Vector3(...h.ks) },
+            emitter_ks: { value: new THREE.Vector3(...(h.lobe ? h.lobe.ks : h.ks)) },
             emitter_exponent: { value: h.exponent },
-            emitter_f0: { value: new THREE.Vector3(...(h.fresnel || [-1, -1, -1])) },
+            emitter_f0: { value: new THREE.Vector3(...(h.lobe ? h.lobe.f0 : h.fresnel || [-1, -1, -1])) },
+            // a microfacet lobe (a version 7 file): linearly transformed cosines
+            emitter_lobe: { value: h.lobe ? h.lobe.code : 0 },
+            emitter_alpha: { value: h.lobe ? h.lobe.alpha : 0 },
+            ltc_table: { value: h.lobe ? ltcTable() : EMPTY },
             visibility: { value: parts ? visibilityTexture(source.attributes, v, parts, where) : EMPTY },
             visibility_base: { value: 0 }, // one visibility texture per object
             // the reflection probe

@@ -53,6 +53,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from radiosity.formats import ltc
 from radiosity.formats.errors import InputError
 
 __all__ = [
@@ -714,10 +715,14 @@ def _culled(bound_centre, bound_radius, x, r, exponent):
 @numba.njit(cache=True, nogil=True, inline="always")
 def _point_radiance(pk, visibility, own, where, material, rule):
     """E (3-tuple) at where = (point x, unit normal n, unit view w), with visibility[i]
-    of part i; pk : ``PackedParts.arrays()``; material = (ks, exponent, f0, fresnel):
-    with ``fresnel`` ks is weighted by Schlick's F(w.n) (``emitter_radiance``)."""
+    of part i; pk : ``PackedParts.arrays()``; material = (ks, exponent, f0, fresnel,
+    code, alpha, table): with ``fresnel`` ks is weighted by Schlick's F(w.n)
+    (``emitter_radiance``); code: the lobe's (``ltc.LOBES``; 0: the modified-Phong
+    lobe of ``exponent``, else a microfacet lobe of roughness alpha, ``ltc.table()``)."""
+    if material[4] != ltc.PHONG:
+        return _microfacet_radiance(pk, visibility, own, where, material)
     kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
-    ks, exponent, f0, fresnel = material
+    ks, exponent, f0, fresnel = material[0], material[1], material[2], material[3]
     x, n, w = where
     wn = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
     k0, k1, k2 = ks[0], ks[1], ks[2]
@@ -739,6 +744,52 @@ def _point_radiance(pk, visibility, own, where, material, rule):
         e0 += j * k0 * radiance[i, 0]
         e1 += j * k1 * radiance[i, 1]
         e2 += j * k2 * radiance[i, 2]
+    return e0, e1, e2
+
+
+@numba.njit(cache=True, nogil=True)
+def _microfacet_radiance(pk, visibility, own, where, material):
+    """``_point_radiance`` of a microfacet lobe (``radiosity.formats.ltc``): an area
+    part's integral by linearly transformed cosines with Schlick's curve through f0
+    integrated over the lobe, a delta part's the lobe at its direction with F(wi . h);
+    ks the interface's specular reflectance. No part is culled (the lobes' tails are long)."""
+    kinds, counts, points, radius, _, _, radiance = pk
+    ks, f0, code, alpha, table = material[0], material[2], material[4], material[5], material[6]
+    x, n, w = where
+    wn = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
+    e0 = e1 = e2 = 0.0
+    if not wn > 0.0:
+        return e0, e1, e2
+    cell = ltc.cell(table, code, alpha, wn)
+    k = (cell[0], cell[1], cell[2], cell[3])
+    a0, a1, a2 = (ks[0] * (f0[0] * cell[4] + (1.0 - f0[0]) * cell[5]), ks[1] * (f0[1] * cell[4] + (1.0 - f0[1]) * cell[5]),
+                  ks[2] * (f0[2] * cell[4] + (1.0 - f0[2]) * cell[5]))
+    t, b = ltc.view_frame(n, w)
+    frame = (t, b, (n[0], n[1], n[2]))
+    for i in range(kinds.shape[0]):
+        v = visibility[i]
+        if own[i] or not v > 0.0:
+            continue
+        if kinds[i] >= POINT:
+            wi, dist, scale = delta_incidence(kinds[i], points[i], x)
+            if not (dist > 0.0 and scale > 0.0):
+                continue
+            value, cih = ltc.lobe_value(code, alpha, wi, w, n)
+            s = value * scale * v
+            x5 = (1.0 - min(max(cih, 0.0), 1.0)) ** 5
+            e0 += s * ks[0] * (f0[0] + (1.0 - f0[0]) * x5) * radiance[i, 0]
+            e1 += s * ks[1] * (f0[1] + (1.0 - f0[1]) * x5) * radiance[i, 1]
+            e2 += s * ks[2] * (f0[2] + (1.0 - f0[2]) * x5) * radiance[i, 2]
+            continue
+        if kinds[i] == SPHERE:
+            f = ltc.sphere_integral(points[i, 0], radius[i], x, frame, k, alpha)
+        else:
+            f = ltc.polygon_integral(counts[i], points[i], x, frame, k, alpha)
+        ratio = ltc.lobe_ratio(f, k, code, alpha, wn, cell[4])
+        j = f[2] * (ratio + (1.0 - ratio) * f[2]) * v
+        e0 += j * a0 * radiance[i, 0]
+        e1 += j * a1 * radiance[i, 1]
+        e2 += j * a2 * radiance[i, 2]
     return e0, e1, e2
 
 
@@ -803,13 +854,22 @@ def _prepare(parts, source, count, visibility):
     return packed, own, visibility
 
 
-def _material(ks, exponent, fresnel):
+_NO_TABLE = np.zeros((2, 2, 2, 6))  # a Phong lobe's: the kernels' types stay one
+
+
+def _material(ks, exponent, fresnel, microfacet):
+    """The kernels' material tuple (``_point_radiance``): of the Phong lobe (ks,
+    exponent, Schlick's F0 or None), or of ``microfacet`` (a ``Microfacet`` or its dict:
+    its own lobe, specular reflectance and normal reflectance; the others ignored)."""
+    if microfacet is not None:
+        lobe = ltc.highlight_lobe(microfacet)
+        return lobe.ks, 0.0, lobe.f0, True, lobe.code, lobe.alpha, ltc.table()
     f0 = np.zeros(3) if fresnel is None else np.asarray(fresnel, np.float64).reshape(3)
-    return (np.asarray(ks, np.float64).reshape(3), float(exponent), f0, fresnel is not None)
+    return (np.asarray(ks, np.float64).reshape(3), float(exponent), f0, fresnel is not None, ltc.PHONG, 0.0, _NO_TABLE)
 
 
 def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES, source=None,
-                     fresnel=None):
+                     fresnel=None, microfacet=None):
     """E (Q, 3) float64: the glossy reflection of the emitter ``parts`` (a sequence of
     ``EmitterPart`` or a ``PackedParts``) at Q points.
 
@@ -818,25 +878,27 @@ def emitter_radiance(parts, positions, normals, views, ks, exponent, *, visibili
     visibility : (Q, P) fraction of each part seen (None: all seen); nodes : N of the
     rules; source : the object's own name (its own parts are not reflected);
     fresnel : None, or the surface's Schlick F0 (3,): ks is then weighted by F(w.n), F
-    at the highlight's own direction (the mirror of w, where wi.h = w.n).
+    at the highlight's own direction (the mirror of w, where wi.h = w.n);
+    microfacet : None, or a ``Microfacet`` (or its dict) whose own lobe reflects the
+    parts (``radiosity.formats.ltc``; ks, exponent and fresnel are then its own).
     """
     positions = np.ascontiguousarray(positions, np.float64).reshape(-1, 3)
     q = len(positions)
     packed, own, visibility = _prepare(parts, source, q, visibility)
     out = np.zeros((q, 3))
-    if len(packed) and q and np.any(np.asarray(ks) > 0):
+    material = _material(ks, exponent, fresnel, microfacet)
+    if len(packed) and q and np.any(material[0] > 0):
         queries = (
             positions,
             np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
             np.ascontiguousarray(views, np.float64).reshape(-1, 3),
         )
-        material = _material(ks, exponent, fresnel)
         _radiance_many(packed.arrays(), visibility, own, queries, material, rules(nodes), out)
     return out
 
 
 def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, *, visibility=None, nodes=DEFAULT_NODES,
-                 source=None, fresnel=None):
+                 source=None, fresnel=None, microfacet=None):
     """E (V, D, 3) float64 at every vertex (positions, unit normals, unit tangents (V, 3))
     seen from every local direction (D, 3) of the solution's grid (x tangent, y
     bitangent = normal x tangent, z normal); the other arguments as ``emitter_radiance``."""
@@ -845,12 +907,12 @@ def emitter_grid(parts, positions, normals, tangents, directions, ks, exponent, 
     v = len(positions)
     packed, own, visibility = _prepare(parts, source, v, visibility)
     out = np.zeros((v, len(directions), 3))
-    if len(packed) and v and np.any(np.asarray(ks) > 0):
+    material = _material(ks, exponent, fresnel, microfacet)
+    if len(packed) and v and np.any(material[0] > 0):
         frames = (
             positions,
             np.ascontiguousarray(normals, np.float64).reshape(-1, 3),
             np.ascontiguousarray(tangents, np.float64).reshape(-1, 3),
         )
-        material = _material(ks, exponent, fresnel)
         _radiance_grid(packed.arrays(), visibility, own, frames, directions, material, rules(nodes), out)
     return out

@@ -42,6 +42,13 @@ is an interface ``vlights truth`` traces through (reflecting and refracting); it
 fields are zero and its object diffuse with zero radiance (nothing of its appearance is
 stored per vertex: a reader of version 6 that ignores the key sees a black object, and
 should draw nothing where the key is; the displays leave glass objects out).
+Version 8 adds ``meta.microfacet_highlights`` (true): a microfacet object's closed-form
+highlights (its ``emitter_parts`` and ``visibility``: every part it sees, area and
+delta) are its own lobe's (``radiosity.formats.ltc``: GGX or Beckmann by linearly
+transformed cosines, Schlick's curve through the exact normal reflectance), and its
+grid holds them so, the rest gathered without them. In versions 6 and 7 its closed-form
+highlights were the delta parts' alone, of its Phong stand-in's lobe (the area
+emitters' light gathered into the grid); they are read so.
 
 Diffuse objects have D = 1, direction (0, 0, 1); glossy ones the n x n equal-area grid
 of ``radiosity.formats.directions`` (D = n * n, row d = j * n + i).
@@ -84,8 +91,8 @@ from radiosity.formats.texture import TexturedDiffuse, read_textured
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 7  # the newest version written (a file is written with the lowest that holds it)
-READS = (1, 2, 3, 4, 5, 6, 7)
+VERSION = 8  # the newest version written (a file is written with the lowest that holds it)
+READS = (1, 2, 3, 4, 5, 6, 7, 8)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -361,6 +368,8 @@ class Solution:
         environment: the light from outside the scene (version 3), or None.
         lights: the scene's delta lights (version 4): every point (spot) and direction
             that lit it, whether or not ``emitters`` holds it as a part.
+        microfacet_highlights: a microfacet object's closed-form highlights are its own
+            lobe's (version 8), not its Phong stand-in's.
     """
 
     objects: tuple[ObjectSolution, ...]
@@ -372,6 +381,7 @@ class Solution:
     emitter_nodes: int = DEFAULT_NODES
     environment: EnvironmentLight | None = None
     lights: tuple[EmitterPart, ...] = ()
+    microfacet_highlights: bool = False
 
     def __post_init__(self) -> None:
         objects = tuple(self.objects)
@@ -418,14 +428,17 @@ class Solution:
 
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 7 where a material is glass or
-        a perfect mirror,
-        6 where a material has a microfacet model, else 5 where an object names its emitter parts, else 4 with a
+        """The lowest contract version that holds this solution: 8 where a microfacet
+        object's highlights are its own lobe's, else 7 where a material is glass or a perfect mirror,
+        else 6 where a material has a microfacet model, else 5 where an object names its emitter parts, else 4 with a
         delta light, else 3 with a textured object or an environment, else 2."""
+        microfacet = any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects)
+        if microfacet and self.microfacet_highlights:
+            return 8
         if any(isinstance(o.material, dict) and ("glass" in o.material or Material(o.name, **o.material).is_mirror)
                for o in self.objects):
             return 7
-        if any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects):
+        if microfacet:
             return 6
         if any(o.emitter_parts is not None for o in self.objects):
             return 5
@@ -460,6 +473,7 @@ class Solution:
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
             **({"environment": self.environment.meta()} if self.environment is not None else {}),
             **({"lights": [light.to_dict() for light in self.lights]} if self.lights else {}),
+            **({"microfacet_highlights": True} if self.version >= 8 else {}),
         }
 
     def parts_of(self, name: str) -> tuple[EmitterPart, ...]:
@@ -484,8 +498,14 @@ class Solution:
         return emitter_grid(
             parts, o.positions[vertices], o.normals[vertices], o.tangents[vertices], o.directions,
             m["specular"], m["exponent"], visibility=visibility, nodes=self.emitter_nodes, source=name,
-            fresnel=m.get("fresnel"),
+            fresnel=m.get("fresnel"), microfacet=self.lobe_of(name),
         )
+
+    def lobe_of(self, name: str) -> dict | None:
+        """The microfacet model (a ``Microfacet.to_dict``) whose own lobe draws object
+        ``name``'s closed-form highlights (version 8), or None: its Phong lobe's."""
+        m = self.object(name).material
+        return m.get("microfacet") if self.microfacet_highlights and isinstance(m, dict) else None
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the contract's npz to ``path`` atomically (all or nothing).
@@ -606,7 +626,7 @@ class SolutionFile:
             return Solution(
                 objects=objects, settings=h["settings"], stats=h["stats"], scene=h["scene"], camera=h["camera"],
                 emitters=h["emitters"], emitter_nodes=h["nodes"], environment=h["environment"],
-                lights=h["lights"],
+                lights=h["lights"], microfacet_highlights=h["microfacet_highlights"],
             )
         except _Invalid as exc:
             raise self._archive.fail(str(exc)) from None
@@ -643,6 +663,9 @@ def _read_header(archive) -> dict:
     environment = read_environment(archive, meta) if meta["version"] >= 3 else None
     if meta["version"] >= 4:
         lights = parts_from_meta(meta.get("lights", []), fail, DELTA_KINDS, "lights", MAX_LIGHTS)
+    lobes = meta.get("microfacet_highlights", False) if meta["version"] >= 8 else False
+    if not isinstance(lobes, bool):
+        raise fail(f"meta 'microfacet_highlights' must be true or false, got {lobes!r}")
     for name in names:
         if name not in materials:
             raise fail(f"object {name!r} has no entry in meta 'materials'")
@@ -650,7 +673,8 @@ def _read_header(archive) -> dict:
         if missing:
             raise fail(f"object {name!r} has no '{name}/{missing[0]}' array")
     return {"names": names, "materials": materials, "settings": settings, "stats": stats, "scene": scene,
-            "camera": camera, "emitters": emitters, "nodes": nodes, "environment": environment, "lights": lights}
+            "camera": camera, "emitters": emitters, "nodes": nodes, "environment": environment, "lights": lights,
+            "microfacet_highlights": lobes}
 
 
 def _read_object(archive, name, header) -> ObjectSolution:

@@ -73,7 +73,7 @@ def make_gather_rays(sa, block, light, samples):
     light.pdf is the solid-angle density of the light sample, 0 for a sample that
     cannot contribute (behind the vertex or seeing the light's back). The light samples
     pick among the gathered emitters (``sa.direct_*``: the analytic parts' highlights are
-    the solver's, in closed form), among every emitter with ``block.all_emitters``.
+    the solver's, in closed form).
     """
     seed, n_light, strata = block.seed, block.n_light, block.strata
     n_gather = strata * strata
@@ -91,12 +91,8 @@ def make_gather_rays(sa, block, light, samples):
             light.pdf[i] = 0.0
             light.distances[i] = 0.0
             light.directions[i, 0], light.directions[i, 1], light.directions[i, 2] = nx, ny, nz
-            if block.all_emitters:
-                tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_LIGHT, item, 0))
-                area_pdf = sa.emit_area_pdf[tri]
-            else:
-                tri = pick_emitter(sa.direct_cdf, sa.direct_triangles, rand(seed, STREAM_LIGHT, item, 0))
-                area_pdf = sa.direct_area_pdf[tri]
+            tri = pick_emitter(sa.direct_cdf, sa.direct_triangles, rand(seed, STREAM_LIGHT, item, 0))
+            area_pdf = sa.direct_area_pdf[tri]
             if area_pdf <= 0.0:
                 continue
             (dx, dy, dz), dist, cos_light = toward_light_point(
@@ -180,7 +176,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     face_material, materials, epsilon = sa.face_material, sa.materials.copy(), sa.epsilon
     face_texture = sa.face_texture
     emit_cdf, emit_triangles, emit_area_pdf, direct_area_pdf = (
-        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.emit_area_pdf if block.all_emitters else sa.direct_area_pdf,
+        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf,
     )  # fmt: skip
     seed, n_light, n_gather, max_depth = block.seed, block.n_light, block.strata * block.strata, block.max_depth
     vertices, lobe_light = block.vertices, block.lobe_light

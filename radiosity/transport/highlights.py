@@ -162,7 +162,7 @@ def grid_highlights(parts, obj, directions, visible, nodes):
     material = obj.material
     return emitter_grid(
         parts, obj.positions, obj.normals, obj.tangents, directions, material.specular, material.exponent,
-        visibility=visible, nodes=nodes, source=obj.name, fresnel=material.fresnel,
+        visibility=visible, nodes=nodes, source=obj.name, fresnel=material.fresnel, microfacet=material.microfacet,
     )
 
 
@@ -232,23 +232,3 @@ def object_parts(tracer, parts, obj, directions, samples, epsilon, nodes, *, cap
     rank = [j for j in np.argsort(-light[reaching], kind="stable") if reaching[j] < drawn][:cap]
     rank = sorted(rank, key=lambda j: reaching[j])
     return grid, reaching[rank].astype(np.int32), np.ascontiguousarray(seen[:, rank], np.float32)
-
-
-def delta_parts(tracer, parts, closed, obj, directions, samples, epsilon, nodes):
-    """The closed-form highlights of a glossy object that gathers the area emitters'
-    light itself (a microfacet material: ``GatherBlock.all_emitters``): those of the
-    delta lights alone. ``parts`` are the scene's drawn parts, ``closed`` them and the
-    delta lights that are not parts. Returns (E (V, D, 3), the indices among ``parts``
-    of the delta parts it draws (P_o,) int32, their visibility (V, P_o) float32), as
-    ``object_parts``."""
-    drawn = [i for i, p in enumerate(parts) if p.is_delta]
-    kept = [parts[i] for i in drawn] + [p for p in closed[len(parts):] if p.is_delta]
-    v = len(obj.positions)
-    if not kept:
-        return np.zeros((v, len(directions), 3)), np.zeros(0, np.int32), np.ones((v, 0), np.float32)
-    if len(drawn) > MAX_RECEIVER_PARTS:
-        grid, chosen, seen = object_parts(tracer, kept, obj, directions, samples, epsilon, nodes, drawn=len(drawn))
-        return grid, np.asarray([drawn[i] for i in chosen], np.int32), seen
-    seen = visibility(tracer, kept, obj.positions, obj.normals, samples, epsilon, source=obj.name)
-    grid = grid_highlights(kept, obj, directions, seen, nodes)
-    return grid, np.asarray(drawn, np.int32), np.ascontiguousarray(seen[:, :len(drawn)])

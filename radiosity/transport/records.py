@@ -189,9 +189,6 @@ class GatherBlock(NamedTuple):
                               as before: the same expected value, more noise (for tests)
     measure_noise: bool       also measure each vertex's variance (``gather_outputs``);
                               the extra passes of ``regather`` need none
-    all_emitters: bool        the vertices gather every emitter's direct light, the
-                              analytic parts' too (an object whose highlights have no
-                              closed form: a microfacet material)
     """
 
     seed: int
@@ -201,7 +198,6 @@ class GatherBlock(NamedTuple):
     max_depth: int
     lobe_light: bool = True
     measure_noise: bool = True
-    all_emitters: bool = False
 
 
 class LightSamples(NamedTuple):

@@ -415,16 +415,6 @@ def _solve(scene, settings, runner, progress):
     if closed and glossy:
         tracer = RayTracer(merged.positions, merged.faces)
         for o, _, dirs in glossy:
-            if o.material.microfacet is not None:
-                # no closed form for its lobe: it gathered the area emitters' light itself,
-                # and keeps the delta lights' in closed form (nothing else finds them)
-                grid, drawn, seen = highlights.delta_parts(
-                    tracer, parts, closed, o, dirs, settings["visibility_samples"], sa.epsilon,
-                    settings["emitter_nodes"])
-                gathered[o.name] += grid
-                if parts:  # else every display draws none (the file names no parts)
-                    own_parts[o.name], visible[o.name] = drawn, seen
-                continue
             if len(parts) > highlights.MAX_RECEIVER_PARTS:
                 grid, own_parts[o.name], visible[o.name] = highlights.object_parts(
                     tracer, closed, o, dirs, settings["visibility_samples"], sa.epsilon, settings["emitter_nodes"],
@@ -520,7 +510,7 @@ def _solve(scene, settings, runner, progress):
     return Solution(
         objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
         emitters=parts, emitter_nodes=int(settings["emitter_nodes"]), environment=scene.environment,
-        lights=scene.lights,
+        lights=scene.lights, microfacet_highlights=True,
     )
 
 
@@ -543,11 +533,8 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
     6.4 GB of sums and 3.2 GB of copies, 12.5 GB in all)."""
     strata = math.isqrt(settings["gather_samples"])
 
-    def light_samples(obj):
-        """An object's light samples per vertex: none where no emitter is left for it to
-        sample (every one in closed form); a microfacet object samples every emitter."""
-        pdf = sa.emit_area_pdf if obj.material.microfacet is not None else sa.direct_area_pdf
-        return settings["light_samples"] if pdf.any() else 0
+    # light samples per vertex: none where no emitter is left to sample (every one in closed form)
+    n_light = settings["light_samples"] if sa.direct_area_pdf.any() else 0
     radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3), np.float32) for o, _, dirs in glossy}
     variance = {o.name: np.zeros(o.n_vertices) for o, _, _ in glossy}
 
@@ -558,13 +545,11 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         result goes (its object, its pass)."""
         vertices = local.astype(np.int64) + offset
         pass_seed = regather.pass_seed(seed, k)
-        n_light = light_samples(obj)
         block = _gather_block_size(n_light, settings["gather_samples"])
         return [
             (
                 GatherBlock(
                     pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0,
-                    obj.material.microfacet is not None,
                 ),
                 obj,
                 offset,

@@ -20,12 +20,23 @@ import pytest
 import trimesh
 from display_fixtures import CAMERA, assert_refused, listing, lit_model
 
-from display.export import DELTA_VERSION, FILE, FORMAT, READS, UNTEXTURED_VERSION, VERSION, export_glb, load_export
+from display.export import (
+    DELTA_VERSION,
+    FILE,
+    FORMAT,
+    OWN_PARTS_VERSION,
+    READS,
+    UNTEXTURED_VERSION,
+    VERSION,
+    export_glb,
+    load_export,
+)
 from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table
 from radiosity.formats import InputError
 from radiosity.formats.emitters import EmitterPart, SpotProfile
+from radiosity.formats.material import Microfacet
 
 # Emitter parts in front of the tiny scene, each seen in it from test_web's camera: a
 # sphere lamp in the tile, a square panel and a triangle in the wall, and a sphere that
@@ -48,6 +59,19 @@ DELTA_LAMPS = (
     EmitterPart("point", [[-0.6, 0.5, -2.2]], 0.0, [4.0, 4.0, 6.0], "torch", SpotProfile([-0.3, -0.5, 2.2], 16.0, 9.0)),
     EmitterPart("direction", [[-0.15, -0.1, 1.0]], 0.0, [0.8, 0.6, 0.4], "sun"),
 )
+
+
+GOLD = Microfacet("roughconductor", "ggx", 0.15, (0.143, 0.374, 1.442), (3.983, 2.385, 1.603))
+SATIN = Microfacet("roughplastic", "beckmann", 0.3, (1.5, 1.5, 1.5), diffuse_reflectance=(0.2, 0.3, 0.4))
+
+
+def microfacet_model(rng, lamps=LAMPS[:2] + DELTA_LAMPS):
+    """``glossy_model`` with microfacet lobes drawing the highlights (a version 8 fit):
+    the wall GGX gold, the tile Beckmann satin."""
+    base = glossy_model(True, rng, lamps=lamps)
+    objects = tuple(dataclasses.replace(o, highlight=dataclasses.replace(o.highlight, microfacet=mf))
+                    for o, mf in zip(base.objects, (GOLD, SATIN), strict=True))
+    return dataclasses.replace(base, objects=objects)
 
 
 def glossy_model(per_light, rng, camera=CAMERA, nodes=8, lamps=LAMPS):
@@ -158,7 +182,7 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 6
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 7
     assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object, no environment: the version before them
     assert "environment" not in extras
     assert extras["objects"] == list(model.names)
@@ -308,7 +332,7 @@ def test_objects_own_parts_make_a_version_6_file_that_round_trips(tmp_path, rng)
     path = tmp_path / FILE
     path.write_bytes(export_glb(model))
     meshes, extras = read_with_trimesh(path)
-    assert extras["version"] == VERSION == 6 and len(extras["emitters"]) == len(extras["emitter_table"]) == 40
+    assert extras["version"] == OWN_PARTS_VERSION == 6 and len(extras["emitters"]) == len(extras["emitter_table"]) == 40
     for obj in model.objects:
         assert meshes[obj.name][1]["highlight"]["parts"] == list(obj.highlight.indices)
     back = load_export(path)
@@ -367,15 +391,51 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2, 3, 4, 5, 6)
+    assert READS == (1, 2, 3, 4, 5, 6, 7)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=7))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4, 5 or 6 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=8))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4, 5, 6 or 7 file"):
+        load_export(path)
+
+
+def test_microfacet_lobes_make_a_version_7_file_that_round_trips(tmp_path, rng):
+    """A highlight with a microfacet lobe: version 7, its extras holding the model and the
+    lobe the page draws (highlight_lobe's numbers), load_export giving the fit back,
+    shading the same; the table of transformed cosines in shading.js is the renderer's."""
+    import base64
+    import re
+
+    from display.export import shading_module
+    from radiosity.formats.ltc import highlight_lobe, table_texture
+
+    model = microfacet_model(rng)
+    path = tmp_path / FILE
+    path.write_bytes(export_glb(model))
+    meshes, extras = read_with_trimesh(path)
+    assert extras["version"] == 7
+    wall = meshes[model.objects[0].name][1]["highlight"]
+    lobe = highlight_lobe(GOLD)
+    assert wall["microfacet"] == GOLD.to_dict()
+    assert wall["lobe"] == {"code": 1, "alpha": 0.15, "ks": lobe.ks.tolist(), "f0": lobe.f0.tolist()}
+    assert meshes[model.objects[1].name][1]["highlight"]["lobe"]["code"] == 2
+    back = load_export(path)
+    assert [o.highlight.microfacet for o in back.objects] == [GOLD, SATIN]
+    w = rng.normal(size=(len(model.objects[1].positions), 4, 3))
+    w /= np.linalg.norm(w, axis=-1, keepdims=True)
+    for a, b in zip(model.objects, back.objects, strict=True):
+        ww = w if len(a.positions) == len(w) else w[:len(a.positions)]
+        assert np.array_equal(b.shade(ww), a.shade(ww))
+    text = shading_module()
+    size = int(re.search(r"LTC_SIZE = (\d+);", text).group(1))
+    data = np.frombuffer(base64.b64decode(re.search(r"LTC_TABLE = '([^']+)';", text).group(1)), "<f4")
+    assert np.array_equal(data.reshape(2 * size, 2 * size, 4), table_texture())
+    rewrite_json(path, lambda header: header["meshes"][0]["extras"]["highlight"]["microfacet"].update(alpha=-1))
+    with pytest.raises(InputError, match="alpha"):
         load_export(path)
 
 

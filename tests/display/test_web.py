@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from display_fixtures import lit_model
 from PIL import Image
-from test_export import DELTA_LAMPS, LAMPS, glossy_model, own_parts_model, rewrite_json
+from test_export import DELTA_LAMPS, LAMPS, glossy_model, microfacet_model, own_parts_model, rewrite_json
 from test_export_textures import KDS, textured_model
 
 from display.export import PAGE, SHADERS, SHADING, WEB, page_files, page_source, shading_module
@@ -494,6 +494,42 @@ def test_version_5_delta_lights_page_equals_render(browser, site_v5, tmp_path, g
     dataclasses.replace(model, objects=objects, emitters=area).save(tmp_path / "area.npz")
     without = rendered(tmp_path, tmp_path / "area.npz")
     assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05
+
+
+@pytest.fixture(scope="module")
+def site_v7(tmp_path_factory):
+    """(fit.npz, the served export's URL) of the tiny scene as a version 8 fit whose
+    highlights are microfacet lobes (``microfacet_model``: GGX gold, Beckmann satin)."""
+    base = tmp_path_factory.mktemp("web-v7")
+    microfacet_model(np.random.default_rng(13)).save(base / "fit.npz")
+    yield from exported_and_served(base)
+
+
+@needs_browser
+@pytest.mark.gl
+def test_version_7_microfacet_highlights_page_equals_render(browser, site_v7, tmp_path, gl_context):
+    """Microfacet lobes' highlights (linearly transformed cosines, the lobe at a delta
+    light's direction) on the page as ``vlights render`` draws them; and they are not
+    the Phong stand-in's (the picture changes without the lobe)."""
+    fit, url = site_v7
+    page = open_page(browser, url, view_query())
+    try:
+        got = screenshot(page)
+        assert page.evaluate("window.vlights.error") in (None, "")
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit)
+    assert_matches(got, want)
+    import dataclasses
+
+    from fitting import load_fit
+
+    model = load_fit(fit)
+    assert model.version == 8
+    phong = tuple(dataclasses.replace(o, highlight=dataclasses.replace(o.highlight, microfacet=None))
+                  for o in model.objects)
+    dataclasses.replace(model, objects=phong).save(tmp_path / "phong.npz")
+    assert np.mean(np.abs(want - rendered(tmp_path, tmp_path / "phong.npz")).max(axis=2) > 8) > 0.05
 
 
 @pytest.fixture(scope="module")

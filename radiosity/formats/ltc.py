@@ -1,0 +1,341 @@
+"""A microfacet lobe's highlight of an emitter in closed form: linearly transformed
+cosines (Heitz, Dupuy, Hill and Neubelt 2016), the CPU reference both displays' GLSL
+repeats (``display/shaders/ltc.glsl``) and the solver's grids use.
+
+A microfacet material (GGX or Beckmann, roughness alpha; ``radiosity.formats.material.
+Microfacet``) at x with unit normal n, seen from w, reflects a Lambertian emitter part
+of radiance Le as
+
+    E = ks (F0 norm + (1 - F0) schlick) Le V I,
+
+I the integral over the part of the cosine distribution transformed by the cell's M
+(``radiosity/scene/ltc_fit.py`` fits it to the lobe D G1 G1 / (4 cos theta_o) times the
+cosine, without Fresnel; ``norm`` and ``schlick`` are the lobe's integrals, plain and
+weighted by (1 - wi.h)^5, so Schlick's curve through the material's exact normal
+reflectance F0 is integrated over the lobe), V the fraction of the part the vertex
+sees. I of a polygon: the part clipped to the surface's horizon, its vertices mapped
+by M^-1 in the frame (t, b, n) where w lies in the tn plane, clipped to the mapped
+cosine's horizon, and the edge sum (1 / 2 pi) |sum_k theta_k (v_k x v_k+1).z / |v_k x
+v_k+1||, theta_k = atan2(|v_k x v_k+1|, v_k . v_k+1) (exact for small edges). A sphere
+is its visible cap, a regular ``SPHERE_SIDES``-gon of the same area across the cone
+that bounds the cap (its solid angle the cap's to 1 % up to a half-angle of 60
+degrees). A delta part's highlight is the lobe at its one direction, with Schlick's
+F at wi.h: ks F D G1 G1 / (4 cos theta_o) times its incidence factor.
+
+The table: per distribution (GGX, Beckmann), cells over sqrt(alpha) in
+[sqrt(``ALPHA_MIN``), 1] and sqrt(1 - cos theta_o) in [0, 1], each (k00, k02, k20, k22,
+norm, schlick), read bilinearly: M^-1 is proportional to diag(1 / alpha, 1 / alpha, 1)
+K with K = [[k00, 0, k02], [0, 1, 0], [k20, 0, k22]] (``radiosity.scene.ltc_fit``).
+A roughness above 1 reads the cells at 1 (the lobes the collection's scenes use are
+all below it). Smith's G1 of Beckmann is Walter et al.'s rational form (within 0.35 %
+of the exact one), as the GLSL has no erf.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+from pathlib import Path
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from radiosity.formats.material import Microfacet
+
+__all__ = ["ALPHA_MIN", "LOBES", "SPHERE_SIDES", "HighlightLobe", "highlight_lobe", "lobe_code", "table", "table_texture",
+           "normal_reflectance"]
+
+LOBES = ("phong", "ggx", "beckmann")  # a highlight's lobe: its code is the index
+PHONG, GGX, BECKMANN = 0, 1, 2
+ALPHA_MIN = 1e-4
+SPHERE_SIDES = 12
+SPHERE_SCALE = math.sqrt(2.0 * math.pi / (SPHERE_SIDES * math.sin(2.0 * math.pi / SPHERE_SIDES)))
+MAX_CLIPPED = 16  # a clipped polygon's vertices at most (8 + 2 clips; a sphere's 12 + 2)
+TABLE_FILE = Path(__file__).resolve().parent / "data" / "ltc.npz"
+
+
+def lobe_code(distribution):
+    """The lobe's code (``LOBES``) of a distribution name; ValueError for another."""
+    if distribution not in LOBES[1:]:
+        raise ValueError(f"a highlight's distribution must be one of {', '.join(LOBES[1:])}, got {distribution!r}")
+    return LOBES.index(distribution)
+
+
+@cache
+def table():
+    """(2, S, S, 6) float64: the GGX then the Beckmann cells (read once)."""
+    with np.load(TABLE_FILE) as data:
+        out = np.stack([data["ggx"], data["beckmann"]]).astype(np.float64)
+    if out.ndim != 4 or out.shape[1] != out.shape[2] or out.shape[3] != 6 or not np.isfinite(out).all():
+        raise RuntimeError(f"{TABLE_FILE} is not a table of linearly transformed cosines")
+    return np.ascontiguousarray(out)
+
+
+def table_texture():
+    """The table as the GLSL reads it: (2 S, 2 S, 4) float32, row l S + i (distribution
+    l, alpha cell i), texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick, 0, 0)."""
+    t = table()
+    s = t.shape[1]
+    out = np.zeros((2 * s, s, 2, 4), np.float32)
+    out[..., 0, :] = t[..., :4].reshape(2 * s, s, 4)
+    out[..., 1, :2] = t[..., 4:].reshape(2 * s, s, 2)
+    return out.reshape(2 * s, 2 * s, 4)
+
+
+def normal_reflectance(microfacet):
+    """(3,) float64: the exact Fresnel reflectance at normal incidence of a ``Microfacet``
+    (a plastic's ((eta - 1) / (eta + 1))^2, a conductor's ((eta - 1)^2 + k^2) / ((eta +
+    1)^2 + k^2)), the F0 of the highlights' Schlick curve."""
+    eta = np.asarray(microfacet.eta, np.float64)
+    k = np.asarray(microfacet.k, np.float64)
+    return ((eta - 1.0) ** 2 + k * k) / ((eta + 1.0) ** 2 + k * k)
+
+
+class HighlightLobe(NamedTuple):
+    """What draws a microfacet material's highlights: ks (3,) its specular reflectance,
+    f0 (3,) its exact normal reflectance, code its lobe's (``LOBES``), alpha its roughness."""
+
+    ks: np.ndarray
+    f0: np.ndarray
+    code: int
+    alpha: float
+
+
+def highlight_lobe(microfacet):
+    """The ``HighlightLobe`` of a ``Microfacet`` (or its ``to_dict``)."""
+    mf = microfacet if isinstance(microfacet, Microfacet) else Microfacet.from_dict(microfacet)
+    return HighlightLobe(np.asarray(mf.specular_reflectance, np.float64), normal_reflectance(mf),
+                         lobe_code(mf.distribution), float(mf.alpha))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def cell(ltc, lobe, alpha, cos_o):
+    """The bilinear read (k00, k02, k20, k22, norm, schlick) of ``lobe`` (GGX or
+    BECKMANN) at roughness alpha, cos theta_o."""
+    size = ltc.shape[1]
+    lo = math.sqrt(ALPHA_MIN)
+    u = (math.sqrt(min(max(alpha, ALPHA_MIN), 1.0)) - lo) / (1.0 - lo) * (size - 1)
+    v = math.sqrt(max(0.0, 1.0 - min(max(cos_o, 0.0), 1.0))) * (size - 1)
+    i = min(int(u), size - 2)
+    j = min(int(v), size - 2)
+    fu, fv = u - i, v - j
+    d = lobe - 1
+    out = np.empty(6)
+    for e in range(6):
+        out[e] = ((1.0 - fu) * ((1.0 - fv) * ltc[d, i, j, e] + fv * ltc[d, i, j + 1, e])
+                  + fu * ((1.0 - fv) * ltc[d, i + 1, j, e] + fv * ltc[d, i + 1, j + 1, e]))
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def view_frame(n, w):
+    """(t, b): unit tangents with w in the (t, n) plane on t's side (any pair when w is n)."""
+    wn = w[0] * n[0] + w[1] * n[1] + w[2] * n[2]
+    tx, ty, tz = w[0] - wn * n[0], w[1] - wn * n[1], w[2] - wn * n[2]
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if not tl > 1e-12:
+        sign = 1.0 if n[2] >= 0.0 else -1.0
+        a = -1.0 / (sign + n[2])
+        c = n[0] * n[1] * a
+        tx, ty, tz = 1.0 + sign * n[0] * n[0] * a, sign * c, -sign * n[0]
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / tl, ty / tl, tz / tl
+    return (tx, ty, tz), (n[1] * tz - n[2] * ty, n[2] * tx - n[0] * tz, n[0] * ty - n[1] * tx)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _clip(src, count, dst):
+    """Sutherland-Hodgman: the polygon src[:count] clipped to z >= 0 into dst; its count."""
+    out = 0
+    for i in range(count):
+        j = i + 1 if i + 1 < count else 0
+        za, zb = src[i, 2], src[j, 2]
+        if za >= 0.0:
+            dst[out, 0], dst[out, 1], dst[out, 2] = src[i, 0], src[i, 1], src[i, 2]
+            out += 1
+        if (za >= 0.0) != (zb >= 0.0):
+            s = za / (za - zb)
+            for c in range(3):
+                dst[out, c] = src[i, c] + s * (src[j, c] - src[i, c])
+            out += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _edge_sum(v, count):
+    """The vector form factor (3-tuple) of the unit-normalised polygon v[:count]: (1 / 2 pi)
+    times the sum of the edges' theta_k (v_k x v_k+1) / |v_k x v_k+1|, oriented so that
+    its z (the cosine's integral) is >= 0."""
+    for i in range(count):
+        length = math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
+        if length > 0.0:
+            v[i, 0], v[i, 1], v[i, 2] = v[i, 0] / length, v[i, 1] / length, v[i, 2] / length
+    fx = fy = fz = 0.0
+    for i in range(count):
+        j = i + 1 if i + 1 < count else 0
+        cx = v[i, 1] * v[j, 2] - v[i, 2] * v[j, 1]
+        cy = v[i, 2] * v[j, 0] - v[i, 0] * v[j, 2]
+        cz = v[i, 0] * v[j, 1] - v[i, 1] * v[j, 0]
+        s = math.sqrt(cx * cx + cy * cy + cz * cz)
+        if s > 0.0:
+            theta = math.atan2(s, v[i, 0] * v[j, 0] + v[i, 1] * v[j, 1] + v[i, 2] * v[j, 2]) / s
+            fx, fy, fz = fx + theta * cx, fy + theta * cy, fz + theta * cz
+    sign = 1.0 if fz >= 0.0 else -1.0
+    scale = sign / (2.0 * math.pi)
+    return fx * scale, fy * scale, fz * scale
+
+
+@numba.njit(cache=True, nogil=True)
+def polygon_cosine(local, count, k, alpha):
+    """The vector form factor (``_edge_sum``; its z is I) of the polygon local[:count]
+    (its vertices relative to the shading point, in the frame (t, b, n)) under the
+    cell's K = (k00, k02, k20, k22) and roughness alpha, in the transformed space;
+    ``local`` is overwritten. (0, 0, 0) where nothing is left."""
+    clipped = np.empty((MAX_CLIPPED, 3))
+    count = _clip(local, count, clipped)  # the surface's horizon
+    if count < 3:
+        return 0.0, 0.0, 0.0
+    a = max(alpha, ALPHA_MIN)
+    for i in range(count):  # alpha M^-1 (v): rows scaled by alpha, the same directions
+        x, y, z = clipped[i, 0], clipped[i, 1], clipped[i, 2]
+        clipped[i, 0] = k[0] * x + k[1] * z
+        clipped[i, 1] = y
+        clipped[i, 2] = a * (k[2] * x + k[3] * z)
+        length = math.sqrt(clipped[i, 0] ** 2 + clipped[i, 1] ** 2 + clipped[i, 2] ** 2)
+        if length > 0.0:
+            for c in range(3):
+                clipped[i, c] /= length
+    count = _clip(clipped, count, local)  # the transformed cosine's horizon
+    if count < 3:
+        return 0.0, 0.0, 0.0
+    return _edge_sum(local, count)
+
+
+@numba.njit(cache=True, nogil=True)
+def lobe_ratio(f, k, lobe, alpha, cos_o, norm):
+    """T / (norm D) at the polygon's representative direction: its vector form factor f
+    (in the transformed space) mapped back by M, where T is the lobe times the cosine
+    (``lobe_value``) and D the transformed cosine's density; 1 where f is 0. The
+    integral's correction where the lobe's shape and the fit's differ (a Beckmann
+    lobe's light tails, the grazing views)."""
+    fl = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    if not (fl > 0.0 and norm > 0.0):
+        return 1.0
+    ux, uy, uz = f[0] / fl, f[1] / fl, f[2] / fl
+    a = max(alpha, ALPHA_MIN)
+    det = k[0] * k[3] - k[1] * k[2]
+    if not det > 0.0:
+        return 1.0
+    # w = K^-1 diag(alpha, alpha, 1) u, normalised
+    px, pz = a * ux, uz
+    wx, wy, wz = (k[3] * px - k[1] * pz) / det, a * uy, (-k[2] * px + k[0] * pz) / det
+    wl = math.sqrt(wx * wx + wy * wy + wz * wz)
+    wx, wy, wz = wx / wl, wy / wl, wz / wl
+    # A w = diag(1 / alpha, 1 / alpha, 1) K w: its length, and D = (A w).z / |A w| / pi |det A| / |A w|^3
+    ax, ay, az = (k[0] * wx + k[1] * wz) / a, wy / a, k[2] * wx + k[3] * wz
+    al = math.sqrt(ax * ax + ay * ay + az * az)
+    if not (az > 0.0 and al > 0.0):
+        return 1.0
+    density = az / al / math.pi * (det / (a * a)) / (al * al * al)
+    so = math.sqrt(max(0.0, 1.0 - cos_o * cos_o))
+    value, _ = lobe_value(lobe, alpha, (wx, wy, wz), (so, 0.0, cos_o), (0.0, 0.0, 1.0))
+    return value / (norm * density)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _to_local(vx, vy, vz, frame):
+    (tx, ty, tz), (bx, by, bz), (nx, ny, nz) = frame
+    return vx * tx + vy * ty + vz * tz, vx * bx + vy * by + vz * bz, vx * nx + vy * ny + vz * nz
+
+
+@numba.njit(cache=True, nogil=True)
+def polygon_integral(count, points, x, frame, k, alpha):
+    """The vector form factor (``polygon_cosine``) of a convex polygon (``points[:count]``,
+    counter-clockwise seen from its emitting front; 0 seen from behind) at x; frame =
+    (t, b, n) 3-tuples (``view_frame``)."""
+    e1x, e1y, e1z = points[1, 0] - points[0, 0], points[1, 1] - points[0, 1], points[1, 2] - points[0, 2]
+    e2x, e2y, e2z = points[2, 0] - points[0, 0], points[2, 1] - points[0, 1], points[2, 2] - points[0, 2]
+    fx, fy, fz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    if (x[0] - points[0, 0]) * fx + (x[1] - points[0, 1]) * fy + (x[2] - points[0, 2]) * fz <= 0.0:
+        return 0.0, 0.0, 0.0
+    local = np.empty((MAX_CLIPPED, 3))
+    for i in range(count):
+        local[i, 0], local[i, 1], local[i, 2] = _to_local(
+            points[i, 0] - x[0], points[i, 1] - x[1], points[i, 2] - x[2], frame)
+    return polygon_cosine(local, count, k, alpha)
+
+
+@numba.njit(cache=True, nogil=True)
+def sphere_integral(centre, radius, x, frame, k, alpha):
+    """The vector form factor (``polygon_cosine``) of a sphere lamp at x: its visible cap
+    as a regular ``SPHERE_SIDES``-gon of the same area across the cone that bounds it."""
+    cx, cy, cz = _to_local(centre[0] - x[0], centre[1] - x[1], centre[2] - x[2], frame)
+    dist = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if not dist > radius:
+        return 0.0, 0.0, 0.0
+    cx, cy, cz = cx / dist, cy / dist, cz / dist
+    sin_beta = radius / dist
+    spread = sin_beta / math.sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * SPHERE_SCALE  # tan(beta), scaled
+    sign = 1.0 if cz >= 0.0 else -1.0
+    a = -1.0 / (sign + cz)
+    c = cx * cy * a
+    ux, uy, uz = 1.0 + sign * cx * cx * a, sign * c, -sign * cx
+    vx, vy, vz = c, sign + cy * cy * a, -cy
+    local = np.empty((MAX_CLIPPED, 3))
+    for i in range(SPHERE_SIDES):
+        phi = 2.0 * math.pi * i / SPHERE_SIDES
+        cp, sp = math.cos(phi) * spread, math.sin(phi) * spread
+        local[i, 0], local[i, 1], local[i, 2] = cx + cp * ux + sp * vx, cy + cp * uy + sp * vy, cz + cp * uz + sp * vz
+    return polygon_cosine(local, SPHERE_SIDES, k, alpha)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def ndf(lobe, alpha, cos_h):
+    """D(h) of GGX or Beckmann at cos_h; 0 for cos_h <= 0."""
+    if cos_h <= 0.0:
+        return 0.0
+    c2 = min(cos_h * cos_h, 1.0)
+    a2 = alpha * alpha
+    if lobe == GGX:
+        t = a2 * c2 + 1.0 - c2
+        return a2 / (math.pi * t * t)
+    return math.exp(-(1.0 - c2) / (c2 * a2)) / (math.pi * a2 * c2 * c2)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def smith_g1(lobe, alpha, cos_v, cos_vh):
+    """Smith's G1 (Beckmann's by Walter et al.'s rational form); 0 where v sees the
+    microfacet's back."""
+    if cos_v * cos_vh <= 0.0:
+        return 0.0
+    c2 = min(cos_v * cos_v, 1.0)
+    s2 = 1.0 - c2
+    if s2 <= 0.0:
+        return 1.0
+    if lobe == GGX:
+        return 2.0 / (1.0 + math.sqrt(1.0 + alpha * alpha * s2 / c2))
+    a = math.sqrt(c2 / s2) / alpha
+    if a >= 1.6:
+        return 1.0
+    return (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)
+
+
+@numba.njit(cache=True, nogil=True)
+def lobe_value(lobe, alpha, wi, w, n):
+    """(D G1 G1 / (4 cos theta_o) at unit wi toward the light, w toward the eye, n the
+    normal (the lobe times cos theta_i, without Fresnel); wi . h). 0 below either horizon."""
+    ci = wi[0] * n[0] + wi[1] * n[1] + wi[2] * n[2]
+    co = w[0] * n[0] + w[1] * n[1] + w[2] * n[2]
+    if not (ci > 0.0 and co > 0.0):
+        return 0.0, 1.0
+    hx, hy, hz = wi[0] + w[0], wi[1] + w[1], wi[2] + w[2]
+    hl = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if not hl > 0.0:
+        return 0.0, 1.0
+    hx, hy, hz = hx / hl, hy / hl, hz / hl
+    cih = wi[0] * hx + wi[1] * hy + wi[2] * hz
+    coh = w[0] * hx + w[1] * hy + w[2] * hz
+    ch = hx * n[0] + hy * n[1] + hz * n[2]
+    g = smith_g1(lobe, alpha, ci, cih) * smith_g1(lobe, alpha, co, coh)
+    return ndf(lobe, alpha, ch) * g / (4.0 * co), cih
