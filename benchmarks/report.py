@@ -472,6 +472,26 @@ def mitsuba(rows):
     return out + [""]
 
 
+def displays(rows):
+    out = ["## The displays against Mitsuba 3", "", where("validate_displays.py", ["displays.jsonl", "displays.png"]),
+           machine(rows), ""]
+    if rows:
+        r0 = rows[0]
+        out += [f"Mitsuba {r0['mitsuba']} ({r0['variant']}) at {r0['reference_spp']} spp is the reference image; each "
+                f"display of a solve and fit at the quality, and our path tracer at {r0['truth_spp']} spp, against it "
+                "(`vlights compare --reference`): FLIP over the image and over the glossy objects' pixels, the mean "
+                "ratio, and each display's FLIP over the path tracer's (target for the solution display: at most "
+                "1.3 x).", ""]
+    out += table(["scene", "quality", "display", "FLIP", "/ path tracer", "FLIP glossy", "/ path tracer",
+                  "mean ratio", "rel. MSE glossy"],
+                 [[r["scene"], r["quality"], name.replace("reference", "solution").replace("_", " "),
+                   num(r[name]["flip"], 4), num(r[name]["over_path_tracer"], 2), num(r[name]["flip_glossy"], 4),
+                   num(r[name]["glossy_over_path_tracer"], 2), num(r[name]["mean_ratio"], 4),
+                   num(r[name]["relative_mse_glossy"], 4)]
+                  for r in rows for name in ("reference", "fitted", "diffuse", "path_tracer") if name in r])
+    return out + [""]
+
+
 def materials(rows):
     out = ["## The materials' own models against their Phong stand-ins", "",
            where("bench_materials.py", ["materials.jsonl"]), machine(rows), "",
@@ -679,6 +699,7 @@ SECTIONS = (
     ("trade.jsonl", trade),
     ("trade_truth.jsonl", trade_truth),
     ("mitsuba_validation.jsonl", mitsuba),
+    ("displays.jsonl", displays),
     ("materials.jsonl", materials),
     ("glass_caustic.jsonl", glass),
     ("mirrors.jsonl", mirrors),
