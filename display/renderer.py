@@ -56,6 +56,7 @@ Sides and depth
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -80,6 +81,7 @@ MODE_WORDS = {"fitted": "fitted", "reference": "solution", "diffuse": "diffuse"}
 MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "reference"}
 SHADINGS = ("gouraud", "pixel")
 LTC_UNIT = 4  # the texture unit of the microfacet lobes' table
+GLASS_REFLECTION_SCALE = 2  # a flat glass piece's reflected view: at 1 / this of the frame's size
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
 GL_CLIP_DISTANCE0 = 0x3000  # OpenGL's enum: clip by gl_ClipDistance[0] (a flat mirror's reflected view)
@@ -826,8 +828,9 @@ class Renderer:
         # what they show is drawn before this frame: probes once, a flat piece's reflected view every frame
         probes = [self._glass_probe(o, mode, shading, lights, parts)
                   if o.plane is None or self.glass_approach == "probe" else None for o in glassy]
-        planes = [self._mirror_image(o, view, mode, shading, lights, samples, parts) if o.plane is not None else None
-                  for o in glassy]
+        # a glass piece reflects F (a few percent) of it: drawn at half the size, one sample a pixel
+        planes = [self._mirror_image(o, view, mode, shading, lights, 1, parts, scale=GLASS_REFLECTION_SCALE)
+                  if o.plane is not None else None for o in glassy]
         seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
@@ -933,15 +936,18 @@ class Renderer:
             self._glass_probes[key] = glass.probe_texture(self.ctx, glass.octahedral_from_faces(faces, views))
         return self._glass_probes[key]
 
-    def _mirror_image(self, obj, view, mode, shading, lights, samples, parts):
+    def _mirror_image(self, obj, view, mode, shading, lights, samples, parts, scale=1):
         """What a mirror or a glass piece ``obj`` reflects in ``view``: a flat one's (texture,
         the reflected view's model-view-projection), the scene drawn from the eye reflected in
-        its plane with what lies beyond the plane from the eye clipped away; a curved one's
-        probe (``_glass_probe``), None."""
+        its plane with what lies beyond the plane from the eye clipped away (at 1 / ``scale``
+        of the view's size); a curved one's probe (``_glass_probe``), None."""
         if obj.plane is None:
             return self._glass_probe(obj, mode, shading, lights, parts), None
         p, n = obj.plane
         reflected = mirror.mirrored_view(view, obj.plane)
+        if scale > 1:
+            reflected = dataclasses.replace(reflected, width=max(1, -(-view.width // scale)),
+                                            height=max(1, -(-view.height // scale)))
         side = 1.0 if (np.asarray(view.eye, np.float64) - p) @ n >= 0 else -1.0
         self._clip = tuple(side * float(v) for v in (*n, -float(n @ p)))
         self.ctx.enable_direct(GL_CLIP_DISTANCE0)
@@ -953,7 +959,8 @@ class Renderer:
         old = self._mirror_images.pop(obj.name, None)
         if old is not None:
             old.release()
-        texture = self.ctx.texture((view.width, view.height), 3, np.ascontiguousarray(image[::-1]).tobytes(), dtype="f4")
+        texture = self.ctx.texture((reflected.width, reflected.height), 3, np.ascontiguousarray(image[::-1]).tobytes(),
+                                   dtype="f4")
         texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         texture.repeat_x = texture.repeat_y = False
         self._mirror_images[obj.name] = texture

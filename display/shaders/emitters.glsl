@@ -256,11 +256,13 @@ vec3 microfacet_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
     vec3 area = emitter_ks * (emitter_f0 * m.x + (1.0 - emitter_f0) * m.y);
     vec3 t, b;
     ltc_view_frame(n, w, t, b);
+    vec3 r = 2.0 * wn * n - w;
     for (int i = 0; i < n_parts; ++i) {
         if (((own_parts >> i) & 1) == 1) continue;
         float v = part_visibility(i, vertices, weights);
         if (!(v > 0.0)) continue;
         vec4 head = texelFetch(emitter_table, ivec2(0, i), 0);
+        if (head.x < 1.5 && ltc_culled(emitter_lobe, emitter_alpha, texelFetch(emitter_table, ivec2(2, i), 0), x, n, r)) continue;
         vec3 le = texelFetch(emitter_table, ivec2(1, i), 0).rgb;
         if (head.x > 1.5) {   // a point or a direction
             vec3 wi;
@@ -272,8 +274,7 @@ vec3 microfacet_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
             colour += (value * scale * v) * emitter_ks * (emitter_f0 + (1.0 - emitter_f0) * x5) * le;
             continue;
         }
-        vec3 f = head.x < 0.5 ? ltc_sphere_integral(emitter_point(i, 0), head.z, x, t, b, n, k, emitter_alpha)
-                              : ltc_polygon_integral(i, int(head.y + 0.5), x, t, b, n, k, emitter_alpha);
+        vec3 f = ltc_part_form_factor(i, head, x, t, b, n, k, emitter_alpha);
         float ratio = ltc_lobe_ratio(f, k, emitter_lobe, emitter_alpha, wn, m.x);
         colour += (f.z * (ratio + (1.0 - ratio) * f.z) * v) * area * le;
     }

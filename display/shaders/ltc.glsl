@@ -3,7 +3,7 @@
 // sphere_integral, ndf, smith_g1, lobe_value); tested against it.
 //
 // Prepended #defines (display.glsl.defines): VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES,
-// VL_LTC_SPHERE_SCALE, VL_LTC_MAX (radiosity.formats.ltc's constants).
+// VL_LTC_SPHERE_SCALE, VL_LTC_CULL (radiosity.formats.ltc's constants).
 // Uniforms:
 //   ltc_table     RGBA32F (display.glsl.ltc_texture: radiosity.formats.ltc.table_texture):
 //                 row (lobe - 1) S + i, texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick)
@@ -15,11 +15,8 @@ uniform float emitter_alpha;
 const float LTC_ALPHA_MIN = VL_LTC_ALPHA_MIN;
 const int LTC_SPHERE_SIDES = VL_LTC_SPHERE_SIDES;
 const float LTC_SPHERE_SCALE = VL_LTC_SPHERE_SCALE;   // the regular polygon's area the circle's
-const int LTC_MAX = VL_LTC_MAX;
+const float LTC_CULL = VL_LTC_CULL;
 const float LTC_PI = 3.141592653589793;
-float ltc_texel(int row, int column, int e) {
-    return texelFetch(ltc_table, ivec2(2 * column + e / 4, row), 0)[e % 4];
-}
 // the bilinear read of the cell at (alpha, cos theta_o): k = (k00, k02, k20, k22), m = (norm, schlick)
 void ltc_cell(int lobe, float alpha, float cos_o, out vec4 k, out vec2 m) {
     int size = textureSize(ltc_table, 0).x / 2;
@@ -30,13 +27,11 @@ void ltc_cell(int lobe, float alpha, float cos_o, out vec4 k, out vec2 m) {
     int j = min(int(v), size - 2);
     float fu = u - float(i), fv = v - float(j);
     int row = (lobe - 1) * size + i;
-    float c[6];
-    for (int e = 0; e < 6; ++e) {
-        c[e] = (1.0 - fu) * ((1.0 - fv) * ltc_texel(row, j, e) + fv * ltc_texel(row, j + 1, e))
-             + fu * ((1.0 - fv) * ltc_texel(row + 1, j, e) + fv * ltc_texel(row + 1, j + 1, e));
-    }
-    k = vec4(c[0], c[1], c[2], c[3]);
-    m = vec2(c[4], c[5]);
+    float w00 = (1.0 - fu) * (1.0 - fv), w01 = (1.0 - fu) * fv, w10 = fu * (1.0 - fv), w11 = fu * fv;
+    k = w00 * texelFetch(ltc_table, ivec2(2 * j, row), 0) + w01 * texelFetch(ltc_table, ivec2(2 * j + 2, row), 0)
+      + w10 * texelFetch(ltc_table, ivec2(2 * j, row + 1), 0) + w11 * texelFetch(ltc_table, ivec2(2 * j + 2, row + 1), 0);
+    m = (w00 * texelFetch(ltc_table, ivec2(2 * j + 1, row), 0) + w01 * texelFetch(ltc_table, ivec2(2 * j + 3, row), 0)
+       + w10 * texelFetch(ltc_table, ivec2(2 * j + 1, row + 1), 0) + w11 * texelFetch(ltc_table, ivec2(2 * j + 3, row + 1), 0)).xy;
 }
 // unit tangents (t, b) with w in the (t, n) plane on t's side (any pair when w is n)
 void ltc_view_frame(vec3 n, vec3 w, out vec3 t, out vec3 b) {
@@ -52,74 +47,83 @@ void ltc_view_frame(vec3 n, vec3 w, out vec3 t, out vec3 b) {
     t /= tl;
     b = cross(n, t);
 }
-// Sutherland-Hodgman: src[:count] clipped to z >= 0 into dst; its count
-int ltc_clip(vec3 src[LTC_MAX], int count, out vec3 dst[LTC_MAX]) {
-    int out_ = 0;
-    for (int i = 0; i < count; ++i) {
-        int j = i + 1 < count ? i + 1 : 0;
-        float za = src[i].z, zb = src[j].z;
-        if (za >= 0.0) dst[out_++] = src[i];
-        if ((za >= 0.0) != (zb >= 0.0)) dst[out_++] = src[i] + za / (za - zb) * (src[j] - src[i]);
-    }
-    return out_;
+vec3 ltc_edge(vec3 a, vec3 b) {   // one edge's term theta (a x b) / |a x b| (a, b unit)
+    vec3 c = cross(a, b);
+    float s = length(c);
+    return s > 0.0 ? atan(s, dot(a, b)) / s * c : vec3(0.0);
 }
-// the vector form factor of the polygon v[:count] (normalised here), its z >= 0
-vec3 ltc_edge_sum(vec3 v[LTC_MAX], int count) {
-    for (int i = 0; i < count; ++i) {
-        float l = length(v[i]);
-        if (l > 0.0) v[i] /= l;
-    }
-    vec3 f = vec3(0.0);
-    for (int i = 0; i < count; ++i) {
-        vec3 c = cross(v[i], v[i + 1 < count ? i + 1 : 0]);
-        float s = length(c);
-        if (s > 0.0) f += atan(s, dot(v[i], v[i + 1 < count ? i + 1 : 0])) / s * c;
-    }
-    return f * ((f.z >= 0.0 ? 1.0 : -1.0) / (2.0 * LTC_PI));
+vec3 ltc_mapped(vec3 p, vec4 k, float a) {   // alpha M^-1 p, normalised
+    vec3 q = vec3(k.x * p.x + k.y * p.z, p.y, a * (k.z * p.x + k.w * p.z));
+    float l = length(q);
+    return l > 0.0 ? q / l : q;
 }
-// the vector form factor (its z: I) of the polygon local[:count] (relative to the point,
-// in the frame (t, b, n)) in the transformed space
-vec3 ltc_polygon_cosine(vec3 local[LTC_MAX], int count, vec4 k, float alpha) {
-    vec3 clipped[LTC_MAX];
-    count = ltc_clip(local, count, clipped);
-    if (count < 3) return vec3(0.0);
-    float a = max(alpha, LTC_ALPHA_MIN);
-    for (int i = 0; i < count; ++i) {
-        vec3 p = clipped[i];
-        vec3 q = vec3(k.x * p.x + k.y * p.z, p.y, a * (k.z * p.x + k.w * p.z));
-        float l = length(q);
-        clipped[i] = l > 0.0 ? q / l : q;
-    }
-    count = ltc_clip(clipped, count, local);
-    if (count < 3) return vec3(0.0);
-    return ltc_edge_sum(local, count);
+vec3 ltc_crossing(vec3 a, vec3 b) {   // where a b meets z = 0 (a, b on either side), normalised
+    float s = a.z / (a.z - b.z);
+    vec2 q = a.xy + s * (b.xy - a.xy);
+    float l = length(q);
+    return vec3(l > 0.0 ? q / l : q, 0.0);
 }
 vec3 ltc_local(vec3 v, vec3 t, vec3 b, vec3 n) { return vec3(dot(v, t), dot(v, b), dot(v, n)); }
-vec3 ltc_polygon_integral(int part, int count, vec3 x, vec3 t, vec3 b, vec3 n, vec4 k, float alpha) {
-    vec3 q0 = emitter_point(part, 0);
-    if (dot(x - q0, cross(emitter_point(part, 1) - q0, emitter_point(part, 2) - q0)) <= 0.0) return vec3(0.0);
-    vec3 local[LTC_MAX];
-    for (int i = 0; i < count; ++i) local[i] = ltc_local(emitter_point(part, i) - x, t, b, n);
-    return ltc_polygon_cosine(local, count, k, alpha);
+// vertex i of part `part`'s polygon relative to x in the frame (t, b, n); a sphere (head.x
+// 0, radius head.z): of the regular LTC_SPHERE_SIDES-gon of the same area as its cap across
+// the cone that bounds it (c its unit direction, u, v across it, spread the polygon's radius)
+vec3 ltc_vertex(int part, int i, vec3 x, vec3 t, vec3 b, vec3 n, bool sphere, vec3 c, vec3 u, vec3 v, float spread) {
+    if (!sphere) return ltc_local(emitter_point(part, i) - x, t, b, n);
+    float phi = 2.0 * LTC_PI * float(i) / float(LTC_SPHERE_SIDES);
+    return c + (cos(phi) * spread) * u + (sin(phi) * spread) * v;
 }
-vec3 ltc_sphere_integral(vec3 centre, float radius, vec3 x, vec3 t, vec3 b, vec3 n, vec4 k, float alpha) {
-    vec3 c = ltc_local(centre - x, t, b, n);
-    float dist = length(c);
-    if (!(dist > radius)) return vec3(0.0);
-    c /= dist;
-    float sin_beta = radius / dist;
-    float spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
-    float s = c.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + c.z);
-    float d = c.x * c.y * a;
-    vec3 u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
-    vec3 v = vec3(d, s + c.y * c.y * a, -c.y);
-    vec3 local[LTC_MAX];
-    for (int i = 0; i < LTC_SPHERE_SIDES; ++i) {
-        float phi = 2.0 * LTC_PI * float(i) / float(LTC_SPHERE_SIDES);
-        local[i] = c + (cos(phi) * spread) * u + (sin(phi) * spread) * v;
+// The vector form factor (its z: I) of part `part` (head: its table row's texel 0) at x in
+// the frame (t, b, n) (radiosity.formats.ltc.polygon_integral, sphere_integral,
+// polygon_cosine): each vertex mapped by alpha M^-1, the polygon clipped to the transformed
+// cosine's horizon edge by edge, the edges' terms summed. No arrays: llvmpipe keeps them
+// slowly, and a vertex is read or made where it is needed.
+vec3 ltc_part_form_factor(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, vec4 k, float alpha) {
+    bool sphere = head.x < 0.5;
+    vec3 c = vec3(0.0), u = vec3(0.0), v = vec3(0.0);
+    float spread = 0.0;
+    int count;
+    if (sphere) {
+        c = ltc_local(emitter_point(part, 0) - x, t, b, n);
+        float dist = length(c);
+        if (!(dist > head.z)) return vec3(0.0);
+        c /= dist;
+        float sin_beta = head.z / dist;
+        spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
+        float s = c.z >= 0.0 ? 1.0 : -1.0;
+        float a = -1.0 / (s + c.z);
+        float d = c.x * c.y * a;
+        u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
+        v = vec3(d, s + c.y * c.y * a, -c.y);
+        count = LTC_SPHERE_SIDES;
+    } else {
+        count = int(head.y + 0.5);
+        vec3 q0 = emitter_point(part, 0);
+        if (dot(x - q0, cross(emitter_point(part, 1) - q0, emitter_point(part, 2) - q0)) <= 0.0) return vec3(0.0);
     }
-    return ltc_polygon_cosine(local, LTC_SPHERE_SIDES, k, alpha);
+    float a = max(alpha, LTC_ALPHA_MIN);
+    vec3 first = ltc_mapped(ltc_vertex(part, 0, x, t, b, n, sphere, c, u, v, spread), k, a);
+    vec3 prev = first;
+    vec3 leave = vec3(0.0), enter = vec3(0.0);
+    int crossed = 0;
+    vec3 f = vec3(0.0);
+    for (int i = 0; i < count; ++i) {
+        vec3 cur = i + 1 == count ? first : ltc_mapped(ltc_vertex(part, i + 1, x, t, b, n, sphere, c, u, v, spread), k, a);
+        bool above_a = prev.z >= 0.0, above_b = cur.z >= 0.0;
+        if (above_a && above_b) {
+            f += ltc_edge(prev, cur);
+        } else if (above_a) {
+            leave = ltc_crossing(prev, cur);
+            f += ltc_edge(prev, leave);
+            crossed += 1;
+        } else if (above_b) {
+            enter = ltc_crossing(prev, cur);
+            f += ltc_edge(enter, cur);
+            crossed += 1;
+        }
+        prev = cur;
+    }
+    if (crossed == 2) f += ltc_edge(leave, enter);
+    return f * ((f.z >= 0.0 ? 1.0 : -1.0) / (2.0 * LTC_PI));
 }
 float ltc_ndf(int lobe, float alpha, float cos_h) {
     if (cos_h <= 0.0) return 0.0;
@@ -130,6 +134,18 @@ float ltc_ndf(int lobe, float alpha, float cos_h) {
         return a2 / (LTC_PI * t * t);
     }
     return exp(-(1.0 - c2) / (c2 * a2)) / (LTC_PI * a2 * c2 * c2);
+}
+// radiosity.formats.ltc.culled: the part's bounding sphere wholly below the tangent plane,
+// or (alpha < 0.5) nowhere near enough the mirror direction r for D to reach LTC_CULL of its peak
+bool ltc_culled(int lobe, float alpha, vec4 bound, vec3 x, vec3 n, vec3 r) {
+    vec3 c = bound.xyz - x;
+    if (dot(c, n) < -bound.w) return true;
+    if (!(alpha < 0.5)) return false;
+    float dist = length(c);
+    if (!(dist > bound.w)) return false;
+    float nearest = atan2_(length(cross(r, c)), dot(r, c)) - asin(bound.w / dist);
+    if (!(nearest > 0.0)) return false;
+    return ltc_ndf(lobe, alpha, cos(min(0.5 * nearest, 0.5 * LTC_PI))) < LTC_CULL * ltc_ndf(lobe, alpha, 1.0);
 }
 float ltc_smith_g1(int lobe, float alpha, float cos_v, float cos_vh) {
     if (cos_v * cos_vh <= 0.0) return 0.0;

@@ -752,8 +752,8 @@ def _microfacet_radiance(pk, visibility, own, where, material):
     """``_point_radiance`` of a microfacet lobe (``radiosity.formats.ltc``): an area
     part's integral by linearly transformed cosines with Schlick's curve through f0
     integrated over the lobe, a delta part's the lobe at its direction with F(wi . h);
-    ks the interface's specular reflectance. No part is culled (the lobes' tails are long)."""
-    kinds, counts, points, radius, _, _, radiance = pk
+    ks the interface's specular reflectance. An area part is culled by ``ltc.culled``."""
+    kinds, counts, points, radius, bound_centre, bound_radius, radiance = pk
     ks, f0, code, alpha, table = material[0], material[2], material[4], material[5], material[6]
     x, n, w = where
     wn = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
@@ -766,9 +766,10 @@ def _microfacet_radiance(pk, visibility, own, where, material):
                   ks[2] * (f0[2] * cell[4] + (1.0 - f0[2]) * cell[5]))
     t, b = ltc.view_frame(n, w)
     frame = (t, b, (n[0], n[1], n[2]))
+    r = (2.0 * wn * n[0] - w[0], 2.0 * wn * n[1] - w[1], 2.0 * wn * n[2] - w[2])
     for i in range(kinds.shape[0]):
         v = visibility[i]
-        if own[i] or not v > 0.0:
+        if own[i] or not v > 0.0 or (kinds[i] < POINT and ltc.culled(code, alpha, bound_centre[i], bound_radius[i], x, n, r)):
             continue
         if kinds[i] >= POINT:
             wi, dist, scale = delta_incidence(kinds[i], points[i], x)

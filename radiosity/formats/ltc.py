@@ -13,10 +13,13 @@ I the integral over the part of the cosine distribution transformed by the cell'
 cosine, without Fresnel; ``norm`` and ``schlick`` are the lobe's integrals, plain and
 weighted by (1 - wi.h)^5, so Schlick's curve through the material's exact normal
 reflectance F0 is integrated over the lobe), V the fraction of the part the vertex
-sees. I of a polygon: the part clipped to the surface's horizon, its vertices mapped
-by M^-1 in the frame (t, b, n) where w lies in the tn plane, clipped to the mapped
-cosine's horizon, and the edge sum (1 / 2 pi) |sum_k theta_k (v_k x v_k+1).z / |v_k x
-v_k+1||, theta_k = atan2(|v_k x v_k+1|, v_k . v_k+1) (exact for small edges). A sphere
+sees. I of a polygon: its vertices mapped by M^-1 in the frame (t, b, n) where w lies in
+the tn plane, the polygon clipped to the mapped cosine's horizon edge by edge (no
+vertex list: the displays' shaders hold none), and the edge sum (1 / 2 pi) |sum_k
+theta_k (v_k x v_k+1).z / |v_k x v_k+1||, theta_k = atan2(|v_k x v_k+1|, v_k . v_k+1)
+(exact for small edges). (The mapped horizon is the surface's where the lobe is not
+tilted; at grazing views a little of the fit's mass below the surface's horizon counts,
+as in Heitz et al.'s own implementation.) A sphere
 is its visible cap, a regular ``SPHERE_SIDES``-gon of the same area across the cone
 that bounds the cap (its solid angle the cap's to 1 % up to a half-angle of 60
 degrees). A delta part's highlight is the lobe at its one direction, with Schlick's
@@ -51,7 +54,8 @@ PHONG, GGX, BECKMANN = 0, 1, 2
 ALPHA_MIN = 1e-4
 SPHERE_SIDES = 12
 SPHERE_SCALE = math.sqrt(2.0 * math.pi / (SPHERE_SIDES * math.sin(2.0 * math.pi / SPHERE_SIDES)))
-MAX_CLIPPED = 16  # a clipped polygon's vertices at most (8 + 2 clips; a sphere's 12 + 2)
+MAX_VERTICES = 12  # a polygon's vertices at most here (a sphere's regular polygon; a part's, at most 8)
+CULL = 1e-4  # a part where the distribution is below this fraction of its peak reflects nothing (``culled``)
 TABLE_FILE = Path(__file__).resolve().parent / "data" / "ltc.npz"
 
 
@@ -145,71 +149,73 @@ def view_frame(n, w):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _clip(src, count, dst):
-    """Sutherland-Hodgman: the polygon src[:count] clipped to z >= 0 into dst; its count."""
-    out = 0
-    for i in range(count):
-        j = i + 1 if i + 1 < count else 0
-        za, zb = src[i, 2], src[j, 2]
-        if za >= 0.0:
-            dst[out, 0], dst[out, 1], dst[out, 2] = src[i, 0], src[i, 1], src[i, 2]
-            out += 1
-        if (za >= 0.0) != (zb >= 0.0):
-            s = za / (za - zb)
-            for c in range(3):
-                dst[out, c] = src[i, c] + s * (src[j, c] - src[i, c])
-            out += 1
-    return out
+def _mapped(x, y, z, k, a):
+    """alpha M^-1 (x, y, z), normalised (the cell's K = (k00, k02, k20, k22), a = alpha)."""
+    px, py, pz = k[0] * x + k[1] * z, y, a * (k[2] * x + k[3] * z)
+    length = math.sqrt(px * px + py * py + pz * pz)
+    if length > 0.0:
+        return px / length, py / length, pz / length
+    return px, py, pz
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _edge_sum(v, count):
-    """The vector form factor (3-tuple) of the unit-normalised polygon v[:count]: (1 / 2 pi)
-    times the sum of the edges' theta_k (v_k x v_k+1) / |v_k x v_k+1|, oriented so that
-    its z (the cosine's integral) is >= 0."""
-    for i in range(count):
-        length = math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
-        if length > 0.0:
-            v[i, 0], v[i, 1], v[i, 2] = v[i, 0] / length, v[i, 1] / length, v[i, 2] / length
-    fx = fy = fz = 0.0
-    for i in range(count):
-        j = i + 1 if i + 1 < count else 0
-        cx = v[i, 1] * v[j, 2] - v[i, 2] * v[j, 1]
-        cy = v[i, 2] * v[j, 0] - v[i, 0] * v[j, 2]
-        cz = v[i, 0] * v[j, 1] - v[i, 1] * v[j, 0]
-        s = math.sqrt(cx * cx + cy * cy + cz * cz)
-        if s > 0.0:
-            theta = math.atan2(s, v[i, 0] * v[j, 0] + v[i, 1] * v[j, 1] + v[i, 2] * v[j, 2]) / s
-            fx, fy, fz = fx + theta * cx, fy + theta * cy, fz + theta * cz
-    sign = 1.0 if fz >= 0.0 else -1.0
-    scale = sign / (2.0 * math.pi)
-    return fx * scale, fy * scale, fz * scale
+def _edge(a, b):
+    """One edge's term theta (a x b) / |a x b| of the vector form factor (a, b unit)."""
+    cx, cy, cz = a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+    s = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if not s > 0.0:
+        return 0.0, 0.0, 0.0
+    theta = math.atan2(s, a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / s
+    return theta * cx, theta * cy, theta * cz
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _crossing(a, b):
+    """Where the segment a b meets z = 0 (a and b on either side), normalised."""
+    s = a[2] / (a[2] - b[2])
+    x, y = a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])
+    length = math.sqrt(x * x + y * y)
+    return (x / length, y / length, 0.0) if length > 0.0 else (x, y, 0.0)
 
 
 @numba.njit(cache=True, nogil=True)
 def polygon_cosine(local, count, k, alpha):
-    """The vector form factor (``_edge_sum``; its z is I) of the polygon local[:count]
-    (its vertices relative to the shading point, in the frame (t, b, n)) under the
-    cell's K = (k00, k02, k20, k22) and roughness alpha, in the transformed space;
-    ``local`` is overwritten. (0, 0, 0) where nothing is left."""
-    clipped = np.empty((MAX_CLIPPED, 3))
-    count = _clip(local, count, clipped)  # the surface's horizon
-    if count < 3:
-        return 0.0, 0.0, 0.0
+    """The vector form factor (3-tuple; its z is I) of the polygon local[:count] (its
+    vertices relative to the shading point, in the frame (t, b, n)) under the cell's K =
+    (k00, k02, k20, k22) and roughness alpha: each vertex mapped by alpha M^-1 and
+    normalised, the polygon clipped to the transformed cosine's horizon edge by edge (an
+    edge's part above it, and the one edge along it from where the polygon leaves to where
+    it comes back), the sum of the edges' terms over 2 pi, oriented so that z >= 0. (0, 0,
+    0) where nothing is above."""
     a = max(alpha, ALPHA_MIN)
-    for i in range(count):  # alpha M^-1 (v): rows scaled by alpha, the same directions
-        x, y, z = clipped[i, 0], clipped[i, 1], clipped[i, 2]
-        clipped[i, 0] = k[0] * x + k[1] * z
-        clipped[i, 1] = y
-        clipped[i, 2] = a * (k[2] * x + k[3] * z)
-        length = math.sqrt(clipped[i, 0] ** 2 + clipped[i, 1] ** 2 + clipped[i, 2] ** 2)
-        if length > 0.0:
-            for c in range(3):
-                clipped[i, c] /= length
-    count = _clip(clipped, count, local)  # the transformed cosine's horizon
-    if count < 3:
-        return 0.0, 0.0, 0.0
-    return _edge_sum(local, count)
+    fx = fy = fz = 0.0
+    first = _mapped(local[0, 0], local[0, 1], local[0, 2], k, a)
+    prev = first
+    leave = (0.0, 0.0, 0.0)
+    enter = (0.0, 0.0, 0.0)
+    crossed = 0
+    for i in range(count):
+        cur = first if i + 1 == count else _mapped(local[i + 1, 0], local[i + 1, 1], local[i + 1, 2], k, a)
+        above_a, above_b = prev[2] >= 0.0, cur[2] >= 0.0
+        if above_a and above_b:
+            e = _edge(prev, cur)
+        elif above_a:
+            leave = _crossing(prev, cur)
+            e = _edge(prev, leave)
+            crossed += 1
+        elif above_b:
+            enter = _crossing(prev, cur)
+            e = _edge(enter, cur)
+            crossed += 1
+        else:
+            e = (0.0, 0.0, 0.0)
+        fx, fy, fz = fx + e[0], fy + e[1], fz + e[2]
+        prev = cur
+    if crossed == 2:
+        e = _edge(leave, enter)
+        fx, fy, fz = fx + e[0], fy + e[1], fz + e[2]
+    scale = (1.0 if fz >= 0.0 else -1.0) / (2.0 * math.pi)
+    return fx * scale, fy * scale, fz * scale
 
 
 @numba.njit(cache=True, nogil=True)
@@ -259,7 +265,7 @@ def polygon_integral(count, points, x, frame, k, alpha):
     fx, fy, fz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     if (x[0] - points[0, 0]) * fx + (x[1] - points[0, 1]) * fy + (x[2] - points[0, 2]) * fz <= 0.0:
         return 0.0, 0.0, 0.0
-    local = np.empty((MAX_CLIPPED, 3))
+    local = np.empty((MAX_VERTICES, 3))
     for i in range(count):
         local[i, 0], local[i, 1], local[i, 2] = _to_local(
             points[i, 0] - x[0], points[i, 1] - x[1], points[i, 2] - x[2], frame)
@@ -282,12 +288,38 @@ def sphere_integral(centre, radius, x, frame, k, alpha):
     c = cx * cy * a
     ux, uy, uz = 1.0 + sign * cx * cx * a, sign * c, -sign * cx
     vx, vy, vz = c, sign + cy * cy * a, -cy
-    local = np.empty((MAX_CLIPPED, 3))
+    local = np.empty((MAX_VERTICES, 3))
     for i in range(SPHERE_SIDES):
         phi = 2.0 * math.pi * i / SPHERE_SIDES
         cp, sp = math.cos(phi) * spread, math.sin(phi) * spread
         local[i, 0], local[i, 1], local[i, 2] = cx + cp * ux + sp * vx, cy + cp * uy + sp * vy, cz + cp * uz + sp * vz
     return polygon_cosine(local, SPHERE_SIDES, k, alpha)
+
+
+CULL_ALPHA = 0.5  # below it both distributions fall monotonically from the normal: a part may be culled
+
+
+@numba.njit(cache=True, nogil=True)
+def culled(lobe, alpha, bound_centre, bound_radius, x, n, r):
+    """True where a part (its bounding sphere) reflects nothing worth drawing: it lies
+    wholly below the surface's tangent plane, or (alpha < ``CULL_ALPHA``) every direction
+    towards it is at delta >= 2 theta from the mirror direction r where D(theta) is below
+    ``CULL`` of D's peak (reflecting wo about a normal turned by theta turns wi by at
+    most 2 theta: so no half vector of the part is nearer the normal than delta / 2)."""
+    cx, cy, cz = bound_centre[0] - x[0], bound_centre[1] - x[1], bound_centre[2] - x[2]
+    if cx * n[0] + cy * n[1] + cz * n[2] < -bound_radius:
+        return True
+    if not alpha < CULL_ALPHA:
+        return False
+    dist = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if not dist > bound_radius:
+        return False
+    qx, qy, qz = r[1] * cz - r[2] * cy, r[2] * cx - r[0] * cz, r[0] * cy - r[1] * cx
+    nearest = math.atan2(math.sqrt(qx * qx + qy * qy + qz * qz), r[0] * cx + r[1] * cy + r[2] * cz) - math.asin(
+        bound_radius / dist)
+    if not nearest > 0.0:
+        return False
+    return ndf(lobe, alpha, math.cos(min(0.5 * nearest, 0.5 * math.pi))) < CULL * ndf(lobe, alpha, 1.0)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
