@@ -15,7 +15,7 @@ never code written from Python:
     VL_CULL, VL_MAX_POLYGON_VERTICES    radiosity.formats.emitters' constants
     VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W, VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W
                               the emitter quadrature of N nodes (``rules(N)``)
-    VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES, VL_LTC_SPHERE_SCALE, VL_LTC_CULL
+    VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES, VL_LTC_SPHERE_SCALE, VL_LTC_CULL, VL_LTC_MAX_RATIO
                               radiosity.formats.ltc's constants (ltc.glsl)
     VL_NO_LIGHTS, VL_NO_PROBE, VL_NO_EMITTERS    the parts of the model left out
     VL_TRIANGLE, VL_GOURAUD, VL_OUT, VL_ATTRIBUTES    variants of a stage (the files say which)
@@ -92,6 +92,7 @@ def defines(nodes=DEFAULT_NODES, parts=PARTS, extra=()):
         "VL_LTC_SPHERE_SIDES": ltc.SPHERE_SIDES,
         "VL_LTC_SPHERE_SCALE": repr(float(ltc.SPHERE_SCALE)),
         "VL_LTC_CULL": repr(float(ltc.CULL)),
+        "VL_LTC_MAX_RATIO": repr(float(ltc.MAX_RATIO)),
     }
     lines = [f"#define {k} {v}\n" for k, v in values.items()]
     lines += [f"#define VL_NO_{p.upper()}\n" for p in PARTS if p not in parts]

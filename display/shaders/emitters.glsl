@@ -274,9 +274,8 @@ vec3 microfacet_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {
             colour += (value * scale * v) * emitter_ks * (emitter_f0 + (1.0 - emitter_f0) * x5) * le;
             continue;
         }
-        vec3 f = ltc_part_form_factor(i, head, x, t, b, n, k, emitter_alpha);
-        float ratio = ltc_lobe_ratio(f, k, emitter_lobe, emitter_alpha, wn, m.x);
-        colour += (f.z * (ratio + (1.0 - ratio) * f.z) * v) * area * le;
+        float j = ltc_part_integral(i, head, x, t, b, n, k, emitter_lobe, emitter_alpha, wn, m.x);
+        colour += (j * v) * area * le;
     }
     return colour;
 }

@@ -3,7 +3,7 @@
 // sphere_integral, ndf, smith_g1, lobe_value); tested against it.
 //
 // Prepended #defines (display.glsl.defines): VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES,
-// VL_LTC_SPHERE_SCALE, VL_LTC_CULL (radiosity.formats.ltc's constants).
+// VL_LTC_SPHERE_SCALE, VL_LTC_CULL, VL_LTC_MAX_RATIO (radiosity.formats.ltc's constants).
 // Uniforms:
 //   ltc_table     RGBA32F (display.glsl.ltc_texture: radiosity.formats.ltc.table_texture):
 //                 row (lobe - 1) S + i, texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick)
@@ -16,6 +16,7 @@ const float LTC_ALPHA_MIN = VL_LTC_ALPHA_MIN;
 const int LTC_SPHERE_SIDES = VL_LTC_SPHERE_SIDES;
 const float LTC_SPHERE_SCALE = VL_LTC_SPHERE_SCALE;   // the regular polygon's area the circle's
 const float LTC_CULL = VL_LTC_CULL;
+const float LTC_MAX_RATIO = VL_LTC_MAX_RATIO;
 const float LTC_PI = 3.141592653589793;
 // the bilinear read of the cell at (alpha, cos theta_o): k = (k00, k02, k20, k22), m = (norm, schlick)
 void ltc_cell(int lobe, float alpha, float cos_o, out vec4 k, out vec2 m) {
@@ -63,6 +64,46 @@ vec3 ltc_crossing(vec3 a, vec3 b) {   // where a b meets z = 0 (a, b on either s
     float l = length(q);
     return vec3(l > 0.0 ? q / l : q, 0.0);
 }
+// one edge prev -> cur (mapped) of a polygon clipped edge by edge to z >= 0: its term added
+// to f, where it leaves (leave) or comes back (enter) noted, crossings counted
+void ltc_clip_edge(vec3 prev, vec3 cur, inout vec3 f, inout vec3 leave, inout vec3 enter, inout int crossed) {
+    bool above_a = prev.z >= 0.0, above_b = cur.z >= 0.0;
+    if (above_a && above_b) {
+        f += ltc_edge(prev, cur);
+    } else if (above_a) {
+        leave = ltc_crossing(prev, cur);
+        f += ltc_edge(prev, leave);
+        crossed += 1;
+    } else if (above_b) {
+        enter = ltc_crossing(prev, cur);
+        f += ltc_edge(enter, cur);
+        crossed += 1;
+    }
+}
+vec3 ltc_closed(vec3 f, vec3 leave, vec3 enter, int crossed) {   // the edge along the horizon, oriented
+    if (crossed == 2) f += ltc_edge(leave, enter);
+    return f * ((f.z >= 0.0 ? 1.0 : -1.0) / (2.0 * LTC_PI));
+}
+// the vector form factor of the triangle (a, b, c) (local, unmapped)
+vec3 ltc_triangle(vec3 a, vec3 b, vec3 c, vec4 k, float alpha) {
+    float s = max(alpha, LTC_ALPHA_MIN);
+    vec3 p = ltc_mapped(a, k, s), q = ltc_mapped(b, k, s), r = ltc_mapped(c, k, s);
+    vec3 f = vec3(0.0), leave = vec3(0.0), enter = vec3(0.0);
+    int crossed = 0;
+    ltc_clip_edge(p, q, f, leave, enter, crossed);
+    ltc_clip_edge(q, r, f, leave, enter, crossed);
+    ltc_clip_edge(r, p, f, leave, enter, crossed);
+    return ltc_closed(f, leave, enter, crossed);
+}
+// the unit direction (local) a vector form factor f of the transformed space stands for: M f
+vec3 ltc_representative(vec3 f, vec4 k, float alpha) {
+    float fl = length(f);
+    float det = k.x * k.w - k.y * k.z;
+    if (!(fl > 0.0 && det > 0.0)) return vec3(0.0);
+    float a = max(alpha, LTC_ALPHA_MIN);
+    float px = a * f.x / fl, pz = f.z / fl;
+    return normalize(vec3((k.w * px - k.y * pz) / det, a * f.y / fl, (-k.z * px + k.x * pz) / det));
+}
 vec3 ltc_local(vec3 v, vec3 t, vec3 b, vec3 n) { return vec3(dot(v, t), dot(v, b), dot(v, n)); }
 // vertex i of part `part`'s polygon relative to x in the frame (t, b, n); a sphere (head.x
 // 0, radius head.z): of the regular LTC_SPHERE_SIDES-gon of the same area as its cap across
@@ -108,22 +149,10 @@ vec3 ltc_part_form_factor(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, v
     vec3 f = vec3(0.0);
     for (int i = 0; i < count; ++i) {
         vec3 cur = i + 1 == count ? first : ltc_mapped(ltc_vertex(part, i + 1, x, t, b, n, sphere, c, u, v, spread), k, a);
-        bool above_a = prev.z >= 0.0, above_b = cur.z >= 0.0;
-        if (above_a && above_b) {
-            f += ltc_edge(prev, cur);
-        } else if (above_a) {
-            leave = ltc_crossing(prev, cur);
-            f += ltc_edge(prev, leave);
-            crossed += 1;
-        } else if (above_b) {
-            enter = ltc_crossing(prev, cur);
-            f += ltc_edge(enter, cur);
-            crossed += 1;
-        }
+        ltc_clip_edge(prev, cur, f, leave, enter, crossed);
         prev = cur;
     }
-    if (crossed == 2) f += ltc_edge(leave, enter);
-    return f * ((f.z >= 0.0 ? 1.0 : -1.0) / (2.0 * LTC_PI));
+    return ltc_closed(f, leave, enter, crossed);
 }
 float ltc_ndf(int lobe, float alpha, float cos_h) {
     if (cos_h <= 0.0) return 0.0;
@@ -172,19 +201,63 @@ float ltc_lobe_value(int lobe, float alpha, vec3 wi, vec3 w, vec3 n, out float c
 }
 // T / (norm D) at the polygon's representative direction (its form factor f mapped back by M)
 float ltc_lobe_ratio(vec3 f, vec4 k, int lobe, float alpha, float cos_o, float norm) {
-    float fl = length(f);
-    if (!(fl > 0.0 && norm > 0.0)) return 1.0;
-    vec3 u = f / fl;
+    vec3 w = ltc_representative(f, k, alpha);
+    if (!(norm > 0.0) || w == vec3(0.0)) return 1.0;
     float a = max(alpha, LTC_ALPHA_MIN);
     float det = k.x * k.w - k.y * k.z;
-    if (!(det > 0.0)) return 1.0;
-    float px = a * u.x, pz = u.z;
-    vec3 w = normalize(vec3((k.w * px - k.y * pz) / det, a * u.y, (-k.z * px + k.x * pz) / det));
     vec3 aw = vec3((k.x * w.x + k.y * w.z) / a, w.y / a, k.z * w.x + k.w * w.z);
     float al = length(aw);
     if (!(aw.z > 0.0 && al > 0.0)) return 1.0;
     float density = aw.z / al / LTC_PI * (det / (a * a)) / (al * al * al);
     float cih;
     float value = ltc_lobe_value(lobe, alpha, w, vec3(sqrt(max(0.0, 1.0 - cos_o * cos_o)), 0.0, cos_o), vec3(0.0, 0.0, 1.0), cih);
-    return value / (norm * density);
+    return min(value / (norm * density), LTC_MAX_RATIO);
+}
+// I of part `part` corrected towards the lobe (radiosity.formats.ltc.fan_integral): the fan of
+// triangles from the part's representative direction to each edge, each triangle's integral
+// times ltc_lobe_ratio at its own representative direction
+float ltc_part_integral(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, vec4 k, int lobe, float alpha, float cos_o,
+                        float norm) {
+    vec3 f = ltc_part_form_factor(part, head, x, t, b, n, k, alpha);
+    if (!(f.z > 0.0)) return 0.0;
+    vec3 centre = ltc_representative(f, k, alpha);
+    bool sphere = head.x < 0.5;
+    vec3 c = vec3(0.0), u = vec3(0.0), v = vec3(0.0);
+    float spread = 0.0;
+    int count = sphere ? LTC_SPHERE_SIDES : int(head.y + 0.5);
+    if (sphere) {   // the same polygon as ltc_part_form_factor's
+        c = normalize(ltc_local(emitter_point(part, 0) - x, t, b, n));
+        float sin_beta = head.z / length(emitter_point(part, 0) - x);
+        spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
+        float s = c.z >= 0.0 ? 1.0 : -1.0;
+        float a = -1.0 / (s + c.z);
+        float d = c.x * c.y * a;
+        u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
+        v = vec3(d, s + c.y * c.y * a, -c.y);
+    }
+    vec3 first = ltc_vertex(part, 0, x, t, b, n, sphere, c, u, v, spread);
+    // the fan's centre: the representative direction where it lies inside the polygon, else
+    // the mean of the vertices' directions (radiosity.formats.ltc._fan_centre)
+    bool pos = true, neg = true;
+    vec3 mean = vec3(0.0);
+    vec3 prev = first;
+    for (int i = 0; i < count; ++i) {
+        vec3 cur = i + 1 == count ? first : ltc_vertex(part, i + 1, x, t, b, n, sphere, c, u, v, spread);
+        float side = dot(centre, cross(prev, cur));
+        pos = pos && side >= 0.0;
+        neg = neg && side <= 0.0;
+        float l = length(prev);
+        if (l > 0.0) mean += prev / l;
+        prev = cur;
+    }
+    if (!(pos || neg) && length(mean) > 0.0) centre = normalize(mean);
+    prev = first;
+    float total = 0.0;
+    for (int i = 0; i < count; ++i) {
+        vec3 cur = i + 1 == count ? first : ltc_vertex(part, i + 1, x, t, b, n, sphere, c, u, v, spread);
+        vec3 ft = ltc_triangle(centre, prev, cur, k, alpha);
+        if (ft.z > 0.0) total += ft.z * ltc_lobe_ratio(ft, k, lobe, alpha, cos_o, norm);
+        prev = cur;
+    }
+    return min(total, LTC_MAX_RATIO * f.z);   // the triangles' sum is the polygon's, each ratio at most LTC_MAX_RATIO
 }

@@ -767,6 +767,7 @@ def _microfacet_radiance(pk, visibility, own, where, material):
     t, b = ltc.view_frame(n, w)
     frame = (t, b, (n[0], n[1], n[2]))
     r = (2.0 * wn * n[0] - w[0], 2.0 * wn * n[1] - w[1], 2.0 * wn * n[2] - w[2])
+    local = np.empty((ltc.MAX_VERTICES, 3))
     for i in range(kinds.shape[0]):
         v = visibility[i]
         if own[i] or not v > 0.0 or (kinds[i] < POINT and ltc.culled(code, alpha, bound_centre[i], bound_radius[i], x, n, r)):
@@ -783,11 +784,10 @@ def _microfacet_radiance(pk, visibility, own, where, material):
             e2 += s * ks[2] * (f0[2] + (1.0 - f0[2]) * x5) * radiance[i, 2]
             continue
         if kinds[i] == SPHERE:
-            f = ltc.sphere_integral(points[i, 0], radius[i], x, frame, k, alpha)
+            count = ltc.sphere_local(points[i, 0], radius[i], x, frame, local)
         else:
-            f = ltc.polygon_integral(counts[i], points[i], x, frame, k, alpha)
-        ratio = ltc.lobe_ratio(f, k, code, alpha, wn, cell[4])
-        j = f[2] * (ratio + (1.0 - ratio) * f[2]) * v
+            count = ltc.polygon_local(counts[i], points[i], x, frame, local)
+        j = ltc.fan_integral(local, count, k, alpha, code, wn, cell[4]) * v if count else 0.0
         e0 += j * a0 * radiance[i, 0]
         e1 += j * a1 * radiance[i, 1]
         e2 += j * a2 * radiance[i, 2]

@@ -19,7 +19,12 @@ vertex list: the displays' shaders hold none), and the edge sum (1 / 2 pi) |sum_
 theta_k (v_k x v_k+1).z / |v_k x v_k+1||, theta_k = atan2(|v_k x v_k+1|, v_k . v_k+1)
 (exact for small edges). (The mapped horizon is the surface's where the lobe is not
 tilted; at grazing views a little of the fit's mass below the surface's horizon counts,
-as in Heitz et al.'s own implementation.) A sphere
+as in Heitz et al.'s own implementation.) Where the lobe's shape and the fit's differ (a
+Beckmann lobe's lighter tail, the grazing views), I is corrected towards the lobe's own
+integral: the polygon is cut into the fan of triangles from its representative direction
+(M f, f its vector form factor) to each edge, and each triangle's integral weighed by the
+lobe over the fit's density at the triangle's own representative direction
+(``fan_integral``). A sphere
 is its visible cap, a regular ``SPHERE_SIDES``-gon of the same area across the cone
 that bounds the cap (its solid angle the cap's to 1 % up to a half-angle of 60
 degrees). A delta part's highlight is the lobe at its one direction, with Schlick's
@@ -55,6 +60,7 @@ ALPHA_MIN = 1e-4
 SPHERE_SIDES = 12
 SPHERE_SCALE = math.sqrt(2.0 * math.pi / (SPHERE_SIDES * math.sin(2.0 * math.pi / SPHERE_SIDES)))
 MAX_VERTICES = 12  # a polygon's vertices at most here (a sphere's regular polygon; a part's, at most 8)
+MAX_RATIO = 3.0  # the lobe over the fit at most (near the transformed horizon the fit's density goes to 0)
 CULL = 1e-4  # a part where the distribution is below this fraction of its peak reflects nothing (``culled``)
 TABLE_FILE = Path(__file__).resolve().parent / "data" / "ltc.npz"
 
@@ -218,26 +224,31 @@ def polygon_cosine(local, count, k, alpha):
     return fx * scale, fy * scale, fz * scale
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def representative(f, k, alpha):
+    """The unit direction (3-tuple, in the frame (t, b, n)) a vector form factor f of the
+    transformed space stands for: M f normalised; (0, 0, 0) where f is 0."""
+    fl = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    det = k[0] * k[3] - k[1] * k[2]
+    if not (fl > 0.0 and det > 0.0):
+        return 0.0, 0.0, 0.0
+    a = max(alpha, ALPHA_MIN)
+    px, pz = a * f[0] / fl, f[2] / fl  # M u = K^-1 diag(alpha, alpha, 1) u, up to scale
+    wx, wy, wz = (k[3] * px - k[1] * pz) / det, a * f[1] / fl, (-k[2] * px + k[0] * pz) / det
+    wl = math.sqrt(wx * wx + wy * wy + wz * wz)
+    return wx / wl, wy / wl, wz / wl
+
+
 @numba.njit(cache=True, nogil=True)
 def lobe_ratio(f, k, lobe, alpha, cos_o, norm):
-    """T / (norm D) at the polygon's representative direction: its vector form factor f
-    (in the transformed space) mapped back by M, where T is the lobe times the cosine
-    (``lobe_value``) and D the transformed cosine's density; 1 where f is 0. The
-    integral's correction where the lobe's shape and the fit's differ (a Beckmann
-    lobe's light tails, the grazing views)."""
-    fl = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-    if not (fl > 0.0 and norm > 0.0):
+    """T / (norm D) at a polygon's representative direction (``representative`` of its
+    vector form factor f), where T is the lobe times the cosine (``lobe_value``) and D
+    the transformed cosine's density, at most ``MAX_RATIO``; 1 where f is 0."""
+    wx, wy, wz = representative(f, k, alpha)
+    if not (norm > 0.0 and (wx != 0.0 or wy != 0.0 or wz != 0.0)):
         return 1.0
-    ux, uy, uz = f[0] / fl, f[1] / fl, f[2] / fl
     a = max(alpha, ALPHA_MIN)
     det = k[0] * k[3] - k[1] * k[2]
-    if not det > 0.0:
-        return 1.0
-    # w = K^-1 diag(alpha, alpha, 1) u, normalised
-    px, pz = a * ux, uz
-    wx, wy, wz = (k[3] * px - k[1] * pz) / det, a * uy, (-k[2] * px + k[0] * pz) / det
-    wl = math.sqrt(wx * wx + wy * wy + wz * wz)
-    wx, wy, wz = wx / wl, wy / wl, wz / wl
     # A w = diag(1 / alpha, 1 / alpha, 1) K w: its length, and D = (A w).z / |A w| / pi |det A| / |A w|^3
     ax, ay, az = (k[0] * wx + k[1] * wz) / a, wy / a, k[2] * wx + k[3] * wz
     al = math.sqrt(ax * ax + ay * ay + az * az)
@@ -246,7 +257,59 @@ def lobe_ratio(f, k, lobe, alpha, cos_o, norm):
     density = az / al / math.pi * (det / (a * a)) / (al * al * al)
     so = math.sqrt(max(0.0, 1.0 - cos_o * cos_o))
     value, _ = lobe_value(lobe, alpha, (wx, wy, wz), (so, 0.0, cos_o), (0.0, 0.0, 1.0))
-    return value / (norm * density)
+    return min(value / (norm * density), MAX_RATIO)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _fan_centre(local, count, c):
+    """The fan's centre: c where it lies inside the polygon local[:count] (seen from the
+    point: on one side of every edge's plane), else the mean of the vertices' directions
+    (a polygon mostly clipped away has a form factor too small to point anywhere)."""
+    pos = True
+    neg = True
+    mx = my = mz = 0.0
+    for i in range(count):
+        j = i + 1 if i + 1 < count else 0
+        ax, ay, az = local[i, 0], local[i, 1], local[i, 2]
+        bx, by, bz = local[j, 0], local[j, 1], local[j, 2]
+        side = c[0] * (ay * bz - az * by) + c[1] * (az * bx - ax * bz) + c[2] * (ax * by - ay * bx)
+        pos = pos and side >= 0.0
+        neg = neg and side <= 0.0
+        length = math.sqrt(ax * ax + ay * ay + az * az)
+        if length > 0.0:
+            mx, my, mz = mx + ax / length, my + ay / length, mz + az / length
+    if pos or neg:
+        return c
+    length = math.sqrt(mx * mx + my * my + mz * mz)
+    return (mx / length, my / length, mz / length) if length > 0.0 else c
+
+
+@numba.njit(cache=True, nogil=True)
+def fan_integral(local, count, k, alpha, lobe, cos_o, norm):
+    """I of the polygon local[:count] (relative to the point, in the frame (t, b, n)),
+    its transformed cosine's integral corrected towards the lobe's own: the polygon cut
+    into the fan of triangles from its representative direction (``_fan_centre``) to each edge, each
+    triangle's integral times ``lobe_ratio`` at its own representative direction (where
+    the fit's shape and the lobe's differ, a Beckmann lobe's lighter tail, a grazing view,
+    each part of the polygon is weighed by the lobe there)."""
+    f = polygon_cosine(local, count, k, alpha)
+    if not f[2] > 0.0:
+        return 0.0
+    c = _fan_centre(local, count, representative(f, k, alpha))
+    tri = np.empty((3, 3))
+    tri[0, 0], tri[0, 1], tri[0, 2] = c
+    total = 0.0
+    for i in range(count):
+        j = i + 1 if i + 1 < count else 0
+        for d in range(3):
+            tri[1, d] = local[i, d]
+            tri[2, d] = local[j, d]
+        ft = polygon_cosine(tri, 3, k, alpha)
+        if ft[2] > 0.0:
+            total += ft[2] * lobe_ratio(ft, k, lobe, alpha, cos_o, norm)
+    # the triangles' integrals sum to the polygon's, each ratio at most MAX_RATIO: where a sliver
+    # along the horizon leaves rounding to decide an edge's side, the bound holds the sum
+    return min(total, MAX_RATIO * f[2])
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -256,30 +319,30 @@ def _to_local(vx, vy, vz, frame):
 
 
 @numba.njit(cache=True, nogil=True)
-def polygon_integral(count, points, x, frame, k, alpha):
-    """The vector form factor (``polygon_cosine``) of a convex polygon (``points[:count]``,
-    counter-clockwise seen from its emitting front; 0 seen from behind) at x; frame =
-    (t, b, n) 3-tuples (``view_frame``)."""
+def polygon_local(count, points, x, frame, local):
+    """A convex polygon's vertices (``points[:count]``, counter-clockwise seen from its
+    emitting front) relative to x in the frame (t, b, n) (``view_frame``) into local; its
+    vertex count, 0 seen from behind."""
     e1x, e1y, e1z = points[1, 0] - points[0, 0], points[1, 1] - points[0, 1], points[1, 2] - points[0, 2]
     e2x, e2y, e2z = points[2, 0] - points[0, 0], points[2, 1] - points[0, 1], points[2, 2] - points[0, 2]
     fx, fy, fz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     if (x[0] - points[0, 0]) * fx + (x[1] - points[0, 1]) * fy + (x[2] - points[0, 2]) * fz <= 0.0:
-        return 0.0, 0.0, 0.0
-    local = np.empty((MAX_VERTICES, 3))
+        return 0
     for i in range(count):
         local[i, 0], local[i, 1], local[i, 2] = _to_local(
             points[i, 0] - x[0], points[i, 1] - x[1], points[i, 2] - x[2], frame)
-    return polygon_cosine(local, count, k, alpha)
+    return count
 
 
 @numba.njit(cache=True, nogil=True)
-def sphere_integral(centre, radius, x, frame, k, alpha):
-    """The vector form factor (``polygon_cosine``) of a sphere lamp at x: its visible cap
-    as a regular ``SPHERE_SIDES``-gon of the same area across the cone that bounds it."""
+def sphere_local(centre, radius, x, frame, local):
+    """A sphere lamp's visible cap as seen from x, into local: the regular
+    ``SPHERE_SIDES``-gon of the same area across the cone that bounds it, in the frame (t,
+    b, n); its vertex count, 0 from inside the lamp."""
     cx, cy, cz = _to_local(centre[0] - x[0], centre[1] - x[1], centre[2] - x[2], frame)
     dist = math.sqrt(cx * cx + cy * cy + cz * cz)
     if not dist > radius:
-        return 0.0, 0.0, 0.0
+        return 0
     cx, cy, cz = cx / dist, cy / dist, cz / dist
     sin_beta = radius / dist
     spread = sin_beta / math.sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * SPHERE_SCALE  # tan(beta), scaled
@@ -288,12 +351,11 @@ def sphere_integral(centre, radius, x, frame, k, alpha):
     c = cx * cy * a
     ux, uy, uz = 1.0 + sign * cx * cx * a, sign * c, -sign * cx
     vx, vy, vz = c, sign + cy * cy * a, -cy
-    local = np.empty((MAX_VERTICES, 3))
     for i in range(SPHERE_SIDES):
         phi = 2.0 * math.pi * i / SPHERE_SIDES
         cp, sp = math.cos(phi) * spread, math.sin(phi) * spread
         local[i, 0], local[i, 1], local[i, 2] = cx + cp * ux + sp * vx, cy + cp * uy + sp * vy, cz + cp * uz + sp * vz
-    return polygon_cosine(local, SPHERE_SIDES, k, alpha)
+    return SPHERE_SIDES
 
 
 CULL_ALPHA = 0.5  # below it both distributions fall monotonically from the normal: a part may be culled

@@ -78,11 +78,11 @@ def view(theta_deg):
 # (distribution, alpha, view angle, the lamp's offset from the mirror direction, its side):
 # the lamp over the lobe's peak, beside it, and a large one covering most of the lobe;
 # the tolerance measured for each distribution (GGX's transformed cosines fit its lobe,
-# Beckmann's lighter tails they do not: the ratio at the lamp's representative direction
-# corrects most of that)
+# Beckmann's lighter tails they do not: the lobe over the fit, weighed on a fan of
+# triangles across the lamp, corrects most of that)
 CASES = [(d, a, th, off, size) for d, a in (("ggx", 0.05), ("ggx", 0.2), ("ggx", 0.5), ("beckmann", 0.2), ("beckmann", 0.5))
          for th in (10, 40, 70) for off, size in ((0.0, 0.3), (0.15, 0.3), (0.0, 2.0))]
-TOLERANCE = {"ggx": 0.15, "beckmann": 0.2}
+TOLERANCE = {"ggx": 0.06, "beckmann": 0.17}
 
 
 @pytest.mark.parametrize("distribution,alpha,theta,offset,size", CASES)
@@ -96,14 +96,17 @@ def test_polygon_highlight_matches_the_lobe_integrated_by_brute_force(distributi
     assert got == pytest.approx(expected, rel=TOLERANCE[distribution])
 
 
-def test_ggx_highlights_are_within_two_percent_near_normal_incidence():
-    mf = conductor("ggx", 0.2)
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
+def test_highlights_are_within_a_few_percent_up_to_40_degrees(distribution):
+    """GGX within 1 %, Beckmann within 4 % (measured: 0.2 % and 3.4 %)."""
+    mf = conductor(distribution, 0.2)
+    tolerance = 0.01 if distribution == "ggx" else 0.04
     for theta in (0, 20, 40):
         wo = view(theta)
         r = np.array([-wo[0], 0.0, wo[2]])
         for offset in (0.0, 0.1, 0.3):
             vertices = facing_square(2.0 * r + np.array([0.0, 2.0 * offset, 0.0]), 0.4)
-            assert closed_form(vertices, wo, mf)[1] == pytest.approx(brute_force(vertices, wo, mf), rel=0.02)
+            assert closed_form(vertices, wo, mf)[1] == pytest.approx(brute_force(vertices, wo, mf), rel=tolerance)
 
 
 def test_schlick_curve_stays_close_to_the_exact_conductor_fresnel():
@@ -155,7 +158,9 @@ def test_sphere_as_a_polygon_matches_its_form_factor(theta_deg, beta_deg):
     dist = 3.0
     centre = dist * np.array([math.sin(t), 0.0, math.cos(t)])
     frame = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    f = ltc.sphere_integral(centre, dist * math.sin(beta), np.zeros(3), frame, IDENTITY, 1.0)
+    local = np.zeros((ltc.MAX_VERTICES, 3))
+    count = ltc.sphere_local(centre, dist * math.sin(beta), np.zeros(3), frame, local)
+    f = ltc.polygon_cosine(local, count, IDENTITY, 1.0)
     assert f[2] == pytest.approx(math.cos(t) * math.sin(beta) ** 2, rel=0.012)
 
 
