@@ -113,6 +113,26 @@ vec3 ltc_vertex(int part, int i, vec3 x, vec3 t, vec3 b, vec3 n, bool sphere, ve
     float phi = 2.0 * LTC_PI * float(i) / float(LTC_SPHERE_SIDES);
     return c + (cos(phi) * spread) * u + (sin(phi) * spread) * v;
 }
+// a sphere part's regular polygon (ltc_vertex): its unit direction c, the pair (u, v)
+// across it and the polygon's radius spread; false from inside the lamp
+bool ltc_sphere_polygon(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, out vec3 c, out vec3 u, out vec3 v,
+                        out float spread) {
+    c = ltc_local(emitter_point(part, 0) - x, t, b, n);
+    u = vec3(0.0);
+    v = vec3(0.0);
+    spread = 0.0;
+    float dist = length(c);
+    if (!(dist > head.z)) return false;
+    c /= dist;
+    float sin_beta = head.z / dist;
+    spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
+    float s = c.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + c.z);
+    float d = c.x * c.y * a;
+    u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
+    v = vec3(d, s + c.y * c.y * a, -c.y);
+    return true;
+}
 // The vector form factor (its z: I) of part `part` (head: its table row's texel 0) at x in
 // the frame (t, b, n) (radiosity.formats.ltc.polygon_integral, sphere_integral,
 // polygon_cosine): each vertex mapped by alpha M^-1, the polygon clipped to the transformed
@@ -124,17 +144,7 @@ vec3 ltc_part_form_factor(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, v
     float spread = 0.0;
     int count;
     if (sphere) {
-        c = ltc_local(emitter_point(part, 0) - x, t, b, n);
-        float dist = length(c);
-        if (!(dist > head.z)) return vec3(0.0);
-        c /= dist;
-        float sin_beta = head.z / dist;
-        spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
-        float s = c.z >= 0.0 ? 1.0 : -1.0;
-        float a = -1.0 / (s + c.z);
-        float d = c.x * c.y * a;
-        u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
-        v = vec3(d, s + c.y * c.y * a, -c.y);
+        if (!ltc_sphere_polygon(part, head, x, t, b, n, c, u, v, spread)) return vec3(0.0);
         count = LTC_SPHERE_SIDES;
     } else {
         count = int(head.y + 0.5);
@@ -225,16 +235,7 @@ float ltc_part_integral(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, vec
     vec3 c = vec3(0.0), u = vec3(0.0), v = vec3(0.0);
     float spread = 0.0;
     int count = sphere ? LTC_SPHERE_SIDES : int(head.y + 0.5);
-    if (sphere) {   // the same polygon as ltc_part_form_factor's
-        c = normalize(ltc_local(emitter_point(part, 0) - x, t, b, n));
-        float sin_beta = head.z / length(emitter_point(part, 0) - x);
-        spread = sin_beta / sqrt(max(1e-30, 1.0 - sin_beta * sin_beta)) * LTC_SPHERE_SCALE;
-        float s = c.z >= 0.0 ? 1.0 : -1.0;
-        float a = -1.0 / (s + c.z);
-        float d = c.x * c.y * a;
-        u = vec3(1.0 + s * c.x * c.x * a, s * d, -s * c.x);
-        v = vec3(d, s + c.y * c.y * a, -c.y);
-    }
+    if (sphere) ltc_sphere_polygon(part, head, x, t, b, n, c, u, v, spread);   // ltc_part_form_factor's polygon
     vec3 first = ltc_vertex(part, 0, x, t, b, n, sphere, c, u, v, spread);
     // the fan's centre: the representative direction where it lies inside the polygon, else
     // the mean of the vertices' directions (radiosity.formats.ltc._fan_centre)

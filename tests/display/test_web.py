@@ -496,6 +496,20 @@ def test_version_5_delta_lights_page_equals_render(browser, site_v5, tmp_path, g
     assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.05
 
 
+def page_matches_render(browser, url, fit, tmp_path):
+    """The page at ``url`` (no error reported) against ``vlights render`` of ``fit`` from the
+    same view; returns the render."""
+    page = open_page(browser, url, view_query())
+    try:
+        got = screenshot(page)
+        assert page.evaluate("window.vlights.error") in (None, "")
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit)
+    assert_matches(got, want)
+    return want
+
+
 @pytest.fixture(scope="module")
 def site_v7(tmp_path_factory):
     """(fit.npz, the served export's URL) of the tiny scene as a version 8 fit whose
@@ -512,14 +526,7 @@ def test_version_7_microfacet_highlights_page_equals_render(browser, site_v7, tm
     light's direction) on the page as ``vlights render`` draws them; and they are not
     the Phong stand-in's (the picture changes without the lobe)."""
     fit, url = site_v7
-    page = open_page(browser, url, view_query())
-    try:
-        got = screenshot(page)
-        assert page.evaluate("window.vlights.error") in (None, "")
-    finally:
-        page.close()
-    want = rendered(tmp_path, fit)
-    assert_matches(got, want)
+    want = page_matches_render(browser, url, fit, tmp_path)
     import dataclasses
 
     from fitting import load_fit
@@ -547,14 +554,7 @@ def test_version_6_objects_own_parts_page_equals_render(browser, site_v6, tmp_pa
     """Each object drawing its own emitter parts of a scene's 40 on the page as ``vlights
     render`` draws them; and they show (the emitters' highlights off, the picture changes)."""
     fit, url = site_v6
-    page = open_page(browser, url, view_query())
-    try:
-        got = screenshot(page)
-        assert page.evaluate("window.vlights.error") in (None, "")
-    finally:
-        page.close()
-    want = rendered(tmp_path, fit)
-    assert_matches(got, want)
+    want = page_matches_render(browser, url, fit, tmp_path)
     without = rendered(tmp_path, fit, off=("emitters",))
     assert np.mean(np.abs(want - without).max(axis=2) > 8) > 0.02
 
