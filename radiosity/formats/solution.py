@@ -404,6 +404,8 @@ class Solution:
         object.__setattr__(self, "lights", tuple(self.lights))
         if not all(isinstance(light, EmitterPart) and light.is_delta for light in self.lights):
             raise ValueError("lights must be delta emitter parts (points, directions)")
+        if not isinstance(self.microfacet_highlights, bool):
+            raise TypeError(f"microfacet_highlights must be a bool, got {type(self.microfacet_highlights).__name__}")
         if not (isinstance(self.emitter_nodes, int) and 1 <= self.emitter_nodes <= MAX_NODES):
             raise ValueError(f"emitter_nodes must be a whole number from 1 to {MAX_NODES}, got {self.emitter_nodes!r}")
         if len(self.emitters) > MAX_SCENE_PARTS:

@@ -200,6 +200,25 @@ def test_a_microfacet_material_is_version_6_round_trips_and_others_stay_as_they_
     assert load_solution(saved).version < 6
 
 
+def test_microfacet_highlights_make_version_8_and_older_files_keep_the_stand_in(tmp_path, saved):
+    """A solution whose microfacet objects' highlights are their own lobes' is version 8 and
+    says so (``lobe_of`` gives the model); without the flag, version 6 as before, its lobe
+    the stand-in's (None); a flag that is not a boolean is refused in one line."""
+    metal = {"diffuse": [0.0, 0.0, 0.0], "specular": [1.0, 1.0, 1.0], "exponent": 500.0, "emission": BLACK,
+             "fresnel": [0.9, 0.9, 0.9], "microfacet": MICROFACET}
+    objects = (make_object("plate", 2, metal, 5),)
+    Solution(objects, microfacet_highlights=True).save(tmp_path / "new.npz")
+    Solution(objects).save(tmp_path / "old.npz")
+    new, old = load_solution(tmp_path / "new.npz"), load_solution(tmp_path / "old.npz")
+    assert (new.version, new.microfacet_highlights, new.lobe_of("plate")) == (8, True, MICROFACET)
+    assert (old.version, old.microfacet_highlights, old.lobe_of("plate")) == (6, False, None)
+    assert load_solution(saved).version < 6 and not Solution(load_solution(saved).objects,
+                                                             microfacet_highlights=True).version == 8
+    meta, arrays = contents(new)
+    meta["microfacet_highlights"] = "yes"
+    refused(write_npz(tmp_path / "bad.npz", meta, arrays), "'microfacet_highlights' must be true or false")
+
+
 @pytest.mark.parametrize("change, fragment", [
     ({"kind": "roughglass"}, "microfacet kind 'roughglass'"),
     ({"distribution": "phong"}, "microfacet distribution 'phong'"),
