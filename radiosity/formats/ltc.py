@@ -131,11 +131,14 @@ def cell(ltc, lobe, alpha, cos_o):
     j = min(int(v), size - 2)
     fu, fv = u - i, v - j
     d = lobe - 1
-    out = np.empty(6)
-    for e in range(6):
-        out[e] = ((1.0 - fu) * ((1.0 - fv) * ltc[d, i, j, e] + fv * ltc[d, i, j + 1, e])
-                  + fu * ((1.0 - fv) * ltc[d, i + 1, j, e] + fv * ltc[d, i + 1, j + 1, e]))
-    return out
+    c0, c1, c2, c3 = ltc[d, i, j], ltc[d, i, j + 1], ltc[d, i + 1, j], ltc[d, i + 1, j + 1]
+    gu, gv = 1.0 - fu, 1.0 - fv
+    return (gu * (gv * c0[0] + fv * c1[0]) + fu * (gv * c2[0] + fv * c3[0]),
+            gu * (gv * c0[1] + fv * c1[1]) + fu * (gv * c2[1] + fv * c3[1]),
+            gu * (gv * c0[2] + fv * c1[2]) + fu * (gv * c2[2] + fv * c3[2]),
+            gu * (gv * c0[3] + fv * c1[3]) + fu * (gv * c2[3] + fv * c3[3]),
+            gu * (gv * c0[4] + fv * c1[4]) + fu * (gv * c2[4] + fv * c3[4]),
+            gu * (gv * c0[5] + fv * c1[5]) + fu * (gv * c2[5] + fv * c3[5]))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -184,6 +187,43 @@ def _crossing(a, b):
     return (x / length, y / length, 0.0) if length > 0.0 else (x, y, 0.0)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _clip_edge(prev, cur, state):
+    """One edge prev -> cur (mapped) of a polygon clipped edge by edge to z >= 0: state =
+    (its form factor so far (3-tuple), where it left, where it came back, crossings)
+    updated with the edge's part above (as display/shaders/ltc.glsl's ltc_clip_edge)."""
+    f, leave, enter, crossed = state
+    above_a, above_b = prev[2] >= 0.0, cur[2] >= 0.0
+    if above_a and above_b:
+        e = _edge(prev, cur)
+    elif above_a:
+        leave = _crossing(prev, cur)
+        e = _edge(prev, leave)
+        crossed += 1
+    elif above_b:
+        enter = _crossing(prev, cur)
+        e = _edge(enter, cur)
+        crossed += 1
+    else:
+        e = (0.0, 0.0, 0.0)
+    return (f[0] + e[0], f[1] + e[1], f[2] + e[2]), leave, enter, crossed
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _closed(state):
+    """The clipped polygon's vector form factor: the edge along the horizon added where it
+    crossed, over 2 pi, oriented so that z >= 0."""
+    (fx, fy, fz), leave, enter, crossed = state
+    if crossed == 2:
+        e = _edge(leave, enter)
+        fx, fy, fz = fx + e[0], fy + e[1], fz + e[2]
+    scale = (1.0 if fz >= 0.0 else -1.0) / (2.0 * math.pi)
+    return fx * scale, fy * scale, fz * scale
+
+
+_START = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0)  # ``_clip_edge``'s state before any edge
+
+
 @numba.njit(cache=True, nogil=True)
 def polygon_cosine(local, count, k, alpha):
     """The vector form factor (3-tuple; its z is I) of the polygon local[:count] (its
@@ -194,34 +234,22 @@ def polygon_cosine(local, count, k, alpha):
     it comes back), the sum of the edges' terms over 2 pi, oriented so that z >= 0. (0, 0,
     0) where nothing is above."""
     a = max(alpha, ALPHA_MIN)
-    fx = fy = fz = 0.0
     first = _mapped(local[0, 0], local[0, 1], local[0, 2], k, a)
     prev = first
-    leave = (0.0, 0.0, 0.0)
-    enter = (0.0, 0.0, 0.0)
-    crossed = 0
+    state = _START
     for i in range(count):
         cur = first if i + 1 == count else _mapped(local[i + 1, 0], local[i + 1, 1], local[i + 1, 2], k, a)
-        above_a, above_b = prev[2] >= 0.0, cur[2] >= 0.0
-        if above_a and above_b:
-            e = _edge(prev, cur)
-        elif above_a:
-            leave = _crossing(prev, cur)
-            e = _edge(prev, leave)
-            crossed += 1
-        elif above_b:
-            enter = _crossing(prev, cur)
-            e = _edge(enter, cur)
-            crossed += 1
-        else:
-            e = (0.0, 0.0, 0.0)
-        fx, fy, fz = fx + e[0], fy + e[1], fz + e[2]
+        state = _clip_edge(prev, cur, state)
         prev = cur
-    if crossed == 2:
-        e = _edge(leave, enter)
-        fx, fy, fz = fx + e[0], fy + e[1], fz + e[2]
-    scale = (1.0 if fz >= 0.0 else -1.0) / (2.0 * math.pi)
-    return fx * scale, fy * scale, fz * scale
+    return _closed(state)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def triangle_cosine(p, q, r, k, alpha):
+    """``polygon_cosine`` of the triangle (p, q, r) (3-tuples), without a vertex array."""
+    a = max(alpha, ALPHA_MIN)
+    mp, mq, mr = _mapped(p[0], p[1], p[2], k, a), _mapped(q[0], q[1], q[2], k, a), _mapped(r[0], r[1], r[2], k, a)
+    return _closed(_clip_edge(mr, mp, _clip_edge(mq, mr, _clip_edge(mp, mq, _START))))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -296,15 +324,10 @@ def fan_integral(local, count, k, alpha, lobe, cos_o, norm):
     if not f[2] > 0.0:
         return 0.0
     c = _fan_centre(local, count, representative(f, k, alpha))
-    tri = np.empty((3, 3))
-    tri[0, 0], tri[0, 1], tri[0, 2] = c
     total = 0.0
     for i in range(count):
         j = i + 1 if i + 1 < count else 0
-        for d in range(3):
-            tri[1, d] = local[i, d]
-            tri[2, d] = local[j, d]
-        ft = polygon_cosine(tri, 3, k, alpha)
+        ft = triangle_cosine(c, (local[i, 0], local[i, 1], local[i, 2]), (local[j, 0], local[j, 1], local[j, 2]), k, alpha)
         if ft[2] > 0.0:
             total += ft[2] * lobe_ratio(ft, k, lobe, alpha, cos_o, norm)
     # the triangles' integrals sum to the polygon's, each ratio at most MAX_RATIO: where a sliver

@@ -180,6 +180,21 @@ def test_table_cells_are_fits_a_fresh_fit_does_not_beat():
         assert stored[4] == pytest.approx(norm, rel=1e-5) and stored[5] == pytest.approx(schlick, rel=1e-4, abs=1e-7)
 
 
+def test_the_stored_fits_are_close_for_ggx_and_as_close_as_the_family_allows_for_beckmann():
+    """The L1 distance between a cell's normalised lobe and its stored fit (0 to 2): a GGX
+    lobe is a transformed cosine nearly exactly; a Beckmann (Gaussian) lobe is not, and its
+    fit's distance is what a fresh fit of the cell reaches too (the family's limit, not the
+    fitter's)."""
+    table = ltc.table()
+    alphas, cosines = ltc_fit.grid(table.shape[1])
+    i, j = 20, 10
+    ggx = ltc_fit.shape_error("ggx", alphas[i], cosines[j], ltc_fit.parameters(table[0, i, j, :4], alphas[i]))
+    assert ggx < 0.05
+    stored = ltc_fit.shape_error("beckmann", alphas[i], cosines[j], ltc_fit.parameters(table[1, i, j, :4], alphas[i]))
+    fresh, _, _ = ltc_fit.fit_cell("beckmann", alphas[i], cosines[j], ltc_fit.parameters(table[1, i, j, :4], alphas[i]))
+    assert 3 * ggx < stored <= 1.05 * ltc_fit.shape_error("beckmann", alphas[i], cosines[j], fresh) + 0.01
+
+
 def test_moments_are_the_oracle_albedo_without_fresnel():
     from radiosity.scene.microfacet import _interface_albedo
 
