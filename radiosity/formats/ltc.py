@@ -51,7 +51,7 @@ import numpy as np
 
 from radiosity.formats.material import Microfacet
 
-__all__ = ["ALPHA_MIN", "LOBES", "SPHERE_SIDES", "HighlightLobe", "highlight_lobe", "lobe_code", "table", "table_texture",
+__all__ = ["ALPHA_MIN", "LOBES", "SPHERE_SIDES", "HighlightLobe", "highlight_lobe", "lobe_albedo", "lobe_code", "table", "table_texture",
            "normal_reflectance"]
 
 LOBES = ("phong", "ggx", "beckmann")  # a highlight's lobe: its code is the index
@@ -117,6 +117,18 @@ def highlight_lobe(microfacet):
     mf = microfacet if isinstance(microfacet, Microfacet) else Microfacet.from_dict(microfacet)
     return HighlightLobe(np.asarray(mf.specular_reflectance, np.float64), normal_reflectance(mf),
                          lobe_code(mf.distribution), float(mf.alpha))
+
+
+def lobe_albedo(microfacet, cos_theta):
+    """(N, 3) float64: the directional albedo of a ``Microfacet``'s specular lobe (without
+    ks) seen at cos theta_o = ``cos_theta`` (N,): F0 norm + (1 - F0) schlick from the
+    table's cells (the highlights' Fresnel, ``normal_reflectance``), what its
+    reflection of distant surroundings keeps."""
+    mf = microfacet if isinstance(microfacet, Microfacet) else Microfacet.from_dict(microfacet)
+    f0 = normal_reflectance(mf)
+    ltc, code = table(), lobe_code(mf.distribution)
+    cells = np.array([cell(ltc, code, mf.alpha, float(c))[4:] for c in np.asarray(cos_theta, np.float64).ravel()])
+    return cells[:, :1] * f0 + cells[:, 1:] * (1.0 - f0)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
