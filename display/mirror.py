@@ -13,6 +13,17 @@ what it shows is the scene reflected. The renderer draws it after every other su
   mirror direction, parallax-corrected against the scene's box.
 
 Glass and other mirrors are missing from what a mirror shows (one bounce of reflection).
+
+A near mirror (``near_mirror_of``: a flat object of a microfacet material of roughness at
+most ``NEAR_MIRROR_ALPHA``, a polished floor) is drawn the same way where the displays
+draw reflections (``near_fragment.glsl``): its view-independent part (the solution's least
+radiance over its directions per vertex, or the fit's emitted colour; a textured object's
+kd texture(uv) E / pi) plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w), its lobe's
+albedo with Fresnel (``radiosity.formats.ltc.lobe_albedo``), times the scene drawn from
+the eye reflected in its plane: sharp, as a mirror's (its lobe's blur is left out, which
+at this roughness is a few pixels at most of a walkthrough's frame), and with what the
+emitters' closed-form highlights gave it drawn from the reflected emitters themselves (a
+delta light, which no surface shows, is not reflected).
 """
 
 from __future__ import annotations
@@ -21,11 +32,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from radiosity.formats.material import Material
+from radiosity.formats.ltc import highlight_lobe
+from radiosity.formats.material import Material, Microfacet
 
-__all__ = ["FLAT_THICKNESS", "mirror_of", "mirrored_view", "plane_of"]
+__all__ = ["FLAT_THICKNESS", "NEAR_MIRROR_ALPHA", "mirror_of", "mirrored_view", "near_mirror_of", "plane_of"]
 
 FLAT_THICKNESS = 0.01  # an object whose points lie within this fraction of its size of one plane is flat
+NEAR_MIRROR_ALPHA = 0.03  # a flat microfacet object at most this rough is drawn as a near mirror
 
 
 def mirror_of(source):
@@ -40,6 +53,22 @@ def mirror_of(source):
         if m.is_mirror:
             return m.specular, m.fresnel
     return None
+
+
+def near_mirror_of(source):
+    """The ``HighlightLobe`` (ks, F0, lobe code, alpha) of a near mirror's material, from a
+    solution object's material or a fitted object's highlight; None where there is no
+    microfacet model of roughness at most ``NEAR_MIRROR_ALPHA`` (flatness is ``plane_of``'s)."""
+    model = None
+    material = getattr(source, "material", None)
+    if isinstance(material, dict) and material.get("microfacet") is not None:
+        model = Microfacet.from_dict(material["microfacet"])
+    highlight = getattr(source, "highlight", None)
+    if model is None and highlight is not None and getattr(highlight, "microfacet", None) is not None:
+        model = highlight.microfacet
+    if model is None or model.alpha > NEAR_MIRROR_ALPHA:
+        return None
+    return highlight_lobe(model)
 
 
 def plane_of(positions, faces):

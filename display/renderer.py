@@ -84,6 +84,7 @@ LTC_UNIT = 4  # the texture unit of the microfacet lobes' table
 GLASS_REFLECTION_SCALE = 2  # a flat glass piece's reflected view: at 1 / this of the frame's size
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
+CLIP_LIFT = 1e-5  # a reflected view keeps what lies this fraction of the scene's size beyond the plane
 GL_CLIP_DISTANCE0 = 0x3000  # OpenGL's enum: clip by gl_ClipDistance[0] (a flat mirror's reflected view)
 
 # The programs: a shader file per stage (display/shaders), compiled with ``display.glsl``'s
@@ -115,6 +116,8 @@ PROGRAMS = {
     "glass": dict(vertex_shader="glass_vertex.glsl", fragment_shader="glass_fragment.glsl"),
     # a perfect mirror, from the scene reflected in its plane or its probe (display.mirror)
     "mirror": dict(vertex_shader="glass_vertex.glsl", fragment_shader="mirror_fragment.glsl"),
+    # a near mirror, its base and what it reflects from the scene in its plane (display.mirror)
+    "near": dict(vertex_shader="near_vertex.glsl", fragment_shader="near_fragment.glsl"),
 }
 STAGES = ("vertex_shader", "geometry_shader", "fragment_shader")
 
@@ -228,6 +231,7 @@ class _Object:
         self.slab, self.sphere = False, None  # its proxy (``display.glass.proxy``)
         self.mirror = None  # (ks, F0 or None) of a perfect mirror: drawn by what it reflects (``display.mirror``)
         self.plane = None  # a flat mirror's (point, unit normal)
+        self.near = None  # a near mirror's ``HighlightLobe`` (``display.mirror.near_mirror_of``)
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
 
@@ -401,6 +405,14 @@ def _directional_mean(radiance):
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
+def _directional_min(radiance):
+    """(V, 3) float64: each vertex's least radiance (V, D, 3) over directions, per channel,
+    a chunk of vertices at a time."""
+    step = _chunk_vertices(radiance)
+    parts = [np.asarray(radiance[i:i + step], np.float64).min(axis=1) for i in range(0, len(radiance), step)]
+    return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+
 def _grid_chunks(solution, s, split):
     """Object ``s``'s radiance grids (V, D, 3) a chunk of vertices at a time, less the
     emitters' highlights where ``split`` (the shader adds them per pixel), as
@@ -461,6 +473,11 @@ class Renderer:
             if obj.mirror is not None:
                 obj.slab, obj.sphere = glass.proxy(obj.positions, o.faces)
                 obj.plane = mirror.plane_of(o.positions, o.faces)
+            elif obj.glass is None:
+                near = mirror.near_mirror_of(by_name.get(o.name)) or mirror.near_mirror_of(o)
+                plane = mirror.plane_of(o.positions, o.faces) if near is not None else None
+                if plane is not None:
+                    obj.near, obj.plane = near, plane
         # a glass object is drawn piece by piece (the panes of a railing), each with its own plane or probe
         self.glass_pieces = []
         for obj, o in zip(self.objects, source.objects, strict=True):
@@ -476,6 +493,7 @@ class Renderer:
                 self.glass_pieces.append(piece)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
+        self.near_mirrors = True  # False: near mirrors drawn from their grid or fitted model (to compare)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
         self._clip = None  # a flat mirror's plane (n, -n . p) while its reflected view is drawn
         self._mirror_images = {}  # a flat mirror's name -> the texture of its reflected view (remade every frame)
@@ -601,6 +619,8 @@ class Renderer:
             # diffuse walkthrough of this solution shows)
             mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
+            if obj.near is not None:  # a near mirror's view-independent part: its least radiance
+                obj.add(ctx, "in_base", _directional_min(s.radiance))
             if "in_emitted" not in obj.buffers:  # a solution alone
                 obj.add(ctx, "in_emitted", mean)
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
@@ -832,16 +852,21 @@ class Renderer:
         planes = [self._mirror_image(o, view, mode, shading, lights, 1, parts, scale=GLASS_REFLECTION_SCALE)
                   if o.plane is not None else None for o in glassy]
         seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in mirrors]
+        near = [o for o in self.objects if o.near is not None and (eye - o.plane[0]) @ o.plane[1] > 0] \
+            if shown and self.near_mirrors and mode != "diffuse" else []
+        near_seen = [self._mirror_image(o, view, mode, shading, lights, samples, parts) for o in near]
         fbs = self._framebuffers_for((view.width, view.height), targets, self.samples if samples is None else samples)
         fbs.scene.use()
         ctx.viewport = (0, 0, *fbs.scene.size)
         with self._depth_convention():
             ctx.clear(0.0, 0.0, 0.0, 0.0, depth=self.depth.clear)
-            self._draw_objects(view, mode, shading, lights, program_key, mask, parts)
+            self._draw_objects(view, mode, shading, lights, program_key, mask, parts, {o.name for o in near})
             if self.environment is not None and mask is None and program_key is None and targets == 1:
                 self._draw_background(view, fbs.scene.size)
             if mirrors:
                 self._draw_mirrors(view, mirrors, seen)
+            if near:
+                self._draw_near_mirrors(view, mode, near, near_seen)
             if glassy:
                 self._draw_glass(view, glassy, probes, planes)
             ctx.depth_func = "<"  # moderngl's default, for whatever draws next with the context
@@ -852,10 +877,10 @@ class Renderer:
         is reversed (``display.gl.DepthControl.zero_to_one``)."""
         return self.depth_control.zero_to_one() if self.depth_control is not None else contextlib.nullcontext()
 
-    def _draw_objects(self, view, mode, shading, lights, program_key, mask, parts):
+    def _draw_objects(self, view, mode, shading, lights, program_key, mask, parts, near=frozenset()):
         """Every object's front faces shaded (back faces culled), then every back face
         black with a strict depth test (front faces culled): the module's "Sides and
-        depth"."""
+        depth". The near mirrors named in ``near`` are left to ``_draw_near_mirrors``."""
         ctx = self.ctx
         ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.front_face = "ccw"  # the geometric normal's side: (b - a) x (c - a)
@@ -866,8 +891,8 @@ class Renderer:
         ready = set()
         clip = ("VL_CLIP",) if self._clip is not None else ()
         for index, obj in enumerate(self.objects):
-            if obj.glass is not None or (obj.mirror is not None and self.mirrors):
-                continue  # drawn last, from what they show (``_draw_glass``, ``_draw_mirrors``)
+            if obj.glass is not None or (obj.mirror is not None and self.mirrors) or obj.name in near:
+                continue  # drawn last, from what they show (``_draw_glass``, ``_draw_mirrors``, ``_draw_near_mirrors``)
             key = program_key
             n = self._light_count(obj, mode, lights)
             # per-light coefficients and the emitters' visibility: by vertex ids and barycentrics
@@ -949,7 +974,9 @@ class Renderer:
             reflected = dataclasses.replace(reflected, width=max(1, -(-view.width // scale)),
                                             height=max(1, -(-view.height // scale)))
         side = 1.0 if (np.asarray(view.eye, np.float64) - p) @ n >= 0 else -1.0
-        self._clip = tuple(side * float(v) for v in (*n, -float(n @ p)))
+        # what lies in the plane itself (a near mirror, the twin of a two-sided one) is clipped too
+        lift = CLIP_LIFT * float(np.linalg.norm(np.subtract(*self.bounds[::-1])))
+        self._clip = (*(side * float(v) for v in n), -side * float(n @ p) - lift)
         self.ctx.enable_direct(GL_CLIP_DISTANCE0)
         try:
             image = self.render(reflected, mode, shading, lights, samples=samples, parts=parts, with_glass=False)
@@ -966,13 +993,13 @@ class Renderer:
         self._mirror_images[obj.name] = texture
         return texture, self._matrices(reflected)
 
-    def _last_pass(self, key, view):
-        """Program ``key`` ready for a pass over what is drawn: depth-tested, both faces, the
-        view's matrices and eye set."""
+    def _last_pass(self, key, view, textured=False):
+        """Program ``key`` (with a textured object's term if ``textured``) ready for a pass
+        over what is drawn: depth-tested, both faces, the view's matrices and eye set."""
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         self.ctx.depth_func = self.depth.nearer
-        program = self._program(key)
+        program = self._program(key, textured=textured)
         program["mvp"].write(self._matrices(view))
         self._set(program, "eye", tuple(float(v) for v in view.eye))
         return program
@@ -995,6 +1022,36 @@ class Renderer:
             if planar and "glass_mvp" in program:
                 program["glass_mvp"].write(reflected_mvp)
             vao = obj.vao(ctx, program, ("in_position", "in_normal"))
+            vao.render(moderngl.TRIANGLES)
+            vao.release()
+
+    def _draw_near_mirrors(self, view, mode, objects, seen):
+        """The near mirrors ``objects`` (depth-tested, their backs black): their base and
+        textured term plus ks (F0 norm + (1 - F0) schlick) times the scene in their plane that
+        ``seen`` holds for each (``_mirror_image``; near_fragment.glsl). Their base: the
+        solution's least radiance per vertex in the solution display, the fit's emitted colour
+        in the fitted one."""
+        ctx, (lo, hi), table = self.ctx, self.bounds, self._ltc_texture()
+        for obj, (texture, reflected_mvp) in zip(objects, seen, strict=True):
+            textured = obj.textured is not None
+            program = self._last_pass("near", view, textured)
+            texture.use(location=9)
+            if textured:
+                obj.textured[0].use(location=6)
+            table.use(location=LTC_UNIT)
+            lobe = obj.near
+            values = {"glass_planar": 1, "glass_image": 9, "glass_centre": tuple(map(float, obj.plane[0])),
+                      "glass_lo": tuple(map(float, lo)), "glass_hi": tuple(map(float, hi)), "ltc_table": LTC_UNIT,
+                      "near_ks": tuple(map(float, lobe.ks)), "near_f0": tuple(map(float, lobe.f0)),
+                      "near_lobe": int(lobe.code), "near_alpha": float(lobe.alpha), "diffuse_texture": 6,
+                      "texture_kd": obj.textured[1] if textured else (0.0, 0.0, 0.0)}
+            for name, value in values.items():
+                self._set(program, name, value)
+            if "glass_mvp" in program:
+                program["glass_mvp"].write(reflected_mvp)
+            base = "in_base" if mode == "reference" and "in_base" in obj.buffers else "in_emitted"
+            vao = obj.vao(ctx, program, ("in_position", "in_normal", "in_emitted", "in_uv", "in_irradiance"),
+                          sources={"in_emitted": base})
             vao.render(moderngl.TRIANGLES)
             vao.release()
 

@@ -9,31 +9,14 @@
 //                 row (lobe - 1) S + i, texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick)
 //   emitter_lobe  1 GGX, 2 Beckmann (0: the Phong lobe of emitters.glsl)
 //   emitter_alpha its roughness
-uniform sampler2D ltc_table;
+#include "ltc_table.glsl"
 uniform int emitter_lobe;
 uniform float emitter_alpha;
-const float LTC_ALPHA_MIN = VL_LTC_ALPHA_MIN;
 const int LTC_SPHERE_SIDES = VL_LTC_SPHERE_SIDES;
 const float LTC_SPHERE_SCALE = VL_LTC_SPHERE_SCALE;   // the regular polygon's area the circle's
 const float LTC_CULL = VL_LTC_CULL;
 const float LTC_MAX_RATIO = VL_LTC_MAX_RATIO;
 const float LTC_PI = 3.141592653589793;
-// the bilinear read of the cell at (alpha, cos theta_o): k = (k00, k02, k20, k22), m = (norm, schlick)
-void ltc_cell(int lobe, float alpha, float cos_o, out vec4 k, out vec2 m) {
-    int size = textureSize(ltc_table, 0).x / 2;
-    float lo = sqrt(LTC_ALPHA_MIN);
-    float u = (sqrt(min(max(alpha, LTC_ALPHA_MIN), 1.0)) - lo) / (1.0 - lo) * float(size - 1);
-    float v = sqrt(max(0.0, 1.0 - clamp(cos_o, 0.0, 1.0))) * float(size - 1);
-    int i = min(int(u), size - 2);
-    int j = min(int(v), size - 2);
-    float fu = u - float(i), fv = v - float(j);
-    int row = (lobe - 1) * size + i;
-    float w00 = (1.0 - fu) * (1.0 - fv), w01 = (1.0 - fu) * fv, w10 = fu * (1.0 - fv), w11 = fu * fv;
-    k = w00 * texelFetch(ltc_table, ivec2(2 * j, row), 0) + w01 * texelFetch(ltc_table, ivec2(2 * j + 2, row), 0)
-      + w10 * texelFetch(ltc_table, ivec2(2 * j, row + 1), 0) + w11 * texelFetch(ltc_table, ivec2(2 * j + 2, row + 1), 0);
-    m = (w00 * texelFetch(ltc_table, ivec2(2 * j + 1, row), 0) + w01 * texelFetch(ltc_table, ivec2(2 * j + 3, row), 0)
-       + w10 * texelFetch(ltc_table, ivec2(2 * j + 1, row + 1), 0) + w11 * texelFetch(ltc_table, ivec2(2 * j + 3, row + 1), 0)).xy;
-}
 // unit tangents (t, b) with w in the (t, n) plane on t's side (any pair when w is n)
 void ltc_view_frame(vec3 n, vec3 w, out vec3 t, out vec3 b) {
     t = w - dot(w, n) * n;

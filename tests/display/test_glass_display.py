@@ -8,6 +8,8 @@ octahedral resampling of the six views is held to the directions it encodes, the
 file keeps an object's glass (version 7), and the export leaves glass out saying so.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -285,3 +287,71 @@ def test_a_bad_glass_or_mirror_entry_in_a_fit_is_refused_in_one_line(tmp_path, k
         load_fit(tmp_path / "bad.npz")
     message = str(refused.value)
     assert fragment in message and "\n" not in message and "bad.npz" in message
+
+
+# -- near mirrors -------------------------------------------------------------------------
+
+
+def _near_material(alpha, kind="roughplastic"):
+    from radiosity.formats.material import Microfacet
+
+    eta, k = ((1.5,) * 3, (0.0,) * 3) if kind == "roughplastic" else ((0.2, 0.9, 1.1), (3.9, 2.4, 2.2))
+    mf = Microfacet(kind, "ggx", alpha, eta, k, specular_reflectance=(0.9, 0.8, 0.7),
+                    diffuse_reflectance=(0.5, 0.5, 0.5) if kind == "roughplastic" else (0.0, 0.0, 0.0))
+    return {"diffuse": [0.4, 0.4, 0.4], "specular": [0.05, 0.05, 0.05], "exponent": 5000.0, "emission": BLACK,
+            "microfacet": mf.to_dict()}
+
+
+def test_a_flat_sharp_microfacet_object_is_a_near_mirror_and_a_rough_or_curved_one_is_not():
+    from display.mirror import NEAR_MIRROR_ALPHA, near_mirror_of
+
+    floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
+    lobe = near_mirror_of(floor)
+    assert lobe.alpha == 0.01 and lobe.code == 1 and np.allclose(lobe.ks, (0.9, 0.8, 0.7))
+    assert np.allclose(lobe.f0, 0.04)
+    assert near_mirror_of(_quad("f", floor.positions, [0.0, 0.0, 1.0], 0.0, _near_material(2 * NEAR_MIRROR_ALPHA))) is None
+    assert near_mirror_of(_quad("f", floor.positions, [0.0, 0.0, 1.0], [0.1, 0.1, 0.1])) is None  # a Phong material
+    assert near_mirror_of(_quad("f", floor.positions, [0.0, 0.0, 1.0], 0.0, _near_material(0.02, "roughconductor")))
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("kind", ["roughplastic", "roughconductor"])
+def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_lobe_s_albedo(gl_context, kind):
+    """Its least radiance per vertex plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w) times
+    what the plane reflects (a green panel, else the environment); its grid is not drawn.
+    Drawn from the grid (near mirrors off), it is not that."""
+    from radiosity.formats.ltc import lobe_albedo
+    from radiosity.formats.material import Microfacet
+
+    material = _near_material(0.01, kind)
+    floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, material)
+    grid = np.array([0.3, 0.05, 0.2, 0.1])[None, :, None] * np.array([1.0, 0.8, 0.6])  # least: 0.05 (0.8, 0.6)
+    floor = replace(floor, radiance=np.tile(grid, (4, 1, 1)))
+    panel = _quad("panel", [[-3, -2, 2.5], [-3, 2, 2.5], [-1.2, 2, 2.5], [-1.2, -2, 2.5]], [0.0, 0.0, -1.0],
+                  [0.1, 0.8, 0.2])
+    solution = Solution(objects=(floor, panel), scene="near",
+                        environment=EnvironmentLight(np.full((4, 8, 3), 2.0, np.float32), 1.0, np.eye(3)))
+    camera = Camera((1.0, 0.2, 3.0), (0.0, 0.0, 0.0), fov_deg=45, width=64, height=48)
+    renderer = Renderer(gl_context, solution=solution, samples=1)
+    assert renderer.objects[0].near is not None and renderer.objects[1].near is None
+    image = renderer.render(camera, "reference").astype(np.float64)
+    d = camera.pixel_rays()
+    eye = np.asarray(camera.eye)
+    s = -eye[2] / d[..., 2]
+    hit = eye + s[..., None] * d
+    on_floor = (np.abs(hit[..., 0]) < 0.95) & (np.abs(hit[..., 1]) < 0.95) & (s > 0)
+    r = d * np.array([1.0, 1.0, -1.0])
+    at = hit + ((2.5 - hit[..., 2]) / r[..., 2])[..., None] * r
+    sees_panel = (at[..., 0] > -2.95) & (at[..., 0] < -1.25) & (np.abs(at[..., 1]) < 1.95)
+    near_edge = (np.abs(at[..., 0] + 1.2) < 0.1) | (np.abs(at[..., 0] + 3) < 0.1)
+    c = np.clip(-d[..., 2], 0.0, 1.0)
+    albedo = lobe_albedo(Microfacet.from_dict(material["microfacet"]), c.ravel()).reshape(*c.shape, 3)
+    seen = np.where(sees_panel[..., None], [0.1, 0.8, 0.2], 2.0)
+    expected = 0.05 * np.array([1.0, 0.8, 0.6]) + np.array([0.9, 0.8, 0.7]) * albedo * seen
+    check = on_floor & ~near_edge
+    assert (check & sees_panel).sum() > 50 and (check & ~sees_panel).sum() > 50
+    np.testing.assert_allclose(image[check], expected[check], rtol=0.02, atol=0.01)
+    renderer.near_mirrors = False
+    grid_drawn = renderer.render(camera, "reference").astype(np.float64)
+    assert np.abs(grid_drawn[check] - expected[check]).max() > 0.1
+    renderer.release()
