@@ -15,7 +15,8 @@ what it shows is the scene reflected. The renderer draws it after every other su
 Glass and other mirrors are missing from what a mirror shows (one bounce of reflection).
 
 A near mirror (``near_mirror_of``: a flat object of a microfacet material of roughness at
-most ``NEAR_MIRROR_ALPHA``, a polished floor) is drawn the same way where the displays
+most ``NEAR_MIRROR_ALPHA``, a polished floor), where the renderer is asked to
+(``Renderer.near_mirrors``, ``--near-mirrors``), is drawn the same way where the displays
 draw reflections (``near_fragment.glsl``): its view-independent part (the solution's least
 radiance over its directions per vertex, or the fit's emitted colour; a textured object's
 kd texture(uv) E / pi) plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w), its lobe's

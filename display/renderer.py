@@ -493,7 +493,7 @@ class Renderer:
                 self.glass_pieces.append(piece)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
-        self.near_mirrors = True  # False: near mirrors drawn from their grid or fitted model (to compare)
+        self.near_mirrors = False  # True: near mirrors drawn from the scene in their plane (``display.mirror``)
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
         self._clip = None  # a flat mirror's plane (n, -n . p) while its reflected view is drawn
         self._mirror_images = {}  # a flat mirror's name -> the texture of its reflected view (remade every frame)

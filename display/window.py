@@ -68,11 +68,11 @@ class Walkthrough(mglw.WindowConfig):
 
     @classmethod
     def configure(cls, fit, solution, view, *, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
-                  samples=DEFAULT_SAMPLES, glass="blend"):
+                  samples=DEFAULT_SAMPLES, glass="blend", near_mirrors=False):
         """The window's settings: the model (``fit`` and/or ``solution``), the start
         ``view`` (its size the window's), and by keyword the rest."""
         settings = dict(exposure=exposure, frames=frames, screenshot=screenshot, mode=mode, press=press, samples=samples,
-                        glass=glass)
+                        glass=glass, near_mirrors=near_mirrors)
         cls.setup = dict(fit=fit, solution=solution, view=view, **settings)
         cls.window_size = (view.width, view.height)
         cls.failure = None
@@ -83,6 +83,7 @@ class Walkthrough(mglw.WindowConfig):
         s = self.setup
         self.renderer = Renderer(self.ctx, fit=s["fit"], solution=s["solution"], samples=s["samples"])
         self.renderer.glass_approach = s.get("glass", self.renderer.glass_approach)
+        self.renderer.near_mirrors = s.get("near_mirrors", self.renderer.near_mirrors)
         self.modes = self.renderer.modes
         self.mode = s["mode"] or self.modes[0]
         self.shading = "pixel"

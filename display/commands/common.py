@@ -67,13 +67,17 @@ def add_camera_flags(parser, default_size):
 
 
 def add_glass_flag(parser):
-    """--glass APPROACH: how glass objects are drawn (``display.glass``)."""
+    """--glass APPROACH: how glass objects are drawn (``display.glass``); --near-mirrors: flat
+    sharp plastics drawn as mirrors (``display.mirror.near_mirror_of``)."""
     from display.glass import APPROACHES
 
     parser.add_argument("--glass", choices=APPROACHES, default=APPROACHES[0],
                         help="how glass is drawn: blend (reflections and refractions from a probe of the scene "
                         "around it, sheets and slabs blended over what is behind them; the default), probe (what "
                         "is behind a sheet from the probe too), none (left out, as clear glass)")
+    parser.add_argument("--near-mirrors", action="store_true",
+                        help="draw a flat rough plastic at most 0.03 rough (a polished floor) from the scene reflected "
+                        "in its plane, as a mirror (sharper than its grid; the emitters' reflections lose their blur)")
 
 
 def add_samples_flag(parser):
@@ -207,6 +211,7 @@ def rendering(args):
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples,
                             say=lambda line: print(line, file=sys.stderr))  # a large upload's estimate
         renderer.glass_approach = getattr(args, "glass", renderer.glass_approach)
+        renderer.near_mirrors = getattr(args, "near_mirrors", renderer.near_mirrors)
         try:
             yield renderer, resolve_view(args, renderer.bounds, fit, solution), mode
         finally:

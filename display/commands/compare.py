@@ -165,6 +165,7 @@ def run(args):
             check_reference_camera(args, fit, solution)
         renderer = Renderer(ctx, fit=fit, solution=solution, samples=args.samples)
         renderer.glass_approach = args.glass
+        renderer.near_mirrors = args.near_mirrors
         view = resolve_view(args, renderer.bounds, fit, solution)
         views = figure5_views(view)
         reference = None if image is None else ReferenceImage(image, view, str(args.reference), factor)

@@ -72,7 +72,8 @@ def run(args):
     positions = np.concatenate([o.positions for o in (fit or solution).objects])
     view = resolve_view(args, np.stack([positions.min(axis=0), positions.max(axis=0)]), fit, solution)
     Walkthrough.configure(fit, solution, view, exposure=args.exposure, frames=args.frames, screenshot=args.screenshot,
-                          mode=args.mode, press=args.press, samples=args.samples, glass=args.glass)
+                          mode=args.mode, press=args.press, samples=args.samples, glass=args.glass,
+                          near_mirrors=args.near_mirrors)
     open_window()
     if Walkthrough.failure is not None:
         raise Walkthrough.failure

@@ -302,7 +302,7 @@ def _near_material(alpha, kind="roughplastic"):
             "microfacet": mf.to_dict()}
 
 
-def test_a_flat_sharp_microfacet_object_is_a_near_mirror_and_a_rough_or_curved_one_is_not():
+def test_a_flat_sharp_microfacet_object_is_a_near_mirror_and_a_rough_or_phong_one_is_not():
     from display.mirror import NEAR_MIRROR_ALPHA, near_mirror_of
 
     floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
@@ -333,6 +333,7 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
                         environment=EnvironmentLight(np.full((4, 8, 3), 2.0, np.float32), 1.0, np.eye(3)))
     camera = Camera((1.0, 0.2, 3.0), (0.0, 0.0, 0.0), fov_deg=45, width=64, height=48)
     renderer = Renderer(gl_context, solution=solution, samples=1)
+    renderer.near_mirrors = True
     assert renderer.objects[0].near is not None and renderer.objects[1].near is None
     image = renderer.render(camera, "reference").astype(np.float64)
     d = camera.pixel_rays()
