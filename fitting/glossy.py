@@ -331,7 +331,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
     # the loss weights, of what a viewer sees (the whole radiance), of each loss fitted
     # ("auto" may try both: ``_choose_loss``)
     weights = {options.loss_for("probe"): make_loss_weights(full, options.loss_for("probe"))}
-    albedo = probe.material_albedo_table(material)
+    albedo = probe.albedo_table(material["exponent"])
     tried, fits = [], []
 
     def record(model, size, emitters, emitted, *, light_fit=None, probe_fit=None, weight=None, probe_term=None,

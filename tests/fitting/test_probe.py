@@ -93,43 +93,6 @@ def test_albedo_table_is_the_specular_albedo():
     assert probe.albedo_factor(table, n, w)[0] == pytest.approx(exact, rel=2e-3)
 
 
-@pytest.mark.parametrize("kind, distribution, alpha, eta, k", [
-    ("roughplastic", "ggx", 0.05, (1.5, 1.5, 1.5), (0.0, 0.0, 0.0)),
-    ("roughplastic", "beckmann", 0.3, (1.5, 1.5, 1.5), (0.0, 0.0, 0.0)),
-    ("roughconductor", "ggx", 0.2, (0.2, 0.92, 1.1), (3.9, 2.45, 2.14)),
-])
-def test_a_microfacet_material_s_table_is_its_lobe_s_albedo(kind, distribution, alpha, eta, k):
-    """The table of a microfacet material is its own lobe's albedo with Schlick's Fresnel
-    through its exact normal reflectance (as its highlights have it), the oracle's lobe
-    integrated; not the Phong stand-in's: a plastic's rises towards grazing views, where
-    the Phong lobe's falls. (Schlick's curve against the exact Fresnel: within 25 %.)"""
-    from radiosity.formats.ltc import normal_reflectance
-    from radiosity.formats.material import Microfacet
-    from radiosity.scene.microfacet import _interface_albedo, fresnel_conductor, fresnel_dielectric
-
-    mf = Microfacet(kind, distribution, alpha, eta, k)
-    table = probe.material_albedo_table({"exponent": 50.0, "microfacet": mf.to_dict()})
-    mu = np.linspace(0.0, 1.0, probe.ALBEDO_POINTS)
-    f0 = normal_reflectance(mf)
-
-    def schlick(c):
-        return f0 + (1.0 - f0) * (1.0 - c[..., None]) ** 5
-
-    def exact(c):
-        if kind == "roughplastic":
-            return fresnel_dielectric(c, eta[0])[..., None]
-        return np.stack([fresnel_conductor(c, e, kk) for e, kk in zip(eta, k)], axis=-1)
-
-    np.testing.assert_allclose(table[2:], _interface_albedo(distribution, alpha, mu[2:], schlick).mean(axis=1),
-                               rtol=0.03, atol=1e-3)
-    np.testing.assert_allclose(table[2:], _interface_albedo(distribution, alpha, mu[2:], exact).mean(axis=1),
-                               rtol=0.25, atol=2e-3)
-    if kind == "roughplastic":
-        assert table[2] > 3.0 * table[-1] and probe.albedo_table(50.0)[2] < 0.2 * probe.albedo_table(50.0)[-1]
-    # a Phong material keeps its Phong table
-    np.testing.assert_array_equal(probe.material_albedo_table({"exponent": 50.0}), probe.albedo_table(50.0))
-
-
 def _sphere_object(count=400, radius=0.3, centre=(2.0, 1.5, 2.0), grid=8, seed=2):
     """Vertices on a small sphere inside the box, unit normals out, the grid's directions in world space."""
     rng = np.random.default_rng(seed)
