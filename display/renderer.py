@@ -397,19 +397,12 @@ def _chunk_vertices(radiance):
     return max(1, CHUNK_VALUES // max(radiance.shape[1], 1))
 
 
-def _directional_mean(radiance):
-    """(V, 3) float64: each vertex's radiance (V, D, 3) averaged over directions, read a
-    chunk of vertices at a time (as float64, the whole never copied)."""
+def _directional_mean(radiance, reduce=np.mean):
+    """(V, 3) float64: each vertex's radiance (V, D, 3) averaged over directions (or reduced
+    by ``reduce``, e.g. ``np.min``: a near mirror's least radiance), read a chunk of vertices
+    at a time (as float64, the whole never copied)."""
     step = _chunk_vertices(radiance)
-    parts = [np.asarray(radiance[i:i + step], np.float64).mean(axis=1) for i in range(0, len(radiance), step)]
-    return np.concatenate(parts) if parts else np.zeros((0, 3))
-
-
-def _directional_min(radiance):
-    """(V, 3) float64: each vertex's least radiance (V, D, 3) over directions, per channel,
-    a chunk of vertices at a time."""
-    step = _chunk_vertices(radiance)
-    parts = [np.asarray(radiance[i:i + step], np.float64).min(axis=1) for i in range(0, len(radiance), step)]
+    parts = [reduce(np.asarray(radiance[i:i + step], np.float64), axis=1) for i in range(0, len(radiance), step)]
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
@@ -620,7 +613,7 @@ class Renderer:
             mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
             if obj.near is not None:  # a near mirror's view-independent part: its least radiance
-                obj.add(ctx, "in_base", _directional_min(s.radiance))
+                obj.add(ctx, "in_base", _directional_mean(s.radiance, np.min))
             if "in_emitted" not in obj.buffers:  # a solution alone
                 obj.add(ctx, "in_emitted", mean)
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
