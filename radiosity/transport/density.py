@@ -232,18 +232,22 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     small kernels are not widened back across the edge they resolve: rings are
     topological, so the support shrinks with the triangles.
 
-    And where the kernel holds fewer than ``min_photons`` photons (its photon power over
-    one photon's, ``photon_power``: the RGB sum a photon carries; 0 leaves this out), it
-    is widened a ring at a time, up to ``max_sparse_rings`` more, while its support
-    (rings times the local edge length) stays within ``max_radius``. A finely modelled
-    object (the living room's sofa: cushions of 18,108 vertices, edges of 6 mm) has
-    kernels so small that at draft most of them catch no photon at all, and the sofa
-    was drawn in black-and-white speckle: a kernel of one photon reads 0 or several
-    times the truth. A kernel that holds a few photons reads the light, at the cost of
-    a support a few rings wider on such a mesh only.
+    And where the kernel's support holds fewer than ``min_photons`` photons (its photon
+    power over one photon's, ``photon_power``: the RGB sum a photon carries; 0 leaves
+    this out), the vertex gets a kernel of another shape (``_uniform_supports``): every
+    vertex within r rings of it counted once, r grown a ring at a time until the support
+    holds ``min_photons`` photons, up to ``max_sparse_rings`` more rings and while the
+    support (rings times the local edge length) stays within ``max_radius``. A widened
+    hat function would not do: it counts a neighbour once for every path to it, so its
+    weight piles up at the centre (a binomial of about sqrt(r) rings), and a support of
+    16 photons reads with the noise of a few. A finely modelled object (the living
+    room's sofa cushions: 18,108 vertices, edges of 6 mm, about 350 photons at draft)
+    was drawn as black patches with bright blots; over a uniform support of 16 photons
+    it reads the light within their noise.
     """
     moments = (moment0, moment1) + kernel_moments(positions, normals, tangents, faces)
     pairs = widening_pairs(positions, normals, tangents, faces)
+    base = moments
     moments = widen(positions, normals, tangents, faces, moments, rings, pairs)
     estimate, mass = _fit(moments)
     scale = np.maximum(local_scale(positions, faces), 1e-300)
@@ -252,58 +256,123 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
     weak = mass < target
     edge = np.sqrt(scale)
 
-    # the photons in each support, counted only where they are asked about
-    count = _PhotonCount(pairs, moment0, photon_power, rings) if photon_power > 0 and min_photons > 0 else None
-    sparse = count.fewer(min_photons) if count is not None else np.zeros(len(positions), bool)
-    for extra in range(1, max(max_extra_rings, max_sparse_rings) + 1):
-        weak &= extra <= max_extra_rings
-        sparse &= (extra <= max_sparse_rings) & ((rings + extra) * edge <= max_radius)
-        wanted = weak | sparse
-        if not wanted.any():
+    if photon_power > 0 and min_photons > 0 and len(positions):
+        # rings a sparse kernel may reach: its extra rings, and its support's radius within max_radius
+        reach = np.floor(np.minimum(max_radius / edge, float(rings + max_sparse_rings)))
+        limit = np.maximum(reach, rings).astype(np.int64)
+        adjacency = _adjacency(pairs, len(positions))
+        bitangents = np.cross(normals, tangents)
+        sparse, uniform = _uniform_supports(
+            adjacency, np.asarray(positions, np.float64), np.asarray(tangents, np.float64), bitangents,
+            base[0].sum(axis=1) / photon_power, tuple(np.ascontiguousarray(m, dtype=np.float64) for m in base),
+            rings, float(min_photons), limit,
+        )
+        if sparse.any():
+            estimate[sparse] = _fit(tuple(m[sparse] for m in uniform))[0]
+        weak &= ~sparse
+    for extra in range(1, max_extra_rings + 1):
+        if not weak.any():
             break
         moments = widen(positions, normals, tangents, faces, moments, 1, pairs)
         wider, wider_mass = _fit(moments)
-        estimate[wanted] = wider[wanted]
+        estimate[weak] = wider[weak]
         weak &= wider_mass / scale < target
-        if sparse.any():
-            sparse &= count.grow(sparse).fewer(min_photons)
     return estimate
 
 
-class _PhotonCount:
-    """The photons in each vertex's kernel support: the vertices within r rings of it
-    (a set: a widened kernel counts a neighbour's photons once for every path to it, 7^r
-    times at most, so its moments do not count photons), each holding its share of the
-    photons that hit its triangles (a hit's hat weights sum to 1). Counted for the
-    vertices still asked about only, a ring at a time, as a sparse matrix of their
-    supports (rows) over the vertices."""
+def _adjacency(pairs, n):
+    """(indptr (V + 1,), indices) int64: each vertex's neighbours, a ring of ``widen``
+    (the sources j != i of ``widening_pairs``' rows), as a CSR adjacency."""
+    target, source = pairs[0], pairs[1]
+    other = target != source
+    target, source = target[other], source[other]
+    order = np.argsort(target, kind="stable")
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(target, minlength=n), out=indptr[1:])
+    return indptr, source[order].astype(np.int64)
 
-    def __init__(self, pairs, moment0, photon_power, rings):
-        import scipy.sparse as sp
 
-        n = len(moment0)
-        self.photons = moment0.sum(axis=1) / photon_power
-        target, source = pairs[0], pairs[1]  # self pairs and both directions of every edge
-        self.adjacency = sp.csr_matrix((np.ones(len(target), np.float32), (target, source)), shape=(n, n))
-        self.rows = np.arange(n)
-        self.support = sp.identity(n, np.float32, format="csr")
-        for _ in range(rings):
-            self._ring()
+@numba.njit(cache=True, nogil=True)
+def _uniform_supports(adjacency, positions, tangents, bitangents, photons, moments, rings, least, limit):
+    """The sparse vertices and their uniform kernels' moments.
 
-    def _ring(self):
-        self.support = self.support @ self.adjacency
-        self.support.data[:] = 1.0
+    A vertex is sparse where the vertices within ``rings`` rings of it (a set, found
+    breadth first over ``adjacency``) hold fewer than ``least`` photons (``photons``
+    (V,): each vertex's share of the photon hits, whose hat weights sum to 1) and it may
+    take at least one ring more. Its support then grows a ring at a time until it holds
+    ``least``, or reaches ``limit[i]`` rings, or the whole of its piece of mesh. Its moments are those of the
+    sum of the hat functions of its support's vertices, each counted once (so a
+    uniform kernel inside the support, falling to 0 across its last ring), moved into
+    its own frame as ``_widen_once`` moves a neighbour's: the local linear fit over
+    them (``_fit``) is exact for linear irradiance as before.
 
-    def grow(self, asked):
-        """One ring more for the vertices ``asked`` (bool (V,)); the others are let go."""
-        keep = asked[self.rows]
-        self.rows, self.support = self.rows[keep], self.support[keep]
-        self._ring()
-        return self
-
-    def fewer(self, least):
-        """(V,) bool: the vertices counted whose support holds fewer than ``least`` photons."""
-        out = np.zeros(len(self.adjacency.indptr) - 1, bool)
-        if len(self.rows):
-            out[self.rows] = self.support @ self.photons < least
-        return out
+    moments = (s0 (V,C), s1 (V,C,2), k0 (V,), k1 (V,2), k2 (V,2,2)) of the hat functions.
+    Returns (sparse (V,) bool, the moments' tuple, zero where not sparse)."""
+    indptr, indices = adjacency
+    s0, s1, k0, k1, k2 = moments
+    n, n_channels = s0.shape
+    sparse = np.zeros(n, np.bool_)
+    out_s0 = np.zeros((n, n_channels))
+    out_s1 = np.zeros((n, n_channels, 2))
+    out_k0 = np.zeros(n)
+    out_k1 = np.zeros((n, 2))
+    out_k2 = np.zeros((n, 2, 2))
+    stamp = np.full(n, -1, np.int64)
+    support = np.empty(n, np.int64)
+    for i in range(n):
+        stamp[i] = i
+        support[0] = i
+        size, ring_start, count, ring = 1, 0, photons[i], 0
+        while ring < limit[i] and (ring < rings or count < least):
+            ring_stop = size
+            for a in range(ring_start, ring_stop):
+                v = support[a]
+                for p in range(indptr[v], indptr[v + 1]):
+                    w = indices[p]
+                    if stamp[w] != i:
+                        stamp[w] = i
+                        support[size] = w
+                        size += 1
+                        count += photons[w]
+            ring += 1
+            if size == ring_stop:  # the whole piece
+                break
+            ring_start = ring_stop
+        if ring <= rings:  # enough photons, or no ring more to take: the widened hat function stays
+            continue
+        sparse[i] = True
+        ti0, ti1, ti2 = tangents[i, 0], tangents[i, 1], tangents[i, 2]
+        bi0, bi1, bi2 = bitangents[i, 0], bitangents[i, 1], bitangents[i, 2]
+        for a in range(size):
+            j = support[a]
+            r00 = ti0 * tangents[j, 0] + ti1 * tangents[j, 1] + ti2 * tangents[j, 2]
+            r01 = ti0 * bitangents[j, 0] + ti1 * bitangents[j, 1] + ti2 * bitangents[j, 2]
+            r10 = bi0 * tangents[j, 0] + bi1 * tangents[j, 1] + bi2 * tangents[j, 2]
+            r11 = bi0 * bitangents[j, 0] + bi1 * bitangents[j, 1] + bi2 * bitangents[j, 2]
+            x0, x1, x2 = positions[j, 0] - positions[i, 0], positions[j, 1] - positions[i, 1], positions[j, 2] - positions[i, 2]
+            d0 = ti0 * x0 + ti1 * x1 + ti2 * x2
+            d1 = bi0 * x0 + bi1 * x1 + bi2 * x2
+            for c in range(n_channels):
+                s0j = s0[j, c]
+                out_s0[i, c] += s0j
+                out_s1[i, c, 0] += (r00 * s1[j, c, 0] + r01 * s1[j, c, 1]) + d0 * s0j
+                out_s1[i, c, 1] += (r10 * s1[j, c, 0] + r11 * s1[j, c, 1]) + d1 * s0j
+            k0j = k0[j]
+            rk0 = r00 * k1[j, 0] + r01 * k1[j, 1]
+            rk1 = r10 * k1[j, 0] + r11 * k1[j, 1]
+            out_k0[i] += k0j
+            out_k1[i, 0] += rk0 + d0 * k0j
+            out_k1[i, 1] += rk1 + d1 * k0j
+            for u in range(2):
+                ru0 = r00 if u == 0 else r10
+                ru1 = r01 if u == 0 else r11
+                rku = rk0 if u == 0 else rk1
+                du = d0 if u == 0 else d1
+                for w in range(2):
+                    rw0 = r00 if w == 0 else r10
+                    rw1 = r01 if w == 0 else r11
+                    rkw = rk0 if w == 0 else rk1
+                    dw = d0 if w == 0 else d1
+                    rkr = ru0 * k2[j, 0, 0] * rw0 + ru0 * k2[j, 0, 1] * rw1 + ru1 * k2[j, 1, 0] * rw0 + ru1 * k2[j, 1, 1] * rw1
+                    out_k2[i, u, w] += rkr + rku * dw + du * rkw + k0j * du * dw
+    return sparse, (out_s0, out_s1, out_k0, out_k1, out_k2)

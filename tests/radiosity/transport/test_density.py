@@ -184,9 +184,10 @@ def test_kernels_that_catch_too_few_photons_are_widened(rng):
     """A finely meshed plate (12,481 vertices, edges of 1.5 cm) under 300 photons of
     uniform light: a kernel of one ring catches none at 60 % of the vertices, which read
     0 (the living room's sofa at draft). Widened until their supports hold MIN_PHOTONS,
-    almost every vertex reads the light, the relative RMS error falls by half (2.07 ->
-    0.92 measured), and the mean stays the truth's. A radius cap below one more ring
-    changes nothing."""
+    almost every vertex reads the light, and with each support's vertices counted once
+    the relative RMS error is about a support of 16 photons' (1.91 -> 0.35 measured; a
+    widened hat function, which counts a neighbour once per path to it, left 0.92), and
+    the mean stays the truth's. A radius cap below one more ring changes nothing."""
     positions, faces, normals, tangents = plate(0.015)
     s0, s1, truth = scatter(positions, faces, normals, tangents, 300, rng)
     args = (positions, normals, tangents, faces, s0, s1)
@@ -195,7 +196,7 @@ def test_kernels_that_catch_too_few_photons_are_widened(rng):
     assert (plain[:, 0] == 0).mean() > 0.5
     assert (widened[:, 0] == 0).mean() < 0.05
     error = [np.sqrt(np.mean((e[:, 0] / truth[0] - 1) ** 2)) for e in (plain, widened)]
-    assert error[1] < 0.55 * error[0], error
+    assert error[1] < 0.45 < 0.55 * error[0], error
     assert abs(widened[:, 0].mean() / truth[0] - 1) < 0.05
     capped = density.irradiance(*args, rings=1, photon_power=0.9, max_radius=0.001)
     assert np.array_equal(capped, plain)
@@ -223,7 +224,8 @@ def test_a_texture_seam_is_crossed_and_a_crease_is_not(rng, monkeypatch):
     model's UV islands cut the living room's cushions into pieces of a median 9
     vertices), under few photons: with the seams crossed its kernels grow as on the
     uncut plate and it reads the light about as well; kept apart, each strip's kernels
-    stop at its edges and many more vertices read 0."""
+    stop at its edges, the strips that caught no photon read 0, and the error is more
+    than twice (0.27 and 0.66 measured)."""
     positions, faces, normals, tangents = plate(0.1)
     cut_p, cut_f, cut_n = split_at(positions, faces, normals, 0.5)
     pairs = density.seam_pairs(cut_p, cut_n)
@@ -249,5 +251,54 @@ def test_a_texture_seam_is_crossed_and_a_crease_is_not(rng, monkeypatch):
     monkeypatch.setattr(density, "seam_pairs", lambda p, n: np.zeros((0, 2), np.int64))
     apart = reading()
     assert len(positions) > 12481 + 500  # the cuts made copies
-    assert crossed[0] < 0.05 < apart[0], (crossed, apart)
-    assert crossed[1] < 0.8 * apart[1], (crossed, apart)
+    assert crossed[0] < 0.01 < apart[0], (crossed, apart)
+    assert crossed[1] < 0.6 * apart[1], (crossed, apart)
+
+
+@pytest.mark.parametrize("least", [5.0, 60.0, 400.0])
+def test_a_sparse_kernel_is_exact_for_linear_irradiance(least):
+    """A kernel widened for want of photons is a sum of hat functions, each counted once:
+    fed a linear field's exact moments (with a photon power that makes every support
+    sparse), every vertex still reads the field exactly, corners and edges included,
+    at every support size the photon count asks for."""
+    positions, faces, normals, tangents = plate(0.1)
+
+    def field(x):
+        return np.stack([2.0 + 3.0 * x[:, 0], 1.0 + 2.0 * x[:, 2], 5.0 - 4.0 * x[:, 0] + x[:, 2]], axis=1)
+
+    s0, s1 = deposit(positions, normals, tangents, faces, field)
+    power = float(s0.sum()) / 200.0  # 200 photons over the plate
+    estimate = density.irradiance(positions, normals, tangents, faces, s0, s1, rings=1, photon_power=power,
+                                  min_photons=least, max_extra_rings=0)
+    assert np.allclose(estimate, field(positions), rtol=1e-9, atol=1e-9)
+
+
+def test_a_sparse_support_is_every_vertex_within_its_rings_once():
+    """The sparse kernels' supports against a breadth-first search done by scipy: each
+    vertex's moments are the sums of its support's own moments (here S0 = 1 a vertex,
+    so the sum counts them: every vertex within r rings, once), and r is the fewest
+    rings whose support holds ``least`` photons, capped by the limit."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import shortest_path
+
+    positions, faces, normals, tangents = plate(0.1)
+    n = len(positions)
+    pairs = density.widening_pairs(positions, normals, tangents, faces)
+    indptr, indices = density._adjacency(pairs, n)
+    graph = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(n, n))
+    hops = shortest_path(graph, unweighted=True, directed=False)
+    ones = np.ones((n, 1))
+    moments = (ones, np.zeros((n, 1, 2)), np.ones(n), np.zeros((n, 2)), np.zeros((n, 2, 2)))
+    photons = np.full(n, 0.5)  # half a photon a vertex
+    limit = np.full(n, 6, np.int64)
+    limit[0] = 2
+    sparse, (s0, *_rest) = density._uniform_supports((indptr, indices), positions.astype(float), tangents,
+                                                     np.cross(normals, tangents), photons, moments, 1, 12.0, limit)
+    for i in range(n):
+        within = [np.sum(hops[i] <= r) for r in range(7)]
+        if 0.5 * within[1] >= 12.0:
+            assert not sparse[i]
+            continue
+        r = next((r for r in range(2, limit[i] + 1) if 0.5 * within[r] >= 12.0), limit[i])
+        assert sparse[i] and s0[i, 0] == within[r], (i, r, s0[i, 0], within)
+    assert s0[0, 0] == np.sum(hops[0] <= 2)  # a corner capped at two rings
