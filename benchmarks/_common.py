@@ -178,7 +178,7 @@ class Limit:
 
         merged = scene.merged()
         self.threads = threads
-        self.tracer = RayTracer(merged.positions, merged.faces, threads=threads)
+        self.tracer = RayTracer(merged.positions, merged.faces, threads=threads, cutout=merged.cutout)
         self.origins, self.directions = incoherent_rays(merged, n_rays, self.tracer.epsilon)
         self.n = n_rays
         self.triangle = np.empty(n_rays, np.int32)
@@ -312,7 +312,7 @@ class SameRays:
         merged = refined.merged()
         self.threads = threads
         self.triangles = len(merged.faces)
-        self.tracer = RayTracer(merged.positions, merged.faces, threads=threads)
+        self.tracer = RayTracer(merged.positions, merged.faces, threads=threads, cutout=merged.cutout)
         sa = scene_arrays(refined, merged, self.tracer.epsilon)
         self.photon = photon_rays(self.tracer, sa, photons)
         self.shadow, self.first = gather_rays(refined, merged, sa, quality)

@@ -102,13 +102,15 @@ import numpy as np
 from radiosity.formats import InputError
 from radiosity.formats.ltc import highlight_lobe
 from radiosity.formats.material import Microfacet
+from radiosity.formats.texture import OPACITY_CUTOFF
 
 __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
-VERSION = 7
-READS = (1, 2, 3, 4, 5, 6, 7)
+VERSION = 8
+READS = (1, 2, 3, 4, 5, 6, 7, 8)
+LTC_VERSION = 7  # the version of a file where a highlight has a microfacet lobe and no object a mask
 OWN_PARTS_VERSION = 6  # the version of a file where an object names its own emitter parts and no lobe
 DELTA_VERSION = 5  # the version of a file with a delta emitter part and no object's own parts
 ENVIRONMENT_VERSION = 4  # the version of a file with an environment and no delta part
@@ -232,11 +234,14 @@ def _check_highlights(model):
 
 
 def file_version(model):
-    """The lowest version of the schema that holds ``model``: 7 where a highlight has a
+    """The lowest version of the schema that holds ``model``: 8 where an object's mask is
+    exported, 7 where a highlight has a
     microfacet lobe, 6 where an object names its own emitter parts, 5 with a delta
     emitter part, 4 with an environment, 3 with a textured object, else 2."""
-    if any(o.highlight is not None and o.highlight.microfacet is not None for o in model.objects):
+    if any(_exported_mask(o) is not None for o in model.objects):
         return VERSION
+    if any(o.highlight is not None and o.highlight.microfacet is not None for o in model.objects):
+        return LTC_VERSION
     if any(o.highlight is not None and o.highlight.indices is not None for o in model.objects):
         return OWN_PARTS_VERSION
     if any(p.is_delta for p in model.emitters):
@@ -303,6 +308,19 @@ def _visual(obj):
     return TextureVisuals(uv=t.uvs, material=material)
 
 
+def _exported_mask(obj):
+    """A textured object's mask as its image's alpha: (H, W) uint8 codes round(255
+    opacity) at its texture's size (a 1 x 1 texture, an untextured object's white,
+    is spread to the mask's), or None where it has no mask or the mask's size is not
+    its texture's (glTF's one image holds both; the mask is then left out)."""
+    t = obj.textured
+    if t is None or t.opacity is None:
+        return None
+    if t.texture.shape[:2] != t.opacity.shape and t.texture.shape[:2] != (1, 1):
+        return None
+    return np.round(np.asarray(t.opacity, np.float64) * 255.0).astype(np.uint8)
+
+
 class _Images:
     """The textured objects' images as the GLB holds them: one PNG, image and texture for
     each distinct image, however many materials use it (600 of staircase's 655 textured
@@ -315,14 +333,17 @@ class _Images:
         import hashlib
 
         self.objects = {}  # object name -> index of its image
-        self.codes = []    # each image's 8-bit sRGB codes (H, W, 3) uint8
+        self.codes = []    # each image's 8-bit sRGB codes (H, W, 3) uint8, and a masked object's alpha (H, W, 4)
         by_array, by_digest = {}, {}
         for obj in model.objects:
             if obj.textured is None:
                 continue
-            key = id(obj.textured.texture)
+            alpha = _exported_mask(obj)
+            key = (id(obj.textured.texture), None if alpha is None else id(obj.textured.opacity))
             if key not in by_array:
                 codes = srgb8(obj.textured.texture)
+                if alpha is not None:
+                    codes = np.dstack([np.broadcast_to(codes, (*alpha.shape, 3)), alpha])
                 digest = hashlib.blake2b(codes.tobytes(), digest_size=16).digest() + repr(codes.shape).encode()
                 if digest not in by_digest:
                     by_digest[digest] = len(self.codes)
@@ -346,7 +367,7 @@ class _Images:
         first = len(tree["textures"])
         for i, codes in enumerate(self.codes):
             with io.BytesIO() as f:
-                Image.fromarray(codes, "RGB").save(f, format="png")
+                Image.fromarray(np.ascontiguousarray(codes), "RGBA" if codes.shape[2] == 4 else "RGB").save(f, format="png")
                 data = f.getvalue()
             key = f"{IMAGE_BUFFER}/{i}"
             buffers[key] = data + b"\0" * (-len(data) % 4)  # glTF aligns views to 4 bytes
@@ -359,7 +380,11 @@ class _Images:
             material = tree["materials"][mesh["primitives"][0]["material"]]
             pbr = material.setdefault("pbrMetallicRoughness", {})
             pbr["baseColorFactor"] = [*extras["textured"]["kd"], 1.0]
-            pbr["baseColorTexture"] = {"index": first + self.objects[extras["name"]]}
+            index = self.objects[extras["name"]]
+            pbr["baseColorTexture"] = {"index": first + index}
+            if self.codes[index].shape[2] == 4:  # a mask: glTF's alpha test, at the files' cut-off
+                material["alphaMode"] = "MASK"
+                material["alphaCutoff"] = OPACITY_CUTOFF
 
 
 def export_glb(model):
@@ -572,8 +597,9 @@ def _read_textured(info, mesh, v, fail, decoded):
     """An object's ``TexturedDiffuse`` from its mesh extras, uvs, image and
     ``_IRRADIANCE`` (None if it has none). The image's 8-bit sRGB codes are decoded as
     the solution's are (``radiosity.formats.texture``): a texture that was such a
-    decoding comes back exact. ``decoded`` (id(image) -> (image, texture)) holds each
-    image decoded once: objects whose materials share an image share its array, as
+    decoding comes back exact; a material whose alphaMode is MASK (version 8) has its
+    mask in the image's alpha (codes / 255). ``decoded`` ((id(image), masked) ->
+    (image, texture, opacity)) holds each image decoded once: objects whose materials share an image share its array, as
     they do read from fit.npz."""
     from radiosity.formats.material import srgb_to_linear
     from radiosity.formats.texture import TexturedDiffuse
@@ -589,16 +615,21 @@ def _read_textured(info, mesh, v, fail, decoded):
     uv = getattr(visual, "uv", None)
     if uv is None or np.shape(uv) != (v, 2):
         raise fail("is textured but has no TEXCOORD_0 (VEC2) for each vertex")
-    image = getattr(getattr(visual, "material", None), "baseColorTexture", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None)
     if image is None or not hasattr(image, "convert"):
         raise fail("is textured but its material has no baseColorTexture image")
-    if id(image) not in decoded:
-        codes = np.asarray(image.convert("RGB"))
-        decoded[id(image)] = (image, srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes])
-    texture = decoded[id(image)][1]
+    masked = getattr(material, "alphaMode", None) == "MASK"  # version 8: the image's alpha is the mask
+    if (id(image), masked) not in decoded:
+        codes = np.asarray(image.convert("RGBA" if masked else "RGB"))
+        texture = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes[..., :3]]
+        opacity = (codes[..., 3] / np.float32(255.0)).astype(np.float32) if masked else None
+        decoded[(id(image), masked)] = (image, texture, opacity)
+    _, texture, opacity = decoded[(id(image), masked)]
     irradiance = _attribute(mesh.vertex_attributes, "_IRRADIANCE", v, fail)
     try:
-        return TexturedDiffuse(uvs=np.asarray(uv, np.float64), irradiance=irradiance, texture=texture, kd=kd)
+        return TexturedDiffuse(uvs=np.asarray(uv, np.float64), irradiance=irradiance, texture=texture, kd=kd,
+                               opacity=opacity)
     except ValueError as exc:
         raise fail(f"textured: {exc}") from None
 
@@ -756,10 +787,18 @@ def run_export_command(args):
         textured = sum(o.textured is not None for o in model.objects)
         if textured:
             extra += f", {textured} textured"
+        masked = [o.name for o in model.objects if o.textured is not None and o.textured.opacity is not None]
+        exported = [name for name in masked if _exported_mask(model.object(name)) is not None]
+        if exported:
+            extra += f", {len(exported)} masked"
         if model.environment is not None:
             h, w = model.environment.image.shape[:2]
             extra += ", a constant environment" if model.environment.constant else f", a {w} x {h} environment"
         print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights{extra}, {path.stat().st_size} bytes)")
+        if len(exported) < len(masked):
+            left = [name for name in masked if name not in exported]
+            print(f"left out the masks of {len(left)} object(s) ({', '.join(left[:4])}{', ...' if len(left) > 4 else ''}): "
+                  "a mask the size of its texture is the image's alpha, and these differ; the page draws them opaque")
         if args.page:
             print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")
         if server is not None:

@@ -81,6 +81,7 @@ MODE_WORDS = {"fitted": "fitted", "reference": "solution", "diffuse": "diffuse"}
 MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "reference"}
 SHADINGS = ("gouraud", "pixel")
 LTC_UNIT = 4  # the texture unit of the microfacet lobes' table
+CUTOUT_UNIT = 2  # the texture unit of a masked object's opacity
 GLASS_REFLECTION_SCALE = 2  # a flat glass piece's reflected view: at 1 / this of the frame's size
 CHUNK_VALUES = 1 << 20  # radiance values a solution's grids are read, and their highlights subtracted, at a time
 VERTEX_BYTES = 8 * 12   # an object's vertex buffers, per vertex, at most (position, normal, tangent, mean, ...)
@@ -215,6 +216,7 @@ class _Object:
         self.index = ctx.buffer(np.asarray(faces, np.int32).tobytes())
         self.formats = {}  # attribute -> its buffer's format where not "3f"
         self.textured = None  # (texture, kd) of a textured object's diffuse term
+        self.cutout = None  # the opacity texture of a masked object (cutout.glsl)
         self.lights = None
         self.n_lights = 0
         self.per_light = False  # True: (V, K, 3) coefficients in the renderer's coefficient texture
@@ -251,6 +253,8 @@ class _Object:
         self.add(ctx, "in_uv", textured.uvs)
         self.add(ctx, "in_irradiance", textured.irradiance)
         self.textured = (images.texture(self.name, textured.texture), tuple(float(c) for c in textured.kd))
+        if textured.opacity is not None:
+            self.cutout = images.mask(self.name, textured.opacity)
 
     def vao(self, ctx, program, attributes, indexed=True, sources=None):
         # an attribute with no buffer (in_specular of per-light coefficients) reads the
@@ -297,6 +301,24 @@ class _Images:
         texture.build_mipmaps()
         texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         self._textures[id(image)] = (image, texture)
+        return texture
+
+    def mask(self, name, opacity):
+        """The texture of an opacity mask (H, W) floats, made at its first use by object
+        ``name``: one channel, bottom row first, bilinear and repeating, no mipmaps (the
+        shaders read its base level, as the solver does)."""
+        held = self._textures.get(id(opacity))
+        if held is not None:
+            return held[1]
+        height, width = opacity.shape[:2]
+        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
+        if max(width, height) > limit:
+            raise InputError(f"object {name!r}: its mask ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
+        flipped = np.ascontiguousarray(np.asarray(opacity)[::-1], np.float32)
+        texture = self.ctx.texture((width, height), 1, flipped.tobytes(), dtype="f4")
+        texture.repeat_x = texture.repeat_y = True
+        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self._textures[id(opacity)] = (opacity, texture)
         return texture
 
     @property
@@ -901,17 +923,21 @@ class Renderer:
                 key = "gouraud" if shading == "gouraud" and mask is None else "fitted-pixel" if pixel else "fitted"
             drawn = self._drawn_parts(obj, mode, parts, n) if mask is None else ()
             textured = obj.textured is not None and mask is None and key != "attributes" and key != "attributes-pixel"
-            program = self._program(key, drawn, textured, clip)
-            if (key, drawn, textured) not in ready:
+            cut = textured and obj.cutout is not None
+            program = self._program(key, drawn, textured, clip + (("VL_CUTOUT",) if cut else ()))
+            if (key, drawn, textured, cut) not in ready:
                 program["mvp"].write(mvp)
                 self._set(program, "clip_plane", self._clip)
                 self._set(program, "eye", eye)
                 self._set(program, "gouraud", int(shading == "gouraud"))
-                ready.add((key, drawn, textured))
+                ready.add((key, drawn, textured, cut))
             if textured:
                 obj.textured[0].use(location=6)
                 self._set(program, "diffuse_texture", 6)
                 self._set(program, "texture_kd", obj.textured[1])
+            if cut:
+                obj.cutout.use(location=CUTOUT_UNIT)
+                self._set(program, "cutout_texture", CUTOUT_UNIT)
             if key.startswith("reference"):
                 self._bind_reference(program, obj, parts)
                 attributes = ("in_position", "in_normal", "in_tangent", "in_uv", "in_irradiance")
@@ -927,17 +953,25 @@ class Renderer:
             vao = obj.vao(ctx, program, attributes, sources=sources)
             vao.render(moderngl.TRIANGLES)
             vao.release()
-        # the backs, after every front: black where nearer than every front (strictly)
-        program = self._program("back-attributes" if program_key == "attributes" else "back", extra=clip)
-        program["mvp"].write(mvp)
-        self._set(program, "clip_plane", self._clip)
+        # the backs, after every front: black where nearer than every front (strictly); a
+        # masked object's with its holes
+        back_key = "back-attributes" if program_key == "attributes" else "back"
+        cuts = (False, True) if any(o.cutout is not None for o in self.objects) else (False,)
+        backs = {cut: self._program(back_key, extra=clip + (("VL_CUTOUT",) if cut else ())) for cut in cuts}
+        for program in backs.values():
+            program["mvp"].write(mvp)
+            self._set(program, "clip_plane", self._clip)
         ctx.cull_face = "front"
         ctx.polygon_offset = self.depth.back_offset
         for obj in self.objects:
             if obj.glass is not None or (obj.mirror is not None and self.mirrors):
                 continue  # glass has no back; a mirror's is drawn with it, and never inside its own probe
+            program = backs[obj.cutout is not None]
+            if obj.cutout is not None:
+                obj.cutout.use(location=CUTOUT_UNIT)
+                self._set(program, "cutout_texture", CUTOUT_UNIT)
             if program not in obj.back_vaos:
-                obj.back_vaos[program] = obj.vao(ctx, program, ("in_position",))
+                obj.back_vaos[program] = obj.vao(ctx, program, ("in_position", "in_uv"))
             obj.back_vaos[program].render(moderngl.TRIANGLES)
         ctx.polygon_offset = (0.0, 0.0)
         ctx.cull_face = "back"

@@ -76,8 +76,8 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 8  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
-READS = (1, 2, 3, 4, 5, 6, 7, 8)
+VERSION = 9  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
+READS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -374,10 +374,13 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 8 where a highlight has a microfacet lobe,
+        """The lowest contract version that holds this model: 9 where a textured object has an opacity
+        mask, else 8 where a highlight has a microfacet lobe,
         else 7 with a glass object or a mirror, else 6 where
         an object names its emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
         an environment, else 3."""
+        if any(o.textured is not None and o.textured.opacity is not None for o in self.objects):
+            return 9
         if any(o.highlight is not None and o.highlight.microfacet is not None for o in self.objects):
             return 8
         if any(o.glass is not None or o.mirror is not None for o in self.objects):
@@ -511,7 +514,7 @@ def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES)
         diffuse = info["textured"].get("diffuse") if isinstance(info["textured"], dict) else None
         if not (isinstance(diffuse, list) and len(diffuse) == 3 and all(_is_number(c) for c in diffuse)):
             raise fail(f"meta 'objects' {name!r}: 'textured' must be {{\"diffuse\": [r, g, b]}}")
-        textured = read_textured(archive, name, n_v, diffuse)
+        textured = read_textured(archive, name, n_v, diffuse, masks=version >= 9)
         if textured is None:
             raise fail(f"object {name!r} is textured in meta 'objects' but has no '{name}/uvs'")
     glass = mirror = None

@@ -18,7 +18,11 @@ vec3 shade_fragment() {
     return shade(normalize(v_normal), v_position, normalize(eye - v_position), v_emitted, v_specular, v_probe,
                  v_vertices, v_bary);
 }
+#include "cutout.glsl"
 void main() {
+#ifdef VL_CUTOUT
+    cutout(v_uv);
+#endif
 #ifdef VL_TRIANGLE
     vec3 c = shade_fragment();
 #else

@@ -18,7 +18,11 @@ centroid in vec3 f_irradiance;
 #endif
 #include "lookup.glsl"
 #include "emitters.glsl"
+#include "cutout.glsl"
 void main() {
+#ifdef VL_CUTOUT
+    cutout(f_uv);
+#endif
     vec3 w = normalize(eye - f_position);
     vec3 c = f_bary.x * lookup(f_vertices.x, f_n0, f_t0, w)
            + f_bary.y * lookup(f_vertices.y, f_n1, f_t1, w)

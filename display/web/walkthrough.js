@@ -78,7 +78,7 @@ import { PointerLockControls } from 'three/addons/controls/PointerLockControls.j
 import { ALBEDO_POINTS, DEFINES, EMITTER_NODES, LTC_SIZE, LTC_TABLE, MAX_OBJECT_PARTS, TABLE_WIDTH, TEXTURE_WIDTH } from './shading.js';
 
 const FORMAT = 'vlights.fit.gltf';
-const VERSIONS = [1, 2, 3, 4, 5, 6, 7]; // what this page reads (display.export.READS)
+const VERSIONS = [1, 2, 3, 4, 5, 6, 7, 8]; // what this page reads (display.export.READS)
 const MODES = ['fitted', 'diffuse'];
 const PARTS = ['lights', 'probe', 'emitters']; // fitting.model.PARTS: the parts of the model that may be off
 const PART_KEYS = { 1: 'emitters', 2: 'probe', 3: 'lights' }; // as the walkthrough window's keys
@@ -122,6 +122,8 @@ export async function resolveShader(name, seen = new Set()) {
 }
 
 export const TEXTURED = '#define VL_TEXTURED\n'; // display.glsl.defines(extra=("VL_TEXTURED",))'s last line
+// a masked object's programs: cutout.glsl's alpha test on its image's alpha (a version 8 file)
+export const CUTOUT = '#define VL_CUTOUT\n#define VL_CUTOUT_ALPHA\n';
 
 // `extra`: #define lines after DEFINES (TEXTURED, or none)
 export async function stageSource(name, extra = '') {
@@ -130,15 +132,20 @@ export async function stageSource(name, extra = '') {
 
 // the fitted model per pixel (as `vlights render --shading pixel`), the backs' fragment
 // stage (after web_vertex.glsl) and the tone map; with `textured`, also the fitted program
-// of textured objects (#define VL_TEXTURED); with `environment`, the background's program
-// (#define VL_REVERSED_Z where `reversed`)
-async function loadShaders(textured, environment, reversed) {
+// of textured objects (#define VL_TEXTURED); with `masked`, the masked objects' fitted and
+// back programs (CUTOUT); with `environment`, the background's program (#define
+// VL_REVERSED_Z where `reversed`)
+async function loadShaders(textured, masked, environment, reversed) {
     const names = ['web_vertex.glsl', 'fitted_fragment.glsl', 'back_fragment.glsl', 'full_screen_vertex.glsl', 'tonemap_fragment.glsl'];
     const [fittedVertex, fittedFragment, backFragment, screenVertex, tonemapFragment] = await Promise.all(names.map((n) => stageSource(n)));
     const shaders = { fittedVertex, fittedFragment, backFragment, screenVertex, tonemapFragment };
     if (textured) {
         [shaders.texturedVertex, shaders.texturedFragment] = await Promise.all(
             ['web_vertex.glsl', 'fitted_fragment.glsl'].map((n) => stageSource(n, TEXTURED)));
+    }
+    if (masked) {
+        [shaders.maskedVertex, shaders.maskedFragment, shaders.maskedBackFragment] = await Promise.all(
+            ['web_vertex.glsl', 'fitted_fragment.glsl', 'back_fragment.glsl'].map((n) => stageSource(n, TEXTURED + CUTOUT)));
     }
     if (environment) {
         [shaders.backgroundVertex, shaders.backgroundFragment] = await Promise.all(
@@ -431,6 +438,7 @@ function makeObject(node, info, fit) {
     const source = node.geometry;
     const { geometry, coefficients } = objectGeometry(source, info);
     const textured = info.textured ? diffuseTexture(node.material, info, where) : null;
+    const masked = textured !== null && isMasked(node.material);
     const v = source.attributes.position.count;
     // the parts its highlight draws: those its extras name (version 6), else all the scene's
     const drawn = drawnParts(info, fit.parts.length);
@@ -442,8 +450,8 @@ function makeObject(node, info, fit) {
     const table = info.highlight && info.highlight.parts ? emitterTable(drawn.map((i) => fit.tableRows[i])) : fit.emitterTable;
     const material = new THREE.RawShaderMaterial({
         glslVersion: THREE.GLSL3,
-        vertexShader: textured ? fit.shaders.texturedVertex : fit.shaders.fittedVertex,
-        fragmentShader: textured ? fit.shaders.texturedFragment : fit.shaders.fittedFragment,
+        vertexShader: masked ? fit.shaders.maskedVertex : textured ? fit.shaders.texturedVertex : fit.shaders.fittedVertex,
+        fragmentShader: masked ? fit.shaders.maskedFragment : textured ? fit.shaders.texturedFragment : fit.shaders.fittedFragment,
         side: THREE.FrontSide, // the back faces: its child, black (backMaterial)
         depthFunc: THREE.LessDepth, // strict, as the renderer's (reversed: ">", three.js turns it)
         uniforms: {
@@ -479,13 +487,15 @@ function makeObject(node, info, fit) {
             probe_albedo: { value: new Float32Array(probe ? probe.albedo : ALBEDO_POINTS) },
             // a textured object's diffuse term
             ...(textured ? { diffuse_texture: { value: textured }, texture_kd: { value: new THREE.Vector3(...info.textured.kd) } } : {}),
+            // a masked object's cut-out: its image's alpha
+            ...(masked ? { cutout_texture: { value: textured } } : {}),
         },
     });
     const mesh = new THREE.Mesh(geometry, material);
     mesh.name = info.name;
     mesh.frustumCulled = false;
     mesh.userData = { ...info, parts, probeSize: probe ? probe.size : 0 };
-    const back = new THREE.Mesh(geometry, fit.backMaterial);
+    const back = new THREE.Mesh(geometry, masked ? maskedBackMaterial(fit, textured) : fit.backMaterial);
     back.name = `${info.name}: its back faces`;
     back.frustumCulled = false;
     back.renderOrder = 1; // after every front (renderOrder 0)
@@ -503,6 +513,24 @@ function backMaterial(shaders, reversed) {
         side: THREE.BackSide, depthFunc: THREE.LessDepth,
         polygonOffset: !reversed, polygonOffsetFactor: BACK_FACE_OFFSET[0], polygonOffsetUnits: BACK_FACE_OFFSET[1],
     });
+}
+
+// A masked object's back faces: black with its holes (cutout.glsl on its image's alpha)
+function maskedBackMaterial(fit, image) {
+    const material = fit.backMaterial.clone();
+    material.vertexShader = fit.shaders.maskedVertex;
+    material.fragmentShader = fit.shaders.maskedBackFragment;
+    material.uniforms = { cutout_texture: { value: image } };
+    return material;
+}
+
+// Whether a glTF material is masked: alphaMode MASK, which GLTFLoader turns into alphaTest
+// (the cut-off, > 0). The page's alpha test is the renderer's (cutout.glsl), so three.js's
+// own is turned off.
+function isMasked(material) {
+    if (!material || !(material.alphaTest > 0)) return false;
+    material.alphaTest = 0;
+    return true;
 }
 
 // ---------------------------------------------------------------------------- environment
@@ -624,11 +652,12 @@ export async function loadFit(url, maxTexture, reversed = false) {
         checkTextures(`object '${name}'`, textureNeeds(info, vertices, drawn), maxTexture);
     }
     const textured = [...sources.values()].some((node) => node.userData.textured);
+    const masked = [...sources.values()].some((node) => node.userData.textured && node.material && node.material.alphaTest > 0);
     const environment = extras.version >= 4 && extras.environment ? await readEnvironment(gltf, extras.environment, url) : null;
     if (environment) {
         checkTextures('the scene', [{ what: 'its environment', width: environment.width, height: environment.height }], maxTexture);
     }
-    const shaders = await loadShaders(textured, environment, reversed);
+    const shaders = await loadShaders(textured, masked, environment, reversed);
     const tableRows = extras.emitter_table || [];
     const fit = { parts, tableRows, emitterTable: emitterTable(tableRows), shaders, backMaterial: backMaterial(shaders, reversed) };
     const scene = new THREE.Scene();

@@ -91,8 +91,8 @@ from radiosity.formats.texture import TexturedDiffuse, read_textured
 __all__ = ["FORMAT", "VERSION", "ObjectSolution", "Solution", "load_solution"]
 
 FORMAT = "vlights.solution"
-VERSION = 8  # the newest version written (a file is written with the lowest that holds it)
-READS = (1, 2, 3, 4, 5, 6, 7, 8)
+VERSION = 9  # the newest version written (a file is written with the lowest that holds it)
+READS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
 
 ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radiance")
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
@@ -430,10 +430,13 @@ class Solution:
 
     @property
     def version(self) -> int:
-        """The lowest contract version that holds this solution: 8 where a microfacet
+        """The lowest contract version that holds this solution: 9 where a textured
+        object has an opacity mask, else 8 where a microfacet
         object's highlights are its own lobe's, else 7 where a material is glass or a perfect mirror,
         else 6 where a material has a microfacet model, else 5 where an object names its emitter parts, else 4 with a
         delta light, else 3 with a textured object or an environment, else 2."""
+        if any(o.textured is not None and o.textured.opacity is not None for o in self.objects):
+            return 9
         microfacet = any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects)
         if microfacet and self.microfacet_highlights:
             return 8
@@ -475,7 +478,7 @@ class Solution:
             **({"camera": self.camera.to_dict()} if self.camera is not None else {}),
             **({"environment": self.environment.meta()} if self.environment is not None else {}),
             **({"lights": [light.to_dict() for light in self.lights]} if self.lights else {}),
-            **({"microfacet_highlights": True} if self.version >= 8 else {}),
+            **({"microfacet_highlights": True} if self.microfacet_highlights and self.version >= 8 else {}),
         }
 
     def parts_of(self, name: str) -> tuple[EmitterPart, ...]:
@@ -598,7 +601,7 @@ class SolutionFile:
         diffuse = self.materials[name].get("diffuse") if isinstance(self.materials[name], dict) else None
         if self._archive.meta["version"] < 3 or not (isinstance(diffuse, list) and len(diffuse) == 3):
             return None
-        return read_textured(self._archive, name, self.sizes(name)[0], diffuse)
+        return read_textured(self._archive, name, self.sizes(name)[0], diffuse, masks=self._archive.meta["version"] >= 9)
 
     def geometry(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(positions (V, 3) float32, faces (F, 3) int) of object ``name``, unvalidated:
@@ -691,7 +694,8 @@ def _read_object(archive, name, header) -> ObjectSolution:
         diffuse = materials[name].get("diffuse") if isinstance(materials[name], dict) else None
         if not (isinstance(diffuse, list) and len(diffuse) == 3):
             raise fail(f"object {name!r}: meta 'materials' has no diffuse colour [r, g, b]")
-        arrays["textured"] = read_textured(archive, name, arrays["positions"].shape[0], diffuse)
+        arrays["textured"] = read_textured(archive, name, arrays["positions"].shape[0], diffuse,
+                                           masks=meta["version"] >= 9)
     try:
         return ObjectSolution(name=name, material=materials[name], **arrays)
     except _Invalid as exc:

@@ -24,6 +24,11 @@ In a file (solution version 3, fit version 4), per textured object, all or none:
 ``<name>/uvs`` (V, 2) float32, ``<name>/irradiance`` (V, 3) float32 and
 ``<name>/texture`` (H, W, 3): uint8 holding the sRGB encoding when that gives back the
 same float32 values (the 8-bit images texture files hold), float32 linear otherwise.
+A textured object may also have an opacity mask (solution and fit version 9):
+``<name>/opacity`` (H', W') read through the same uvs as the texture, uint8 holding
+round(255 opacity) when that gives back the same float32 values (an 8-bit alpha
+channel), float32 in [0, 1] otherwise; the surface is there only where the mask reads
+at least ``OPACITY_CUTOFF`` (an alpha test, in every stage).
 
 ``lookup`` is the numpy reference every consumer (the fit's shading, the display's
 tests) uses; ``radiosity.scene.textures.texel`` is the kernels' copy of it.
@@ -37,10 +42,11 @@ import numpy as np
 
 from radiosity.formats.material import srgb_to_linear
 
-__all__ = ["KEYS", "MAX_TEXTURE_PIXELS", "TexturedDiffuse", "linear_to_srgb8", "lookup", "read_textured"]
+__all__ = ["KEYS", "MAX_TEXTURE_PIXELS", "OPACITY_CUTOFF", "TexturedDiffuse", "linear_to_srgb8", "lookup", "read_textured"]
 
 KEYS = ("uvs", "irradiance", "texture")
 MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels: a texture larger is refused
+OPACITY_CUTOFF = 0.5  # a mask reading below this is a hole (``radiosity.scene.textures.CUTOFF`` is this)
 
 
 def _coordinates(u, v, height, width):
@@ -93,12 +99,14 @@ class TexturedDiffuse:
 
     uvs (V, 2) float32 finite; irradiance (V, 3) float32 finite, >= 0; texture (H, W,
     3) float32 linear in [0, 1]; kd: the material's diffuse colour (3,), the factor the
-    texture multiplies."""
+    texture multiplies; opacity (H', W') float32 in [0, 1] or None: the object's mask,
+    read through the same uvs (a hole where it is below ``OPACITY_CUTOFF``)."""
 
     uvs: np.ndarray
     irradiance: np.ndarray
     texture: np.ndarray
     kd: tuple
+    opacity: np.ndarray | None = None
 
     def __post_init__(self):
         put = object.__setattr__
@@ -122,6 +130,16 @@ class TexturedDiffuse:
             raise ValueError("'texture' has values outside [0, 1] (a reflectance)")
         if len(kd) != 3:
             raise ValueError(f"kd must be 3 numbers, got {len(kd)}")
+        if self.opacity is not None:
+            mask = np.ascontiguousarray(self.opacity, dtype=np.float32)
+            if mask.ndim != 2 or 0 in mask.shape:
+                raise ValueError(f"'opacity' has shape {mask.shape}, expected (H, W)")
+            if mask.shape[0] * mask.shape[1] > MAX_TEXTURE_PIXELS:
+                raise ValueError(f"'opacity' has {mask.shape[0]} x {mask.shape[1]} pixels, more than "
+                                 f"{MAX_TEXTURE_PIXELS:,}")
+            if not (np.isfinite(mask).all() and mask.min() >= 0.0 and mask.max() <= 1.0):
+                raise ValueError("'opacity' has values outside [0, 1]")
+            put(self, "opacity", mask)
         put(self, "uvs", uvs)
         put(self, "irradiance", e)
         put(self, "texture", tex)
@@ -149,15 +167,29 @@ class TexturedDiffuse:
     def arrays(self, name):
         """The file's members of object ``name``."""
         codes = linear_to_srgb8(self.texture)
-        return {
+        out = {
             f"{name}/uvs": self.uvs,
             f"{name}/irradiance": self.irradiance,
             f"{name}/texture": self.texture if codes is None else codes,
         }
+        if self.opacity is not None:
+            codes = np.round(self.opacity * 255.0).astype(np.uint8)
+            exact = np.array_equal((codes / np.float32(255.0)).astype(np.float32), self.opacity)
+            out[f"{name}/opacity"] = codes if exact else self.opacity
+        return out
+
+    def covered(self, uv):
+        """Whether the surface is there at texture coordinates uv (..., 2): True
+        everywhere without a mask, else where the mask reads at least OPACITY_CUTOFF."""
+        uv = np.asarray(uv, dtype=np.float64)
+        if self.opacity is None:
+            return np.ones(uv.shape[:-1], bool)
+        return lookup(self.opacity[..., None], uv)[..., 0] >= OPACITY_CUTOFF
 
     def nbytes(self):
         """The bytes its arrays take in memory."""
-        return self.uvs.nbytes + self.irradiance.nbytes + self.texture.nbytes
+        return self.uvs.nbytes + self.irradiance.nbytes + self.texture.nbytes + (
+            0 if self.opacity is None else self.opacity.nbytes)
 
 
 def _linear_texture(archive, key):
@@ -170,10 +202,22 @@ def _linear_texture(archive, key):
     return np.ascontiguousarray(texture, dtype=np.float32)
 
 
-def read_textured(archive, name, n_vertices, kd):
+def _opacity(archive, key):
+    """Mask ``key`` of an open archive as float32 opacity."""
+    mask = archive.array(key, "fiu", (None, None))
+    if mask.dtype == np.uint8:
+        return (mask / np.float32(255.0)).astype(np.float32)
+    if mask.dtype.kind != "f":
+        raise archive.fail(f"'{key}' has dtype {mask.dtype}, expected uint8 (opacity x 255) or float32")
+    return np.ascontiguousarray(mask, dtype=np.float32)
+
+
+def read_textured(archive, name, n_vertices, kd, masks=False):
     """Object ``name``'s ``TexturedDiffuse`` from an open archive
     (``radiosity.formats.npz``), or None if it has none; the archive's one-line
-    InputError if only some of its members are there or one is malformed."""
+    InputError if only some of its members are there or one is malformed. ``masks``:
+    the file's version may hold an opacity mask (``<name>/opacity``), else one is
+    passed over."""
     present = [k for k in KEYS if f"{name}/{k}" in archive.keys]
     if not present:
         return None
@@ -183,7 +227,10 @@ def read_textured(archive, name, n_vertices, kd):
     uvs = archive.array(f"{name}/uvs", "fiu", (n_vertices, 2))
     irradiance = archive.array(f"{name}/irradiance", "fiu", (n_vertices, 3))
     texture = archive.shared(f"{name}/texture", lambda key: _linear_texture(archive, key))
+    opacity = None
+    if masks and f"{name}/opacity" in archive.keys:
+        opacity = archive.shared(f"{name}/opacity", lambda key: _opacity(archive, key))
     try:
-        return TexturedDiffuse(uvs=uvs, irradiance=irradiance, texture=texture, kd=kd)
+        return TexturedDiffuse(uvs=uvs, irradiance=irradiance, texture=texture, kd=kd, opacity=opacity)
     except ValueError as exc:
         raise archive.fail(f"object {name!r}: {exc}") from None

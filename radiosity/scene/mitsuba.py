@@ -495,6 +495,16 @@ class _Bitmap:
     node: Node
     filename: str
     _texture: np.ndarray | None = None
+    alpha: np.ndarray | None = None  # (H, W) float32 in [0, 1]: an image's alpha channel
+
+    @property
+    def opacity(self):
+        """The image as a mask's opacity (H, W) float32 in [0, 1]: its alpha channel where
+        it has one (as Tungsten, which rendered the collection's published images,
+        reads a leaf's cut-out), else the mean of its channels, clipped."""
+        if self.alpha is not None:
+            return self.alpha
+        return np.clip(self.image.mean(axis=2), 0.0, 1.0).astype(np.float32)
 
     @property
     def mean(self):
@@ -513,6 +523,11 @@ class _Bitmap:
     def scaled(self, image):
         """This bitmap with another image (a plastic's texels rescaled)."""
         return _Bitmap(np.asarray(image, np.float32), self.wrap, self.to_uv, self.node, self.filename)
+
+    @property
+    def reads_as_given(self):
+        """Whether it reads a shape's uvs as they are (to_uv the identity, repeating)."""
+        return self.wrap == "repeat" and np.array_equal(self.to_uv, np.eye(3))
 
     def reading(self, uvs, where):
         """(texture, uvs) for a shape whose (our) texture coordinates are ``uvs``: the
@@ -547,8 +562,10 @@ def _bitmap(doc, node):
     wrap = props.string("wrap_mode", "repeat")
     if wrap not in WRAP_MODES:
         raise node.fail(f"wrap_mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
-    image = _read_image(node, path, raw=props.boolean("raw")).astype(np.float32)  # as every stage keeps textures
-    bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename)
+    image, alpha = _read_image_alpha(node, path, raw=props.boolean("raw"))
+    image = image.astype(np.float32)  # as every stage keeps textures
+    alpha = None if alpha is None else alpha.astype(np.float32)
+    bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename, alpha=alpha)
     return bitmap
 
 
@@ -564,7 +581,14 @@ def _uv_transform(props):
 def _read_image(node, path, raw=False):
     """Linear RGB (H, W, 3) float64 of an image file: 8- and 16-bit images
     sRGB-decoded (unless ``raw``), float images (OpenEXR, through the OpenEXR library)
-    as they are; alpha dropped, one channel copied to three."""
+    as they are; alpha dropped, one channel copied to three. (``_read_image_alpha``
+    keeps the alpha.)"""
+    return _read_image_alpha(node, path, raw)[0]
+
+
+def _read_image_alpha(node, path, raw=False):
+    """(``_read_image``'s RGB, the alpha channel (H, W) float64 in [0, 1] or None): an
+    8- or 16-bit image's alpha, linear as PNG stores it."""
     data = read_input_bytes(path, "texture", TEXTURE_BYTES)
     if path.suffix.lower() == ".exr":
         image = _read_exr(node, path, data)
@@ -582,14 +606,16 @@ def _read_image(node, path, raw=False):
     if image.shape[0] * image.shape[1] > MAX_TEXTURE_PIXELS:
         raise node.fail(f"image {str(path)!r} is {image.shape[1]} x {image.shape[0]} pixels, more than the "
                         f"{MAX_TEXTURE_PIXELS:,} allowed")
+    alpha = image[..., -1] if image.shape[2] in (2, 4) else None
     image = image[..., :1].repeat(3, axis=2) if image.shape[2] <= 2 else image[..., :3]
     if np.issubdtype(image.dtype, np.integer):
-        encoded = image / np.iinfo(image.dtype).max
-        return encoded if raw else srgb_to_linear(encoded)
+        top = np.iinfo(image.dtype).max
+        encoded = image / top
+        return (encoded if raw else srgb_to_linear(encoded)), (None if alpha is None else alpha / top)
     image = image.astype(np.float64)
     if not np.isfinite(image).all():
         raise node.fail(f"image {str(path)!r} holds NaN or infinite values")
-    return image
+    return image, None
 
 
 def _read_exr(node, path, data):
@@ -899,6 +925,7 @@ class _Surface:
     texture: _Bitmap | None = None  # multiplies diffuse at each point (``textures``)
     microfacet: Microfacet | None = None  # a rough plastic's or conductor's own model (the rest its Phong stand-in)
     glass: Glass | None = None  # a dielectric, thin dielectric or rough dielectric (no Phong part)
+    opacity: _Bitmap | None = None  # a mask's opacity image (``textures.check_opacity``)
 
     def untextured(self):
         """This surface with its texture folded into the diffuse colour (its mean)."""
@@ -964,6 +991,13 @@ def _make_surface(doc, node):
     if kind == "mask":
         if not inner:
             raise node.fail("needs the <bsdf> it masks")
+        bitmap = _bitmap_property(doc, props, "opacity")
+        if bitmap is not None:
+            surface = _surface(doc, inner[0])
+            if surface.glass is not None or not surface.visible:
+                node.warn("a mask over glass or a null bsdf: the mask is left out")
+                return surface
+            return replace(surface, opacity=bitmap)
         opacity = float(np.mean(props.colour("opacity", 0.5)))
         if opacity < 0.5:
             node.warn(f"mean opacity {opacity:.2f} < 0.5: the shape is left out")
@@ -1135,6 +1169,7 @@ class _Shape:
     crease: float
     uvs: np.ndarray | None = None
     texture: np.ndarray | None = None
+    opacity: np.ndarray | None = None
 
 
 class _Reader:
@@ -1200,7 +1235,8 @@ class _Reader:
             fallback = f"{kind}_{len(self.shapes)}_{Path(props.string('filename')).stem}"
             crease = 0.0 if props.boolean("face_normals") else DEFAULT_CREASE_ANGLE_DEG
         elif kind in ("rectangle", "disk", "sphere", "cube", "cylinder"):
-            positions, faces, uvs, to_world = _analytic(node, props, self.tessellation, textured)
+            positions, faces, uvs, to_world = _analytic(node, props, self.tessellation,
+                                                        textured or surface.opacity is not None)
             to_world = outer @ to_world
             normals = None
             fallback = f"{kind}_{len(self.shapes)}"
@@ -1209,6 +1245,7 @@ class _Reader:
             raise node.fail(f"shape type {kind!r} is not read (obj, ply, serialized, rectangle, disk, sphere, cube, "
                             "cylinder, shapegroup, instance are)")
         texture = None
+        opacity = self._opacity(node, surface, uvs)
         if textured and uvs is None:
             node.warn(f"the mesh has no texture coordinates: texture {surface.texture.filename!r} taken as its "
                       f"mean colour {tuple(round(float(c), 4) for c in surface.texture.mean)}")
@@ -1236,8 +1273,25 @@ class _Reader:
             faces = faces[:, ::-1]
             normals = None if normals is None else -normals
         self.shapes.append(_Shape(self._name(node, fallback), positions, np.ascontiguousarray(faces), normals,
-                                  surface, tuple(emission), node.where, crease, uvs if texture is not None else None,
-                                  texture))
+                                  surface, tuple(emission), node.where, crease,
+                                  uvs if texture is not None or opacity is not None else None, texture, opacity))
+
+    @staticmethod
+    def _opacity(node, surface, uvs):
+        """A masked shape's opacity (H, W) through its texture coordinates, or None (opaque,
+        with a warning where the mask cannot be read so: no uvs, or a mask or texture
+        that maps them (``to_uv``, a wrap mode other than repeat))."""
+        mask = surface.opacity
+        if mask is None:
+            return None
+        if uvs is None:
+            node.warn(f"the mesh has no texture coordinates: the mask {mask.filename!r} is left out (opaque)")
+            return None
+        if not mask.reads_as_given or (surface.texture is not None and not surface.texture.reads_as_given):
+            node.warn(f"the mask {mask.filename!r} or the texture beneath it maps its texture coordinates "
+                      "(to_uv, or a wrap mode other than repeat): the mask is left out (opaque)")
+            return None
+        return mask.opacity
 
     def _emitter(self, node):
         kind = node.attrs.get("type")
@@ -1291,7 +1345,7 @@ class _Reader:
             raise InputError(f"{self.doc.path}: no shapes this reader can use")
         fronts = [build_object(shape.name, _to_material(shape), shape.positions, shape.faces,
                                crease_angle_deg=shape.crease, source=shape.source, normals=shape.normals,
-                               uvs=shape.uvs, texture=shape.texture)
+                               uvs=shape.uvs, texture=shape.texture, opacity=shape.opacity)
                   for shape in self.shapes]
         fronts = [o for o in fronts if o is not None]  # None: every triangle degenerate (warned), as Mitsuba drops it
         if not fronts:

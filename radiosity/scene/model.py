@@ -26,7 +26,7 @@ from radiosity.formats.npz import check_member_name
 from radiosity.scene import geometry
 from radiosity.scene.environment import Environment
 from radiosity.scene.materials import Material
-from radiosity.scene.textures import check_texture
+from radiosity.scene.textures import Cutout, check_opacity, check_texture, cutout_of
 
 DEFAULT_CREASE_ANGLE_DEG = 40.0
 # The ray tracer (Embree) works in single precision. Beyond about 1e12 its intersection
@@ -51,6 +51,10 @@ class SceneObject:
                 states their convention: v up, repeating)
     texture   : (H, W, 3) float32 linear RGB in [0, 1], row 0 the top, or None: the
                 diffuse reflectance is then kd * texture(uv) (``textures.lookup``)
+    opacity   : (H, W) float32 in [0, 1], row 0 the top, or None: a mask; the surface
+                is there only where opacity(uv) >= ``textures.CUTOFF`` (needs uvs; an
+                untextured object given one is textured white, as the files carry a
+                mask with the textured term)
 
     The texture lives on the object, not on its ``Material``: a material is a small
     validated record of numbers (Contract 1's ``meta.materials``, compared by value,
@@ -68,12 +72,17 @@ class SceneObject:
     source: str = ""
     uvs: np.ndarray | None = None
     texture: np.ndarray | None = None
+    opacity: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.opacity is not None and self.texture is None:
+            # a mask is carried by the textured diffuse term (the files keep it there): a white texture
+            object.__setattr__(self, "texture", np.ones((1, 1, 3), np.float32))
         if self.uvs is not None or self.texture is not None:
             texture, uvs = check_texture(self.texture, self.uvs, len(self.positions), f"object {self.name!r}")
             object.__setattr__(self, "texture", texture)
             object.__setattr__(self, "uvs", uvs)
+        object.__setattr__(self, "opacity", check_opacity(self.opacity, self.uvs, f"object {self.name!r}"))
 
     @property
     def textured(self):
@@ -134,6 +143,7 @@ class MergedMesh(NamedTuple):
     triangle_object : (T,) int32, index of the object each triangle belongs to
     triangle_face   : (T,) int32, index of the triangle within its object
     vertex_offset   : (O + 1,) int64, object o owns positions[vertex_offset[o]:vertex_offset[o+1]]
+    cutout          : ``textures.Cutout`` of the objects' opacity masks, or None without any
     """
 
     positions: np.ndarray
@@ -141,6 +151,7 @@ class MergedMesh(NamedTuple):
     triangle_object: np.ndarray
     triangle_face: np.ndarray
     vertex_offset: np.ndarray
+    cutout: Cutout | None = None
 
     def triangles(self):
         """(T, 3, 3) float32 vertex positions per triangle."""
@@ -267,16 +278,20 @@ class Scene:
         """One triangle array for the ray tracer, with a triangle-to-object table."""
         offsets = np.cumsum([0] + [o.n_vertices for o in self.objects])
         faces = np.concatenate([o.faces + off for o, off in zip(self.objects, offsets)])
+        triangle_object = np.concatenate([np.full(o.n_triangles, i, dtype=np.int32) for i, o in enumerate(self.objects)])
+        cutout = None
+        if any(o.opacity is not None for o in self.objects):
+            uvs = np.concatenate([o.uvs if o.uvs is not None else np.zeros((o.n_vertices, 2)) for o in self.objects])
+            cutout = cutout_of(self.objects, triangle_object, faces, uvs)
         return MergedMesh(
             positions=np.concatenate([o.positions for o in self.objects]).astype(np.float32),
             faces=faces.astype(np.int32),
-            triangle_object=np.concatenate(
-                [np.full(o.n_triangles, i, dtype=np.int32) for i, o in enumerate(self.objects)]
-            ),
+            triangle_object=triangle_object,
             triangle_face=np.concatenate(
                 [np.arange(o.n_triangles, dtype=np.int32) for o in self.objects]
             ),
             vertex_offset=offsets.astype(np.int64),
+            cutout=cutout,
         )
 
 
@@ -292,6 +307,7 @@ def build_object(
     normals=None,
     uvs=None,
     texture=None,
+    opacity=None,
 ):
     """A SceneObject from a raw triangle soup in world space, or None when every
     triangle is degenerate (the object is left out, as Mitsuba leaves it out, with one
@@ -302,8 +318,8 @@ def build_object(
     ``normals`` (V, 3), a mesh file's own per-vertex normals, are kept instead (the
     vertices are then not welded: a seam's copies keep their own normals); where one
     is zero or not finite, or points away from every triangle using the vertex, the
-    computed one is used. ``uvs`` (V, 2) texture coordinates and a ``texture`` (H, W,
-    3) (``SceneObject``) are kept: vertices at one point with other uvs (a texture's
+    computed one is used. ``uvs`` (V, 2) texture coordinates, a ``texture`` (H, W,
+    3) and an ``opacity`` mask (H, W) (``SceneObject``) are kept: vertices at one point with other uvs (a texture's
     seam) are not welded, and the normals are smooth across the seam.
     """
     where = f"object {name!r}" + (f" ({source})" if source else "")
@@ -327,9 +343,10 @@ def build_object(
     if faces.min() < 0 or faces.max() >= len(positions):
         raise InputError(f"{where}: a triangle refers to a vertex that does not exist")
     texture, uvs = check_texture(texture, uvs, len(positions), where)
+    opacity = check_opacity(opacity, uvs, where)
     if normals is not None:
         return _with_normals(name, material, positions, faces, normals, where=where, source=source,
-                             warn_degenerate=warn_degenerate, uvs=uvs, texture=texture)
+                             warn_degenerate=warn_degenerate, uvs=uvs, texture=texture, opacity=opacity)
     extent = float(np.ptp(positions[faces.ravel()], axis=0).max())
     tol = 1e-9 * max(extent, np.finfo(float).tiny)
     if uvs is None:
@@ -358,6 +375,7 @@ def build_object(
         source=source,
         uvs=uvs,
         texture=texture,
+        opacity=opacity,
     )
 
 
@@ -378,7 +396,7 @@ def _not_degenerate(positions, faces):
 
 
 def _with_normals(name, material, positions, faces, normals, *, where, source, warn_degenerate, uvs=None,
-                  texture=None):
+                  texture=None, opacity=None):
     """``build_object``'s path for a mesh with its own per-vertex normals."""
     normals = np.asarray(normals, dtype=np.float64)
     if normals.shape != positions.shape:
@@ -404,7 +422,8 @@ def _with_normals(name, material, positions, faces, normals, *, where, source, w
     bad = ~np.isfinite(length) | (length < 1e-12) | ~(agrees > 0)  # none given, or facing away from its triangles
     unit[bad] = average[bad] / np.linalg.norm(average[bad], axis=1, keepdims=True)
     return SceneObject(name=name, material=material, positions=positions, normals=unit,
-                       tangents=geometry.tangents(unit), faces=faces, source=source, uvs=uvs, texture=texture)
+                       tangents=geometry.tangents(unit), faces=faces, source=source, uvs=uvs, texture=texture,
+                       opacity=opacity)
 
 
 BACK_OFFSET = 1e-4  # a two-sided surface's back lies behind its front by this fraction of the scene's diagonal
@@ -432,7 +451,7 @@ def back_of(front, name, offset):
         material = replace(material, name=f"{material.name} (back)", emission=(0.0, 0.0, 0.0))
     return SceneObject(name=name, material=material, positions=front.positions - offset * front.normals,
                        normals=-front.normals, tangents=-front.tangents, faces=front.faces[:, ::-1].copy(),
-                       source=front.source, uvs=front.uvs, texture=front.texture)
+                       source=front.source, uvs=front.uvs, texture=front.texture, opacity=front.opacity)
 
 
 def with_backs(objects, two_sided):

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import io
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -39,7 +40,7 @@ from PIL import Image
 from radiosity.formats.errors import InputError
 from radiosity.formats.inputs import read_input_bytes
 from radiosity.formats.material import srgb_to_linear
-from radiosity.formats.texture import MAX_TEXTURE_PIXELS, lookup
+from radiosity.formats.texture import MAX_TEXTURE_PIXELS, OPACITY_CUTOFF, lookup
 
 __all__ = ["WRAP_MODES", "as_repeating", "atlas", "lookup", "read_texture", "srgb_to_linear", "texel", "texture_from_image", "wrap_index", "wrapped_lookup"]
 
@@ -101,6 +102,27 @@ def check_texture(texture, uvs, n_vertices, where):
     if not (np.isfinite(texture).all() and texture.min() >= 0.0 and texture.max() <= 1.0):
         raise InputError(f"{where}: texture values must lie in [0, 1] (a reflectance)")
     return texture, uvs
+
+
+CUTOFF = OPACITY_CUTOFF  # a mask's opacity below this is a hole, at and above it the surface (an alpha test)
+
+
+def check_opacity(opacity, uvs, where):
+    """A mask's ``opacity`` as an object keeps it, checked: float32 (H, W) finite in
+    [0, 1], read at the object's ``uvs`` as a texture is (``lookup``; the kernels read
+    it from a three-channel atlas, ``cutout_atlas``). Where it is below ``CUTOFF`` the
+    surface is not there: rays pass through, the displays discard the fragment. None
+    stays None. InputError naming ``where``."""
+    if opacity is None:
+        return None
+    if uvs is None:
+        raise InputError(f"{where}: has an opacity mask but no texture coordinates")
+    opacity = np.asarray(opacity, dtype=np.float32)
+    if opacity.ndim != 2 or 0 in opacity.shape:
+        raise InputError(f"{where}: an opacity mask must be (H, W), got {opacity.shape}")
+    if not (np.isfinite(opacity).all() and opacity.min() >= 0.0 and opacity.max() <= 1.0):
+        raise InputError(f"{where}: opacity values must lie in [0, 1]")
+    return opacity
 
 
 WRAP_MODES = ("repeat", "mirror", "clamp")
@@ -196,6 +218,45 @@ def atlas(textures):
     offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
     pixels = np.concatenate([np.ascontiguousarray(t, dtype=np.float32).ravel() for t in textures])
     return pixels, offsets, sizes
+
+
+class Cutout(NamedTuple):
+    """The opacity masks of a merged mesh's triangles (what the ray tracer filters by).
+
+    image      : (T,) int64      each triangle's mask in the atlas, -1 where it has none
+    corner_uvs : (T, 6) float32  its corners' texture coordinates (u0, v0, u1, v1, u2, v2)
+    pixels, offsets, sizes : the masks' atlas (``cutout_atlas``)
+    """
+
+    image: np.ndarray
+    corner_uvs: np.ndarray
+    pixels: np.ndarray
+    offsets: np.ndarray
+    sizes: np.ndarray
+
+
+def cutout_of(objects, triangle_object, faces, uvs):
+    """The ``Cutout`` of a merged mesh (``faces`` (T, 3) into the objects' concatenated
+    ``uvs`` (N, 2), ``triangle_object`` (T,)), each mask once however many objects
+    share it; None where no object has one."""
+    masks, index = [], {}
+    object_mask = np.full(len(objects), -1, np.int64)
+    for i, o in enumerate(objects):
+        if o.opacity is not None:
+            object_mask[i] = index.setdefault(id(o.opacity), len(masks))
+            if object_mask[i] == len(masks):
+                masks.append(o.opacity)
+    if not masks:
+        return None
+    image = object_mask[triangle_object]
+    corner_uvs = np.where((image >= 0)[:, None], np.asarray(uvs, np.float32)[faces].reshape(-1, 6), np.float32(0.0))
+    return Cutout(image, np.ascontiguousarray(corner_uvs, np.float32), *cutout_atlas(masks))
+
+
+def cutout_atlas(opacities):
+    """The atlas (``atlas``) of a scene's opacity masks, each (H, W) copied to three
+    channels so that ``texel`` reads it as it reads a texture."""
+    return atlas([np.repeat(np.asarray(o, np.float32)[..., None], 3, axis=2) for o in opacities])
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -262,10 +262,10 @@ def irradiance(positions, normals, tangents, faces, moment0, moment1, rings=1, m
         limit = np.maximum(reach, rings).astype(np.int64)
         adjacency = _adjacency(pairs, len(positions))
         bitangents = np.cross(normals, tangents)
+        frames = (np.asarray(positions, np.float64), np.asarray(tangents, np.float64), bitangents)
         sparse, uniform = _uniform_supports(
-            adjacency, np.asarray(positions, np.float64), np.asarray(tangents, np.float64), bitangents,
-            base[0].sum(axis=1) / photon_power, tuple(np.ascontiguousarray(m, dtype=np.float64) for m in base),
-            rings, float(min_photons), limit,
+            adjacency, frames, base[0].sum(axis=1) / photon_power,
+            tuple(np.ascontiguousarray(m, dtype=np.float64) for m in base), rings, float(min_photons), limit,
         )
         if sparse.any():
             estimate[sparse] = _fit(tuple(m[sparse] for m in uniform))[0]
@@ -293,7 +293,7 @@ def _adjacency(pairs, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def _uniform_supports(adjacency, positions, tangents, bitangents, photons, moments, rings, least, limit):
+def _uniform_supports(adjacency, frames, photons, moments, rings, least, limit):
     """The sparse vertices and their uniform kernels' moments.
 
     A vertex is sparse where the vertices within ``rings`` rings of it (a set, found
@@ -306,9 +306,11 @@ def _uniform_supports(adjacency, positions, tangents, bitangents, photons, momen
     its own frame as ``_widen_once`` moves a neighbour's: the local linear fit over
     them (``_fit``) is exact for linear irradiance as before.
 
+    frames = (positions, tangents, bitangents) (V, 3) float64 each;
     moments = (s0 (V,C), s1 (V,C,2), k0 (V,), k1 (V,2), k2 (V,2,2)) of the hat functions.
     Returns (sparse (V,) bool, the moments' tuple, zero where not sparse)."""
     indptr, indices = adjacency
+    positions, tangents, bitangents = frames
     s0, s1, k0, k1, k2 = moments
     n, n_channels = s0.shape
     sparse = np.zeros(n, np.bool_)

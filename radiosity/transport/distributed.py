@@ -50,14 +50,14 @@ class _CountingTracer:
 
 
 def _worker_scene(key, scene):
-    """The worker's Embree scene for the scattered ``scene`` (positions, faces, sa), built
+    """The worker's Embree scene for the scattered ``scene`` (positions, faces, sa, cutout), built
     by the first task that needs it; later tasks (any thread) share it."""
     with _SCENES_LOCK:
         if key not in _SCENES:
-            positions, faces, sa = scene
+            positions, faces, sa, cutout = scene
             while len(_SCENES) >= _KEEP_SCENES:
                 _SCENES.pop(next(iter(_SCENES)))[0].close()
-            _SCENES[key] = (RayTracer(positions, faces, threads=1), sa)
+            _SCENES[key] = (RayTracer(positions, faces, threads=1, cutout=cutout), sa)
         return _SCENES[key]
 
 
@@ -142,7 +142,7 @@ class DaskRunner:
 
     def start(self, merged, sa, seed):
         self._seed = seed
-        self._scene = self._scatter((merged.positions, merged.faces, sa))
+        self._scene = self._scatter((merged.positions, merged.faces, sa, merged.cutout))
 
     def photon_batches(self, total, combine, bar):
         from radiosity.transport.batches import PHOTON_BATCH

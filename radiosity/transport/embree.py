@@ -14,7 +14,13 @@ in, arrays out; a chunk per thread) for tests and benchmarks.
 The scene is built as embreex built it (one triangle geometry with three vertices of
 its own per triangle, ``RTC_SCENE_FLAG_ROBUST``), and rays are set up as embreex set
 them up (tnear 0), so hits are bit-identical to embreex's (tests check it on random
-rays). Ray origins stay offset off the surfaces they leave (``origin_offset``) rather
+rays). A scene with opacity masks (``Cutout``: a leaf's cut-out) puts its masked
+triangles in a second geometry of the same size whose filter function (``_cut``, a
+numba cfunc Embree calls on every candidate hit) rejects a hit where the mask's
+opacity at its texture coordinates is below the cut-off: rays pass through the holes,
+in every kernel and query alike, with no kernel aware of it. Each geometry holds every
+triangle's slot, the other's triangles as NaN (which Embree leaves out of its tree), so
+a hit's primitive id is the triangle's row in either. Ray origins stay offset off the surfaces they leave (``origin_offset``) rather
 than starting at tnear > 0: a tnear would be measured along the ray, so a grazing ray
 would leave the surface by tnear times the sine of its angle, much less than the
 offset along the normal; and the kernels keep their rays, so a seed keeps its bits.
@@ -32,7 +38,11 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+from numba import carray, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
+from radiosity.scene.textures import CUTOFF, texel
 from radiosity.transport.signals import HeldSignals
 
 MISS = -1
@@ -120,6 +130,73 @@ def origin_offset(positions):
     return max(relative, OFFSET_ULPS * spacing)
 
 
+# -- opacity masks: Embree's filter function --------------------------------------------------
+
+# RTCFilterFunctionNArguments: int* valid, void* geometryUserPtr, RTCRayQueryContext* context,
+# RTCRayN* ray, RTCHitN* hit, unsigned int N; the hits of N rays structure-of-arrays:
+# Ng_x[N], Ng_y[N], Ng_z[N], u[N], v[N], primID[N], geomID[N], ...
+ARG_VALID, ARG_USER, ARG_HIT, ARG_N = 0, 1, 4, 5
+HITN_U, HITN_V, HITN_PRIM = 3, 4, 5
+# the user data: a header of int64 addresses and sizes (``_cutout_header``)
+CUT_TRIANGLES, CUT_IMAGE, CUT_UVS, CUT_PIXELS, CUT_N_PIXELS, CUT_OFFSETS, CUT_SIZES, CUT_N_IMAGES = range(8)
+
+
+@intrinsic
+def _pointer(typingctx, address):
+    """An int64 address as a void pointer (for ``carray``)."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], cgutils.voidptr_t)
+
+    return types.voidptr(types.int64), codegen
+
+
+@numba.cfunc(types.void(types.CPointer(types.int64)), cache=True, nopython=True)
+def _cut(args):
+    """Embree's filter function of the masked geometry (intersect and occluded alike):
+    a candidate hit whose mask reads below CUTOFF at its texture coordinates (the
+    corners' uvs at the hit's barycentrics, ``texel``: bilinear, repeating) is
+    rejected, and Embree goes on to the next."""
+    n = args[ARG_N] & 0xFFFFFFFF  # the unsigned int N, then the struct's padding
+    valid = carray(_pointer(args[ARG_VALID]), n, np.int32)
+    header = carray(_pointer(args[ARG_USER]), 8, np.int64)
+    count = header[CUT_TRIANGLES]
+    image = carray(_pointer(header[CUT_IMAGE]), count, np.int64)
+    uvs = carray(_pointer(header[CUT_UVS]), (count, 6), np.float32)
+    pixels = carray(_pointer(header[CUT_PIXELS]), header[CUT_N_PIXELS], np.float32)
+    offsets = carray(_pointer(header[CUT_OFFSETS]), header[CUT_N_IMAGES], np.int64)
+    sizes = carray(_pointer(header[CUT_SIZES]), (header[CUT_N_IMAGES], 2), np.int64)
+    floats = carray(_pointer(args[ARG_HIT]), 8 * n, np.float32)
+    ints = carray(_pointer(args[ARG_HIT]), 8 * n, np.int32)
+    for k in range(n):
+        if valid[k] == 0:
+            continue
+        tri = np.int64(ints[HITN_PRIM * n + k])
+        if tri < 0 or tri >= count or image[tri] < 0:
+            continue
+        u = np.float64(floats[HITN_U * n + k])
+        v = np.float64(floats[HITN_V * n + k])
+        w = 1.0 - u - v
+        tu = w * uvs[tri, 0] + u * uvs[tri, 2] + v * uvs[tri, 4]
+        tv = w * uvs[tri, 1] + u * uvs[tri, 3] + v * uvs[tri, 5]
+        if texel(pixels, offsets, sizes, image[tri], tu, tv)[0] < CUTOFF:
+            valid[k] = 0
+
+
+def _cutout_header(cutout):
+    """(header, the arrays it points into): what ``_cut`` reads, kept alive together."""
+    arrays = (
+        np.ascontiguousarray(cutout.image, np.int64),
+        np.ascontiguousarray(cutout.corner_uvs, np.float32).reshape(-1, 6),
+        np.ascontiguousarray(cutout.pixels, np.float32),
+        np.ascontiguousarray(cutout.offsets, np.int64),
+        np.ascontiguousarray(cutout.sizes, np.int64).reshape(-1, 2),
+    )
+    image, uvs, pixels, offsets, sizes = arrays
+    header = np.array([len(image), image.ctypes.data, uvs.ctypes.data, pixels.ctypes.data, len(pixels),
+                       offsets.ctypes.data, sizes.ctypes.data, len(offsets)], np.int64)
+    return header, arrays
+
+
 # -- the library ----------------------------------------------------------------------------
 
 _LIB = None
@@ -159,6 +236,9 @@ def _library():
                 ("rtcCommitGeometry", None, [p]),
                 ("rtcAttachGeometry", u, [p, p]),
                 ("rtcReleaseGeometry", None, [p]),
+                ("rtcSetGeometryUserData", None, [p, p]),
+                ("rtcSetGeometryIntersectFilterFunction", None, [p, p]),
+                ("rtcSetGeometryOccludedFilterFunction", None, [p, p]),
             ):
                 fn = getattr(lib, name)
                 fn.restype, fn.argtypes = restype, argtypes
@@ -292,8 +372,9 @@ def occluded_rays(rt, origins, directions, distances, blocked, start, stop):
 class RayTracer:
     """Closest-hit and shadow queries against one triangle mesh.
 
-    positions : (N, 3) float32 and faces : (T, 3) int32 of the merged scene mesh.
-    The triangle index returned is the row of ``faces``; u and v are Embree's
+    positions : (N, 3) float32 and faces : (T, 3) int32 of the merged scene mesh;
+    ``cutout`` (``textures.Cutout``, or None): its triangles' opacity masks, through whose holes
+    every query passes. The triangle index returned is the row of ``faces``; u and v are Embree's
     barycentrics (the hit is (1 - u - v) p0 + u p1 + v p2 of that row's vertices).
     Triangles are hit from both sides. ``epsilon`` is the ray-origin offset callers
     must apply (``origin_offset``). ``embree`` is what numba kernels trace with; it is
@@ -301,7 +382,7 @@ class RayTracer:
     hand while a kernel runs). ``threads`` splits the batched queries, nothing else.
     """
 
-    def __init__(self, positions, faces, threads=None):
+    def __init__(self, positions, faces, threads=None, cutout=None):
         triangles = np.ascontiguousarray(np.asarray(positions)[np.asarray(faces)], dtype=np.float32).reshape(-1, 3, 3)
         self.n_triangles = len(triangles)
         self.threads = threads or default_threads()
@@ -311,21 +392,17 @@ class RayTracer:
         scene = lib.rtcNewScene(device)
         _check(lib, device, "create a scene")
         lib.rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST)
+        self._cutout = None
+        masked = None if cutout is None else np.asarray(cutout.image) >= 0
+        if masked is not None and len(masked) != self.n_triangles:
+            raise ValueError(f"a cutout of {len(masked)} triangles for {self.n_triangles}")
         if self.n_triangles:
-            n = self.n_triangles
-            geometry = lib.rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE)
-            # Embree's own buffers (padded as it needs, freed with the scene), laid out
-            # as embreex lays them out: three vertices of its own per triangle
-            vertex = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 16, 3 * n)
-            index = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, n)
-            _check(lib, device, f"allocate the buffers of {n:,} triangles")
-            vertices = np.ctypeslib.as_array((ctypes.c_float * (12 * n)).from_address(vertex)).reshape(3 * n, 4)
-            vertices[:, :3] = triangles.reshape(-1, 3)
-            vertices[:, 3] = 0.0
-            np.ctypeslib.as_array((ctypes.c_uint32 * (3 * n)).from_address(index))[:] = np.arange(3 * n)
-            lib.rtcCommitGeometry(geometry)
-            lib.rtcAttachGeometry(scene, geometry)
-            lib.rtcReleaseGeometry(geometry)  # the scene holds it
+            if masked is None or not masked.any():
+                self._attach(scene, triangles)
+            else:  # the masked triangles in a geometry of their own, filtered; each a NaN in the other's
+                self._cutout = _cutout_header(cutout)
+                self._attach(scene, np.where(masked[:, None, None], np.float32(np.nan), triangles))
+                self._attach(scene, np.where(masked[:, None, None], triangles, np.float32(np.nan)), self._cutout[0])
         lib.rtcCommitScene(scene)  # builds the BVH here, from the calling thread
         _check(lib, device, "build the scene")
         self._scene = scene
@@ -334,6 +411,29 @@ class RayTracer:
         self._lock = threading.Lock()
         self.rays_cast = 0  # every query's rays
         self.shadow_rays_cast = 0  # of which occlusion queries
+
+    def _attach(self, scene, triangles, cut=None):
+        """One triangle geometry of ``triangles`` (T, 3, 3) in ``scene``; ``cut``: the
+        header of its masks (``_cutout_header``), its filter function ``_cut``."""
+        lib, device = _library()
+        n = len(triangles)
+        geometry = lib.rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE)
+        # Embree's own buffers (padded as it needs, freed with the scene), laid out
+        # as embreex lays them out: three vertices of its own per triangle
+        vertex = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 16, 3 * n)
+        index = lib.rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, n)
+        _check(lib, device, f"allocate the buffers of {n:,} triangles")
+        vertices = np.ctypeslib.as_array((ctypes.c_float * (12 * n)).from_address(vertex)).reshape(3 * n, 4)
+        vertices[:, :3] = triangles.reshape(-1, 3)
+        vertices[:, 3] = 0.0
+        np.ctypeslib.as_array((ctypes.c_uint32 * (3 * n)).from_address(index))[:] = np.arange(3 * n)
+        if cut is not None:
+            lib.rtcSetGeometryUserData(geometry, cut.ctypes.data)
+            lib.rtcSetGeometryIntersectFilterFunction(geometry, _cut.address)
+            lib.rtcSetGeometryOccludedFilterFunction(geometry, _cut.address)
+        lib.rtcCommitGeometry(geometry)
+        lib.rtcAttachGeometry(scene, geometry)
+        lib.rtcReleaseGeometry(geometry)  # the scene holds it
 
     def count(self, rays, shadow_rays=0):
         """Add ``rays`` traced by kernels (of which ``shadow_rays`` occlusion queries)."""

@@ -641,7 +641,7 @@ class PathTracer:
         self.scene = scene
         self.threads = threads or default_threads()
         merged = scene.merged()
-        self.tracer = RayTracer(merged.positions, merged.faces, threads=1)
+        self.tracer = RayTracer(merged.positions, merged.faces, threads=1, cutout=merged.cutout)
         self.arrays = scene_arrays(scene, merged, self.tracer.epsilon, microfacet_models=microfacet_models)
 
     def close(self):
@@ -742,6 +742,7 @@ def scene_of_solution(solution):
                 faces=o.faces.astype(np.int64),
                 uvs=None if o.textured is None else o.textured.uvs.astype(np.float64),
                 texture=None if o.textured is None else o.textured.texture,
+                opacity=None if o.textured is None else o.textured.opacity,
             )
         )
     env = solution.environment

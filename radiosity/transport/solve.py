@@ -413,7 +413,7 @@ def _solve(scene, settings, runner, progress):
     shadow_rays = 0
     own_parts = {}  # a glossy object's parts (indices) where the scene has more than one object draws
     if closed and glossy:
-        tracer = RayTracer(merged.positions, merged.faces)
+        tracer = RayTracer(merged.positions, merged.faces, cutout=merged.cutout)
         for o, _, dirs in glossy:
             if len(parts) > highlights.MAX_RECEIVER_PARTS:
                 grid, own_parts[o.name], visible[o.name] = highlights.object_parts(
@@ -437,7 +437,8 @@ def _solve(scene, settings, runner, progress):
         if o.texture is not None:
             # the display multiplies kd * texture(uv) / pi * E per pixel: the radiance
             # keeps the rest (the gather added kd / pi * E to every direction)
-            textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=tuple(kd))
+            textured[o.name] = TexturedDiffuse(uvs=o.uvs, irradiance=irradiance[sl], texture=o.texture, kd=tuple(kd),
+                                               opacity=o.opacity)
             diffuse = np.zeros_like(diffuse)
         if o.material.has_grid:
             dirs = glossy_dirs[o.name]

@@ -145,7 +145,7 @@ class ThreadRunner:
         self.workers = None
 
     def start(self, merged, sa, seed):
-        tracer = RayTracer(merged.positions, merged.faces, threads=1)
+        tracer = RayTracer(merged.positions, merged.faces, threads=1, cutout=merged.cutout)
         self.workers = Workers(ThreadPoolExecutor(self.threads), self.threads, tracer, sa, seed)
 
     @property

@@ -790,3 +790,47 @@ def test_a_textured_object_compiles_the_renderers_textured_program(browser, site
         assert "\n#define VL_TEXTURED\n" in shaders[1] and "\n#define VL_TEXTURED\n" not in shaders[2]
     finally:
         page.close()
+
+
+# ------------------------------------------------------------------ version 8: masks
+
+@pytest.fixture(scope="module")
+def site_masked(tmp_path_factory):
+    """(fit.npz, the served export's URL) of a masked leaf (a random blocky mask) over an
+    emitting floor and under an emitting ceiling: a version 9 fit, a version 8 export."""
+    from test_masks_display import _leaf, _mask, _quad
+
+    from fitting import FitOptions, fit
+    from radiosity.formats.solution import Solution
+
+    base = tmp_path_factory.mktemp("web-masked")
+    objects = (_leaf(_mask(np.random.default_rng(3)), True), _quad("floor", 0.0, 4.0, 1.0, True),
+               _quad("ceiling", 2.0, 4.0, 0.5, False))
+    fit(Solution(objects=objects, scene="leaf"), FitOptions.for_quality("draft")).save(base / "fit.npz")
+    yield from exported_and_served(base)
+
+
+@needs_browser
+@pytest.mark.gl
+@pytest.mark.parametrize("side", ["front", "back"])
+def test_version_8_masks_page_equals_render(browser, site_masked, tmp_path, side, gl_context):
+    """A masked leaf on the page as ``vlights render`` draws it, from its front (the floor
+    through its holes) and from its back (the ceiling through them, its back black
+    elsewhere); and the mask shows (about half the leaf's pixels are holes)."""
+    fit, url = site_masked
+    view = ({"eye": (0.0, 1.9, 0.2), "look": (0.0, 0.0, 0.0), "up": (0.0, 0.0, -1.0), "fov": 90.0} if side == "front"
+            else {"eye": (0.0, 0.3, 0.2), "look": (0.0, 2.0, 0.0), "up": (0.0, 0.0, -1.0), "fov": 90.0})
+    page = open_page(browser, url, view_query(exposure=1.0, view=view))
+    try:
+        got = screenshot(page)
+        assert page.evaluate("window.vlights.error") in (None, "")
+    finally:
+        page.close()
+    want = rendered(tmp_path, fit, exposure=1.0, view=view)
+    assert_matches(got, want)
+    from display.export import load_export
+
+    model = load_export(fit.parent / "web" / "scene.glb")
+    assert model.object("leaf").textured.opacity is not None
+    dark = want.max(axis=2) < 20
+    assert 0.1 < dark.mean() < 0.6  # the leaf's black, with holes

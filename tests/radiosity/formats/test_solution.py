@@ -488,7 +488,7 @@ def test_wrong_format_string(tmp_path, solution):
     refused(write_npz(tmp_path / "s.npz", meta, arrays), "is not a solution file", "'vlights.fit'")
 
 
-@pytest.mark.parametrize("version", [9, "1", None, True])
+@pytest.mark.parametrize("version", [10, "1", None, True])
 def test_wrong_version(tmp_path, solution, version):
     meta, arrays = contents(solution)
     meta["version"] = version

@@ -292,8 +292,8 @@ def test_a_sparse_support_is_every_vertex_within_its_rings_once():
     photons = np.full(n, 0.5)  # half a photon a vertex
     limit = np.full(n, 6, np.int64)
     limit[0] = 2
-    sparse, (s0, *_rest) = density._uniform_supports((indptr, indices), positions.astype(float), tangents,
-                                                     np.cross(normals, tangents), photons, moments, 1, 12.0, limit)
+    frames = (positions.astype(float), tangents, np.cross(normals, tangents))
+    sparse, (s0, *_rest) = density._uniform_supports((indptr, indices), frames, photons, moments, 1, 12.0, limit)
     for i in range(n):
         within = [np.sum(hops[i] <= r) for r in range(7)]
         if 0.5 * within[1] >= 12.0:
