@@ -288,37 +288,31 @@ class _Images:
 
     def texture(self, name, image):
         """The texture of ``image`` (H, W, 3) linear floats, made at its first use by object ``name``."""
+        return self._made(name, image, "texture", 3, mipmapped=True)
+
+    def mask(self, name, opacity):
+        """The texture of an opacity mask (H, W) floats, made at its first use by object
+        ``name``: one channel, no mipmaps (the shaders read its base level, as the solver
+        does)."""
+        return self._made(name, opacity, "mask", 1, mipmapped=False)
+
+    def _made(self, name, image, what, components, mipmapped):
         held = self._textures.get(id(image))
         if held is not None:
             return held[1]
         height, width = image.shape[:2]
         limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
         if max(width, height) > limit:
-            raise InputError(f"object {name!r}: its texture ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
+            raise InputError(f"object {name!r}: its {what} ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
         flipped = np.ascontiguousarray(np.asarray(image)[::-1], np.float32)
-        texture = self.ctx.texture((width, height), 3, flipped.tobytes(), dtype="f4")
+        texture = self.ctx.texture((width, height), components, flipped.tobytes(), dtype="f4")
         texture.repeat_x = texture.repeat_y = True
-        texture.build_mipmaps()
-        texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        if mipmapped:
+            texture.build_mipmaps()
+            texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        else:
+            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._textures[id(image)] = (image, texture)
-        return texture
-
-    def mask(self, name, opacity):
-        """The texture of an opacity mask (H, W) floats, made at its first use by object
-        ``name``: one channel, bottom row first, bilinear and repeating, no mipmaps (the
-        shaders read its base level, as the solver does)."""
-        held = self._textures.get(id(opacity))
-        if held is not None:
-            return held[1]
-        height, width = opacity.shape[:2]
-        limit = self.ctx.info["GL_MAX_TEXTURE_SIZE"]
-        if max(width, height) > limit:
-            raise InputError(f"object {name!r}: its mask ({width} x {height}) exceeds this OpenGL's texture size ({limit})")
-        flipped = np.ascontiguousarray(np.asarray(opacity)[::-1], np.float32)
-        texture = self.ctx.texture((width, height), 1, flipped.tobytes(), dtype="f4")
-        texture.repeat_x = texture.repeat_y = True
-        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self._textures[id(opacity)] = (opacity, texture)
         return texture
 
     @property

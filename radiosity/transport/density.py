@@ -137,42 +137,57 @@ def _widen_once(pairs, moments):
     sources j, moved into i's frame (in the order of the pairs, as np.add.at adds).
     pairs = (target, source, rotate, delta); moments = (s0, s1, k0, k1, k2)."""
     target, source, rotate, delta = pairs
-    s0, s1, k0, k1, k2 = moments
-    n_vertices, n_channels = s0.shape
-    out_s0 = np.zeros((n_vertices, n_channels))
-    out_s1 = np.zeros((n_vertices, n_channels, 2))
-    out_k0 = np.zeros(n_vertices)
-    out_k1 = np.zeros((n_vertices, 2))
-    out_k2 = np.zeros((n_vertices, 2, 2))
+    out = _zero_moments(moments)
     for p in range(len(target)):
-        i, j = target[p], source[p]
-        r00, r01, r10, r11 = rotate[p, 0, 0], rotate[p, 0, 1], rotate[p, 1, 0], rotate[p, 1, 1]
-        d0, d1 = delta[p, 0], delta[p, 1]
-        for c in range(n_channels):
-            s0j = s0[j, c]
-            out_s0[i, c] += s0j
-            out_s1[i, c, 0] += (r00 * s1[j, c, 0] + r01 * s1[j, c, 1]) + d0 * s0j
-            out_s1[i, c, 1] += (r10 * s1[j, c, 0] + r11 * s1[j, c, 1]) + d1 * s0j
-        k0j = k0[j]
-        rk0 = r00 * k1[j, 0] + r01 * k1[j, 1]
-        rk1 = r10 * k1[j, 0] + r11 * k1[j, 1]
-        out_k0[i] += k0j
-        out_k1[i, 0] += rk0 + d0 * k0j
-        out_k1[i, 1] += rk1 + d1 * k0j
-        # R K2_j R^T, then the shift: + rk d^T + d rk^T + k0 d d^T
-        for a in range(2):
-            ra0, ra1 = rotate[p, a, 0], rotate[p, a, 1]
-            rka = rk0 if a == 0 else rk1
-            da = d0 if a == 0 else d1
-            for b in range(2):
-                rb0, rb1 = rotate[p, b, 0], rotate[p, b, 1]
-                rkb = rk0 if b == 0 else rk1
-                db = d0 if b == 0 else d1
-                rkr = (
-                    ra0 * k2[j, 0, 0] * rb0 + ra0 * k2[j, 0, 1] * rb1 + ra1 * k2[j, 1, 0] * rb0 + ra1 * k2[j, 1, 1] * rb1
-                )
-                out_k2[i, a, b] += rkr + rka * db + da * rkb + k0j * da * db
-    return out_s0, out_s1, out_k0, out_k1, out_k2
+        shift = (rotate[p, 0, 0], rotate[p, 0, 1], rotate[p, 1, 0], rotate[p, 1, 1], delta[p, 0], delta[p, 1])
+        _add_shifted(out, target[p], moments, source[p], shift)
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _zero_moments(moments):
+    """Zero moments shaped as ``moments`` (s0, s1, k0, k1, k2)."""
+    n_vertices, n_channels = moments[0].shape
+    return (np.zeros((n_vertices, n_channels)), np.zeros((n_vertices, n_channels, 2)), np.zeros(n_vertices),
+            np.zeros((n_vertices, 2)), np.zeros((n_vertices, 2, 2)))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _add_shifted(out, i, moments, j, shift):
+    """Add vertex j's moments to vertex i's in ``out``, moved into i's frame: an offset
+    d_j seen from j is R d_j + delta seen from i (shift = (R00, R01, R10, R11, delta0,
+    delta1)); K2 becomes R K2_j R^T + rk delta^T + delta rk^T + k0 delta delta^T."""
+    s0, s1, k0, k1, k2 = moments
+    out_s0, out_s1, out_k0, out_k1, out_k2 = out
+    r00, r01, r10, r11, d0, d1 = shift
+    for c in range(s0.shape[1]):
+        s0j = s0[j, c]
+        out_s0[i, c] += s0j
+        out_s1[i, c, 0] += (r00 * s1[j, c, 0] + r01 * s1[j, c, 1]) + d0 * s0j
+        out_s1[i, c, 1] += (r10 * s1[j, c, 0] + r11 * s1[j, c, 1]) + d1 * s0j
+    k0j = k0[j]
+    rk0 = r00 * k1[j, 0] + r01 * k1[j, 1]
+    rk1 = r10 * k1[j, 0] + r11 * k1[j, 1]
+    out_k0[i] += k0j
+    out_k1[i, 0] += rk0 + d0 * k0j
+    out_k1[i, 1] += rk1 + d1 * k0j
+    for a in range(2):
+        ra0 = r00 if a == 0 else r10
+        ra1 = r01 if a == 0 else r11
+        rka = rk0 if a == 0 else rk1
+        da = d0 if a == 0 else d1
+        for b in range(2):
+            rb0 = r00 if b == 0 else r10
+            rb1 = r01 if b == 0 else r11
+            rkb = rk0 if b == 0 else rk1
+            db = d0 if b == 0 else d1
+            rkr = ra0 * k2[j, 0, 0] * rb0 + ra0 * k2[j, 0, 1] * rb1 + ra1 * k2[j, 1, 0] * rb0 + ra1 * k2[j, 1, 1] * rb1
+            out_k2[i, a, b] += rkr + rka * db + da * rkb + k0j * da * db
 
 
 def _fit(moments):
@@ -311,14 +326,9 @@ def _uniform_supports(adjacency, frames, photons, moments, rings, least, limit):
     Returns (sparse (V,) bool, the moments' tuple, zero where not sparse)."""
     indptr, indices = adjacency
     positions, tangents, bitangents = frames
-    s0, s1, k0, k1, k2 = moments
-    n, n_channels = s0.shape
+    n = len(photons)
     sparse = np.zeros(n, np.bool_)
-    out_s0 = np.zeros((n, n_channels))
-    out_s1 = np.zeros((n, n_channels, 2))
-    out_k0 = np.zeros(n)
-    out_k1 = np.zeros((n, 2))
-    out_k2 = np.zeros((n, 2, 2))
+    out = _zero_moments(moments)
     stamp = np.full(n, -1, np.int64)
     support = np.empty(n, np.int64)
     for i in range(n):
@@ -343,38 +353,11 @@ def _uniform_supports(adjacency, frames, photons, moments, rings, least, limit):
         if ring <= rings:  # enough photons, or no ring more to take: the widened hat function stays
             continue
         sparse[i] = True
-        ti0, ti1, ti2 = tangents[i, 0], tangents[i, 1], tangents[i, 2]
-        bi0, bi1, bi2 = bitangents[i, 0], bitangents[i, 1], bitangents[i, 2]
+        t, b, xi = tangents[i], bitangents[i], positions[i]
         for a in range(size):
             j = support[a]
-            r00 = ti0 * tangents[j, 0] + ti1 * tangents[j, 1] + ti2 * tangents[j, 2]
-            r01 = ti0 * bitangents[j, 0] + ti1 * bitangents[j, 1] + ti2 * bitangents[j, 2]
-            r10 = bi0 * tangents[j, 0] + bi1 * tangents[j, 1] + bi2 * tangents[j, 2]
-            r11 = bi0 * bitangents[j, 0] + bi1 * bitangents[j, 1] + bi2 * bitangents[j, 2]
-            x0, x1, x2 = positions[j, 0] - positions[i, 0], positions[j, 1] - positions[i, 1], positions[j, 2] - positions[i, 2]
-            d0 = ti0 * x0 + ti1 * x1 + ti2 * x2
-            d1 = bi0 * x0 + bi1 * x1 + bi2 * x2
-            for c in range(n_channels):
-                s0j = s0[j, c]
-                out_s0[i, c] += s0j
-                out_s1[i, c, 0] += (r00 * s1[j, c, 0] + r01 * s1[j, c, 1]) + d0 * s0j
-                out_s1[i, c, 1] += (r10 * s1[j, c, 0] + r11 * s1[j, c, 1]) + d1 * s0j
-            k0j = k0[j]
-            rk0 = r00 * k1[j, 0] + r01 * k1[j, 1]
-            rk1 = r10 * k1[j, 0] + r11 * k1[j, 1]
-            out_k0[i] += k0j
-            out_k1[i, 0] += rk0 + d0 * k0j
-            out_k1[i, 1] += rk1 + d1 * k0j
-            for u in range(2):
-                ru0 = r00 if u == 0 else r10
-                ru1 = r01 if u == 0 else r11
-                rku = rk0 if u == 0 else rk1
-                du = d0 if u == 0 else d1
-                for w in range(2):
-                    rw0 = r00 if w == 0 else r10
-                    rw1 = r01 if w == 0 else r11
-                    rkw = rk0 if w == 0 else rk1
-                    dw = d0 if w == 0 else d1
-                    rkr = ru0 * k2[j, 0, 0] * rw0 + ru0 * k2[j, 0, 1] * rw1 + ru1 * k2[j, 1, 0] * rw0 + ru1 * k2[j, 1, 1] * rw1
-                    out_k2[i, u, w] += rkr + rku * dw + du * rkw + k0j * du * dw
-    return sparse, (out_s0, out_s1, out_k0, out_k1, out_k2)
+            tj, bj, xj = tangents[j], bitangents[j], positions[j]
+            x = (xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2])
+            shift = (_dot3(t, tj), _dot3(t, bj), _dot3(b, tj), _dot3(b, bj), _dot3(t, x), _dot3(b, x))
+            _add_shifted(out, i, moments, j, shift)
+    return sparse, out
