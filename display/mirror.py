@@ -17,9 +17,10 @@ Glass and other mirrors are missing from what a mirror shows (one bounce of refl
 A near mirror (``near_mirror_of``: a flat object of a microfacet material of roughness at
 most ``NEAR_MIRROR_ALPHA``, a polished floor), where the renderer is asked to
 (``Renderer.near_mirrors``, ``--near-mirrors``), is drawn the same way where the displays
-draw reflections (``near_fragment.glsl``): its view-independent part (the solution's least
-radiance over its directions per vertex, or the fit's emitted colour; a textured object's
-kd texture(uv) E / pi) plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w), its lobe's
+draw reflections (``near_fragment.glsl``): its own part (``radiosity.formats.material.near_base``,
+from the solution's grid or as the fit keeps it: a plastic's diffuse substrate, which leaves
+the interface as 1 - F(n . w); a conductor's least radiance over its directions; a textured
+object's kd texture(uv) E / pi) plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w), its lobe's
 albedo with Fresnel (``radiosity.formats.ltc.lobe_albedo``), times the scene drawn from
 the eye reflected in its plane: sharp, as a mirror's (its lobe's blur is left out, which
 at this roughness is a few pixels at most of a walkthrough's frame), and with what the
@@ -34,12 +35,11 @@ from dataclasses import replace
 import numpy as np
 
 from radiosity.formats.ltc import highlight_lobe
-from radiosity.formats.material import Material, Microfacet
+from radiosity.formats.material import NEAR_MIRROR_ALPHA, Material, Microfacet
 
 __all__ = ["FLAT_THICKNESS", "NEAR_MIRROR_ALPHA", "mirror_of", "mirrored_view", "near_mirror_of", "plane_of"]
 
 FLAT_THICKNESS = 0.01  # an object whose points lie within this fraction of its size of one plane is flat
-NEAR_MIRROR_ALPHA = 0.03  # a flat microfacet object at most this rough is drawn as a near mirror
 
 
 def mirror_of(source):
@@ -67,6 +67,8 @@ def near_mirror_of(source):
     highlight = getattr(source, "highlight", None)
     if model is None and highlight is not None and getattr(highlight, "microfacet", None) is not None:
         model = highlight.microfacet
+    if model is None:  # a fitted near mirror keeps its model with its own part (fit.npz version 10)
+        model = getattr(source, "near_microfacet", None)
     if model is None or model.alpha > NEAR_MIRROR_ALPHA:
         return None
     return highlight_lobe(model)

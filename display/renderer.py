@@ -68,6 +68,7 @@ from radiosity.formats.emitters import DEFAULT_NODES
 from radiosity.formats.errors import InputError
 from radiosity.formats.ltc import highlight_lobe
 from radiosity.formats.ltc import table_texture as ltc_table_texture
+from radiosity.formats.material import near_base
 
 from . import glass, mirror
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
@@ -234,6 +235,8 @@ class _Object:
         self.mirror = None  # (ks, F0 or None) of a perfect mirror: drawn by what it reflects (``display.mirror``)
         self.plane = None  # a flat mirror's (point, unit normal)
         self.near = None  # a near mirror's ``HighlightLobe`` (``display.mirror.near_mirror_of``)
+        self.near_eta = 0.0  # its base's interface (``formats.material.near_base``; 0 none): the solution's
+        self.fit_near_eta = 0.0  # ... the fit's
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
 
@@ -413,12 +416,13 @@ def _chunk_vertices(radiance):
     return max(1, CHUNK_VALUES // max(radiance.shape[1], 1))
 
 
-def _directional_mean(radiance, reduce=np.mean):
+def _directional_mean(radiance, reduce=None):
     """(V, 3) float64: each vertex's radiance (V, D, 3) averaged over directions (or reduced
-    by ``reduce``, e.g. ``np.min``: a near mirror's least radiance), read a chunk of vertices
-    at a time (as float64, the whole never copied)."""
+    by ``reduce``, a function of a chunk (v, D, 3) -> (v, 3): a near mirror's base), read a
+    chunk of vertices at a time (as float64, the whole never copied)."""
+    reduce = reduce or (lambda chunk: np.mean(chunk, axis=1))
     step = _chunk_vertices(radiance)
-    parts = [reduce(np.asarray(radiance[i:i + step], np.float64), axis=1) for i in range(0, len(radiance), step)]
+    parts = [reduce(np.asarray(radiance[i:i + step], np.float64)) for i in range(0, len(radiance), step)]
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
@@ -502,7 +506,7 @@ class Renderer:
                 self.glass_pieces.append(piece)
         self.glass_approach = "blend"  # how glass is drawn (``display.glass.APPROACHES``)
         self.mirrors = True  # False: a solution's perfect mirrors drawn from its grid as any glossy object (to compare)
-        self.near_mirrors = False  # True: near mirrors drawn from the scene in their plane (``display.mirror``)
+        self.near_mirrors = True  # near mirrors drawn from the scene in their plane (``display.mirror``); False: from the grid
         self._glass_probes = {}  # (object, mode, shading, lights, parts) -> its probe texture
         self._clip = None  # a flat mirror's plane (n, -n . p) while its reflected view is drawn
         self._mirror_images = {}  # a flat mirror's name -> the texture of its reflected view (remade every frame)
@@ -592,6 +596,9 @@ class Renderer:
                 weight = np.asarray(f.probe_weight, np.float32)
             obj.add(ctx, "in_probe", weight)
             obj.add(ctx, "in_emitted", f.emitted)
+            if f.near_base is not None:  # a near mirror's own part, as the fit keeps it
+                obj.add(ctx, "in_fit_base", f.near_base)
+                obj.fit_near_eta = float(f.near_eta)
             obj.n_lights = f.n_lights
             obj.per_light = bool(f.per_light) and f.n_lights > 0
             obj.specular = np.asarray(f.specular, np.float32)
@@ -628,8 +635,10 @@ class Renderer:
             # diffuse walkthrough of this solution shows)
             mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
-            if obj.near is not None:  # a near mirror's view-independent part: its least radiance
-                obj.add(ctx, "in_base", _directional_mean(s.radiance, np.min))
+            if obj.near is not None:  # a near mirror's own part (``formats.material.near_base``)
+                base, obj.near_eta = near_base(s.material["microfacet"], s.directions,
+                                               lambda reduce, s=s: _directional_mean(s.radiance, reduce))
+                obj.add(ctx, "in_base", base)
             if "in_emitted" not in obj.buffers:  # a solution alone
                 obj.add(ctx, "in_emitted", mean)
                 obj.add(ctx, "in_specular", np.zeros((obj.n_vertices, 3)))
@@ -1050,8 +1059,9 @@ class Renderer:
         """The near mirrors ``objects`` (depth-tested, their backs black): their base and
         textured term plus ks (F0 norm + (1 - F0) schlick) times the scene in their plane that
         ``seen`` holds for each (``_mirror_image``; near_fragment.glsl). Their base: the
-        solution's least radiance per vertex in the solution display, the fit's emitted colour
-        in the fitted one."""
+        solution's (``radiosity.formats.material.near_base``) in the solution display, the
+        fit's (the same, as fit.npz keeps it: version 10) in the fitted one, else its emitted
+        colour."""
         ctx, (lo, hi), table = self.ctx, self.bounds, self._ltc_texture()
         for obj, (texture, reflected_mvp) in zip(objects, seen, strict=True):
             textured = obj.textured is not None
@@ -1070,7 +1080,13 @@ class Renderer:
                 self._set(program, name, value)
             if "glass_mvp" in program:
                 program["glass_mvp"].write(reflected_mvp)
-            base = "in_base" if mode == "reference" and "in_base" in obj.buffers else "in_emitted"
+            if mode == "reference" and "in_base" in obj.buffers:
+                base, eta = "in_base", obj.near_eta
+            elif mode != "reference" and "in_fit_base" in obj.buffers:
+                base, eta = "in_fit_base", obj.fit_near_eta
+            else:
+                base, eta = "in_emitted", 0.0
+            self._set(program, "near_eta", eta)
             vao = obj.vao(ctx, program, ("in_position", "in_normal", "in_emitted", "in_uv", "in_irradiance"),
                           sources={"in_emitted": base})
             vao.render(moderngl.TRIANGLES)

@@ -68,7 +68,7 @@ class Walkthrough(mglw.WindowConfig):
 
     @classmethod
     def configure(cls, fit, solution, view, *, exposure=1.0, frames=None, screenshot=None, mode=None, press="",
-                  samples=DEFAULT_SAMPLES, glass="blend", near_mirrors=False):
+                  samples=DEFAULT_SAMPLES, glass="blend", near_mirrors=True):
         """The window's settings: the model (``fit`` and/or ``solution``), the start
         ``view`` (its size the window's), and by keyword the rest."""
         settings = dict(exposure=exposure, frames=frames, screenshot=screenshot, mode=mode, press=press, samples=samples,

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from radiosity.formats.errors import InputError
-from radiosity.formats.material import Material, Microfacet
+from radiosity.formats.material import NEAR_MIRROR_ALPHA, Material, Microfacet, near_base
 from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
 from radiosity.formats.solution import SolutionFile
 
@@ -366,6 +366,10 @@ def _fitted_object(obj, emitted, specular, lights, info, **parts):
     lights ((pos, rgb, shininess)), and the version-3 ``parts`` (highlight, probe, weight);
     a textured object's diffuse term is carried as the solution has it (version 4)."""
     pos, rgb, shininess = lights
+    near = _near(obj)
+    if near is not None:
+        parts = {**parts, "near_base": near[0].astype(np.float32),
+                 "near_microfacet": Microfacet.from_dict(obj.material["microfacet"])}
     return FittedObject(
         name=obj.name,
         positions=np.asarray(obj.positions, np.float32),
@@ -380,6 +384,27 @@ def _fitted_object(obj, emitted, specular, lights, info, **parts):
         textured=obj.textured,
         **parts,
     )
+
+
+NEAR_CHUNK_VALUES = 1 << 22  # a near mirror's grid is read this many values at a time
+
+
+def _near(obj):
+    """A near mirror's own part (``radiosity.formats.material.near_base``: (base (V, 3), eta))
+    for a glossy solution object of a microfacet material at most ``NEAR_MIRROR_ALPHA`` rough,
+    which a display may draw as one (flat ones: ``display.mirror``), else None. From the
+    solution's grid, a chunk of vertices at a time."""
+    model = obj.material.get("microfacet") if isinstance(obj.material, dict) else None
+    if model is None or obj.is_diffuse or Microfacet.from_dict(model).alpha > NEAR_MIRROR_ALPHA:
+        return None
+    radiance = obj.radiance
+    step = max(1, NEAR_CHUNK_VALUES // max(radiance.shape[1], 1))
+
+    def reduce(function):
+        return np.concatenate([function(np.asarray(radiance[i:i + step], np.float64))
+                               for i in range(0, len(radiance), step)])
+
+    return near_base(model, obj.directions, reduce)
 
 
 def _auto_lights(problem, options, exponent, log=None):

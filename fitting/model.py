@@ -76,8 +76,8 @@ from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
-VERSION = 9  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
-READS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
+VERSION = 10  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
+READS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
 MAX_PROBE_SIZE = 256
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
@@ -219,6 +219,8 @@ class FittedObject:
     textured: TexturedDiffuse | None = None  # version 4: a textured object's diffuse term
     glass: Glass | None = None  # version 7: drawn as glass (its arrays a black diffuse object's)
     mirror: Mirror | None = None  # version 7: drawn as a mirror (likewise)
+    near_base: np.ndarray | None = None  # version 10: a near mirror's own part (V, 3) (formats.material.near_base) ...
+    near_microfacet: Microfacet | None = None  # ... and its material's model
 
     def __post_init__(self):
         v, k = len(self.positions), len(self.light_pos)
@@ -244,6 +246,12 @@ class FittedObject:
             raise ValueError(f"object {self.name!r}: a probe needs its per-vertex weight and the weight its probe")
         if self.probe_weight is not None and np.shape(self.probe_weight) != (v, 3):
             raise ValueError(f"object {self.name!r}: 'probe_weight' has shape {np.shape(self.probe_weight)}, expected ({v}, 3)")
+        if (self.near_base is None) != (self.near_microfacet is None):
+            raise ValueError(f"object {self.name!r}: a near mirror needs its own part and its microfacet model")
+        if self.near_base is not None:
+            base = np.asarray(self.near_base)
+            if base.shape != (v, 3) or not (np.isfinite(base).all() and (base >= 0).all()):
+                raise ValueError(f"object {self.name!r}: 'near_base' must be ({v}, 3), finite and >= 0")
         if self.textured is not None and self.textured.n_vertices != v:
             raise ValueError(f"object {self.name!r}: 'uvs' has {self.textured.n_vertices} rows, expected {v}")
         if self.highlight is not None and np.shape(self.highlight.visibility) != (v, len(self.highlight.parts)):
@@ -255,6 +263,12 @@ class FittedObject:
     @property
     def n_lights(self):
         return len(self.light_pos)
+
+    @property
+    def near_eta(self):
+        """The interface a near mirror's own part leaves through: a plastic's eta, else 0."""
+        m = self.near_microfacet
+        return float(m.eta[0]) if m is not None and m.kind in ("plastic", "roughplastic") else 0.0
 
     @property
     def per_light(self):
@@ -329,6 +343,7 @@ class FittedObject:
             **({"probe": np.asarray(self.probe.texels, np.float32), "probe_weight": np.asarray(self.probe_weight, np.float32)}
                if self.probe is not None else {}),
             **({k.split("/", 1)[1]: a for k, a in self.textured.arrays("o").items()} if self.textured is not None else {}),
+            **({"near_base": np.asarray(self.near_base, np.float32)} if self.near_base is not None else {}),
         }
 
     def meta_info(self):
@@ -348,6 +363,8 @@ class FittedObject:
             out["glass"] = self.glass.to_dict()
         if self.mirror is not None:
             out["mirror"] = self.mirror.to_dict()
+        if self.near_base is not None:
+            out["near"] = {"microfacet": self.near_microfacet.to_dict()}
         return out
 
 
@@ -374,11 +391,13 @@ class FittedModel:
 
     @property
     def version(self):
-        """The lowest contract version that holds this model: 9 where a textured object has an opacity
-        mask, else 8 where a highlight has a microfacet lobe,
+        """The lowest contract version that holds this model: 10 where an object keeps a near mirror's
+        own part, else 9 where a textured object has an opacity mask, else 8 where a highlight has a microfacet lobe,
         else 7 with a glass object or a mirror, else 6 where
         an object names its emitter parts, else 5 with a delta emitter part, else 4 with a textured object or
         an environment, else 3."""
+        if any(o.near_base is not None for o in self.objects):
+            return 10
         if any(o.textured is not None and o.textured.opacity is not None for o in self.objects):
             return 9
         if any(o.highlight is not None and o.highlight.microfacet is not None for o in self.objects):
@@ -525,10 +544,14 @@ def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES)
             mirror = Mirror.from_dict(info["mirror"])
     except (TypeError, ValueError) as exc:
         raise fail(f"meta 'objects' {name!r}: {exc}") from None
+    near_base, near_microfacet = _read_near(archive, name, info, n_v) if version >= 10 else (None, None)
     try:
         return FittedObject(
             name=name,
-            info={k: v for k, v in info.items() if k not in ("lights", "highlight", "probe", "textured", "glass", "mirror")},
+            info={k: v for k, v in info.items()
+                  if k not in ("lights", "highlight", "probe", "textured", "glass", "mirror", "near")},
+            near_base=near_base,
+            near_microfacet=near_microfacet,
             textured=textured,
             glass=glass,
             mirror=mirror,
@@ -594,6 +617,22 @@ def _read_highlight(archive, name, info, n_v, emitters, nodes):
     if not (np.isfinite(vis).all() and (vis >= 0).all() and (vis <= 1).all()):
         raise fail(f"'{key}' has values outside [0, 1]")
     return Highlight(parts, nodes, ks, float(exponent[0]), np.asarray(vis, np.float32), fresnel, indices, microfacet)
+
+
+def _read_near(archive, name, info, n_v):
+    """The object's (near_base (V, 3), its Microfacet) (version 10), or (None, None)."""
+    entry = info.get("near")
+    key = f"{name}/near_base"
+    if entry is None and key not in archive.keys:
+        return None, None
+    try:
+        model = Microfacet.from_dict(entry["microfacet"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise archive.fail(f"meta 'objects' {name!r}: a near mirror needs 'near': {{\"microfacet\": {{...}}}} "
+                           f"({exc})") from None
+    if key not in archive.keys:
+        raise archive.fail(f"object {name!r} is a near mirror in meta 'objects' but has no '{key}'")
+    return archive.array(key, "fiu", (n_v, 3)), model
 
 
 def _read_probe(archive, name, info, n_v):

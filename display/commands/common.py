@@ -75,9 +75,10 @@ def add_glass_flag(parser):
                         help="how glass is drawn: blend (reflections and refractions from a probe of the scene "
                         "around it, sheets and slabs blended over what is behind them; the default), probe (what "
                         "is behind a sheet from the probe too), none (left out, as clear glass)")
-    parser.add_argument("--near-mirrors", action="store_true",
-                        help="draw a flat rough plastic at most 0.03 rough (a polished floor) from the scene reflected "
-                        "in its plane, as a mirror (sharper than its grid; the emitters' reflections lose their blur)")
+    parser.add_argument("--near-mirrors", action=argparse.BooleanOptionalAction, default=True,
+                        help="draw a flat microfacet surface at most 0.03 rough (a polished floor) from the scene "
+                        "reflected in its plane, as a mirror, over its own part (sharper than its grid; the emitters' "
+                        "reflections lose their lobe's blur); --no-near-mirrors: from its grid or fit (default: on)")
 
 
 def add_samples_flag(parser):

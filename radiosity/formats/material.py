@@ -58,8 +58,11 @@ __all__ = [
     "Glass",
     "Material",
     "Microfacet",
+    "NEAR_MIRROR_ALPHA",
+    "fresnel_dielectric",
     "fresnel_kd_limit",
     "fresnel_ks_limit",
+    "near_base",
     "schlick_albedo",
     "schlick_diffuse",
     "specular_albedo",
@@ -73,6 +76,13 @@ MIRROR_EXPONENT = 1e5
 (a smooth conductor's stand-in): the displays draw what it reflects (``display.mirror``)."""
 
 FLOAT32_MAX = 3.4028234663852886e38
+
+NEAR_MIRROR_ALPHA = 0.03
+"""A flat microfacet object at most this rough is a near mirror (a polished floor): the
+displays may draw what it reflects from the scene in its plane (``display.mirror``), over
+its own part (``near_base``)."""
+
+NEAR_BASE_COSINE = 0.3  # a plastic's substrate is read from its grid's directions at least this far from grazing
 """Largest value a float32 array (the solver's and the files') can hold."""
 
 _ENERGY_TOLERANCE = 1e-6
@@ -557,6 +567,44 @@ def schlick_diffuse(cos_theta):
 _CHECK_COSINES = np.linspace(0.0, 1.0, 129)
 _LIMIT_MARGIN = 1e-3  # the limits take Q this much larger: its peak may fall between the grid's points
 # (S peaks at normal incidence, on the grid)
+
+
+def fresnel_dielectric(cos_i, eta):
+    """Unpolarised Fresnel reflectance of a dielectric interface, exact (Walter 2007, eq. 22).
+
+    cos_i: cosine of the incident angle (its absolute value is used); eta: the relative
+    index (transmitted side over incident side). Total internal reflection gives 1.
+    Arrays broadcast; float64.
+    """
+    c = np.abs(np.asarray(cos_i, dtype=np.float64))
+    g2 = eta * eta - 1.0 + c * c
+    g = np.sqrt(np.maximum(g2, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        f = 0.5 * a * a * (1.0 + b * b)
+    return np.where(g2 > 0.0, np.nan_to_num(f, nan=1.0), 1.0)
+
+
+def near_base(microfacet, directions, reduce):
+    """(its own part per vertex, eta) of a near mirror's radiance grid (V, D, 3) at local
+    ``directions`` (D, 3), reduced over directions by ``reduce`` (``reduce(function)`` ->
+    (V, 3), the function taking a chunk of vertices' grids (v, D, 3) to (v, 3): chunked by
+    the caller). For a plastic (``microfacet``: a ``Microfacet`` or its dict) the substrate
+    D, which leaves the interface as 1 - F(n . w, eta): its grid holds D (1 - F) plus the
+    interface's reflection, which only adds, so D is the least of radiance / (1 - F) over
+    the directions at least ``NEAR_BASE_COSINE`` from grazing, and a display draws D (1 - F)
+    at the pixel's view. (The least radiance itself would be the substrate at a grazing
+    view, where 1 - F is small: veach_mi's plates drew almost black.) For a conductor (no
+    substrate) the least radiance, eta 0."""
+    model = microfacet if isinstance(microfacet, Microfacet) else Microfacet.from_dict(microfacet)
+    if model.kind not in ("plastic", "roughplastic"):
+        return reduce(lambda chunk: np.min(chunk, axis=1)), 0.0
+    eta = float(model.eta[0])
+    cos = np.asarray(directions, np.float64)[:, 2]
+    ok = cos >= NEAR_BASE_COSINE
+    scale = 1.0 / (1.0 - fresnel_dielectric(cos[ok], eta))
+    return reduce(lambda chunk: np.min(chunk[:, ok] * scale[None, :, None], axis=1)), eta
 
 
 @lru_cache(maxsize=256)

@@ -105,6 +105,7 @@ from scipy.special import erf
 from radiosity.formats.errors import InputError
 from radiosity.formats.material import (
     MAX_EXPONENT,
+    fresnel_dielectric,
     fresnel_kd_limit,
     fresnel_ks_limit,
     schlick_albedo,
@@ -156,23 +157,6 @@ them (``none`` is eta 0, k 1: every wavelength reflected)."""
 
 
 # --- Fresnel -----------------------------------------------------------------------
-
-
-def fresnel_dielectric(cos_i, eta):
-    """Unpolarised Fresnel reflectance of a dielectric interface, exact (Walter 2007, eq. 22).
-
-    cos_i: cosine of the incident angle (its absolute value is used); eta: the relative
-    index (transmitted side over incident side). Total internal reflection gives 1.
-    Arrays broadcast; float64.
-    """
-    c = np.abs(np.asarray(cos_i, dtype=np.float64))
-    g2 = eta * eta - 1.0 + c * c
-    g = np.sqrt(np.maximum(g2, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = (g - c) / (g + c)
-        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-        f = 0.5 * a * a * (1.0 + b * b)
-    return np.where(g2 > 0.0, np.nan_to_num(f, nan=1.0), 1.0)
 
 
 def fresnel_conductor(cos_i, eta, k):

@@ -182,7 +182,7 @@ def test_load_export_gives_the_fit_back(exported):
 def test_scene_extras_hold_the_format_and_the_camera(exported):
     model, _, out = exported
     _, extras = read_with_trimesh(out / FILE)
-    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 7
+    assert extras["format"] == FORMAT == "vlights.fit.gltf" and VERSION == 8
     assert extras["version"] == UNTEXTURED_VERSION == 2  # no textured object, no environment: the version before them
     assert "environment" not in extras
     assert extras["objects"] == list(model.names)
@@ -391,15 +391,15 @@ def test_version_1_files_are_still_read(tmp_path, rng):
             del extras[key]
 
     rewrite_json(path, to_version_1)
-    assert READS == (1, 2, 3, 4, 5, 6, 7)
+    assert READS == (1, 2, 3, 4, 5, 6, 7, 8)
     back = load_export(path)
     assert back.names == model.names and back.emitters == ()
     for a, b in zip(model.objects, back.objects, strict=True):
         assert b.highlight is None and b.probe is None
         for key, want in a.arrays().items():
             assert bits_equal(b.arrays()[key], want), f"{a.name}/{key}"
-    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=8))
-    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4, 5, 6 or 7 file"):
+    rewrite_json(path, lambda header: header["scenes"][0]["extras"].update(version=9))
+    with pytest.raises(InputError, match="is not a vlights.fit.gltf version 1, 2, 3, 4, 5, 6, 7 or 8 file"):
         load_export(path)
 
 

@@ -317,11 +317,16 @@ def test_a_flat_sharp_microfacet_object_is_a_near_mirror_and_a_rough_or_phong_on
 @pytest.mark.gl
 @pytest.mark.parametrize("kind", ["roughplastic", "roughconductor"])
 def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_lobe_s_albedo(gl_context, kind):
-    """Its least radiance per vertex plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w) times
-    what the plane reflects (a green panel, else the environment); its grid is not drawn.
-    Drawn from the grid (near mirrors off), it is not that."""
+    """Its own part plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w) times what the plane
+    reflects (a green panel, else the environment); its grid is not drawn. Its own part: a
+    conductor's least radiance per vertex; a plastic's substrate, the least of radiance /
+    (1 - F) over the grid's directions at least 0.3 from grazing, times 1 - F(n . w) (the
+    exact Fresnel of the oracle, radiosity.scene.microfacet). The fitted display draws the
+    same from the part fit.npz keeps (version 10). Drawn from the grid (near mirrors off),
+    it is not that."""
     from radiosity.formats.ltc import lobe_albedo
     from radiosity.formats.material import Microfacet
+    from radiosity.scene.microfacet import fresnel_dielectric
 
     material = _near_material(0.01, kind)
     floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, material)
@@ -348,7 +353,13 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
     c = np.clip(-d[..., 2], 0.0, 1.0)
     albedo = lobe_albedo(Microfacet.from_dict(material["microfacet"]), c.ravel()).reshape(*c.shape, 3)
     seen = np.where(sees_panel[..., None], [0.1, 0.8, 0.2], 2.0)
-    expected = 0.05 * np.array([1.0, 0.8, 0.6]) + np.array([0.9, 0.8, 0.7]) * albedo * seen
+    base = 0.05 * np.array([1.0, 0.8, 0.6]) * np.ones(c.shape)[..., None]
+    if kind == "roughplastic":
+        cos = grid_directions(2)[:, 2].astype(np.float64)
+        ok = cos >= 0.3
+        substrate = np.min(grid[0, ok] / (1.0 - fresnel_dielectric(cos[ok], 1.5))[:, None], axis=0)
+        base = substrate * (1.0 - fresnel_dielectric(c, 1.5))[..., None]
+    expected = base + np.array([0.9, 0.8, 0.7]) * albedo * seen
     check = on_floor & ~near_edge
     assert (check & sees_panel).sum() > 50 and (check & ~sees_panel).sum() > 50
     np.testing.assert_allclose(image[check], expected[check], rtol=0.02, atol=0.01)
@@ -356,3 +367,33 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
     grid_drawn = renderer.render(camera, "reference").astype(np.float64)
     assert np.abs(grid_drawn[check] - expected[check]).max() > 0.1
     renderer.release()
+    model = fit(solution, FitOptions.for_quality("draft"))
+    assert model.version == 10 and model.object("floor").near_base is not None
+    assert model.object("floor").near_eta == (1.5 if kind == "roughplastic" else 0.0)
+    fitted = Renderer(gl_context, fit=model, samples=1)
+    assert fitted.near_mirrors  # on by default
+    np.testing.assert_allclose(fitted.render(camera, "fitted")[check], expected[check], rtol=0.02, atol=0.01)
+    fitted.release()
+
+
+def test_a_fit_keeps_a_near_mirror_s_own_part_and_reads_it_back(tmp_path):
+    """fit.npz version 10: the part ``radiosity.formats.material.near_base`` takes from the
+    solution's grid, with the object's microfacet model; read back the same. A rough one
+    (above NEAR_MIRROR_ALPHA) keeps none, and its fit is version 8 or lower."""
+    from display.mirror import NEAR_MIRROR_ALPHA
+    from radiosity.formats.material import near_base
+
+    floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
+    grid = np.array([0.3, 0.05, 0.2, 0.1])[None, :, None] * np.array([1.0, 0.8, 0.6])
+    floor = replace(floor, radiance=np.tile(grid, (4, 1, 1)))
+    model = fit(Solution(objects=(floor,), scene="near"), FitOptions.for_quality("draft"))
+    want, eta = near_base(floor.material["microfacet"], floor.directions, lambda f: f(np.asarray(floor.radiance, float)))
+    got = model.object("floor")
+    assert eta == 1.5 and got.near_eta == 1.5
+    np.testing.assert_allclose(got.near_base, want, rtol=1e-6)
+    model.save(tmp_path / "fit.npz")
+    back = load_fit(tmp_path / "fit.npz")
+    assert back.version == 10 and np.array_equal(back.object("floor").near_base, got.near_base)
+    assert back.object("floor").near_microfacet == got.near_microfacet
+    rough = replace(floor, material=_near_material(2 * NEAR_MIRROR_ALPHA))
+    assert fit(Solution(objects=(rough,), scene="near"), FitOptions.for_quality("draft")).version <= 8

@@ -81,3 +81,29 @@ def test_a_masked_leaf_shows_what_lies_behind_its_holes(gl_context, rng, side):
     fitted = Renderer(gl_context, fit=model, samples=1)
     np.testing.assert_allclose(fitted.render(camera, "fitted")[..., 0][sure], expected[sure], atol=1e-4)
     fitted.release()
+
+
+def test_the_export_keeps_a_mask_as_its_images_alpha_and_reads_it_back(tmp_path, rng, cli):
+    """glTF version 8: a masked object's image is RGBA, its material's alphaMode MASK at the
+    cut-off; ``load_export`` gives the mask back exactly (8-bit codes) and the white
+    texture spread to the mask's size. A mask the size of neither its texture nor 1 x 1 is
+    left out, and the command names the object."""
+    from dataclasses import replace
+
+    from display.export import export_glb, file_version, load_export
+
+    mask = _mask(rng)
+    solution = Solution(objects=(_leaf(mask, True), _quad("floor", 0.0, 4.0, 1.0, True)), scene="leaf")
+    model = fit(solution, FitOptions.for_quality("draft"))
+    assert file_version(model) == 8
+    (tmp_path / "scene.glb").write_bytes(export_glb(model))
+    back = load_export(tmp_path / "scene.glb").object("leaf").textured
+    assert np.array_equal(back.opacity, mask) and back.texture.shape == (*mask.shape, 3) and (back.texture == 1).all()
+    leaf = model.object("leaf")
+    odd = replace(leaf, textured=replace(leaf.textured, texture=np.full((3, 3, 3), 0.5, np.float32)))
+    other = replace(model, objects=(odd, model.object("floor")))
+    assert file_version(other) < 8
+    other.save(tmp_path / "odd.npz")
+    code, out, err = cli("export", tmp_path / "odd.npz", "-o", tmp_path / "page", "--no-page")
+    assert code == 0, err
+    assert "left out the masks of 1 object(s) (leaf)" in out

@@ -118,7 +118,7 @@ META_CASES = {
     "zero objects": (_set("objects", {}), ["meta 'objects' is empty"]),
     "lights miscounted": (_set_info({"lights": 3}), [f"object {NAME!r}", "3 lights", "hold 2"]),
     "bad camera": (_set("camera", {"eye": [0, 0, 0]}), ["meta 'camera'", "look_at"]),
-    "wrong version": (_set("version", 10), ["version 10"]),
+    "wrong version": (_set("version", 11), ["version 11"]),
     "wrong format": (_set("format", "vlights.solution"), ["format 'vlights.solution'"]),
 }
 
