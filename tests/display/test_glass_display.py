@@ -397,3 +397,29 @@ def test_a_fit_keeps_a_near_mirror_s_own_part_and_reads_it_back(tmp_path):
     assert back.object("floor").near_microfacet == got.near_microfacet
     rough = replace(floor, material=_near_material(2 * NEAR_MIRROR_ALPHA))
     assert fit(Solution(objects=(rough,), scene="near"), FitOptions.for_quality("draft")).version <= 8
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda meta, arrays: meta["objects"]["floor"].pop("near"), "'near': {\"microfacet\""),
+    (lambda meta, arrays: arrays.pop("floor/near_base"), "has no 'floor/near_base'"),
+    (lambda meta, arrays: meta["objects"]["floor"]["near"].update(microfacet={"kind": "felt"}), "a near mirror needs"),
+    (lambda meta, arrays: arrays.update({"floor/near_base": -np.ones((4, 3), np.float32)}), "'near_base' must be"),
+])
+def test_a_fit_with_a_broken_near_mirror_is_refused_in_one_line(tmp_path, change, words):
+    import json
+
+    from radiosity.formats.errors import InputError
+    from radiosity.formats.npz import write_archive
+
+    floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
+    floor = replace(floor, radiance=np.tile(np.array([0.3, 0.05, 0.2, 0.1])[None, :, None] * np.ones(3), (4, 1, 1)))
+    fit(Solution(objects=(floor,), scene="near"), FitOptions.for_quality("draft")).save(tmp_path / "fit.npz")
+    with np.load(tmp_path / "fit.npz", allow_pickle=False) as f:
+        arrays = {k: f[k] for k in f.files if k != "meta"}
+        meta = json.loads(str(f["meta"]))
+    change(meta, arrays)
+    write_archive(tmp_path / "bad.npz", meta, arrays)
+    with pytest.raises(InputError) as refused:
+        load_fit(tmp_path / "bad.npz")
+    message = str(refused.value)
+    assert words in message and "\n" not in message, message

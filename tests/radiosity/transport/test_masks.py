@@ -5,6 +5,7 @@ solver and the path tracer see the same holes as geometry cut to their shape wou
 make, and the files keep the mask (solution and fit version 9).
 """
 
+import json
 import warnings
 
 import imageio.v3 as iio
@@ -218,3 +219,37 @@ def test_a_solution_keeps_the_mask_and_reads_it_back(tmp_path):
                              kd=(1, 1, 1), opacity=np.full((2, 2), 0.3))
     assert smooth.arrays("x")["x/opacity"].dtype == np.float32
     assert np.array_equal(smooth.covered(np.array([[0.5, 0.5]])), [False])
+
+
+def test_a_mask_on_a_mesh_without_texture_coordinates_is_left_out_saying_so(tmp_path):
+    """An OBJ without vt: the mask cannot be read, the shape stays opaque, and the warning
+    names the image."""
+    iio.imwrite(tmp_path / "leaf.png", np.zeros((4, 4, 4), np.uint8))
+    (tmp_path / "leaf.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
+    xml = _leaf_xml(tmp_path).read_text().replace('<shape type="rectangle" id="leaf">',
+                                                  '<shape type="obj" id="leaf"><string name="filename" value="leaf.obj"/>')
+    (tmp_path / "scene.xml").write_text(xml)
+    scene, messages = _load(tmp_path / "scene.xml")
+    assert scene.object("leaf").opacity is None
+    assert any("the mesh has no texture coordinates: the mask 'leaf.png' is left out (opaque)" in m for m in messages)
+
+
+@pytest.mark.parametrize("opacity, words", [(np.full((2, 2), 1.5, np.float32), "outside [0, 1]"),
+                                            (np.ones((2, 2, 2), np.float32), "has shape (2, 2, 2)"),
+                                            (np.array([["a"]]), "dtype")])
+def test_a_solution_with_a_bad_mask_is_refused_in_one_line(tmp_path, opacity, words):
+    from radiosity.formats.errors import InputError
+    from radiosity.formats.npz import write_archive
+
+    masked, _ = _scenes()
+    sol = solve(masked, SolveOptions(photons=5_000, max_edge=1.0, seed=1))
+    sol.save(tmp_path / "s.npz")
+    with np.load(tmp_path / "s.npz", allow_pickle=False) as f:
+        arrays = {k: f[k] for k in f.files if k != "meta"}
+        meta = json.loads(str(f["meta"]))
+    arrays["leaf/opacity"] = opacity
+    write_archive(tmp_path / "bad.npz", meta, arrays)
+    with pytest.raises(InputError) as refused:
+        load_solution(tmp_path / "bad.npz")
+    message = str(refused.value)
+    assert words in message and "leaf" in message and "\n" not in message, message
