@@ -84,7 +84,7 @@ import numpy as np
 
 from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, read_input_bytes
+from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, check_input_file, read_input_bytes
 from radiosity.formats.material import MAX_ALPHA, MIN_ALPHA, Glass, Microfacet, fresnel_kd_limit, srgb_to_linear
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.environment import Environment, read_environment_image
@@ -98,6 +98,8 @@ from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MOD
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
 MAX_INCLUDES = 16  # nested <include> depth
+MAX_INCLUDED = 256  # <include>s read in all (each including the next ten times, eight deep, is 10^8 of them)
+MAX_SHAPES = 20_000  # shapes placed in all, instances' shapes included (the collection's largest places 655)
 DEFAULT_FILM = (768, 576)  # Mitsuba's hdrfilm
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba 0.6's perspective camera
 
@@ -200,6 +202,7 @@ class _Document:
                 if name is None or value is None:
                     raise node.fail("needs 'name' and 'value'")
                 self.params.setdefault(name, value)
+        self.included = 0
         self.elements = self._expand(root.children, 0)
         if self.major < 2:
             _upgrade(self.elements)
@@ -208,7 +211,10 @@ class _Document:
         self.ids = {}
         for node in self._walk(self.elements):
             if "id" in node.attrs and node.tag != "ref":
-                self.ids.setdefault(node.attrs["id"], node)
+                first = self.ids.setdefault(node.attrs["id"], node)
+                if first is not node:  # Mitsuba refuses a second element of one id too
+                    raise node.fail(f"id {node.attrs['id']!r} is given twice (first at {first.where})")
+        self.building = set()  # the <bsdf> elements whose surfaces are being made (a cycle of refs meets one)
 
     def _walk(self, nodes):
         for node in nodes:
@@ -240,6 +246,9 @@ class _Document:
                 name = node.attrs.get("filename")
                 if not name:
                     raise node.fail("needs a 'filename'")
+                self.included += 1
+                if self.included > MAX_INCLUDED:
+                    raise node.fail(f"more than {MAX_INCLUDED} <include>s in all (a scene including files over and over)")
                 included = _parse_xml(self.resolve(node, name))
                 out += self._expand(included.children, depth + 1)
             else:
@@ -250,6 +259,12 @@ class _Document:
         """A file a scene element names, relative to the scene's directory; InputError
         naming it, and every other file the scene names that is missing too."""
         path = self.base / name
+        if path.exists() or path.is_symlink():  # there, but maybe not a file one can read (the input check says)
+            try:
+                check_input_file(path, "file")
+            except InputError as exc:
+                raise node.fail(str(exc)) from None
+            return path
         if not path.is_file():
             others = [n for n in self._missing_files() if n != name]
             n = len(others)
@@ -955,7 +970,13 @@ def _surface(doc, node):
     node = doc.deref(node, ("bsdf",))
     key = id(node)
     if key not in doc.surfaces:
-        doc.surfaces[key] = _make_surface(doc, node)
+        if key in doc.building:
+            raise node.fail("refers to itself (a cycle of bsdfs through <ref>)")
+        doc.building.add(key)
+        try:
+            doc.surfaces[key] = _make_surface(doc, node)
+        finally:
+            doc.building.discard(key)
     return doc.surfaces[key]
 
 
@@ -1180,6 +1201,7 @@ class _Reader:
         self.lights = []  # delta lights (``radiosity.scene.lights``)
         self.camera = None
         self.names = set()
+        self.placed = 0  # shapes placed, instances' shapes counted (``MAX_SHAPES``)
         self.environment = None
 
     def read(self):
@@ -1209,20 +1231,26 @@ class _Reader:
         self.names.add(name)
         return name
 
-    def _shape(self, node, outer):
+    def _shape(self, node, outer, groups=()):
         kind = node.attrs.get("type")
         props = _Props(self.doc, node)
         if kind == "shapegroup":
             return  # drawn where an instance places it
+        self.placed += 1
+        if self.placed > MAX_SHAPES:
+            raise node.fail(f"more than {MAX_SHAPES:,} shapes in all, instances' shapes counted (nested instances "
+                            "multiply)")
         if kind == "instance":
             group = [t for t in props.unnamed if t.tag == "shape" and t.attrs.get("type") == "shapegroup"]
             group += [t for _, t in props.named.values() if t.tag == "shape" and t.attrs.get("type") == "shapegroup"]
             if not group:
                 raise node.fail("needs a <ref> to a shapegroup")
+            if any(group[0] is g for g in groups):
+                raise node.fail("instances the shapegroup it is in (a cycle of instances)")
             place = outer @ props.transform("to_world")
             for child in group[0].children:
                 if child.tag == "shape":
-                    self._shape(child, place)
+                    self._shape(child, place, (*groups, group[0]))
             return
         bsdfs = [t for t in props.unnamed if t.tag == "bsdf"]
         surface = _surface(self.doc, bsdfs[0]) if bsdfs else _Surface()
@@ -1394,6 +1422,8 @@ def _camera(doc, node):
     if films:
         film = _Props(doc, films[0])
         width, height = film.integer("width", width), film.integer("height", height)
+        if width < 1 or height < 1:
+            raise films[0].fail(f"a film of {width} x {height} pixels: its width and height must be at least 1")
     fov = props.float("fov")
     if fov is None:
         focal = props.string("focal_length", f"{DEFAULT_FOCAL_LENGTH_MM}mm")
