@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import warnings
 
@@ -239,11 +240,12 @@ def _read_npy(data):
         raise _Bad("holds Python objects, not numbers (refused: reading them would run code)")
     if len(shape) in (2, 3) and max(shape[:2]) > MAX_IMAGE_SIDE:
         raise _Bad(f"is {shape[1]}x{shape[0]} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
-    need = int(np.prod(shape)) * dtype.itemsize
+    count = math.prod(int(n) for n in shape)  # Python's integers: a header's shape may overflow int64
+    need = count * dtype.itemsize
     if len(data) - stream.tell() < need:
         raise _Bad(f"is truncated: an array of shape {shape} needs {need} bytes of data, it has "
                    f"{len(data) - stream.tell()}")
-    array = np.frombuffer(data, dtype, int(np.prod(shape)), stream.tell())
+    array = np.frombuffer(data, dtype, count, stream.tell())
     return array.reshape(shape, order="F" if fortran else "C")
 
 

@@ -98,6 +98,7 @@ ARRAY_KEYS = ("positions", "normals", "tangents", "faces", "directions", "radian
 _MATERIAL_KEYS = ("diffuse", "specular", "exponent", "emission")
 _OPTIONAL_MATERIAL_KEYS = ("fresnel", "microfacet", "glass")  # Schlick's F0; a microfacet model (6); glass (7)
 _UNIT_TOLERANCE = 1e-4  # |direction| within this of 1
+_FRAME_TOLERANCE = 1e-3  # a normal's or tangent's length may differ from 1 by this (float32 files hold 1e-7)
 _GRID_TOLERANCE = 1e-5  # stored directions within this of the contract's grid
 
 
@@ -236,6 +237,13 @@ class ObjectSolution:
         for key in ("positions", "normals", "tangents"):
             if not np.isfinite(getattr(self, key)).all():
                 raise _Invalid(f"'{name}/{key}' contains NaN or infinite values")
+        for key in ("normals", "tangents"):  # a zero one has no frame: every shading formula divides by it
+            length = np.linalg.norm(getattr(self, key).astype(np.float64), axis=1)
+            bad = np.abs(length - 1.0) > _FRAME_TOLERANCE
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise _Invalid(f"'{name}/{key}' has a vector of length {length[i]:.6g} at vertex {i}: "
+                               f"{key} must be unit vectors")
         if f.shape[0] == 0:
             raise _Invalid(f"'{name}/faces' is empty: object '{name}' has no faces")
         low, high = int(given_faces.min()), int(given_faces.max())

@@ -92,6 +92,9 @@ def check_texture(texture, uvs, n_vertices, where):
             raise InputError(f"{where}: texture coordinates must be (V, 2) for its {n_vertices} vertices, got {uvs.shape}")
         if not np.isfinite(uvs).all():
             raise InputError(f"{where}: texture coordinates must be finite")
+        if len(uvs) and np.abs(uvs).max() > MAX_UV:
+            raise InputError(f"{where}: texture coordinates reach {np.abs(uvs).max():.3g}, beyond the +-{MAX_UV:g} "
+                             "a texture repeats to in single precision")
     if texture is None:
         return None, uvs
     if uvs is None:
@@ -104,6 +107,7 @@ def check_texture(texture, uvs, n_vertices, where):
     return texture, uvs
 
 
+MAX_UV = 1e6  # texture coordinates beyond this are refused: float32 keeps 1/16 of a repeat there, no texel
 CUTOFF = OPACITY_CUTOFF  # a mask's opacity below this is a hole, at and above it the surface (an alpha test)
 
 

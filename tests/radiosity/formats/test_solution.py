@@ -661,3 +661,16 @@ def test_two_textures_whose_stamps_agree_are_still_compared_whole(tmp_path, monk
     monkeypatch.setattr(npz.Archive, "stored_as", lambda self, key: (0, 0))
     got = [o.textured.texture for o in load_solution(path).objects]
     assert got[0] is not got[1] and np.array_equal(got[0], a) and np.array_equal(got[1], b)
+
+
+@pytest.mark.parametrize("key, value, length", [("normals", 0.0, "0"), ("tangents", 0.5, "0.866025"),
+                                                ("normals", 2.0, "3.4641")])
+def test_normals_and_tangents_must_be_unit_vectors(tmp_path, solution, key, value, length):
+    """A zero normal (a held-out input that ended in numba's SystemError when drawn) and
+    any other length are refused in one line naming the vertex."""
+    meta, arrays = contents(solution)
+    broken = arrays[f"{GLOSSY_NAME}/{key}"].copy()
+    broken[1] = value
+    arrays[f"{GLOSSY_NAME}/{key}"] = broken
+    refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{GLOSSY_NAME}/{key}' has a vector of length {length}",
+            "at vertex 1", "must be unit vectors")

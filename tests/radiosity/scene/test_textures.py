@@ -210,6 +210,19 @@ def test_a_texture_on_a_mesh_without_uvs_is_refused_in_one_line(tmp_path):
         load_scene(tmp_path / "s.toml")
 
 
+@pytest.mark.parametrize("value", ["1e300", "2e6", "-1.5e6"])
+def test_texture_coordinates_beyond_a_million_are_refused_in_one_line(tmp_path, value):
+    """A held-out input: an OBJ's vt of 1e300 ended in scipy's ValueError in the weld."""
+    _asymmetric_png(tmp_path)
+    (tmp_path / "m.obj").write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt {value} 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="x")).replace(
+        'builtin = "x"', 'mesh = "m.obj"'))
+    with pytest.raises(InputError) as refused:
+        load_scene(tmp_path / "s.toml")
+    message = str(refused.value)
+    assert "texture coordinates reach" in message and "beyond the +-1e+06" in message and "\n" not in message
+
+
 def test_a_missing_texture_is_refused_in_one_line(tmp_path):
     (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="quad")))
     with pytest.raises(InputError, match=r"\[materials.picture\].*not found"):
