@@ -293,6 +293,37 @@ def test_an_mtl_whose_texture_exists_does_not_warn(tmp_path):
     assert scene.objects[0].texture is not None
 
 
+@pytest.mark.parametrize("uvs", [True, False])
+def test_a_truncated_mtl_texture_is_refused_in_one_line(tmp_path, capsys, uvs):
+    """A held-out input: the PNG's first half ended in pillow's OSError (read as a texture,
+    or for its mean colour on a mesh without texture coordinates)."""
+    from PIL import Image
+
+    Image.fromarray((np.random.default_rng(1).random((64, 64, 3)) * 255).astype(np.uint8)).save(tmp_path / "t.png")
+    whole = (tmp_path / "t.png").read_bytes()
+    (tmp_path / "t.png").write_bytes(whole[:len(whole) // 2])
+    code, _, err = run(["scene-info", _obj_with_mtl(tmp_path, "t.png", uvs=uvs)], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "material 'red': texture: cannot read the image: image file is truncated" in err
+
+
+def test_a_truncated_gltf_texture_is_refused_in_one_line(tmp_path, capsys):
+    import trimesh
+    from PIL import Image
+
+    Image.fromarray((np.random.default_rng(1).random((64, 64, 3)) * 255).astype(np.uint8)).save(tmp_path / "t.png")
+    mesh = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [0, 1, 0]], faces=[[0, 1, 2]], process=False)
+    material = trimesh.visual.material.PBRMaterial(name="tex", baseColorTexture=Image.open(tmp_path / "t.png"))
+    mesh.visual = trimesh.visual.TextureVisuals(uv=[[0, 0], [1, 0], [0, 1]], material=material)
+    data = mesh.export(file_type="glb")
+    start, end = data.find(b"\x89PNG"), data.find(b"IEND")
+    half = start + (end - start) // 2
+    (tmp_path / "t.glb").write_bytes(data[:half] + bytes(end - half) + data[end:])
+    code, _, err = run(["scene-info", tmp_path / "t.glb"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "material 'tex': texture: cannot read the image" in err
+
+
 def test_a_texture_that_is_a_fifo_is_refused_not_waited_for(tmp_path):
     os.mkfifo(tmp_path / "wood.png")
     _unblock_fifo_later(tmp_path / "wood.png")

@@ -43,11 +43,12 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from PIL import Image
 
 from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
-from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit, srgb_to_linear
+from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit
 from radiosity.formats.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
 from radiosity.formats.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
 from radiosity.scene import builtins, geometry
@@ -482,12 +483,18 @@ def _load_mesh_scene(path):
     return Scene(name=path.stem, objects=tuple(objects), camera=None, source=where)
 
 
-def _mean_texture_colour(image):
-    """Mean linear RGB of a PIL image (sRGB-encoded), or None."""
+def _image_texture(image, where):
+    """A mesh file's PIL image (trimesh opens it, and decodes it only when asked) as a
+    texture (``texture_from_image``: its size checked before it is decoded), or None;
+    InputError naming ``where`` for an image that cannot be decoded (a truncated PNG)."""
     if image is None:
         return None
-    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
-    return srgb_to_linear(rgb).reshape(-1, 3).mean(axis=0)
+    try:
+        return texture_from_image(image, where)
+    except InputError:
+        raise
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
+        raise InputError(f"{where}: cannot read the image: {' '.join(str(exc).split())}") from None
 
 
 def _mapped_surface(mesh, where, images):
@@ -510,7 +517,9 @@ def _mapped_surface(mesh, where, images):
     pbr = isinstance(mat, trimesh.visual.material.PBRMaterial)
     image = getattr(mat, "baseColorTexture" if pbr else "image", None)
     uvs = mesh_uvs(mesh) if image is not None else None
-    mean = _mean_texture_colour(image)
+    texture = images.get(name) if image is not None and uvs is not None else None
+    texture = texture if texture is not None else _image_texture(image, f"{here}texture")
+    mean = None if texture is None else texture.reshape(-1, 3).mean(axis=0, dtype=np.float64)
     if image is not None and uvs is None:
         fallback = f"{name} (mean texture)"
         if fallback not in images:
@@ -527,7 +536,7 @@ def _mapped_surface(mesh, where, images):
     if not textured:
         return mapped, None, None
     if images.get(name) is None:
-        images[name] = texture_from_image(image, f"{here}texture")
+        images[name] = texture
     return mapped, images[name], uvs
 
 
