@@ -99,6 +99,7 @@ __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 
 MAX_INCLUDES = 16  # nested <include> depth
 MAX_INCLUDED = 256  # <include>s read in all (each including the next ten times, eight deep, is 10^8 of them)
+MAX_SERIALIZED_VERTICES = 1 << 25  # a serialized shape claiming more (33.5 M) is refused before it is inflated
 MAX_SHAPES = 20_000  # shapes placed in all, instances' shapes included (the collection's largest places 655)
 DEFAULT_FILM = (768, 576)  # Mitsuba's hdrfilm
 DEFAULT_FOCAL_LENGTH_MM = 50.0  # Mitsuba 0.6's perspective camera
@@ -775,22 +776,34 @@ def read_serialized(data, index=0, where="serialized"):
     if magic != _SERIALIZED_MAGIC or version not in (3, 4):
         raise InputError(f"{where}: shape {index} does not start with the serialized mesh header")
     try:
+        head = zlib.decompressobj().decompress(data[start + 4:end], 4096)  # its counts, before the rest is inflated
+        _serialized_counts(head, version == 4, where)
         body = zlib.decompressobj().decompress(data[start + 4:end], MESH_BYTES)
     except zlib.error as exc:
         raise InputError(f"{where}: shape {index}'s compressed data is damaged ({exc})") from None
     return _serialized_body(body, version == 4, where)
 
 
-def _serialized_body(body, named, where):
+def _serialized_counts(head, named, where):
+    """(flags, vertex count, triangle count, where the arrays start) of a shape's
+    inflated header; InputError where it is cut short or claims more than
+    ``MAX_SERIALIZED_VERTICES`` vertices or twice as many triangles."""
     try:
-        (flags,) = struct.unpack_from("<I", body, 0)
+        (flags,) = struct.unpack_from("<I", head, 0)
         at = 4
         if named:
-            at = body.index(b"\0", at) + 1
-        n_vertices, n_faces = struct.unpack_from("<QQ", body, at)
+            at = head.index(b"\0", at) + 1
+        n_vertices, n_faces = struct.unpack_from("<QQ", head, at)
     except (struct.error, ValueError):
         raise InputError(f"{where}: the shape's header is cut short") from None
-    at += 16
+    if n_vertices > MAX_SERIALIZED_VERTICES or n_faces > 2 * MAX_SERIALIZED_VERTICES:
+        raise InputError(f"{where}: the shape claims {n_vertices:,} vertices and {n_faces:,} triangles, more than the "
+                         f"{MAX_SERIALIZED_VERTICES:,} vertices (and twice as many triangles) a mesh may have")
+    return flags, n_vertices, n_faces, at + 16
+
+
+def _serialized_body(body, named, where):
+    flags, n_vertices, n_faces, at = _serialized_counts(body, named, where)
     real = np.float64 if flags & _DOUBLE else np.float32
     index = np.uint64 if n_vertices > 2**32 else np.uint32
     sizes = [("positions", 3, real), ("normals", 3 if flags & _HAS_NORMALS else 0, real),

@@ -471,6 +471,9 @@ def damaged_files():
     bad_index = zlib.compress(struct.pack("<I", 0x1000) + b"x\0" + struct.pack("<QQ", 3, 1)
                               + np.zeros((3, 3), "<f4").tobytes() + np.array([0, 1, 3], "<u4").tobytes())
     no_name_end = zlib.compress(struct.pack("<I", 0x1000) + b"no end to this name")
+    squeeze = zlib.compressobj(9)
+    inflating = squeeze.compress(struct.pack("<I", 0x1000) + b"x\0" + struct.pack("<QQ", 10**8, 10**8))
+    inflating += squeeze.compress(bytes(1 << 24)) + squeeze.flush()
     return {
         "empty": (b"", "too short"),
         "not serialized": (b"PK\x03\x04" + good[4:], "not a Mitsuba serialized mesh"),
@@ -484,6 +487,8 @@ def damaged_files():
         "too few bytes": (serialized_file([first[:4] + short_body]), "need"),
         "no vertex": (serialized_file([first[:4] + bad_index]), "vertex that does not exist"),
         "name without end": (serialized_file([first[:4] + no_name_end]), "cut short"),
+        # 10^8 vertices of zeros: a few hundred KB that would inflate to gigabytes (a held-out input)
+        "inflates": (serialized_file([first[:4] + inflating]), "claims 100,000,000 vertices"),
     }
 
 
