@@ -92,8 +92,20 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
+_SIGNALLED = []  # the interruptions that reached this run, as their exceptions (``_interruption``)
+
+
 def _raise_terminated(signum, _frame):
-    raise Terminated(signum)
+    _SIGNALLED.append(Terminated(signum))
+    raise _SIGNALLED[-1]
+
+
+def _raise_interrupt(signum, frame):
+    """Ctrl-C as Python's own handler raises it, remembered: an extension module being
+    imported when it comes (scipy's) reports it as "ImportError: initialization failed",
+    with nothing that says a KeyboardInterrupt was behind it."""
+    _SIGNALLED.append(KeyboardInterrupt())
+    signal.default_int_handler(signum, frame)
 
 
 def _install_signal_handlers(previous):
@@ -102,22 +114,30 @@ def _install_signal_handlers(previous):
     signal in between leaves none unrestored)."""
     if threading.current_thread() is not threading.main_thread():
         return
+    _SIGNALLED.clear()
     for name in ("SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
             signum = getattr(signal, name)
             previous[signum] = signal.getsignal(signum)
             signal.signal(signum, _raise_terminated)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where the caller chose to ignore it
+        previous[signal.SIGINT] = signal.default_int_handler
+        signal.signal(signal.SIGINT, _raise_interrupt)
 
 
 def _interruption(exc):
     """The KeyboardInterrupt behind ``exc``, if a Ctrl-C surfaced wrapped inside another
-    exception (numba and scipy's Fortran can report one as a SystemError)."""
+    exception (numba and scipy's Fortran can report one as a SystemError), or an
+    ImportError from an extension module that a signal stopped while it was imported."""
     seen = set()
+    first = exc
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):
             return exc
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
+    if isinstance(first, ImportError) and _SIGNALLED:
+        return _SIGNALLED[-1]
     return None
 
 

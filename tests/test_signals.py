@@ -10,6 +10,7 @@ import re
 import signal
 import sys
 import textwrap
+import time
 
 import pytest
 from child_process import Child, vlights
@@ -144,3 +145,40 @@ def test_a_signal_between_the_imports_and_the_commands_handler_is_one_line(monke
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert capsys.readouterr().err.strip().splitlines() == [said]
+
+
+def test_an_import_that_a_ctrl_c_stopped_is_an_interruption(monkeypatch, capsys):
+    """An extension module stopped by Ctrl-C while it is imported (scipy's, 1.6 s into
+    ``vlights fit``) reports "ImportError: initialization failed" with no KeyboardInterrupt
+    behind it: the signal handler remembers it, and the run ends as interrupted (130, one
+    line), not in a traceback. An ImportError with no signal stays an error."""
+    import argparse
+    import os
+
+    from display import cli
+
+    def parser_with(func):
+        parser = argparse.ArgumentParser(prog="vlights")
+        sub = parser.add_subparsers(dest="command")
+        sub.add_parser("fit").set_defaults(func=func)
+        return lambda: parser
+
+    def stopped_import(_args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt:  # what the extension's init does with it
+            pass
+        raise ImportError("initialization failed")
+
+    monkeypatch.setattr(cli, "build_parser", parser_with(stopped_import))
+    assert cli.main(["fit"]) == 130
+    assert capsys.readouterr().err == "vlights fit: interrupted\n"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+    def broken_import(_args):
+        raise ImportError("no module named nowhere")
+
+    monkeypatch.setattr(cli, "build_parser", parser_with(broken_import))
+    with pytest.raises(ImportError):
+        cli.main(["fit"])
