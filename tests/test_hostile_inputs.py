@@ -324,6 +324,53 @@ def test_a_truncated_gltf_texture_is_refused_in_one_line(tmp_path, capsys):
     assert "material 'tex': texture: cannot read the image" in err
 
 
+def _png_header(width, height):
+    """A PNG's signature and IHDR (8-bit RGB) and an empty IEND: a picture's size, no pixels."""
+    import struct
+    import zlib
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) + chunk(b"IEND", b"")
+
+
+@pytest.mark.parametrize("content, why", [(b"hello, I am text", "is not an image this reads"),
+                                          (_png_header(20000, 20000), "is a picture of more than the 67,108,864")])
+def test_an_mtl_texture_that_is_no_usable_image_warns(tmp_path, content, why):
+    """Held-out inputs: a text file named .png, and a 20000 x 20000 PNG ("bomb"), were
+    dropped by trimesh without a word. A picture pillow opens but too large for a
+    texture is refused in one line, as a scene's texture is."""
+    (tmp_path / "t.png").write_bytes(content)
+    with pytest.warns(SceneWarning, match=f"the image 't.png' it names {why}"):
+        scene = load_scene(_obj_with_mtl(tmp_path, "t.png", uvs=True))
+    assert scene.objects[0].texture is None and scene.objects[0].material.diffuse[0] == pytest.approx(0.8)
+    (tmp_path / "t.png").write_bytes(_png_header(9000, 9000))
+    with pytest.raises(InputError, match="the texture is 9000 x 9000 pixels, more than the 67,108,864 allowed"):
+        load_scene(_obj_with_mtl(tmp_path, "t.png", uvs=True))
+
+
+@pytest.mark.parametrize("image, why", [("missing.png", "is not found"), ("text.png", "is not an image this reads")])
+def test_a_gltf_image_that_is_missing_or_no_image_warns(tmp_path, image, why):
+    """A held-out input: a glTF's missing texture was dropped without a word."""
+    import trimesh
+    from PIL import Image
+
+    Image.new("RGB", (4, 4)).save(tmp_path / "ok.png")
+    (tmp_path / "text.png").write_text("hello, I am text")
+    mesh = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [0, 1, 0]], faces=[[0, 1, 2]], process=False)
+    material = trimesh.visual.material.PBRMaterial(name="tex", baseColorTexture=Image.open(tmp_path / "ok.png"))
+    mesh.visual = trimesh.visual.TextureVisuals(uv=[[0, 0], [1, 0], [0, 1]], material=material)
+    files = mesh.export(file_type="gltf")
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+    tree = json.loads((tmp_path / "model.gltf").read_text())
+    tree["images"][0] = {"uri": image}
+    (tmp_path / "model.gltf").write_text(json.dumps(tree))
+    with pytest.warns(SceneWarning, match=f"the image '{image}' it names {why}"):
+        load_scene(tmp_path / "model.gltf")
+
+
 def test_a_texture_that_is_a_fifo_is_refused_not_waited_for(tmp_path):
     os.mkfifo(tmp_path / "wood.png")
     _unblock_fifo_later(tmp_path / "wood.png")

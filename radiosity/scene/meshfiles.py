@@ -20,6 +20,7 @@ import trimesh
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.formats.inputs import MESH_BYTES, check_input_file, loads_json, read_input_bytes
 from radiosity.formats.sniff import MESH_SUFFIXES as _MESH_SUFFIXES
+from radiosity.formats.texture import MAX_TEXTURE_PIXELS
 
 MESH_SUFFIXES = set(_MESH_SUFFIXES)
 
@@ -42,6 +43,9 @@ def _is_binary_stl(data):
     return len(data) >= 84 and len(data) == 84 + 50 * int.from_bytes(data[80:84], "little")
 
 
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tga", ".tif", ".tiff", ".gif", ".webp"}
+
+
 class _Resolver(trimesh.resolvers.FilePathResolver):
     """The files a mesh file refers to, beside it; material libraries decoded as
     ``decode_text`` (trimesh would need charset_normalizer for Latin-1, and silently
@@ -51,11 +55,14 @@ class _Resolver(trimesh.resolvers.FilePathResolver):
     mesh's size, never a FIFO or a device); trimesh swallows what its loaders raise,
     so a refusal is kept in ``problems`` and raised by ``_trimesh_load`` after the
     load. Each MTL's ``map_Kd`` textures that do not exist are kept in ``missing``
-    (MTL, texture) for a SceneWarning: trimesh drops them without a word."""
+    (MTL, texture) for a SceneWarning: trimesh drops them without a word. So are the
+    images it asks for that are not there (a glTF's) or that pillow will not open (a
+    text file named .png, a picture beyond pillow's limit, which trimesh drops), in
+    ``unusable`` (name, why)."""
 
     def __init__(self, source):
         super().__init__(source)
-        self.problems, self.missing = [], []
+        self.problems, self.missing, self.unusable = [], [], []
 
     def get(self, name):
         candidates = (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1])
@@ -74,9 +81,28 @@ class _Resolver(trimesh.resolvers.FilePathResolver):
                     text = decode_text(data)
                     self._note_missing_textures(name, text)
                     return text.encode("utf-8")
+                if os.path.splitext(str(name))[1].lower() in _IMAGE_SUFFIXES:
+                    self._note_unusable_image(name, data)
                 return data
         self.absolute(name)  # raises if the name escapes the mesh's directory
+        if os.path.splitext(str(name))[1].lower() in _IMAGE_SUFFIXES:
+            self.unusable.append((name, "not found"))
         raise FileNotFoundError(name)
+
+    def _note_unusable_image(self, name, data):
+        from PIL import Image
+
+        try:
+            with Image.open(io.BytesIO(data)):
+                pass  # a picture it opens is kept, and a large one refused with the texture (``textures``)
+        except Image.UnidentifiedImageError:
+            self.unusable.append((name, "not an image this reads"))
+            return
+        except Image.DecompressionBombError:  # pillow's own limit, far above ours
+            self.unusable.append((name, f"a picture of more than the {MAX_TEXTURE_PIXELS:,} pixels allowed"))
+            return
+        except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
+            self.unusable.append((name, f"not an image this reads ({' '.join(str(exc).split())})"))
 
     def _note_missing_textures(self, mtl, text):
         for line in text.splitlines():
@@ -145,6 +171,11 @@ def trimesh_load(path, where, **kwargs):
             SceneWarning,
             stacklevel=3,
         )
+    named = {texture for _, texture in resolver.missing}
+    for image, why in dict.fromkeys(resolver.unusable):
+        if image not in named:
+            warnings.warn(f"{where}: the image {image!r} it names is {why}: left out, its material's colour "
+                          "taken without it", SceneWarning, stacklevel=3)
     return loaded
 
 
