@@ -10,7 +10,7 @@ Headless (EGL; on machines without a GPU, Mesa llvmpipe on the CPU), at 1280 x 7
      (cornell-teapot, draft solve, K = 8 fit) and for a scene of about 1 M triangles
      (the teapot tessellated at 128 segments per patch side, 8 synthetic lights, a
      synthetic 6 x 6 direction grid for the reference mode); and for each scene the
-     fitted model turned into Contract 2 version 2's other kind (``variant``: the K = 8
+     fitted model turned into fit.npz version 2's other kind (``variant``: the K = 8
      lights as point lights, one coefficient per light and vertex, (V, 8, 3)), whose
      coefficients the shaders read from a texture by vertex id;
   2. bytes each mode needs on the GPU;

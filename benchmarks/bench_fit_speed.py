@@ -1,4 +1,4 @@
-"""How long does fitting the demo teapot take, against the issue's targets?
+"""How long does fitting the demo teapot take, against its targets?
 
     python benchmarks/bench_fit_speed.py [--solution S.npz] [--repeats 3]
 

@@ -20,7 +20,7 @@ qualities; scale_dask.jsonl for a run with the stages solve-dask or fit-dask, so
 on a Dask LocalCluster of this machine, threads against Dask): one row per size and stage
 (seconds, peak MB),
 and the log-log slope of each stage's time and memory between consecutive sizes (the
-issue's target: <= 1.15 between 10^5 and 10^6); and the plot scale.png (scale_medium.png,
+target: <= 1.15 between 10^5 and 10^6); and the plot scale.png (scale_medium.png,
 ...): each stage's seconds and peak memory against triangles, log-log, slopes labelled, the
 targets drawn (``--plot-only`` draws it again from the results file).
 """

@@ -1,5 +1,5 @@
 """The display stage: rendering, the walkthrough, comparisons, export and the ``vlights``
-dispatcher (shared/DESIGN.md).
+dispatcher (docs/layout.md).
 
 display defines no numba kernel: the kernels it runs come from radiosity and fitting, whose
 ``__init__`` key numba's cache on every source file a kernel may inline

@@ -1,4 +1,4 @@
-"""``vlights export``: a fitted model (fit.npz, Contract 2 version 3 to 6) as a binary glTF,
+"""``vlights export``: a fitted model (fit.npz) as a binary glTF,
 ``DIR/scene.glb``, and a WebGL walkthrough of it, ``DIR/index.html`` (the page and the
 three.js modules it needs, copied from ``display/web``, the renderer's shader files from
 ``display/shaders`` into ``DIR/shaders``, and ``shading.js``, the ``#define`` lines of the
@@ -53,7 +53,7 @@ textures and environments):
   (a float texture) is rounded: its sRGB encoding to the nearest of the 256 codes;
 - the mesh's ``extras``: ``{"name", "lights": K, "per_light": bool, "light_pos":
   K x [x, y, z, w], "light_rgb": K x [r, g, b], "shininess": [K numbers]}``, with
-  ``light_pos`` as in Contract 2 (w = 0: a unit vector towards a distant light, w = 1:
+  ``light_pos`` as in fit.npz (w = 0: a unit vector towards a distant light, w = 1:
   a point light's world position); and where the object has them
   ``"highlight": {"ks": [r, g, b], "exponent": p}`` (its modified-Phong specular part)
   and ``"probe": {"size": M, "centre": [x, y, z], "box": [[lo], [hi]], "albedo":
@@ -64,7 +64,7 @@ textures and environments):
 - the scene's ``extras``: ``{"format": "vlights.fit.gltf", "version": 2 to 5, "source",
   "model", "objects": [names], "emitters": [P parts, as fit.npz's meta],
   "emitter_nodes": N, "emitter_table": P x [TABLE_WIDTH * 4 numbers], "camera": {"eye",
-  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, Contract 3's
+  "look_at", "up", "fov_y_deg"}}`` (``camera`` only when the fit has one, the files'
   record as fit.npz has it: with ``fov_deg``, ``fov_axis`` and ``film`` when its field
   of view is along another axis than y, which the page keeps at any window size);
   ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
@@ -84,7 +84,7 @@ and ``albedo``, a textured object's ``kd`` (also its ``baseColorFactor``) and th
 environment's ``scale`` and ``rotation``, which the fit holds as doubles and which are
 written as such.
 
-The shading formula is Contract 2's (``fitting.model.FittedObject.shade``), with these
+The shading formula is fit.npz's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
 ``load_export`` reads the file (version 5, 4: no delta parts, 3: no environment either,

@@ -3,7 +3,7 @@ display mode's error against it.
 
 The path tracer (``radiosity.transport.pathtrace``, reached through
 ``display.pipeline`` as every run of an earlier stage is) renders the solution's own meshes
-and materials (or a scene's), from the same Contract 3 camera, integrating over each
+and materials (or a scene's), from the same camera record, integrating over each
 pixel with a box filter as the antialiased display does. What it cannot know is its
 own noise; ``ground_truth`` therefore traces two independent halves of the samples
 (samples 0 .. N/2 - 1 and N/2 .. N - 1 of each pixel: together exactly the N-sample

@@ -1,4 +1,4 @@
-"""The fitting stage: virtual lights fitted to a solution (Contract 2).
+"""The fitting stage: virtual lights fitted to a solution (fit.npz, docs/formats.md).
 
     fit(solution, FitOptions(...)) -> FittedModel     fit.npz via FittedModel.save, load_fit
     shade(model, name, world_dirs)                    the one reference of the shading formula
@@ -7,7 +7,7 @@
 Modules: ``fit`` (orchestration), ``glossy`` (a glossy object part by part and
 ``--model auto``), ``mixed`` (virtual lights by variable projection), ``probe``, ``paper``
 (section 3.2), ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels),
-``loss``, ``model`` (Contract 2 and ``shade``), ``results``, ``data``, ``baselines``,
+``loss``, ``model`` (fit.npz and ``shade``), ``results``, ``data``, ``baselines``,
 ``cli``; docs/layout.md has the whole map.
 """
 

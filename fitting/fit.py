@@ -1,4 +1,4 @@
-"""The fitting stage: ``fit(solution, options) -> FittedModel`` (Contract 2, version 2).
+"""The fitting stage: ``fit(solution, options) -> FittedModel`` (fit.npz, docs/formats.md).
 
 Per object: diffuse objects keep their radiance as the emitted colour and get no
 lights. Glossy objects get either the paper's fit exactly (``paper``: directional

@@ -149,7 +149,7 @@ def light_sum(normals, views, lights, out):
 
 
 # ---------------------------------------------------------------------------------------
-# Lights of either kind (Contract 2 version 2) and per-light coefficients: the kernels
+# Lights of either kind (fit.npz version 2) and per-light coefficients: the kernels
 # of ``fitting.mixed``. A light is pos[k] = (x, y, z, w): w = 0 a unit direction towards
 # a distant light, w = 1 a point light; at a vertex x the light vector is
 # l = normalize(xyz - w x) (no distance attenuation).

@@ -6,7 +6,7 @@ unit direction xyz, w = 1 a point light at xyz; at vertex x its light vector is
 l = normalize(xyz - w x). A near lamp's highlight moves across a curved object in a way
 no distant light reproduces; a distant light stays directional (three numbers fewer).
 
-The model of one object (Contract 2, version 2):
+The model of one object (fit.npz, version 2):
 
     shared     L(v, w) ~ e_v + s_v * sum_k rgb_k lobe_k(v, w)          (the paper's)
     per-light  L(v, w) ~ e_v + sum_k c_vk lobe_k(v, w)                   (rgb_k = 1)

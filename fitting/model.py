@@ -1,4 +1,4 @@
-"""The fitted model (Contract 2, docs/formats.md) and the one reference of its shading.
+"""The fitted model (fit.npz, docs/formats.md) and the one reference of its shading.
 
 ``fit.npz``, written with ``numpy.savez_compressed``, readable with ``allow_pickle=False``:
 
@@ -671,7 +671,7 @@ def _read_probe(archive, name, info, n_v):
 
 
 def load_fit(path):
-    """Read and check a ``fit.npz`` (Contract 2, any version of ``READS``); a bad file raises
+    """Read and check a ``fit.npz`` (any version of ``READS``); a bad file raises
     InputError with one line naming the file and the key at fault."""
     with open_archive(path, FORMAT, READS) as archive:
         meta, fail = archive.meta, archive.fail

@@ -1,6 +1,6 @@
 """A fitted reflection probe per glossy object: the broad reflections of its surroundings.
 
-The model's probe term (Contract 2 version 3, docs/formats.md) at a surface point x with
+The model's probe term (fit.npz version 3, docs/formats.md) at a surface point x with
 unit normal n seen from the unit direction w:
 
     r    = 2 (n . w) n - w                      the mirror direction
@@ -24,9 +24,9 @@ centres at ((i + 0.5) / M, (j + 0.5) / M), bilinear between the four texels arou
 point, with the octahedron's own continuity across the square's border (``texels``):
 texel (-1, j) is (0, M - 1 - j), (M, j) is (M - 1, M - 1 - j), and likewise in j, x
 wrapped first. The same four texels and weights in the fitter, ``fitting.model`` and
-every display (GLSL ``probe_glsl``): seamless by construction, identical everywhere.
+every display (``display/shaders/probe.glsl``): seamless by construction, identical everywhere.
 
-Fitting (``fit_probe``): the probe enters the per-vertex least squares as one more
+Fitting (``fitting.glossy.fit_probe_part``): the probe enters the per-vertex least squares as one more
 column (its look-up), P is linear given the per-vertex weights, and the weights are
 linear given P: alternating least squares, P on its sparse normal equations with a
 small smoothness term (texels no sample sees take their neighbours' values: finite and

@@ -1,4 +1,4 @@
-"""The radiosity stage: scenes, light transport and the solution file (shared/DESIGN.md)."""
+"""The radiosity stage: scenes, light transport and the solution file (docs/layout.md)."""
 
 from radiosity import jit_cache
 

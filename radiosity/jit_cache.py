@@ -10,7 +10,7 @@ call ``radiosity.scene.materials``, ``radiosity.transport.embree`` and
 decorated) puts ``ProjectCacheLocator`` first among numba's cache locators. For a kernel
 defined under a covered package directory it stamps the cache with a digest of the
 content of every ``.py`` file of that package and of the packages it may import
-(shared/DESIGN.md: radiosity imports neither fitting nor display; fitting imports
+(the README's stage rule: radiosity imports neither fitting nor display; fitting imports
 radiosity; display imports both):
 
     kernels in radiosity/   stamped with radiosity/**.py

@@ -3,6 +3,7 @@ MAX_POSITIONAL positional parameters (records, tuples and keyword-only parameter
 instead), in the packages, the tests and the benchmarks alike."""
 
 import ast
+import re
 from pathlib import Path
 
 MAX_POSITIONAL = 8
@@ -39,3 +40,38 @@ def test_the_scan_counts_positional_parameters_only(tmp_path):
     assert dict(positional_counts(tmp_path, ["pkg"])) == {
         "pkg/m.py:1 f": 9, "pkg/m.py:2 g": 2, "pkg/m.py:4 m": 8, "pkg/m.py:5 lambda": 9,
     }
+
+
+OUTSIDE = re.compile(r"Contract [0-9]|DESIGN\.md|shared/|\bissues? [0-9#]|\bthe issue's\b|another branch", re.IGNORECASE)
+OWN_SUFFIXES = {".py", ".md", ".glsl", ".js", ".html", ".toml"}
+
+
+def outside_references(root):
+    """(file:line, the words) of every line of the project's own files (not the vendored
+    three.js, not this test) that names what lies outside the repository: the founding
+    design document and its contract numbers, an issue by number, another branch."""
+    found = []
+    for path in sorted(root.rglob("*")):
+        rel = path.relative_to(root)
+        if path.suffix not in OWN_SUFFIXES or not path.is_file() or rel.parts[0].startswith(".") \
+                or rel.parts[0] in ("build", "virtual_lights.egg-info") or "three" in rel.parts \
+                or "__pycache__" in rel.parts or path.name == "test_code_shape.py":
+            continue
+        for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            match = OUTSIDE.search(line)
+            if match:
+                found.append(f"{rel}:{number}: {match.group(0)}")
+    return found
+
+
+def test_the_project_speaks_for_itself():
+    """No code, message, test or document names a document outside the repository, a
+    contract by its number there, an issue by number or another branch: the files
+    name docs/formats.md's sections and the files themselves."""
+    assert outside_references(ROOT) == []
+
+
+def test_the_scan_finds_an_outside_reference(tmp_path):
+    (tmp_path / "a.py").write_text('"""The solution (Contract 1)."""\nx = 1  # see issue 12\n')
+    (tmp_path / "b.md").write_text("Fine words.\n")
+    assert outside_references(tmp_path) == ["a.py:1: Contract 1", "a.py:2: issue 1"]

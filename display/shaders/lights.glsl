@@ -1,4 +1,4 @@
-// The virtual lights of Contract 2's shading formula (fitting.model.FittedObject.shade).
+// The virtual lights of fit.npz's shading formula (fitting.model.FittedObject.shade).
 #include "store.glsl"
 #ifdef VL_NO_LIGHTS
 vec3 lights_shade(vec3 n, vec3 x, vec3 w, vec3 emitted, vec3 specular, ivec3 vertices, vec3 weights) { return emitted; }

@@ -1,4 +1,4 @@
-// Contract 2's shading formula (version 3): emitted + lights + probe + the emitters' highlights.
+// fit.npz's shading formula (version 3): emitted + lights + probe + the emitters' highlights.
 // Each part compiles to nothing under #define VL_NO_LIGHTS / VL_NO_PROBE / VL_NO_EMITTERS
 // (programs for objects and modes without it: Mesa's llvmpipe pays for the code of a
 // shader even where a uniform skips it, measured 6-8 times a diffuse frame's time).

@@ -1,7 +1,7 @@
 // The WebGL walkthrough of an exported fit (scene.glb, format "vlights.fit.gltf" v5, v4,
 // v3, v2 or v1; display/export.py and docs/formats.md hold the schema).
 //
-// Shading is Contract 2's formula (version 3) per pixel, as `vlights render --shading
+// Shading is fit.npz's formula (version 3) per pixel, as `vlights render --shading
 // pixel` draws it, with the renderer's own shader files (display/shaders, which `vlights
 // export` copies into shaders/ and this page fetches; the fit's emitter quadrature as
 // #define lines in shading.js): the emitted colour, plus

@@ -5,9 +5,9 @@
 - input files: ``inputs`` (regular files of a sane size, bounded nesting) and the one
   sniffer, ``input_kind`` / ``require_format`` (what a file is: solution, fit, scene, mesh);
 - ``npz``: the one reader and writer of both file contracts, ``file_format``;
-- Contract 1, the solution file: ``Solution``, ``ObjectSolution``, ``load_solution``;
+- the solution file: ``Solution``, ``ObjectSolution``, ``load_solution``;
 - the equal-area direction grid of the solution's directions (``directions``);
-- Contract 3, cameras: ``Camera``, ``camera_from_dict``, ``load_views``;
+- cameras: ``Camera``, ``camera_from_dict``, ``load_views``;
 - the material record (``Material``) the solution's meta carries.
 
 Nothing here imports the scene loaders or the light transport.

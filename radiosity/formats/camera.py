@@ -1,4 +1,4 @@
-"""The one camera type (Contract 3): a pinhole with ``eye``, ``look_at``, ``up``, a
+"""The one camera type (docs/formats.md, "Cameras and views"): a pinhole with ``eye``, ``look_at``, ``up``, a
 field of view ``fov_deg`` along ``fov_axis`` and an image of ``width`` x ``height``
 pixels, pixel centres at half-integers, right-handed world, the image's right being
 cross(forward, up), row 0 at the top.
@@ -106,7 +106,7 @@ class Camera:
         return replace(self, width=width, height=height)
 
     def to_dict(self):
-        """The pose and field of view as JSON-ready values (Contract 3's ``camera``):
+        """The pose and field of view as JSON-ready values (the files' ``camera`` record):
         ``eye``, ``look_at``, ``up`` and ``fov_y_deg``, the vertical field of view at this
         camera's size. A camera whose axis is not y adds ``fov_deg``, ``fov_axis`` and
         ``film`` ([width, height], the size ``fov_y_deg`` is for): a reader that knows
@@ -170,7 +170,7 @@ def camera_from_dict(data, width=512, height=512, where="camera"):
     The field of view is ``fov_y_deg`` (vertical), or ``fov_deg`` along ``fov_axis``
     (FOV_AXES, default y); both only with ``film``, [width, height], the size at which
     ``fov_y_deg`` is the vertical field of view of ``fov_deg`` along ``fov_axis``
-    (Contract 3's record, ``Camera.to_dict``), and they must agree there. The camera's
+    (the files' camera record, ``Camera.to_dict``), and they must agree there. The camera's
     size is ``film`` if given, else ``width`` x ``height``."""
     if not isinstance(data, dict):
         raise InputError(f"{where}: must be a table of eye, look_at, up, fov_y_deg")

@@ -1,6 +1,6 @@
 """The equal-area hemisphere grid on which glossy objects store outgoing radiance.
 
-The contract (shared/DESIGN.md, "Contract 1: the solution file"), verbatim:
+The solution file's convention (docs/formats.md):
 
     Diffuse objects have D = 1 with direction (0, 0, 1). Glossy objects use the n x n
     equal-area hemisphere grid (D = n * n): for cell (i, j), i the column and j the row,

@@ -1,5 +1,5 @@
 """The scene's emitters as the displays draw their glossy reflection ("emitter parts"),
-and the one CPU reference of that reflection (Contract 1 version 2, docs/formats.md).
+and the one CPU reference of that reflection (solution version 2, docs/formats.md).
 
 A glossy surface (modified Phong: ks, exponent p) at x with unit shading normal n,
 seen from the unit direction w (towards the eye), reflects a Lambertian emitter part

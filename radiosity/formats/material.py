@@ -1,4 +1,4 @@
-"""The material record of a scene and of Contract 1's ``meta.materials``: Lambert plus
+"""The material record of a scene and of solution.npz's ``meta.materials``: Lambert plus
 modified Phong (``kd``, ``ks``, ``n``), an optional Fresnel term and an emitted radiance,
 validated on construction. The BRDF's kernels that use it live in
 ``radiosity.scene.materials``.

@@ -1,4 +1,4 @@
-"""Reader and writer of the solution file (shared/DESIGN.md, "Contract 1").
+"""Reader and writer of the solution file (docs/formats.md).
 
 ``solution.npz`` is written with ``numpy.savez_compressed`` and readable with
 ``allow_pickle=False``. Keys:

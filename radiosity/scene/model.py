@@ -57,7 +57,7 @@ class SceneObject:
                 mask with the textured term)
 
     The texture lives on the object, not on its ``Material``: a material is a small
-    validated record of numbers (Contract 1's ``meta.materials``, compared by value,
+    validated record of numbers (solution.npz's ``meta.materials``, compared by value,
     packed into the kernels' table by name), shared by objects that may each map it
     differently; the image belongs beside the uvs that read it. Objects given the
     same image share the array, and the kernels' atlas holds it once.

@@ -1,6 +1,6 @@
 """A path tracer: the ground truth the walkthrough is measured against.
 
-Unidirectional paths from a pinhole camera (Contract 3), next-event estimation on the
+Unidirectional paths from a pinhole camera (``radiosity.formats.camera``), next-event estimation on the
 emitters and the environment (``radiosity.scene.environment``) combined with BRDF sampling by multiple importance sampling (power
 heuristic), and on the delta lights (``radiosity.transport.lights``: points, spots,
 directions, which no ray can hit, so their estimate is unweighted), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter

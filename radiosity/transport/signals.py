@@ -6,7 +6,7 @@ against that: a future's lock is taken in Python code (``threading.Condition.__e
 and ``concurrent.futures.wait`` takes several in a loop), so an exception landing just
 after an acquire leaves the lock held by the main thread; the worker that then finishes
 that future blocks on it forever, and the executor's shutdown waits for that worker
-(CPython issue 20319). ``vlights truth`` hung that way once on SIGTERM.
+(a known limitation of CPython's ``concurrent.futures``, not fixed in the versions this runs on). ``vlights truth`` hung that way once on SIGTERM.
 
 ``HeldSignals`` swaps the handlers of SIGINT, SIGTERM and SIGHUP for one that only
 records the signal (and calls ``wake``, so that a wait can notice), and ``check``

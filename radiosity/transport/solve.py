@@ -300,7 +300,7 @@ def _runner(opts, settings, client):
 
 
 def solve(scene, opts=SolveOptions(), progress=False, client=None):
-    """The view-independent solution of ``scene`` (Contract 1), as a ``Solution``.
+    """The view-independent solution of ``scene`` (solution.npz, docs/formats.md), as a ``Solution``.
 
     ``client`` : a ``distributed.Client`` to run the batches on (else ``opts.scheduler``
     says where). Raises InputError for knobs the machine cannot run (``check_memory``),

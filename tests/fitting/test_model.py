@@ -1,4 +1,4 @@
-"""Contract 2's reader and writer (``load_fit``, ``FittedModel.save``) and ``shade``'s shapes."""
+"""fit.npz's reader and writer (``load_fit``, ``FittedModel.save``) and ``shade``'s shapes."""
 
 import json
 

@@ -1,5 +1,5 @@
 """A camera's field of view along its axis at any image size (Mitsuba 3's rule), and
-the camera record that carries it (Contract 3): no Mitsuba needed.
+the camera record that carries it: no Mitsuba needed.
 
 tests/radiosity/scene/test_mitsuba_camera.py holds the same rule against Mitsuba 3
 itself where it is installed; here the answers are closed forms and the numbers
@@ -89,7 +89,7 @@ def test_fov_y_deg_is_the_function_of_the_axis_and_size():
         assert Camera(EYE, LOOK_AT, UP, fov, 1000, 10, "smaller").fov_y_deg == fov
 
 
-# -- the record (Contract 3's camera) --------------------------------------------------------
+# -- the camera record ------------------------------------------------------------------------
 
 
 def test_a_y_axis_record_is_the_one_of_before():

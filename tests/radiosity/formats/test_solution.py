@@ -1,4 +1,4 @@
-"""Tests for radiosity.formats.solution (Contract 1, the solution file) and radiosity.formats.atomic.
+"""Tests for radiosity.formats.solution (the solution file) and radiosity.formats.atomic.
 
 A small synthetic solution (one diffuse object, one glossy object on the 4 x 4 grid)
 is saved and read back, read with plain numpy, written atomically under an

@@ -4,8 +4,7 @@ against deterministic quadrature: it changes the noise, not the answer.
 A glossy plate looks down at a glossy floor that reflects a small lamp; the lamp faces
 the floor, so the plate sees only its back: every bit of light the plate reflects
 arrives over a glossy hit on the floor. Sampling the floor's lobe alone finds the lamp
-rarely (the heavy-tailed outliers that showed as blotches on the satin block, issue
-13); a light sample at the floor hit, weighted by the balance heuristic against the
+rarely (the heavy-tailed outliers that showed as blotches on the satin block); a light sample at the floor hit, weighted by the balance heuristic against the
 lobe's own sample, finds it on every path. Both must give the double integral
 lamp -> floor -> plate, computed here by the midpoint rule over floor and lamp (gather
 paths cut after that bounce: ``max_depth`` 2).

@@ -2,7 +2,8 @@
 
 A KeyboardInterrupt raised between two bytecodes of the main thread while it holds one
 of ``concurrent.futures``' locks leaves the lock held; the worker finishing that future
-then blocks forever, and so does the pool's shutdown (CPython issue 20319). A timer
+then blocks forever, and so does the pool's shutdown (a known limitation of CPython's
+``concurrent.futures``). A timer
 (SIGALRM, held like SIGINT here) interrupts a run of tiny jobs at thousands of moments;
 every run must stop and its pool shut down. Without the held signals the same loop
 hung within about 60 trials (run by hand on the code before this test).
