@@ -1299,6 +1299,8 @@ class _Reader:
                 if child.attrs.get("type") != "area":
                     raise child.fail("a shape's emitter must be of type 'area'")
                 emission = _Props(self.doc, child).colour("radiance", 1.0)
+                if min(emission) < 0:
+                    raise child.fail(f"the radiance must not be negative, got {tuple(float(c) for c in emission)}")
         if not surface.visible and not any(emission):
             return
         if not surface.visible:  # a null bsdf around a lamp: it emits but reflects nothing

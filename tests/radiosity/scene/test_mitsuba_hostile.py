@@ -94,3 +94,15 @@ def test_a_named_file_that_is_not_a_regular_file_says_so(tmp_path, kind, words, 
             else f'<emitter type="envmap"><string name="filename" value="{name}"/></emitter>')
     message = refused(write(tmp_path, body + LAMP), name, words)
     assert "not found" not in message
+
+
+@pytest.mark.parametrize("emitter, words", [
+    ('<emitter type="point"><point name="position" x="0" y="0" z="1"/><rgb name="intensity" value="-5, 1, 1"/>'
+     "</emitter>", "the intensity must not be negative, got (-5.0, 1.0, 1.0)"),
+    ('<shape type="sphere"><emitter type="area"><rgb name="radiance" value="-4770.82, 1, 1"/></emitter></shape>',
+     "the radiance must not be negative, got (-4770.82, 1.0, 1.0)"),
+])
+def test_a_negative_light_names_its_element_and_the_value_written(tmp_path, emitter, words):
+    """A held-out input was refused as "material 'point_light_2': emission red = -4770.82
+    is negative": naming neither the line, what the file calls it, nor the value written."""
+    refused(write(tmp_path, '<shape type="rectangle"/>\n' + emitter), ":4: <emitter", words)
