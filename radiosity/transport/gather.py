@@ -39,7 +39,14 @@ from radiosity.scene.materials import (
 from radiosity.scene.microfacet_kernels import interface_fresnel, smith_g1
 from radiosity.transport.embree import intersect_rays, new_rayhit, occluded1
 from radiosity.transport.lights import arriving, pick_light
-from radiosity.transport.rng import STREAM_GATHER, STREAM_LIGHT, rand
+from radiosity.transport.rng import (
+    STREAM_GATHER,
+    STREAM_GATHER_DELTA,
+    STREAM_GATHER_LIGHT,
+    STREAM_LIGHT,
+    STREAM_LOBE,
+    rand,
+)
 from radiosity.transport.sampling import (
     cosine_direction,
     facing,
@@ -152,7 +159,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     There a light sample also catches the emitters the lobe reflects (without it, a
     lamp seen in a glossy neighbour was found only by chance and made the heavy-tailed
     outliers that showed as blotches): a point on an emitter (numbers from
-    ``STREAM_GATHER + 2``) and its shadow ray, weighted by the balance heuristic against
+    ``STREAM_GATHER_LIGHT``) and its shadow ray, weighted by the balance heuristic against
     the lobe's continuation: f_s cos / (p_light + p_lobe), with f_s = ks (n + 2) / (2 pi)
     cos^n alpha and p_lobe = (n + 1) / (2 pi) cos^n alpha, alpha measured from the
     mirror direction. Directions the continuation cannot produce (below the shading or
@@ -162,7 +169,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
 
     And a sample of the delta lights (``sa.lights``: points, spots, directions, which no
     ray can hit), at every glossy hit whatever ``block.lobe_light``: one chosen by power
-    (numbers from ``STREAM_GATHER + 3``) and its shadow ray, adding f_s cos I / d^2 (E
+    (numbers from ``STREAM_GATHER_DELTA``) and its shadow ray, adding f_s cos I / d^2 (E
     for a direction) over the probability of its choice. The gathering vertex's own
     direct highlight of a delta light is the solver's, in closed form.
 
@@ -233,11 +240,11 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 weight3, origin, direction, _ = glass_bounce(
                     (positions, normals, faces, face_normals), epsilon, materials[m],
                     (t, np.float64(hit_u[k]), np.float64(hit_v[k])), d,
-                    (rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1),
-                     rand(seed, STREAM_GATHER + 1, item, 2)), True)
+                    (rand(seed, STREAM_LOBE, item, 0), rand(seed, STREAM_LOBE, item, 1),
+                     rand(seed, STREAM_LOBE, item, 2)), True)
                 survives, carried = roulette(
                     (values[k, 0] * weight3[0], values[k, 1] * weight3[1], values[k, 2] * weight3[2]), 1.0,
-                    rand(seed, STREAM_GATHER + 1, item, 3))
+                    rand(seed, STREAM_LOBE, item, 3))
                 if survives:
                     spare.ids[n_out] = ids[k]
                     for c in range(3):
@@ -301,14 +308,14 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             exponent = materials[m, EXPONENT]
             if has_lights:
                 # the light sample at the glossy hit
-                tri = pick_emitter(emit_cdf, emit_triangles, rand(seed, STREAM_GATHER + 2, item, 0))
+                tri = pick_emitter(emit_cdf, emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
                 area_pdf = emit_area_pdf[tri]
                 origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
                 (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
                 if area_pdf > 0.0:
                     (dx, dy, dz), dist, cos_light = toward_light_point(
                         positions, faces, face_normals, epsilon, tri, origin,
-                        (rand(seed, STREAM_GATHER + 2, item, 1), rand(seed, STREAM_GATHER + 2, item, 2)),
+                        (rand(seed, STREAM_GATHER_LIGHT, item, 1), rand(seed, STREAM_GATHER_LIGHT, item, 2)),
                     )  # fmt: skip
                 if dist > 0.0:
                     cos_i = dx * nx + dy * ny + dz * nz
@@ -332,7 +339,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                                     incoming[target, 2] += values[k, 2] * (ks2 * f2 * materials[lm, EMISSION + 2] * scale)
             if n_delta > 0:
                 # a delta light at the glossy hit: chosen by power, no ray finds it otherwise
-                j = pick_light(lights.cdf, rand(seed, STREAM_GATHER + 3, item, 0))
+                j = pick_light(lights.cdf, rand(seed, STREAM_GATHER_DELTA, item, 0))
                 origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
                 (dx, dy, dz), dist, le = arriving(lights, j, origin)
                 cos_i = dx * nx + dy * ny + dz * nz
@@ -357,7 +364,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             woy = -(d[0] * bx + d[1] * by + d[2] * bz)
             woz = -(d[0] * nx + d[1] * ny + d[2] * nz)
             wix, wiy, wiz, pdf = brdf_sample(
-                materials[m], wox, woy, woz, 0.0, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1)
+                materials[m], wox, woy, woz, 0.0, rand(seed, STREAM_LOBE, item, 0), rand(seed, STREAM_LOBE, item, 1)
             )
             sx = wix * tx + wiy * bx + wiz * nx
             sy = wix * ty + wiy * by + wiz * ny
@@ -370,7 +377,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 f0, f1, f2 = schlick(materials[m], half_cosine(wix * wox + wiy * woy + wiz * woz))
                 ks0, ks1, ks2 = ks0 * f0, ks1 * f1, ks2 * f2
             q0, q1, q2 = values[k, 0] * ks0 * lobe_weight, values[k, 1] * ks1 * lobe_weight, values[k, 2] * ks2 * lobe_weight
-            survives, carried = roulette((q0, q1, q2), 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+            survives, carried = roulette((q0, q1, q2), 1.0, rand(seed, STREAM_LOBE, item, 2))
             if not survives:
                 continue
             cos_alpha = min(max(-wix * wox - wiy * woy + wiz * woz, 0.0), 1.0)
@@ -420,13 +427,13 @@ def _microfacet_hit(tracing, mat, where, path, numbers):
     origin = off_surface(point, g, sa.epsilon)
     traced = 0
     if has_lights:
-        tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_GATHER + 2, item, 0))
+        tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
         area_pdf = sa.emit_area_pdf[tri]
         (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
         if area_pdf > 0.0:
             (dx, dy, dz), dist, cos_light = toward_light_point(
                 sa.positions, sa.faces, sa.face_normals, sa.epsilon, tri, origin,
-                (rand(seed, STREAM_GATHER + 2, item, 1), rand(seed, STREAM_GATHER + 2, item, 2)),
+                (rand(seed, STREAM_GATHER_LIGHT, item, 1), rand(seed, STREAM_GATHER_LIGHT, item, 2)),
             )  # fmt: skip
         cos_i = dx * n[0] + dy * n[1] + dz * n[2]
         if dist > 0.0 and cos_light > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
@@ -443,7 +450,7 @@ def _microfacet_hit(tracing, mat, where, path, numbers):
                         incoming[target, c] += value[c] * f[c] * le[EMISSION + c] * scale
     if n_delta > 0:
         lights = sa.lights
-        j = pick_light(lights.cdf, rand(seed, STREAM_GATHER + 3, item, 0))
+        j = pick_light(lights.cdf, rand(seed, STREAM_GATHER_DELTA, item, 0))
         (dx, dy, dz), dist, le = arriving(lights, j, origin)
         cos_i = dx * n[0] + dy * n[1] + dz * n[2]
         if dist > sa.epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
@@ -469,13 +476,13 @@ def _microfacet_continuation(mat, n, d, value, seed, item):
     woz = -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
     nothing = (0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), False)
     wix, wiy, wiz, pdf = specular_sample(
-        mat, wox, woy, woz, rand(seed, STREAM_GATHER + 1, item, 0), rand(seed, STREAM_GATHER + 1, item, 1))
+        mat, wox, woy, woz, rand(seed, STREAM_LOBE, item, 0), rand(seed, STREAM_LOBE, item, 1))
     if not (wiz > 0.0 and pdf > 0.0):
         return nothing
     f = specular_eval(mat, wix, wiy, wiz, wox, woy, woz)
     scale = wiz / pdf
     q = (value[0] * f[0] * scale, value[1] * f[1] * scale, value[2] * f[2] * scale)
-    survives, carried = roulette(q, 1.0, rand(seed, STREAM_GATHER + 1, item, 2))
+    survives, carried = roulette(q, 1.0, rand(seed, STREAM_LOBE, item, 2))
     if not survives:
         return nothing
     sx = wix * tx + wiy * bx + wiz * n[0]

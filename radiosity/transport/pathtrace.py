@@ -52,7 +52,7 @@ from radiosity.transport.embree import (
     occluded_rays,
 )
 from radiosity.transport.lights import arriving, pick_light
-from radiosity.transport.rng import rand
+from radiosity.transport.rng import STREAM_CAMERA, STREAM_PATH, rand
 from radiosity.transport.sampling import (
     barycentric_point,
     glass_bounce,
@@ -65,7 +65,6 @@ from radiosity.transport.sampling import (
 )
 from radiosity.transport.threads import Workers, progress_bar, run_ordered
 
-STREAM_CAMERA, STREAM_PATH = 11, 12
 DIMS_PER_BOUNCE = 8  # light pick (1), point on the light (2), BRDF sample (3), roulette (1), spare (1)
 MAX_DEPTH = 64  # segments of a path at most; Russian roulette ends nearly all far sooner
 ROULETTE_DEPTH = 3  # the first bounce Russian roulette may refuse (the ones before always go on)

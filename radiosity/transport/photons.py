@@ -45,7 +45,7 @@ from radiosity.transport.records import (
     T_INCIDENT,
     T_TERMINATED,
 )
-from radiosity.transport.rng import STREAM_BOUNCE, STREAM_EMIT, rand
+from radiosity.transport.rng import PHOTON_DIMS_PER_BOUNCE, STREAM_BOUNCE, STREAM_EMIT, rand
 from radiosity.transport.sampling import (
     cosine_direction,
     facing,
@@ -251,7 +251,7 @@ def trace_photons(rt, sa, batch, acc):
                 m = face_material[t]
                 if materials[m, KIND] >= KIND_DIELECTRIC:
                     # glass, either face: no deposit, reflected or refracted on
-                    base = depth * 8
+                    base = depth * PHOTON_DIMS_PER_BOUNCE
                     weight, origin, direction, _ = glass_bounce(
                         (positions, normals, faces, face_normals), epsilon, materials[m],
                         (t, np.float64(hit_uv[k, 0]), np.float64(hit_uv[k, 1])), (dx, dy, dz),
@@ -308,7 +308,7 @@ def trace_photons(rt, sa, batch, acc):
                 tally[T_INCIDENT] += p0
                 tally[T_INCIDENT + 1] += p1
                 tally[T_INCIDENT + 2] += p2
-                base = depth * 8
+                base = depth * PHOTON_DIMS_PER_BOUNCE
                 r0 = rand(seed, STREAM_BOUNCE, pid, base)
                 r1 = rand(seed, STREAM_BOUNCE, pid, base + 1)
                 r2 = rand(seed, STREAM_BOUNCE, pid, base + 2)

@@ -2,10 +2,18 @@
 stream, item, dimension), so a result depends on the seed and each item's index
 alone, never on how work is split into batches, threads or machines.
 
-Streams: STREAM_EMIT (photon emission), STREAM_BOUNCE (photon scattering),
-STREAM_LIGHT (a gather vertex's light samples), STREAM_GATHER (its gather rays;
-STREAM_GATHER + 1, + 2 and + 3 the lobe continuation, the light sample and the
-delta light's sample at glossy hits of gather paths). The path tracer's stream is its own (``pathtrace.STREAM_PATH``).
+Streams, every one named here (``STREAMS``: distinct numbers, so no two kinds of sample
+share their numbers; the numbers are the ones every seed's results were made with):
+
+    STREAM_EMIT          photon emission
+    STREAM_BOUNCE        photon scattering (``PHOTON_DIMS_PER_BOUNCE`` dimensions a bounce)
+    STREAM_LIGHT         a gather vertex's light samples
+    STREAM_GATHER        its gather rays
+    STREAM_LOBE          a gather path's continuation through a glossy hit's lobe
+    STREAM_GATHER_LIGHT  the light sample at a glossy hit of a gather path
+    STREAM_GATHER_DELTA  the delta light's sample there
+    STREAM_CAMERA        the path tracer's position in the pixel
+    STREAM_PATH          the path tracer's paths (``pathtrace.DIMS_PER_BOUNCE`` a bounce)
 """
 
 from __future__ import annotations
@@ -14,6 +22,10 @@ import numba
 import numpy as np
 
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
+STREAM_LOBE, STREAM_GATHER_LIGHT, STREAM_GATHER_DELTA = 5, 6, 7
+STREAM_CAMERA, STREAM_PATH = 11, 12
+STREAMS = {name: value for name, value in globals().items() if name.startswith("STREAM_")}
+PHOTON_DIMS_PER_BOUNCE = 8  # a photon's numbers at each bounce: the scatter (3), roulette (1), the rest spare
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)

@@ -35,3 +35,20 @@ def test_roulette_is_unbiased_and_keeps_weights_near_the_reference(rng):
             total += carried
             assert max(carried) == pytest.approx(reference)
     assert np.allclose(total / n, value, rtol=0.03)
+
+
+def test_every_random_stream_is_named_once_with_a_number_of_its_own():
+    """The streams' table (``radiosity.transport.rng.STREAMS``): distinct numbers, so no
+    two kinds of sample draw the same numbers; the gather's four kept the numbers they
+    had as STREAM_GATHER + 0 .. 3 (every seed's results as before), and no kernel
+    module counts streams by adding to one."""
+    import pathlib
+
+    from radiosity.transport import rng
+
+    assert len(set(rng.STREAMS.values())) == len(rng.STREAMS) >= 9
+    assert [rng.STREAM_GATHER + k for k in range(4)] == [rng.STREAM_GATHER, rng.STREAM_LOBE, rng.STREAM_GATHER_LIGHT,
+                                                         rng.STREAM_GATHER_DELTA]
+    source = pathlib.Path(rng.__file__).parent
+    for path in source.glob("*.py"):
+        assert "STREAM_GATHER +" not in path.read_text(), path.name
