@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scene_files import load_warned
 
 from radiosity.formats.errors import InputError, SceneWarning
 from radiosity.scene import geometry, microfacet
@@ -39,14 +40,6 @@ def load_quietly(path, tessellation=None):
     with warnings.catch_warnings():
         warnings.simplefilter("error", SceneWarning)
         return load_mitsuba(path, tessellation)
-
-
-def load_warned(path):
-    """(scene, the SceneWarnings' messages)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
 
 
 def refusal(path):

@@ -21,6 +21,7 @@ import pytest
 import trimesh
 from mitsuba_oracle import require_mitsuba, run_mitsuba
 from PIL import Image
+from scene_files import load_warned
 from scipy.spatial import cKDTree
 
 from radiosity.formats.errors import SceneWarning
@@ -206,10 +207,7 @@ def _write(directory, body, name="scene.xml"):
 
 
 def _load(path, tessellation=None):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_mitsuba(path, tessellation)
-    return scene, [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+    return load_warned(path, lambda p: load_mitsuba(p, tessellation))
 
 
 def test_a_diffuse_bitmap_is_the_texture_on_both_sides_of_a_twosided_rectangle(tmp_path):

@@ -17,15 +17,14 @@ against answers known in closed form:
 
 import dataclasses
 import math
-import textwrap
 
 import numpy as np
 import pytest
+from scene_files import scene_from
 
 from radiosity.formats.camera import Camera
 from radiosity.formats.directions import grid_lookup_weights
 from radiosity.formats.emitters import SpotProfile, spot_falloff
-from radiosity.scene.loaders import load_scene
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -40,11 +39,6 @@ def toml(values):
     """A TOML array of numbers."""
     return "[" + ", ".join(repr(float(v)) for v in values) + "]"
 
-
-def scene_from(tmp_path, text):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
 
 
 def plane_scene(tmp_path, light, scale=2.0, extra=""):

@@ -11,24 +11,16 @@ against answers known in closed form:
   by light sampling, the lobe by BRDF sampling) against a quadrature of the map.
 """
 
-import textwrap
 
 import numpy as np
 from analytic import phong
+from scene_files import scene_from
 
 from radiosity.formats.camera import Camera
 from radiosity.scene.environment import Environment
-from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import albedo
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
-
-
-def scene_from(tmp_path, text):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
-
 
 QUAD = """
 [materials.grey]

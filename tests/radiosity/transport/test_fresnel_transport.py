@@ -9,26 +9,20 @@ lit and seen at grazing angles.
 """
 
 import dataclasses
-import textwrap
 
 import numpy as np
 import pytest
+from scene_files import scene_from
 from test_pathtrace import ENCLOSED_QUAD
 
 from radiosity.formats.camera import Camera
 from radiosity.formats.material import FRESNEL_NORMALISATION, fresnel_kd_limit
-from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import Material, albedo
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
 
 F0 = 0.04
 
-
-def scene_from(tmp_path, text):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
 
 
 EMITTING_SPHERE = """

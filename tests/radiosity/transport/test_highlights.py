@@ -9,19 +9,12 @@ import textwrap
 import numpy as np
 import pytest
 from analytic import PENUMBRA, PENUMBRA_LAMP_HALF
+from scene_files import scene_from
 
 from radiosity.scene.emitters import MAX_OBJECT_PARTS, emitter_parts, object_parts
-from radiosity.scene.loaders import load_scene
 from radiosity.transport import highlights
 from radiosity.transport.embree import RayTracer
 from radiosity.transport.solve import SolveOptions, solve
-
-
-def scene_from(tmp_path, text, name="scene.toml"):
-    path = tmp_path / name
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
-
 
 SPHERE_OVER_PLATE = """
     [materials.plate]

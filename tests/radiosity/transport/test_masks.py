@@ -6,17 +6,15 @@ make, and the files keep the mask (solution and fit version 9).
 """
 
 import json
-import warnings
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
+from scene_files import load_warned
 
-from radiosity.formats.errors import SceneWarning
 from radiosity.formats.material import Material
 from radiosity.formats.solution import load_solution
 from radiosity.formats.texture import OPACITY_CUTOFF, TexturedDiffuse, lookup
-from radiosity.scene.loaders import load_scene
 from radiosity.scene.model import Scene, build_object
 from radiosity.scene.textures import Cutout, cutout_atlas
 from radiosity.transport.embree import RayTracer
@@ -168,13 +166,6 @@ def _leaf_xml(tmp_path, mask_attrs="", inner='<bsdf type="diffuse"><rgb name="re
 </scene>''') and tmp_path / "scene.xml"
 
 
-def _load(path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    return scene, [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
-
-
 def test_the_loader_reads_a_masks_alpha_else_its_colour(tmp_path):
     """An RGBA image's alpha is the opacity (as Tungsten reads a leaf's cut-out); an RGB
     image's the mean of its channels, sRGB-decoded as Mitsuba decodes a bitmap; an
@@ -184,7 +175,7 @@ def test_the_loader_reads_a_masks_alpha_else_its_colour(tmp_path):
     rgba[..., :3] = 255
     rgba[:, 3:, 3] = 255
     iio.imwrite(tmp_path / "leaf.png", rgba)
-    scene, messages = _load(_leaf_xml(tmp_path))
+    scene, messages = load_warned(_leaf_xml(tmp_path))
     leaf = scene.object("leaf")
     assert not messages, messages
     assert np.array_equal(leaf.opacity, (rgba[..., 3] / 255.0).astype(np.float32))
@@ -192,13 +183,13 @@ def test_the_loader_reads_a_masks_alpha_else_its_colour(tmp_path):
     assert leaf.material.diffuse == pytest.approx((0.2, 0.6, 0.2))
     grey = np.full((4, 6, 3), 188, np.uint8)  # sRGB 188: linear 0.5
     iio.imwrite(tmp_path / "leaf.png", grey)
-    leaf = _load(_leaf_xml(tmp_path))[0].object("leaf")
+    leaf = load_warned(_leaf_xml(tmp_path))[0].object("leaf")
     np.testing.assert_allclose(leaf.opacity, 0.5029, atol=1e-3)
 
 
 def test_a_mask_that_maps_its_coordinates_is_left_out_saying_so(tmp_path):
     iio.imwrite(tmp_path / "leaf.png", np.zeros((4, 4, 4), np.uint8))
-    scene, messages = _load(_leaf_xml(tmp_path, '<transform name="to_uv"><scale x="2" y="2"/></transform>'))
+    scene, messages = load_warned(_leaf_xml(tmp_path, '<transform name="to_uv"><scale x="2" y="2"/></transform>'))
     assert scene.object("leaf").opacity is None
     assert any("the mask 'leaf.png' or the texture beneath it maps its texture coordinates" in m for m in messages)
 
@@ -229,7 +220,7 @@ def test_a_mask_on_a_mesh_without_texture_coordinates_is_left_out_saying_so(tmp_
     xml = _leaf_xml(tmp_path).read_text().replace('<shape type="rectangle" id="leaf">',
                                                   '<shape type="obj" id="leaf"><string name="filename" value="leaf.obj"/>')
     (tmp_path / "scene.xml").write_text(xml)
-    scene, messages = _load(tmp_path / "scene.xml")
+    scene, messages = load_warned(tmp_path / "scene.xml")
     assert scene.object("leaf").opacity is None
     assert any("the mesh has no texture coordinates: the mask 'leaf.png' is left out (opaque)" in m for m in messages)
 

@@ -8,11 +8,11 @@ sample or pixel filter (the emitting square over a plane), non-determinism, or a
 convergence slower than Monte Carlo's.
 """
 
-import textwrap
 
 import numpy as np
 import pytest
 from analytic import SQUARE_LIGHT, polygon_irradiance
+from scene_files import scene_from
 from scipy.ndimage import binary_dilation
 
 from radiosity.formats.camera import Camera
@@ -21,12 +21,6 @@ from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import albedo
 from radiosity.transport import pathtrace
 from radiosity.transport.pathtrace import PathTracer
-
-
-def scene_from(tmp_path, text):
-    path = tmp_path / "scene.toml"
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
 
 
 def render(scene, camera, spp, seed=1, threads=None):

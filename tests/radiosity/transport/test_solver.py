@@ -6,12 +6,12 @@ wrong gather or MIS weight (glossy plane, glossy furnace), lost glossy-to-glossy
 light (glossy furnace), non-determinism, or NaN at the extremes.
 """
 
-import textwrap
 import warnings
 
 import numpy as np
 import pytest
 from analytic import SQUARE_LIGHT, glossy_furnace_reference, polygon_irradiance
+from scene_files import scene_from
 
 from radiosity.formats import directions
 from radiosity.formats.errors import InputError, SceneWarning
@@ -19,12 +19,6 @@ from radiosity.scene.loaders import load_scene
 from radiosity.scene.materials import Material, eval_brdf
 from radiosity.transport import solve as solve_module
 from radiosity.transport.solve import SolveOptions, solve
-
-
-def scene_from(tmp_path, text, name="scene.toml"):
-    path = tmp_path / name
-    path.write_text(textwrap.dedent(text))
-    return load_scene(path)
 
 
 def furnace(tmp_path, material, subdivisions=3):
