@@ -171,10 +171,15 @@ def test_an_import_that_a_ctrl_c_stopped_is_an_interruption(monkeypatch, capsys)
             pass
         raise ImportError("initialization failed")
 
-    monkeypatch.setattr(cli, "build_parser", parser_with(stopped_import))
-    assert cli.main(["fit"]) == 130
-    assert capsys.readouterr().err == "vlights fit: interrupted\n"
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    # as in the command's own process (a test runner's worker may have set another handler)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        monkeypatch.setattr(cli, "build_parser", parser_with(stopped_import))
+        assert cli.main(["fit"]) == 130
+        assert capsys.readouterr().err == "vlights fit: interrupted\n"
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    finally:
+        signal.signal(signal.SIGINT, before)
 
     def broken_import(_args):
         raise ImportError("no module named nowhere")
