@@ -53,7 +53,6 @@ def vertex_areas(positions, faces):
     return out
 
 
-
 def object_areas(obj):
     """(V,) each vertex's area (``vertex_areas``), ones where the object has none: the
     weights ``fit_data`` and a fit's blocks use."""
@@ -96,16 +95,10 @@ def fit_data(obj, vertices=slice(None), area=None):
     )
 
 
-def mean_radiance(data):
-    """The object's weighted mean radiance (one number, over channels too)."""
-    w = data.weights[:, :, None]
-    return float(np.sum(w * data.radiance) / max(float(w.sum()), 1e-300) / 3.0)
-
-
 class ErrorSums:
     """``relative_error`` and ``perceptual_error`` of an approximation added up a block
     of vertices at a time (the sums of every block, in block order: the same bits for
-    the same blocks). ``mean``: the whole object's ``mean_radiance``."""
+    the same blocks). ``mean``: the whole object's weighted mean radiance (one number)."""
 
     def __init__(self, mean):
         self.mean = float(mean)

@@ -465,11 +465,6 @@ def shade(model, name, world_dirs, vertices=slice(None)):
     return obj._shade(index, w)
 
 
-def _kind_error(archive, key, a, kinds):
-    expected = "integers" if kinds == "iu" else "numbers"
-    return archive.fail(f"'{key}' has dtype {a.dtype}, expected {expected}")
-
-
 def _read_object(archive, name, info, version, emitters=(), nodes=DEFAULT_NODES):
     """One object's arrays, checked; InputError naming the file and the key."""
     fail = archive.fail

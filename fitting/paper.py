@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from scipy.optimize import nnls
 
-from .lobes import light_sum, one_light
+from .lobes import one_light
 from .results import FitResult, LightSet
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -147,38 +147,6 @@ def _sums(L, B, weights, loss_weights):
                 out[4, v, c] += w * y * b
                 out[5, v, c] += w * y * y
     return out[0], out[1], out[2], out[3], out[4], out[5]
-
-
-def greedy_least_squares(data, shininess, n_lights, loss_weights=None, polish=None):
-    """A start for the refinement: like ``greedy_lights``, but each new light goes where
-    the data differ most from the whole current model, emitted and specular fitted by
-    least squares (the paper's residual, data minus the lights with specular 1, still
-    peaks beside a highlight a light already explains, so its next light often lands
-    there). The new light takes the residual at that peak as its intensity.
-
-    ``polish(LightSet) -> LightSet or FitResult``, if given, improves the lights after
-    each addition (a short refinement), so that a light is where it belongs before the
-    next one is placed. Returns the ``LightSet``.
-    """
-    lights = LightSet.empty()
-    basis = np.zeros_like(data.radiance)
-    for _ in range(n_lights):
-        e, s, _ = vertex_coefficients(data, basis, loss_weights, lights)
-        residual = data.radiance - e[:, None] - s[:, None] * basis
-        score = residual.sum(axis=2)
-        v, d = np.unravel_index(np.argmax(score), score.shape)
-        if not score[v, d] > 0:
-            break
-        light = mirror(data.normals[v], data.views[v, d])
-        scale = max(float(s[v].max()), 1.0) if lights.n_lights else 1.0
-        new_rgb = np.maximum(residual[v, d], 0.0) / scale
-        p_new = float(shininess) if not lights.n_lights else float(lights.shininess[-1])
-        lights = lights.extended(light, new_rgb, p_new)
-        if polish is not None:
-            polished = polish(lights)
-            lights = polished.lights if isinstance(polished, FitResult) else polished
-        basis = light_sum(data.normals, data.views, lights.kernel_arrays(), np.empty_like(data.radiance))
-    return lights
 
 
 def fit_exponent(data, shininess, n_lights, loss_weights=None):

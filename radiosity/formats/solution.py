@@ -106,10 +106,6 @@ class _Invalid(ValueError):
     """A problem with one object's data; load turns it into an InputError."""
 
 
-def _one_line(text: object) -> str:
-    return " ".join(str(text).split())
-
-
 def _shape(a: np.ndarray) -> str:
     return "(" + ", ".join(str(s) for s in a.shape) + ")"
 

@@ -250,13 +250,6 @@ def read_single_mesh(path, where):
     return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, dtype=np.int64)
 
 
-def read_mesh_with_normals(path, where):
-    """All triangles of a mesh file as (positions, faces, normals): normals (V, 3) are
-    the file's own per-vertex normals where it has them (OBJ ``vn``, PLY ``nx ny nz``)
-    in every part, else None (``read_mesh_parts``)."""
-    return read_mesh_parts(path, where)[:3]
-
-
 def read_mesh_parts(path, where):
     """All triangles of a mesh file as (positions, faces, normals, uvs): normals (V, 3)
     the file's own per-vertex normals where every part has them (OBJ ``vn``, PLY ``nx

@@ -368,11 +368,6 @@ class RoughPlastic:
         f = fresnel_dielectric(cos_i, self.eta)
         return np.asarray(f)[..., None] * self.specular_reflectance
 
-    def _reflectance(self, cos_i, eta):
-        if self.alpha is None:
-            return fresnel_dielectric(cos_i, eta)
-        return _interface_albedo(self.distribution, self.alpha, cos_i, lambda c: fresnel_dielectric(c, eta)[..., None])[:, 0]
-
     @property
     def _tables(self) -> tuple[np.ndarray, float]:
         return _transmittance_tables(self.distribution, self.alpha, self.eta)

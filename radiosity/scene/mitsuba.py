@@ -578,7 +578,7 @@ def _bitmap(doc, node):
     wrap = props.string("wrap_mode", "repeat")
     if wrap not in WRAP_MODES:
         raise node.fail(f"wrap_mode {wrap!r} is not one of {', '.join(WRAP_MODES)}")
-    image, alpha = _read_image_alpha(node, path, raw=props.boolean("raw"))
+    image, alpha = _read_image(node, path, raw=props.boolean("raw"))
     image = image.astype(np.float32)  # as every stage keeps textures
     alpha = None if alpha is None else alpha.astype(np.float32)
     bitmap = doc.bitmaps[key] = _Bitmap(image, wrap, _uv_transform(props), node, filename, alpha=alpha)
@@ -595,16 +595,10 @@ def _uv_transform(props):
 
 
 def _read_image(node, path, raw=False):
-    """Linear RGB (H, W, 3) float64 of an image file: 8- and 16-bit images
-    sRGB-decoded (unless ``raw``), float images (OpenEXR, through the OpenEXR library)
-    as they are; alpha dropped, one channel copied to three. (``_read_image_alpha``
-    keeps the alpha.)"""
-    return _read_image_alpha(node, path, raw)[0]
-
-
-def _read_image_alpha(node, path, raw=False):
-    """(``_read_image``'s RGB, the alpha channel (H, W) float64 in [0, 1] or None): an
-    8- or 16-bit image's alpha, linear as PNG stores it."""
+    """(linear RGB (H, W, 3) float64, alpha (H, W) float64 in [0, 1] or None) of an image
+    file: 8- and 16-bit images sRGB-decoded (unless ``raw``; their alpha linear, as PNG
+    stores it), float images (OpenEXR, through the OpenEXR library) as they are; one
+    channel copied to three."""
     data = read_input_bytes(path, "texture", TEXTURE_BYTES)
     if path.suffix.lower() == ".exr":
         image = _read_exr(node, path, data)
