@@ -594,6 +594,24 @@ def _uv_transform(props):
     return matrix[np.ix_(keep, keep)]
 
 
+def _check_image_size(node, path, data):
+    """Refuse a picture larger than ``MAX_TEXTURE_PIXELS`` from its header, before it is
+    decoded (a PNG of a few KB may hold 20000 x 20000 pixels): where pillow reads the
+    header; a file it does not read is left to the decoder."""
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            width, height = image.size
+    except Image.DecompressionBombError:
+        width = height = None
+    except Exception:  # not for pillow, or damaged: imageio says which
+        return
+    if width is None or width * height > MAX_TEXTURE_PIXELS:
+        size = "more pixels than pillow opens" if width is None else f"{width} x {height} pixels"
+        raise node.fail(f"image {str(path)!r} is {size}, more than the {MAX_TEXTURE_PIXELS:,} allowed")
+
+
 def _read_image(node, path, raw=False):
     """(linear RGB (H, W, 3) float64, alpha (H, W) float64 in [0, 1] or None) of an image
     file: 8- and 16-bit images sRGB-decoded (unless ``raw``; their alpha linear, as PNG
@@ -605,6 +623,7 @@ def _read_image(node, path, raw=False):
     else:
         import imageio.v3 as iio
 
+        _check_image_size(node, path, data)
         try:
             image = np.asarray(iio.imread(data, extension=path.suffix.lower() or None))
         except Exception as exc:  # imageio raises many types for a bad or unknown file

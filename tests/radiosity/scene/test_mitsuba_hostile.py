@@ -106,3 +106,23 @@ def test_a_negative_light_names_its_element_and_the_value_written(tmp_path, emit
     """A held-out input was refused as "material 'point_light_2': emission red = -4770.82
     is negative": naming neither the line, what the file calls it, nor the value written."""
     refused(write(tmp_path, '<shape type="rectangle"/>\n' + emitter), ":4: <emitter", words)
+
+
+@pytest.mark.parametrize("side", [9000, 20000])
+def test_a_huge_picture_is_refused_from_its_header_before_it_is_decoded(tmp_path, side):
+    """A PNG of a few hundred bytes claiming side x side pixels, as a texture and as a
+    mask: refused in one line at once (it was decoded first: 1.2 GB for 20000 x 20000)."""
+    import struct
+    import zlib
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    (tmp_path / "big.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 6, 0, 0, 0))
+                                       + chunk(b"IEND", b""))
+    texture = '<texture type="bitmap" name="reflectance"><string name="filename" value="big.png"/></texture>'
+    body = f'<shape type="rectangle"><bsdf type="diffuse">{texture}</bsdf></shape>'
+    refused(write(tmp_path, body + LAMP), "big.png", "more than the 67,108,864 allowed", within=2.0)
+    mask = f'<bsdf type="mask">{texture.replace("reflectance", "opacity")}<bsdf type="diffuse"/></bsdf>'
+    refused(write(tmp_path, f'<shape type="rectangle">{mask}</shape>' + LAMP), "big.png", "more than the 67,108,864",
+            within=2.0)
