@@ -517,8 +517,9 @@ def _mapped_surface(mesh, where, images):
     pbr = isinstance(mat, trimesh.visual.material.PBRMaterial)
     image = getattr(mat, "baseColorTexture" if pbr else "image", None)
     uvs = mesh_uvs(mesh) if image is not None else None
-    texture = images.get(name) if image is not None and uvs is not None else None
-    texture = texture if texture is not None else _image_texture(image, f"{here}texture")
+    texture = images.get(name)  # decoded once per material (an image's objects share the array)
+    if texture is None:
+        texture = _image_texture(image, f"{here}texture")
     mean = None if texture is None else texture.reshape(-1, 3).mean(axis=0, dtype=np.float64)
     if image is not None and uvs is None:
         fallback = f"{name} (mean texture)"
@@ -535,9 +536,8 @@ def _mapped_surface(mesh, where, images):
         _from_mtl(mat, name, here, mean, textured=textured)
     if not textured:
         return mapped, None, None
-    if images.get(name) is None:
-        images[name] = texture
-    return mapped, images[name], uvs
+    images[name] = texture
+    return mapped, texture, uvs
 
 
 def _mtl_vec(raw, key, here):

@@ -512,15 +512,18 @@ class _Bitmap:
     filename: str
     _texture: np.ndarray | None = None
     alpha: np.ndarray | None = None  # (H, W) float32 in [0, 1]: an image's alpha channel
+    _opacity: np.ndarray | None = None
 
     @property
     def opacity(self):
-        """The image as a mask's opacity (H, W) float32 in [0, 1]: its alpha channel where
-        it has one (as Tungsten, which rendered the collection's published images,
-        reads a leaf's cut-out), else the mean of its channels, clipped."""
-        if self.alpha is not None:
-            return self.alpha
-        return np.clip(self.image.mean(axis=2), 0.0, 1.0).astype(np.float32)
+        """The image as a mask's opacity (H, W) float32 in [0, 1], made once and shared by
+        the shapes that read it (the kernels' atlas holds it once): its alpha channel where
+        it has one (as Tungsten, which rendered the collection's published images, reads a
+        leaf's cut-out), else the mean of its channels, clipped."""
+        if self._opacity is None:
+            self._opacity = self.alpha if self.alpha is not None else \
+                np.clip(self.image.mean(axis=2), 0.0, 1.0).astype(np.float32)
+        return self._opacity
 
     @property
     def mean(self):

@@ -182,6 +182,22 @@ def _quad(name, corners, normal, radiance, material=None):
                           material=material)
 
 
+def _reflected_panel(camera):
+    """Per pixel of ``camera``: (its ray's direction d; whether it meets the square |x|, |y|
+    < 0.95 of the plane z = 0; whether its reflection there meets the panel at z = 2.5, x
+    in (-2.95, -1.25), |y| < 1.95; whether that is within 0.1 of the panel's edges)."""
+    d = camera.pixel_rays()
+    eye = np.asarray(camera.eye)
+    s = -eye[2] / d[..., 2]
+    hit = eye + s[..., None] * d
+    on_plane = (np.abs(hit[..., 0]) < 0.95) & (np.abs(hit[..., 1]) < 0.95) & (s > 0)
+    r = d * np.array([1.0, 1.0, -1.0])  # reflected in z = 0
+    at = hit + ((2.5 - hit[..., 2]) / r[..., 2])[..., None] * r
+    sees_panel = (at[..., 0] > -2.95) & (at[..., 0] < -1.25) & (np.abs(at[..., 1]) < 1.95)
+    near_edge = (np.abs(at[..., 0] + 1.2) < 0.1) | (np.abs(at[..., 0] + 3) < 0.1)
+    return d, on_plane, sees_panel, near_edge
+
+
 def _schlick(c):
     return np.asarray(F0) + (1 - np.asarray(F0)) * (1 - c[..., None]) ** 5
 
@@ -200,16 +216,7 @@ def test_a_flat_mirror_shows_the_scene_reflected_in_its_plane_and_not_what_is_be
     camera = Camera((1.0, 0.2, 3.0), (0.0, 0.0, 0.0), fov_deg=45, width=64, height=48)
     renderer = Renderer(gl_context, solution=solution, samples=1)
     image = renderer.render(camera, "reference").astype(np.float64)
-    d = camera.pixel_rays()
-    eye = np.asarray(camera.eye)
-    s = -eye[2] / d[..., 2]
-    hit = eye + s[..., None] * d
-    on_mirror = (np.abs(hit[..., 0]) < 0.95) & (np.abs(hit[..., 1]) < 0.95) & (s > 0)
-    r = d * np.array([1.0, 1.0, -1.0])  # reflected in z = 0
-    t = (2.5 - hit[..., 2]) / r[..., 2]
-    at = hit + t[..., None] * r
-    sees_panel = (at[..., 0] > -2.95) & (at[..., 0] < -1.25) & (np.abs(at[..., 1]) < 1.95)
-    near_edge = (np.abs(at[..., 0] + 1.2) < 0.1) | (np.abs(at[..., 0] + 3) < 0.1)
+    d, on_mirror, sees_panel, near_edge = _reflected_panel(camera)
     c = d[..., 2] * -1.0
     seen = np.where(sees_panel[..., None], [0.1, 0.8, 0.2], 2.0)
     expected = np.asarray(KS) * _schlick(c) * seen
@@ -341,15 +348,7 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
     renderer.near_mirrors = True
     assert renderer.objects[0].near is not None and renderer.objects[1].near is None
     image = renderer.render(camera, "reference").astype(np.float64)
-    d = camera.pixel_rays()
-    eye = np.asarray(camera.eye)
-    s = -eye[2] / d[..., 2]
-    hit = eye + s[..., None] * d
-    on_floor = (np.abs(hit[..., 0]) < 0.95) & (np.abs(hit[..., 1]) < 0.95) & (s > 0)
-    r = d * np.array([1.0, 1.0, -1.0])
-    at = hit + ((2.5 - hit[..., 2]) / r[..., 2])[..., None] * r
-    sees_panel = (at[..., 0] > -2.95) & (at[..., 0] < -1.25) & (np.abs(at[..., 1]) < 1.95)
-    near_edge = (np.abs(at[..., 0] + 1.2) < 0.1) | (np.abs(at[..., 0] + 3) < 0.1)
+    d, on_floor, sees_panel, near_edge = _reflected_panel(camera)
     c = np.clip(-d[..., 2], 0.0, 1.0)
     albedo = lobe_albedo(Microfacet.from_dict(material["microfacet"]), c.ravel()).reshape(*c.shape, 3)
     seen = np.where(sees_panel[..., None], [0.1, 0.8, 0.2], 2.0)

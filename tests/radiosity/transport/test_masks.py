@@ -244,3 +244,21 @@ def test_a_solution_with_a_bad_mask_is_refused_in_one_line(tmp_path, opacity, wo
         load_solution(tmp_path / "bad.npz")
     message = str(refused.value)
     assert words in message and "leaf" in message and "\n" not in message, message
+
+
+def test_shapes_that_share_a_mask_share_its_array(tmp_path):
+    """An RGB mask (its opacity the mean of its channels) read once for every shape that
+    refers to its bsdf: one array, so the ray tracer's atlas and the files hold it once."""
+    iio.imwrite(tmp_path / "leaf.png", np.full((4, 4, 3), 200, np.uint8))
+    (tmp_path / "scene.xml").write_text('''<?xml version="1.0"?>
+<scene version="3.0.0">
+  <bsdf type="mask" id="m"><texture type="bitmap" name="opacity"><string name="filename" value="leaf.png"/></texture>
+    <bsdf type="diffuse"/></bsdf>
+  <shape type="rectangle" id="a"><ref id="m"/></shape>
+  <shape type="rectangle" id="b"><transform name="to_world"><translate z="1"/></transform><ref id="m"/></shape>
+  <shape type="rectangle" id="lamp"><transform name="to_world"><translate z="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter></shape>
+</scene>''')
+    scene, _ = load_warned(tmp_path / "scene.xml")
+    assert scene.object("a").opacity is scene.object("b").opacity
+    assert scene.merged().cutout.offsets.shape == (1,)
