@@ -129,8 +129,8 @@ def big_scene(rng):
     """About 1 M triangles: the teapot at 128 segments per patch side."""
     from fitting import FittedModel, FittedObject
     from fitting.model import directional
-    from radiosity.formats import directions
-    from radiosity.formats.solution import ObjectSolution, Solution
+    from radiosity.files.solution import ObjectSolution, Solution
+    from radiosity.physics import directions
     from radiosity.scene import geometry, teapot
 
     positions, faces = teapot.tessellate(128)

@@ -129,7 +129,7 @@ def main(argv=None):
     from fitting.data import fit_data, relative_error
     from fitting.fit import fit_lights, problem_for, reconstruct, start_exponent
     from fitting.mixed import SceneGeometry
-    from radiosity.formats.presets import preset
+    from radiosity.policies.presets import preset
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.solve import SolveOptions, solve
 

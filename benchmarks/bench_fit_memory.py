@@ -34,8 +34,8 @@ MATERIAL = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.6, 0.6, 0.6], "exponent":
 
 def plate_solution(path, samples, grid):
     """A one-plate ``Solution`` of about ``samples`` samples, saved to ``path``."""
-    from radiosity.formats.directions import grid_directions
-    from radiosity.formats.solution import ObjectSolution, Solution
+    from radiosity.files.solution import ObjectSolution, Solution
+    from radiosity.physics.directions import grid_directions
 
     local = grid_directions(grid).astype(np.float32)
     n = max(2, math.ceil(math.sqrt(samples / len(local))))

@@ -39,7 +39,7 @@ def main(argv=None):
     from fitting.fit import fit_object
     from fitting.glossy import proxy_box_of
     from fitting.mixed import SceneGeometry
-    from radiosity.formats.solution import SolutionFile
+    from radiosity.files.solution import SolutionFile
 
     record = Recorder(benchmark="fit_search")
     warm = True

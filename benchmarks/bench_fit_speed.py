@@ -34,8 +34,8 @@ def main(argv=None):
     from fitting.data import fit_data
     from fitting.fit import fit_object
     from fitting.mixed import SceneGeometry
-    from radiosity.formats import load_solution
-    from radiosity.formats.presets import preset
+    from radiosity.files.solution import load_solution
+    from radiosity.policies.presets import preset
 
     if args.solution is None:
         from radiosity.scene.loaders import load_scene

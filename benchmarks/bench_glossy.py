@@ -75,7 +75,7 @@ def truth_of(solution, view, spp, cache, key):
 def solve_and_fit(name, quality, cache):
     """(solution, fit, fit seconds), cached by scene and quality."""
     from fitting import FitOptions, fit, load_fit
-    from radiosity.formats import load_solution
+    from radiosity.files.solution import load_solution
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.adaptive import solve_adaptive
     from radiosity.transport.solve import SolveOptions

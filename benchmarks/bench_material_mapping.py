@@ -19,7 +19,7 @@ the sphere's profiles, and material_mapping_rule.png, the rule and Fresnel):
            the view (the highlight's incidence about 30 or 60 degrees). Each pixel of a window
            about the highlight (72 x 72) integrates the reflected radiance over the
            light (28 x 28 Gauss-Legendre nodes) for the reference BRDF's specular part
-           and the mapped Phong lobe's (radiosity.scene.materials.eval_brdf with kd = 0);
+           and the mapped Phong lobe's (radiosity.scene.material_kernels.eval_brdf with kd = 0);
            per kind (roughplastic, roughconductor Cu), distribution and alpha: the
            peak's position (degrees of the normal from the half vector, in the plane of
            the light), FWHM in the plane and across (degrees of normal), peak radiance
@@ -53,7 +53,7 @@ import numpy as np
 from _common import RESULTS, Recorder
 
 from radiosity.scene import microfacet as mf
-from radiosity.scene.materials import Material, eval_brdf
+from radiosity.scene.material_kernels import Material, eval_brdf
 
 ALPHAS_RULE = np.geomspace(0.01, 1.0, 13)
 INCIDENCE_RULE = np.arange(0.0, 86.0, 5.0)
@@ -277,7 +277,7 @@ def part_fresnel(record):
     rows = {"angles": angles.tolist(), "exact": exact.tolist(), "schlick": schlick.tolist()}
     record({"part": "fresnel", "eta": eta, "incidence_deg": angles.tolist(), "exact": exact.tolist(),
             "schlick": schlick.tolist(), "exact_over_normal": (exact / r0).tolist()})
-    from radiosity.formats.material import specular_albedo
+    from radiosity.physics.materials import specular_albedo
 
     for alpha in (0.05, 0.2):
         for dist in mf.DISTRIBUTIONS:
@@ -332,7 +332,7 @@ def part_fresnel_rule(record):
     with ks fitted up to the energy bound (the rule): the sin 2 theta weighted relative
     RMS misfit of the specular albedo, of the diffuse albedo and of the total, and the
     specular albedo at 0, 60 and 80 degrees."""
-    from radiosity.formats.material import schlick_albedo, schlick_diffuse, specular_albedo
+    from radiosity.physics.materials import schlick_albedo, schlick_diffuse, specular_albedo
 
     x, w = np.polynomial.legendre.leggauss(48)
     theta = (x + 1.0) * np.pi / 4.0

@@ -96,7 +96,7 @@ def main(argv=None):
     parser.add_argument("--ray-presets", default="draft,high", help="presets whose solve is measured against the limit")
     args = parser.parse_args(argv)
     parts = set(args.parts.split(","))
-    from radiosity.formats.presets import QUALITIES
+    from radiosity.policies.presets import QUALITIES
 
     unknown = [q for q in args.ray_presets.split(",") if q not in QUALITIES]
     if unknown:

@@ -133,7 +133,7 @@ def write_scenes(directory):
     """scene.toml (textured) and plain.toml (each texture folded into kd by its mean)."""
     from PIL import Image
 
-    from radiosity.formats.material import srgb_to_linear
+    from radiosity.physics.materials import srgb_to_linear
 
     textured, plain = {}, {}
     for name, image in textures().items():

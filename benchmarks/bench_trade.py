@@ -57,7 +57,7 @@ def radiance_error(a, b, names=None):
 
 def grid_error(test, reference, names):
     """Stored radiance read bilinearly at the reference grid's directions, against it."""
-    from radiosity.formats import directions
+    from radiosity.physics import directions
 
     num = den = 0.0
     for x, y in zip(test.objects, reference.objects):
@@ -205,7 +205,7 @@ def truth_trade(record, args):
     from display.renderer import Renderer
     from display.truth import ground_truth
     from fitting import FitOptions, fit
-    from radiosity.formats import presets
+    from radiosity.policies import presets
     from radiosity.scene.loaders import load_scene
     from radiosity.transport.pathtrace import PathTracer
 
@@ -298,7 +298,7 @@ def preset_error(test, reference):
     """Meshes differ between presets: compare each object's mean outgoing radiance per
     direction (area-weighted over vertices), RMS over objects, directions and channels."""
     from fitting.data import vertex_areas
-    from radiosity.formats import directions
+    from radiosity.physics import directions
 
     num = den = 0.0
     for x, y in zip(test.objects, reference.objects):

@@ -144,7 +144,7 @@ def walk_views(camera, fractions, keyframes):
     """Views at ``fractions`` of the walk through ``keyframes`` ((x, z) of each), at eye
     height, each looking ``LOOK_AHEAD`` further along the path; ``camera`` gives the
     field of view and size."""
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     length = float(np.linalg.norm(np.diff(keyframes, axis=0), axis=1).sum())
     views = []
@@ -263,7 +263,7 @@ def measure_scene(record, name, args, work, ctx):
     """Every row of one scene: the fixed costs, each sample frame, the summary."""
     from display.renderer import Renderer
     from fitting import load_fit
-    from radiosity.formats import load_solution
+    from radiosity.files.solution import load_solution
     from radiosity.transport.pathtrace import PathTracer
 
     source, scene, key, triangles, rooms = scene_files(name, args, work)

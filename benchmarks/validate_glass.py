@@ -100,7 +100,7 @@ def display_approaches(solution_path, size, samples=4, frames=5):
     from display.commands.common import headless
     from display.glass import APPROACHES
     from display.renderer import Renderer
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     solution = load_solution(solution_path)
     out = {}

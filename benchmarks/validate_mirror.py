@@ -77,7 +77,7 @@ def displays(solution_path, size, samples=4):
     """{"reflected": image, "grid": image} of the solution display at its camera, and the mask."""
     from display.commands.common import headless
     from display.renderer import Renderer
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     solution = load_solution(solution_path)
     camera = solution.camera.sized(*size)
@@ -124,7 +124,7 @@ def main(argv=None):
     parser.add_argument("--mitsuba-python", help="the Python of a venv with mitsuba installed")
     args = parser.parse_args(argv)
     from display.metrics import metrics
-    from radiosity.formats.hdr import read_hdr_image
+    from radiosity.files.hdr import read_hdr_image
 
     python, version = mitsuba_python(args.mitsuba_python)
     record = Recorder(benchmark="mirrors", spp=args.spp, quality=args.quality, mitsuba=version)

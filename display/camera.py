@@ -1,5 +1,5 @@
 """Cameras for the display commands. The camera type itself is
-``radiosity.formats.Camera``; this module adds the display's own choices: a view
+``radiosity.files.camera.Camera``; this module adds the display's own choices: a view
 that frames a box, and the camera the command-line flags ask for.
 """
 
@@ -9,7 +9,8 @@ import os
 
 import numpy as np
 
-from radiosity.formats import Camera, InputError, camera_from_dict, load_views
+from radiosity.files.camera import Camera, camera_from_dict, load_views
+from radiosity.files.errors import InputError
 
 __all__ = ["Camera", "framing_view", "resolve_camera"]
 
@@ -29,7 +30,7 @@ VIEWS_BYTES = 16 * 2**20  # a views file is a few named cameras: far below this
 
 
 def _read_views(path):
-    """``radiosity.formats.load_views(path)`` after the checks that keep it from
+    """``radiosity.files.camera.load_views(path)`` after the checks that keep it from
     blocking or growing without end (a FIFO, /dev/zero, a directory, a file of
     gigabytes), and with a document nested too deep as one line, not a RecursionError."""
     import stat

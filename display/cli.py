@@ -19,7 +19,7 @@ import warnings
 import display.commands
 import fitting.cli
 import radiosity.cli
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 PROG = "vlights"
 

@@ -52,8 +52,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from PIL import Image, ImageDraw
 
-from radiosity.formats import Camera, InputError
-from radiosity.formats.atomic import atomic_output
+from radiosity.files.atomic import atomic_output
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
 
 from .images import write_npy, write_png
 from .metrics import BLACK, NOT_FINITE, against_truth, is_black, magma, mean_ratio, metrics

@@ -23,7 +23,7 @@ import math
 import time
 from pathlib import Path
 
-from radiosity.formats.atomic import atomic_output
+from radiosity.files.atomic import atomic_output
 
 from . import compare as _compare
 from . import export as _export
@@ -104,7 +104,7 @@ def model_words(o):
 
 
 def _run(out, ctx, quality, size, log, samples, truth_spp, scenes):
-    from radiosity.formats.presets import preset
+    from radiosity.policies.presets import preset
 
     p = preset(quality)
     truth_spp = p.truth_spp if truth_spp is None else truth_spp

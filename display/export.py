@@ -11,7 +11,7 @@ its highlight draws (the scene's, or its own: version 6), M an object's probe si
 file is written with the lowest version that holds it: 7 where a highlight has a
 microfacet lobe (its mesh extras' ``highlight.microfacet``, the fit's model, and
 ``highlight.lobe`` = {"code": 1 GGX or 2 Beckmann, "alpha", "ks", "f0"}, what the page
-draws it with: ``radiosity.formats.ltc.highlight_lobe``; the table of
+draws it with: ``radiosity.physics.ltc.highlight_lobe``; the table of
 linearly transformed cosines is ``shading.js``'s ``LTC_TABLE``), else 6 where an object names its own
 emitter parts (its mesh extras' ``highlight.parts``: indices into the scene's
 ``emitters`` and ``emitter_table``, which may then hold more than 31), else 5 with a
@@ -37,7 +37,7 @@ textures and environments):
     per attribute (part 3 j + c in channel c of ``_VISIBILITY_j``; the last one's
     channels past part P - 1 are 0);
   - ``_IRRADIANCE`` (V, 3) float32, a textured object (version 3): the irradiance E
-    of its diffuse term ``kd * texture(uv) / pi * E`` (``radiosity.formats.texture``);
+    of its diffuse term ``kd * texture(uv) / pi * E`` (``radiosity.physics.textures``);
 
   values are the fit's float32 bits, not clamped;
 - a textured object (version 3) has, besides, ``TEXCOORD_0`` (V, 2) float32, glTF's
@@ -70,7 +70,7 @@ textures and environments):
   ``emitter_table`` is ``display.glsl.emitter_table(parts)`` row by row, the float32
   texels the shaders read (written so that a viewer need not repeat its arithmetic);
 - a fit with an environment (version 4: the light from outside the scene,
-  ``radiosity.formats.environment``, drawn where no object is) has, besides, the scene
+  ``radiosity.physics.environment``, drawn where no object is) has, besides, the scene
   extras' ``"environment": {"width": W, "height": H, "scale", "rotation": 3 x [3
   numbers] (rows; world from environment), "constant": bool, "source", "bufferView":
   i}``, and bufferView i of the GLB's buffer holds its image before ``scale``: H * W * 3
@@ -99,10 +99,10 @@ from pathlib import Path
 
 import numpy as np
 
-from radiosity.formats import InputError
-from radiosity.formats.ltc import highlight_lobe
-from radiosity.formats.material import Microfacet
-from radiosity.formats.texture import OPACITY_CUTOFF
+from radiosity.files.errors import InputError
+from radiosity.physics.ltc import highlight_lobe
+from radiosity.physics.materials import Microfacet
+from radiosity.physics.textures import OPACITY_CUTOFF
 
 __all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
            "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
@@ -283,9 +283,9 @@ def scene_extras(model):
 def srgb8(texture):
     """The 8-bit sRGB codes (H, W, 3) uint8 of a linear texture in [0, 1]: exact (they
     decode to the same float32 values) for a texture decoded from 8-bit sRGB
-    (``radiosity.formats.texture.linear_to_srgb8``), else each value's encoding
+    (``radiosity.physics.textures.linear_to_srgb8``), else each value's encoding
     (IEC 61966-2-1) rounded to the nearest code."""
-    from radiosity.formats.texture import linear_to_srgb8
+    from radiosity.physics.textures import linear_to_srgb8
 
     codes = linear_to_srgb8(texture)
     if codes is not None:
@@ -326,7 +326,7 @@ class _Images:
     each distinct image, however many materials use it (600 of staircase's 655 textured
     objects share one image; trimesh would encode it and list it once for each). Objects
     that share an image share its array, as the fit's reader gives it
-    (``radiosity.formats.npz.Archive.shared``); arrays that are not the same object but
+    (``radiosity.files.npz.Archive.shared``); arrays that are not the same object but
     hold the same codes are found by their codes' digest."""
 
     def __init__(self, model):
@@ -432,8 +432,8 @@ def shading_module(nodes=None):
     out with, as JavaScript. The page puts DEFINES after its header, before each shader file."""
     from display.glsl import FLOAT_TEXTURE_WIDTH, TABLE_WIDTH, defines
     from fitting.probe import ALBEDO_POINTS
-    from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS
-    from radiosity.formats.ltc import table_texture
+    from radiosity.physics.emitters import DEFAULT_NODES, MAX_FILE_PARTS
+    from radiosity.physics.ltc import table_texture
 
     nodes = DEFAULT_NODES if nodes is None else int(nodes)
     ltc = table_texture()  # (2 S, 2 S, 4): the microfacet lobes' table (ltc.glsl), little-endian float32 in base64
@@ -495,7 +495,7 @@ def _chunks(path):
 def _read_environment(header, extras, binary, fail):
     """The ``EnvironmentLight`` of the scene ``extras``' ``"environment"`` and its
     bufferView among the ``header``'s (None if the file has none)."""
-    from radiosity.formats.environment import EnvironmentLight
+    from radiosity.physics.environment import EnvironmentLight
 
     entry = extras.get("environment")
     if entry is None:
@@ -539,7 +539,7 @@ def _read_highlight(info, attributes, v, parts, nodes, fail):
     """An object's ``Highlight`` from its mesh extras and attributes (None if it has none):
     of the scene's ``parts`` all, or those its ``highlight.parts`` name (version 6)."""
     from fitting.model import Highlight
-    from radiosity.formats.emitters import MAX_FILE_PARTS
+    from radiosity.physics.emitters import MAX_FILE_PARTS
 
     entry = info.get("highlight")
     if entry is None:
@@ -596,13 +596,13 @@ def _read_probe(info, attributes, v, fail):
 def _read_textured(info, mesh, v, fail, decoded):
     """An object's ``TexturedDiffuse`` from its mesh extras, uvs, image and
     ``_IRRADIANCE`` (None if it has none). The image's 8-bit sRGB codes are decoded as
-    the solution's are (``radiosity.formats.texture``): a texture that was such a
+    the solution's are (``radiosity.physics.textures``): a texture that was such a
     decoding comes back exact; a material whose alphaMode is MASK (version 8) has its
     mask in the image's alpha (codes / 255). ``decoded`` ((id(image), masked) ->
     (image, texture, opacity)) holds each image decoded once: objects whose materials share an image share its array, as
     they do read from fit.npz."""
-    from radiosity.formats.material import srgb_to_linear
-    from radiosity.formats.texture import TexturedDiffuse
+    from radiosity.physics.materials import srgb_to_linear
+    from radiosity.physics.textures import TexturedDiffuse
 
     entry = info.get("textured")
     if entry is None:
@@ -642,8 +642,8 @@ def load_export(path):
     import trimesh
 
     from fitting.model import FittedModel, FittedObject
-    from radiosity.formats.camera import camera_from_dict
-    from radiosity.formats.emitters import DEFAULT_NODES, MAX_NODES, file_parts
+    from radiosity.files.camera import camera_from_dict
+    from radiosity.physics.emitters import DEFAULT_NODES, MAX_NODES, file_parts
 
     shown = repr(str(path))
     header, binary = _chunks(path)
@@ -734,10 +734,10 @@ def add_export_command(subparsers):
 
 def _check_fit_file(path):
     """A fit.npz, or InputError in one line (missing, a directory, a solution.npz, another
-    file): the one sniffer, ``radiosity.formats.sniff.require_format``."""
+    file): the one sniffer, ``radiosity.files.sniff.require_format``."""
     import os
 
-    from radiosity.formats.sniff import FIT, SOLUTION, input_kind, require_format
+    from radiosity.files.sniff import FIT, SOLUTION, input_kind, require_format
 
     if not os.path.isdir(path) and os.path.exists(path) and input_kind(path) == SOLUTION:
         raise InputError(f"input {str(path)!r} is a solution.npz, not a fit.npz (run 'vlights fit' on it first)")

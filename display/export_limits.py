@@ -20,7 +20,7 @@ estimate was 1.08 to 1.29 times the measured peak on each of the 16.
 ``check_export_memory`` says an estimate of a gigabyte or more on stderr, as ``render``
 says a large upload (``display.store.SAY_BYTES``: smaller ones are silent), and
 refuses, in one line, one beyond the memory this process may still use
-(``radiosity.formats.limits.available_memory``).
+(``radiosity.policies.limits.available_memory``).
 
 Textures. The page (``display/web/walkthrough.js``) puts each object's per-light
 coefficients (V x K values) and its emitters' visibility (V x P) in a float texture
@@ -42,10 +42,10 @@ import math
 import sys
 from typing import NamedTuple
 
-from radiosity.formats.environment import IMAGE_KEY
-from radiosity.formats.errors import InputError
-from radiosity.formats.limits import available_memory
-from radiosity.formats.npz import open_archive
+from radiosity.files.errors import InputError
+from radiosity.files.npz import open_archive
+from radiosity.physics.environment import IMAGE_KEY
+from radiosity.policies.limits import available_memory
 
 from .glsl import FLOAT_TEXTURE_WIDTH
 from .store import SAY_BYTES

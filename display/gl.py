@@ -47,8 +47,8 @@ from typing import NamedTuple
 
 import moderngl
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.limits import available_memory
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import available_memory
 
 REQUIRED_VERSION = 330
 

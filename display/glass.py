@@ -33,8 +33,8 @@ import moderngl
 import numpy as np
 
 from fitting.probe import decode
-from radiosity.formats.camera import Camera
-from radiosity.formats.material import Glass
+from radiosity.files.camera import Camera
+from radiosity.physics.materials import Glass
 
 __all__ = ["APPROACHES", "PROBE_SIZE", "SLAB_RATIO", "components", "cube_views", "glass_of", "octahedral_from_faces",
            "probe_texture", "proxy"]

@@ -12,11 +12,11 @@ never code written from Python:
     VL_TEXTURE_WIDTH          the width of the renderer's float textures (value i at texel
                               (i % width, i / width))
     VL_ALBEDO_POINTS          fitting.probe.ALBEDO_POINTS
-    VL_CULL, VL_MAX_POLYGON_VERTICES    radiosity.formats.emitters' constants
+    VL_CULL, VL_MAX_POLYGON_VERTICES    radiosity.physics.emitters' constants
     VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W, VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W
                               the emitter quadrature of N nodes (``rules(N)``)
     VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES, VL_LTC_SPHERE_SCALE, VL_LTC_CULL, VL_LTC_MAX_RATIO
-                              radiosity.formats.ltc's constants (ltc.glsl)
+                              radiosity.physics.ltc's constants (ltc.glsl)
     VL_NO_LIGHTS, VL_NO_PROBE, VL_NO_EMITTERS    the parts of the model left out
     VL_TRIANGLE, VL_GOURAUD, VL_OUT, VL_ATTRIBUTES    variants of a stage (the files say which)
     VL_REVERSED_Z             the depth convention is reversed Z (the background's far plane
@@ -36,8 +36,8 @@ import numpy as np
 
 from fitting.model import PARTS
 from fitting.probe import ALBEDO_POINTS
-from radiosity.formats import ltc
-from radiosity.formats.emitters import CULL, DEFAULT_NODES, MAX_POLYGON_VERTICES, PackedParts, rules
+from radiosity.physics import ltc
+from radiosity.physics.emitters import CULL, DEFAULT_NODES, MAX_POLYGON_VERTICES, PackedParts, rules
 
 SHADERS = Path(__file__).with_name("shaders")
 DESKTOP = "#version 330\n"  # the header of the renderer's and the window's stages

@@ -1,5 +1,5 @@
 """The one way the display commands write images: every PNG, .npy and plotted figure
-goes through here, each atomically (``radiosity.formats.atomic_output``: the file is
+goes through here, each atomically (``radiosity.files.atomic.atomic_output``: the file is
 whole or absent, a failure or Ctrl-C leaves nothing).
 
     write_png(path, image)            (H, W, 3) uint8 or a PIL image -> PNG
@@ -9,7 +9,7 @@ whole or absent, a failure or Ctrl-C leaves nothing).
                                       PNG, both files or neither
 
 and the one way they read an image of linear radiance (``vlights compare --reference``),
-re-exported from ``radiosity.formats.hdr`` (the scene loaders read environment maps with it):
+re-exported from ``radiosity.files.hdr`` (the scene loaders read environment maps with it):
 
     read_hdr_image(path)              OpenEXR, Radiance HDR (RGBE), PFM or .npy ->
                                       (H, W, 3) float32 RGB, row 0 at the top, checked
@@ -23,8 +23,8 @@ import contextlib
 
 import numpy as np
 
-from radiosity.formats.atomic import atomic_output
-from radiosity.formats.hdr import HDR_EXTENSIONS, read_hdr_image
+from radiosity.files.atomic import atomic_output
+from radiosity.files.hdr import HDR_EXTENSIONS, read_hdr_image
 
 __all__ = ["HDR_EXTENSIONS", "read_hdr_image", "write_figure", "write_npy", "write_pictures", "write_png"]
 

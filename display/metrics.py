@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 from .renderer import tonemap
 

@@ -17,11 +17,11 @@ Glass and other mirrors are missing from what a mirror shows (one bounce of refl
 A near mirror (``near_mirror_of``: a flat object of a microfacet material of roughness at
 most ``NEAR_MIRROR_ALPHA``, a polished floor), where the renderer is asked to
 (``Renderer.near_mirrors``, ``--near-mirrors``), is drawn the same way where the displays
-draw reflections (``near_fragment.glsl``): its own part (``radiosity.formats.material.near_base``,
+draw reflections (``near_fragment.glsl``): its own part (``radiosity.physics.materials.near_base``,
 from the solution's grid or as the fit keeps it: a plastic's diffuse substrate, which leaves
 the interface as 1 - F(n . w); a conductor's least radiance over its directions; a textured
 object's kd texture(uv) E / pi) plus ks (F0 norm + (1 - F0) schlick)(alpha, n . w), its lobe's
-albedo with Fresnel (``radiosity.formats.ltc.lobe_albedo``), times the scene drawn from
+albedo with Fresnel (``radiosity.physics.ltc.lobe_albedo``), times the scene drawn from
 the eye reflected in its plane: sharp, as a mirror's (its lobe's blur is left out, which
 at this roughness is a few pixels at most of a walkthrough's frame), and with what the
 emitters' closed-form highlights gave it drawn from the reflected emitters themselves (a
@@ -34,8 +34,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from radiosity.formats.ltc import highlight_lobe
-from radiosity.formats.material import NEAR_MIRROR_ALPHA, Material, Microfacet
+from radiosity.physics.ltc import highlight_lobe
+from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Material, Microfacet
 
 __all__ = ["FLAT_THICKNESS", "NEAR_MIRROR_ALPHA", "mirror_of", "mirrored_view", "near_mirror_of", "plane_of"]
 

@@ -5,7 +5,7 @@ starts; ``staged_directory`` makes a run's files appear together or not at all: 
 are written into a hidden directory inside the output directory and moved into place
 when the run succeeds; on any failure (a full disk, an error, Ctrl-C) the hidden
 directory is removed, and so is the output directory if the run created it.
-Single files go through ``radiosity.formats.atomic_output`` / ``check_output``.
+Single files go through ``radiosity.files.atomic.atomic_output`` / ``check_output``.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from radiosity.formats import InputError, check_output
-from radiosity.formats.atomic import OutputError
+from radiosity.files.atomic import OutputError, check_output
+from radiosity.files.errors import InputError
 
 __all__ = ["check_output_dir", "staged_directory"]
 

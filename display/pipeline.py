@@ -52,7 +52,7 @@ def fit_options(quality):
 def scene_of(source):
     """The ``Scene`` to path-trace: ``source`` itself, or a ``Solution``'s meshes and
     materials."""
-    from radiosity.formats.solution import Solution
+    from radiosity.files.solution import Solution
     from radiosity.transport.pathtrace import scene_of_solution
 
     return scene_of_solution(source) if isinstance(source, Solution) else source

@@ -64,11 +64,11 @@ import moderngl
 import numpy as np
 
 from fitting.model import PARTS
-from radiosity.formats.emitters import DEFAULT_NODES
-from radiosity.formats.errors import InputError
-from radiosity.formats.ltc import highlight_lobe
-from radiosity.formats.ltc import table_texture as ltc_table_texture
-from radiosity.formats.material import near_base
+from radiosity.files.errors import InputError
+from radiosity.physics.emitters import DEFAULT_NODES
+from radiosity.physics.ltc import highlight_lobe
+from radiosity.physics.ltc import table_texture as ltc_table_texture
+from radiosity.physics.materials import near_base
 
 from . import glass, mirror
 from .gl import DEFAULT_SAMPLES, check_image_size, check_samples, depth_control, sample_plan
@@ -248,7 +248,7 @@ class _Object:
         self.bytes += self.buffers[attribute].size
 
     def add_textured(self, ctx, textured, images):
-        """A textured object's diffuse term (``radiosity.formats.texture.TexturedDiffuse``):
+        """A textured object's diffuse term (``radiosity.physics.textures.TexturedDiffuse``):
         its uvs and irradiance as attributes, its image the float texture ``images``
         (``_Images``) holds for it: one for all the objects that share the image."""
         if self.textured is not None:
@@ -281,7 +281,7 @@ class _Object:
 class _Images:
     """The float textures of textured objects' images, one for each image: the objects of
     a scene that share an image (600 of staircase's 655 share one) share the array the
-    file's reader gives them (``radiosity.formats.npz.Archive.shared``), and so their
+    file's reader gives them (``radiosity.files.npz.Archive.shared``), and so their
     texture here. Bottom row first (t = v), bilinear and repeating, mipmapped for
     minification."""
 
@@ -448,7 +448,7 @@ def light_table(light_pos, light_rgb, shininess):
 
 class Renderer:
     """Draws ``fit`` (a ``fitting.FittedModel``) and/or ``solution`` (a
-    ``radiosity.formats.solution.Solution``) with a moderngl context ``ctx``.
+    ``radiosity.files.solution.Solution``) with a moderngl context ``ctx``.
 
     Each object's lights are a (2, K) float texture (``light_table``). Coefficients
     shared by the lights ((V, 3)) are a vertex attribute; per-light ones ((V, K, 3))
@@ -539,7 +539,7 @@ class Renderer:
         """Record ``obj``'s emitter term for ``mode``: its visibility (V, P) a block of the
         store's ``plan``; ``fresnel`` the material's Schlick F0 or None; ``microfacet``:
         None, or the ``Microfacet`` (or its dict) whose own lobe draws it (ks, exponent
-        and fresnel then ignored: ``radiosity.formats.ltc.highlight_lobe``)."""
+        and fresnel then ignored: ``radiosity.physics.ltc.highlight_lobe``)."""
         values = np.asarray(visibility, np.float32).reshape(-1)
         base = plan.add(len(values), lambda: (values,))
         own = sum(1 << i for i, p in enumerate(parts) if p.source == obj.name)
@@ -1059,7 +1059,7 @@ class Renderer:
         """The near mirrors ``objects`` (depth-tested, their backs black): their base and
         textured term plus ks (F0 norm + (1 - F0) schlick) times the scene in their plane that
         ``seen`` holds for each (``_mirror_image``; near_fragment.glsl). Their base: the
-        solution's (``radiosity.formats.material.near_base``) in the solution display, the
+        solution's (``radiosity.physics.materials.near_base``) in the solution display, the
         fit's (the same, as fit.npz keeps it: version 10) in the fitted one, else its emitted
         colour."""
         ctx, (lo, hi), table = self.ctx, self.bounds, self._ltc_texture()

@@ -15,7 +15,7 @@ import http.server
 import os
 import threading
 
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 __all__ = ["Server", "serve_until_interrupted", "start"]
 

@@ -41,8 +41,8 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.limits import available_memory
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import available_memory
 
 from .gl import MAX_BUFFER_BYTES, _size
 from .glsl import FLOAT_TEXTURE_WIDTH
@@ -180,7 +180,7 @@ def _parts(estimate, layout):
 
 def check_memory(estimate, layout, free=None, say=None):
     """Refuse (InputError, one line) an ``estimate`` (``Estimate``) beyond the memory this
-    process may still use (``radiosity.formats.limits.available_memory``, or ``free``);
+    process may still use (``radiosity.policies.limits.available_memory``, or ``free``);
     ``say`` (a function of one line), if given, is told an estimate of SAY_BYTES or more
     first."""
     free = available_memory() if free is None else free

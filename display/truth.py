@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 __all__ = ["GroundTruth", "ground_truth", "load_truth", "scene_for_truth"]
 
@@ -28,8 +28,8 @@ def scene_for_truth(path):
     """The source to path-trace: a solution.npz (its meshes and materials, what its
     displays show), or a scene (TOML, OBJ, glTF or a built-in name). A fit.npz holds no
     materials and is refused (InputError)."""
-    from radiosity.formats import load_solution
-    from radiosity.formats.sniff import FIT, SOLUTION, input_kind
+    from radiosity.files.sniff import FIT, SOLUTION, input_kind
+    from radiosity.files.solution import load_solution
 
     from . import pipeline
 

@@ -12,8 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from radiosity.formats import InputError
-from radiosity.formats.atomic import OutputError, temporary_name
+from radiosity.files.atomic import OutputError, temporary_name
+from radiosity.files.errors import InputError
 
 from .renderer import tonemap
 

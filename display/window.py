@@ -33,8 +33,8 @@ import warnings
 
 import numpy as np
 
-from radiosity.formats import Camera, InputError
-from radiosity.formats.camera import fov_y_deg
+from radiosity.files.camera import Camera, fov_y_deg
+from radiosity.files.errors import InputError
 
 from .gl import DEFAULT_SAMPLES
 from .renderer import MODE_WORDS, PARTS, Renderer

@@ -11,9 +11,6 @@ Modules: ``fit`` (orchestration), ``glossy`` (a glossy object part by part and
 ``cli``; docs/layout.md has the whole map.
 """
 
-# first, so that radiosity/__init__.py has keyed numba's cache on every source file a
-# kernel may inline (radiosity/jit_cache.py) before fitting's kernels are decorated
-import radiosity.formats  # noqa: F401
 
 from .fit import FitOptions, fit
 from .model import FittedModel, FittedObject, load_fit, shade, shade_arrays

@@ -13,7 +13,7 @@ storage per vertex:
   or 2 (9 x 3 = 27 floats), fitted by weighted least squares.
 - ``all_baselines``: the four above, in that order.
 
-Every function takes the ``radiosity.formats.solution.ObjectSolution`` (for its local
+Every function takes the ``radiosity.files.solution.ObjectSolution`` (for its local
 directions, which are the same for every vertex) and the object's
 ``fitting.data.FitData``; the values approximated are ``data.radiance`` (float64;
 ``fit_data(obj)`` makes it ``obj.radiance``) and the fit weights are
@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from radiosity.formats.directions import (
+from radiosity.physics.directions import (
     grid_directions,
     hemisphere_to_square,
     square_to_hemisphere,
@@ -328,7 +328,7 @@ def dominant_direction(obj, data, exponents=None) -> Approximation:
 
     Model: L[v, d] ~ base[v] + intensity[v] * max(0, dot(w_d, dir[v]))^p, with RGB
     base and intensity >= 0, a per-vertex unit direction dir[v] stored as its 2
-    equal-area square coordinates (a, b) (``radiosity.formats.directions``), and one exponent
+    equal-area square coordinates (a, b) (``radiosity.physics.directions``), and one exponent
     p per object: the one of ``exponents`` (default ``DEFAULT_EXPONENTS``, 1 to 1e4
     on a half-decade grid) with the least total weighted squared error.
 

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from radiosity.formats.presets import DEFAULT_QUALITY, PRESETS
+from radiosity.policies.presets import DEFAULT_QUALITY, PRESETS
 
 __all__ = ["BLOCK_SAMPLES", "SEARCH_SAMPLES", "object_mean", "search_slice", "vertex_blocks"]
 

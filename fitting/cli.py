@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from radiosity.formats.atomic import check_output
-from radiosity.formats.cluster import check_scheduler, connect
-from radiosity.formats.errors import InputError
-from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
-from radiosity.formats.sniff import SOLUTION, require_format
-from radiosity.formats.solution import SolutionFile
+from radiosity.files.atomic import check_output
+from radiosity.files.errors import InputError
+from radiosity.files.sniff import SOLUTION, require_format
+from radiosity.files.solution import SolutionFile
+from radiosity.policies.cluster import check_scheduler, connect
+from radiosity.policies.presets import DEFAULT_QUALITY, QUALITIES, preset
 
 from .blocks import BLOCK_SAMPLES
 from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_threads, planned_workers, quality_of
@@ -47,7 +47,7 @@ def _probe_size(text):
 
 
 # The most refinement iterations a fit may ask for: one costs up to 1.5 s a glossy object
-# at the high preset's grid (see radiosity.formats.presets), so 10,000 are hours per object,
+# at the high preset's grid (see radiosity.policies.presets), so 10,000 are hours per object,
 # far past where L-BFGS stops improving (the presets use 25 to 60).
 MAX_ITERATIONS = 10_000
 
@@ -246,7 +246,7 @@ def _fit(args):
 
 
 def _fit_on(scheduler, solution, options):
-    """``fit`` on the Dask cluster ``scheduler`` names (``radiosity.formats.cluster.connect``):
+    """``fit`` on the Dask cluster ``scheduler`` names (``radiosity.policies.cluster.connect``):
     its own memory estimate is of the objects in flight, said like the local one's."""
     client, cluster = connect(scheduler)
     try:

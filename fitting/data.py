@@ -60,7 +60,7 @@ def object_areas(obj):
     return area if area.sum() > 0 else np.ones_like(area)
 
 def fit_data(obj, vertices=slice(None), area=None):
-    """The FitData of a ``radiosity.formats.solution.ObjectSolution``, or of its
+    """The FitData of a ``radiosity.files.solution.ObjectSolution``, or of its
     ``vertices`` alone (a slice: a block of a large object, or every k-th vertex).
 
     area : (V,) every vertex's area (``vertex_areas``), if already known. A block's

@@ -17,10 +17,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import NEAR_MIRROR_ALPHA, Material, Microfacet, near_base
-from radiosity.formats.presets import DEFAULT_QUALITY, QUALITIES, preset
-from radiosity.formats.solution import SolutionFile
+from radiosity.files.errors import InputError
+from radiosity.files.solution import SolutionFile
+from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Material, Microfacet, near_base
+from radiosity.policies.presets import DEFAULT_QUALITY, QUALITIES, preset
 
 from . import blocks, glossy, loss, mixed, paper
 from .data import ErrorSums, fit_data, object_areas, relative_error
@@ -390,7 +390,7 @@ NEAR_CHUNK_VALUES = 1 << 22  # a near mirror's grid is read this many values at 
 
 
 def _near(obj):
-    """A near mirror's own part (``radiosity.formats.material.near_base``: (base (V, 3), eta))
+    """A near mirror's own part (``radiosity.physics.materials.near_base``: (base (V, 3), eta))
     for a glossy solution object of a microfacet material at most ``NEAR_MIRROR_ALPHA`` rough,
     which a display may draw as one (flat ones: ``display.mirror``), else None. From the
     solution's grid, a chunk of vertices at a time."""
@@ -445,7 +445,7 @@ def quality_of(solution):
 
 def fit(solution, options=None, progress=False, workers=1, client=None):
     """The fitted model of every object of ``solution``: a ``Solution``, or a
-    ``radiosity.formats.solution.SolutionFile``, read an object at a time so that the
+    ``radiosity.files.solution.SolutionFile``, read an object at a time so that the
     fit's memory is that of the objects being fitted, not of the whole solution.
     ``options`` None: ``FitOptions.for_quality`` of the quality the solution was solved
     at (``quality_of``), as ``vlights fit`` with no flag.

@@ -2,7 +2,7 @@
 
     colour(x, w) = emitted(x)                               every object
                  + E(x, w)                                   the emitters' own highlights, in closed
-                                                             form (``radiosity.formats.emitters``)
+                                                             form (``radiosity.physics.emitters``)
                  + s(x) S(n . w) P(u(x, w))                  a reflection probe (``fitting.probe``)
                  + sum_k c_k(x) lobe_k(x, w)                 virtual lights for the rest (``mixed``)
 

@@ -39,6 +39,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+
 __all__ = [
     "NEGLIGIBLE",
     "Lights",

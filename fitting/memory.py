@@ -19,8 +19,8 @@ from __future__ import annotations
 import os
 import sys
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.limits import available_memory
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import available_memory
 
 from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES
 

@@ -15,11 +15,11 @@
 Version 1 files (``light_dirs`` (K, 3) instead of ``light_pos``, ``specular`` (V, 3))
 are still read: their lights are directional (w = 0). Version 3 adds the emitters'
 highlights and the reflection probe. Version 4 adds textured objects, as the solution's
-version 3 has them (``radiosity.formats.texture``): ``<name>/uvs``,
+version 3 has them (``radiosity.physics.textures``): ``<name>/uvs``,
 ``<name>/irradiance``, ``<name>/texture`` and ``meta.objects[name].textured`` =
 {"diffuse": kd}; their colour gains kd * texture(uv) / pi * E, a display's per pixel;
 and the light from outside the scene, copied from the solution (``meta.environment``,
-``environment_image``: ``radiosity.formats.environment``), which displays draw where no
+``environment_image``: ``radiosity.physics.environment``), which displays draw where no
 object is. A file is written with the lowest version that holds it (3 without either).
 Version 5 adds delta emitter parts (points, spots, directions) to ``meta.emitters``, as
 the solution's version 4 has them; a file without any is still version 4 or 3.
@@ -28,7 +28,7 @@ object's ``<name>/emitter_parts`` (P_o,) int32 names the parts of ``meta.emitter
 (indices) its highlight draws, its ``visibility`` then (V, P_o); ``meta.emitters`` may
 then hold up to ``MAX_SCENE_PARTS``. An object without it draws every part.
 Version 7 adds glass, as the solution's version 7 has it: ``meta.objects[name].glass``
-(``radiosity.formats.material.Glass.to_dict``: kind, eta, distribution, alpha,
+(``radiosity.physics.materials.Glass.to_dict``: kind, eta, distribution, alpha,
 specular_reflectance, specular_transmittance) marks an object the displays draw as glass
 (reflecting and refracting what is around it: ``display.glass``) instead of by this
 formula; its arrays are a diffuse object's with ``emitted`` 0, so a reader of version 6
@@ -37,8 +37,8 @@ that ignores the key sees a black object. It adds mirrors too: ``meta.objects[na
 F0) marks a perfect mirror (a smooth conductor: ``Material.is_mirror``) the displays draw
 by what it reflects (``display.mirror``), its arrays a black diffuse object's likewise.
 Version 8 adds a microfacet lobe to a highlight, as the solution's version 8 has it:
-``meta.objects[name].highlight.microfacet`` (``radiosity.formats.material.Microfacet.
-to_dict``) draws the highlights with that lobe (``radiosity.formats.ltc``: its
+``meta.objects[name].highlight.microfacet`` (``radiosity.physics.materials.Microfacet.
+to_dict``) draws the highlights with that lobe (``radiosity.physics.ltc``: its
 specular reflectance and exact normal reflectance; "specular", "exponent" and "fresnel"
 keep the Phong stand-in, which a reader of version 7 that ignores the key draws).
 
@@ -54,7 +54,7 @@ with w the unit vector from x towards the eye; the lobe max(0, ...)^shininess is
 A point light exactly at x, or a half vector of zero length, gives no light.
 ``shade_arrays`` is the numpy reference the fitter, the display and every test use.
 
-``load_fit`` reads a file through ``radiosity.formats.npz.open_archive`` and checks
+``load_fit`` reads a file through ``radiosity.files.npz.open_archive`` and checks
 everything a reader relies on: a bad file is refused with one ``InputError`` line that
 names the file and the key at fault.
 """
@@ -65,12 +65,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from radiosity.formats.camera import Camera, camera_from_meta
-from radiosity.formats.emitters import DEFAULT_NODES, MAX_FILE_PARTS, MAX_NODES, emitter_radiance, file_parts
-from radiosity.formats.environment import IMAGE_KEY, EnvironmentLight, read_environment
-from radiosity.formats.material import Glass, Microfacet
-from radiosity.formats.npz import open_archive, write_archive
-from radiosity.formats.texture import TexturedDiffuse, read_textured
+from radiosity.files.camera import Camera, camera_from_meta
+from radiosity.files.npz import open_archive, write_archive
+from radiosity.physics.emitters import DEFAULT_NODES, MAX_FILE_PARTS, MAX_NODES, emitter_radiance, file_parts
+from radiosity.physics.environment import IMAGE_KEY, EnvironmentLight, read_environment
+from radiosity.physics.materials import Glass, Microfacet
+from radiosity.physics.textures import TexturedDiffuse, read_textured
 
 from .lobes import lobe_vectorised
 from .probe import ALBEDO_POINTS, Probe, probe_values
@@ -136,7 +136,7 @@ def directional(light_dirs):
 @dataclass(frozen=True, eq=False)
 class Highlight:
     """An object's emitter term (version 3): the emitters' glossy highlights in closed
-    form (``radiosity.formats.emitters``).
+    form (``radiosity.physics.emitters``).
 
     parts: the ``EmitterPart`` s it draws (the scene's, or the object's own of them);
     nodes: N of the quadrature; ks (3,) and exponent: the surface's modified-Phong

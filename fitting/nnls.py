@@ -16,6 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+
 __all__ = ["solve_gram", "solve_many"]
 
 _MAX_OUTER = 200

@@ -24,6 +24,8 @@ import numba
 import numpy as np
 from scipy.optimize import nnls
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+
 from .lobes import one_light
 from .results import FitResult, LightSet
 

@@ -9,7 +9,7 @@ unit normal n seen from the unit direction w:
     u    = normalize(x' + t r - c)              seen from the probe's centre c
     term = s(x) * S(n . w) * P(u)               s per vertex (RGB), P the probe's texels
 
-and S the material's specular albedo (``radiosity.formats.material.specular_albedo``),
+and S the material's specular albedo (``radiosity.physics.materials.specular_albedo``),
 linear in a table of ``ALBEDO_POINTS`` values at n . w = 0, 1/32, ..., 1 (clamped to
 [0, 1]): a Phong lobe about a mirror direction near the horizon loses what falls below
 it, so what a glossy surface reflects falls with the view's angle like the cosine. The
@@ -43,7 +43,8 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from radiosity.formats.material import specular_albedo
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.materials import specular_albedo
 
 from .nnls import solve_many
 

@@ -16,6 +16,8 @@ import math
 import numba
 import numpy as np
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+
 __all__ = ["first_hits", "meeting_point", "mirror"]
 
 AGREE = math.radians(20)  # a ray agrees on a meeting point it points at within this (a grid cell is 10-20 degrees)

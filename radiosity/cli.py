@@ -6,10 +6,10 @@ import argparse
 import json
 from pathlib import Path
 
-from radiosity.formats import presets
-from radiosity.formats.atomic import check_output
-from radiosity.formats.emitters import MAX_NODES
+from radiosity.files.atomic import check_output
 from radiosity.info import describe, format_description
+from radiosity.physics.emitters import MAX_NODES
+from radiosity.policies import presets
 from radiosity.scene.loaders import load_scene, scene_words
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from radiosity.scene.lights import describe as describe_light
-from radiosity.scene.materials import albedo
+from radiosity.scene.material_kernels import albedo
 
 
 def _round(values, digits=6):

@@ -3,11 +3,11 @@
 numba's ``cache=True`` stamps a kernel's cache with the content of the one file the
 kernel is defined in. A kernel's compiled code also holds every jitted function it
 calls (inlined or linked), and those may live in other files: the solver's kernels
-call ``radiosity.scene.materials``, ``radiosity.transport.embree`` and
+call ``radiosity.scene.material_kernels``, ``radiosity.transport.embree`` and
 ``radiosity.formats``; after an edit there, numba would keep running the old code.
 
-``install()`` (run by ``radiosity/__init__.py``, so before any kernel of the project is
-decorated) puts ``ProjectCacheLocator`` first among numba's cache locators. For a kernel
+``install()`` (run when this module is first imported: every module of the project that
+decorates a kernel imports it first) puts ``ProjectCacheLocator`` first among numba's cache locators. For a kernel
 defined under a covered package directory it stamps the cache with a digest of the
 content of every ``.py`` file of that package and of the packages it may import
 (the README's stage rule: radiosity imports neither fitting nor display; fitting imports
@@ -139,3 +139,4 @@ def _cover_project():
 
 
 _cover_project()
+install()

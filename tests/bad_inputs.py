@@ -53,8 +53,8 @@ def tiny_solution(path, name="plate"):
     enough for every check a command makes before it works on the data."""
     import numpy as np
 
-    from radiosity.formats.directions import DIFFUSE_DIRECTIONS
-    from radiosity.formats.solution import ObjectSolution, Solution
+    from radiosity.files.solution import ObjectSolution, Solution
+    from radiosity.physics.directions import DIFFUSE_DIRECTIONS
 
     u, v = np.meshgrid(np.arange(3.0), np.arange(3.0))
     faces = [[3 * r + c, 3 * r + c + 1, 3 * r + c + 4] for r in range(2) for c in range(2)]

@@ -13,7 +13,7 @@ def rng():
 @pytest.fixture(scope="session")
 def gl_context():
     """A headless OpenGL context (EGL); tests using it are skipped where there is none."""
-    from radiosity.formats.errors import InputError
+    from radiosity.files.errors import InputError
 
     try:
         from display.gl import headless_context

@@ -3,7 +3,7 @@
 import textwrap
 import warnings
 
-from radiosity.formats.errors import SceneWarning
+from radiosity.files.errors import SceneWarning
 from radiosity.scene.loaders import load_scene
 
 

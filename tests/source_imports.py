@@ -7,6 +7,15 @@ from pathlib import Path
 REPOSITORY = Path(__file__).resolve().parent.parent
 PACKAGES = ("radiosity", "fitting", "display")
 
+# The stage rule (the README's "Code map" line, docs/layout.md): of the radiosity stage,
+# the other stages import its shared core alone, and the core imports nothing else of it.
+SHARED_CORE = ("radiosity.files", "radiosity.physics", "radiosity.policies", "radiosity.jit_cache")
+
+
+def in_shared_core(module):
+    """Whether module ``module`` (a dotted name) lies in the radiosity stage's shared core."""
+    return any(module == core or module.startswith(core + ".") for core in SHARED_CORE)
+
 
 def imported_modules(path):
     """The absolute module names ``path`` (a ``pathlib.Path``) imports, anywhere in it."""
@@ -15,7 +24,10 @@ def imported_modules(path):
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            yield node.module
+            for alias in node.names:  # "from radiosity.physics import ltc" imports radiosity.physics.ltc
+                folder = REPOSITORY.joinpath(*node.module.split("."), alias.name)
+                own = node.module.split(".")[0] in PACKAGES
+                yield f"{node.module}.{alias.name}" if own and (folder.is_dir() or folder.with_suffix(".py").is_file()) else node.module
 
 
 def module_name(path, root=REPOSITORY):

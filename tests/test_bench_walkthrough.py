@@ -74,7 +74,7 @@ def test_summary_of_the_ways(bw):
 def test_the_walk_goes_through_the_doorway(bw):
     from bench_scale import DOOR, ROOM
 
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     keyframes = bw.walk_keyframes()
     camera = Camera((0, 1, 0), (0, 1, 1), (0, 1, 0), 60.0, 32, 24)

@@ -123,7 +123,7 @@ def test_ctrl_c_during_solve_leaves_no_file(tmp_path):
 
 
 def test_solve_writes_a_readable_solution_and_a_summary(tmp_path, capsys):
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     out = tmp_path / "s.npz"
     code, stdout, _ = run(

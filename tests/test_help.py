@@ -9,8 +9,8 @@ import pytest
 
 from display import demo
 from display.cli import build_parser
-from radiosity.formats import presets
-from radiosity.formats.sniff import MESH_SUFFIXES, SCENE_SUFFIXES
+from radiosity.files.sniff import MESH_SUFFIXES, SCENE_SUFFIXES
+from radiosity.policies import presets
 from radiosity.scene import builtins
 
 SCENE_COMMANDS = ("scene-info", "solve", "truth")  # the commands whose argument may be a scene

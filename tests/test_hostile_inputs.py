@@ -23,9 +23,12 @@ import pytest
 from bad_inputs import GOOD_MATERIAL, npy_bytes, replace_member, tiny_solution, write
 
 from display.cli import main
-from radiosity.formats import InputError, SceneWarning, load_solution, load_views, write_archive
-from radiosity.formats.inputs import MAX_NESTING, check_input_file, read_input_bytes
-from radiosity.formats.sniff import FIT, SOLUTION, input_kind, require_format
+from radiosity.files.camera import load_views
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.inputs import MAX_NESTING, check_input_file, read_input_bytes
+from radiosity.files.npz import write_archive
+from radiosity.files.sniff import FIT, SOLUTION, input_kind, require_format
+from radiosity.files.solution import load_solution
 from radiosity.scene.loaders import load_scene, safe_object_name
 
 CUBE = "[[objects]]\nname = {name}\nbuiltin = 'cube'\nmaterial = 'm'\n"
@@ -115,7 +118,7 @@ def test_a_solution_object_named_with_a_nul_is_refused(tmp_path):
 
 def test_a_249_character_output_passes_the_check(tmp_path, capsys, monkeypatch):
     # used to be refused only after the whole solve: the temporary name was 18 longer
-    from radiosity.formats.atomic import check_output
+    from radiosity.files.atomic import check_output
 
     monkeypatch.chdir(tmp_path)
     check_output("s" * 245 + ".npz", ".npz")
@@ -229,7 +232,7 @@ def test_an_npz_meta_claiming_terabytes_is_refused(solution, tmp_path, capsys):
 
 
 def test_an_npz_member_beyond_the_free_memory_is_refused(solution, monkeypatch):
-    import radiosity.formats.npz as npz
+    import radiosity.files.npz as npz
 
     monkeypatch.setattr(npz, "available_memory", lambda: 100)
     with pytest.raises(InputError, match="needs .* of memory, more than the 100 bytes available"):

@@ -9,8 +9,8 @@ import contextlib
 import sys
 
 from display import gl
-from radiosity.formats import InputError
-from radiosity.formats.camera import FOV_AXES
+from radiosity.files.camera import FOV_AXES
+from radiosity.files.errors import InputError
 
 __all__ = [
     "FIT", "SOLUTION", "add_camera_flags", "add_glass_flag", "add_samples_flag", "check_drawable", "check_model_files", "check_output_file",
@@ -90,10 +90,10 @@ def add_samples_flag(parser):
 
 
 def sniff(path, label="input"):
-    """What the file ``path`` is (``radiosity.formats.file_format``: its meta's format,
+    """What the file ``path`` is (``radiosity.files.npz.file_format``: its meta's format,
     or None), with a meta nested too deep to parse an InputError naming ``label``
     rather than Python's RecursionError."""
-    from radiosity.formats import file_format
+    from radiosity.files.npz import file_format
 
     try:
         return file_format(path)
@@ -104,8 +104,8 @@ def sniff(path, label="input"):
 def input_format(path, accepted, label):
     """The format of the input file ``path`` (FIT or SOLUTION), which must be one of
     ``accepted``; InputError naming ``label`` (the argument) and what the file is
-    otherwise: the one sniffer, ``radiosity.formats.sniff.require_format``."""
-    from radiosity.formats.sniff import require_format
+    otherwise: the one sniffer, ``radiosity.files.sniff.require_format``."""
+    from radiosity.files.sniff import require_format
 
     try:
         return require_format(path, accepted, label)
@@ -127,7 +127,7 @@ def check_model_files(path, extra_solution=None):
 def read_model_files(path, extra_solution=None):
     """(fit or None, solution or None) from a file that is either, plus an optional solution."""
     from fitting import load_fit
-    from radiosity.formats import load_solution
+    from radiosity.files.solution import load_solution
 
     if check_model_files(path, extra_solution) == FIT:
         fit, solution = load_fit(path), None
@@ -151,11 +151,11 @@ def check_drawable(model, path):
 
 
 def check_output_file(path, suffix, inputs=(), flag="-o"):
-    """``radiosity.formats.check_output`` for an output file of a display command, and
+    """``radiosity.files.atomic.check_output`` for an output file of a display command, and
     two refusals more, in one line before any work: an empty name (an unset variable in
     a script, which would otherwise mean the default name or the current directory), and
     a name the system refuses to look at (too long for the file system, a NUL)."""
-    from radiosity.formats import check_output
+    from radiosity.files.atomic import check_output
 
     shown = str(path)
     if not shown:

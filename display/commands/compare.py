@@ -8,8 +8,8 @@ from __future__ import annotations
 import os
 
 from display.gl import check_sample_count
-from radiosity.formats import InputError
-from radiosity.formats.limits import check_exposure, check_seed
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import check_exposure, check_seed
 
 from .common import (
     FIT,
@@ -145,7 +145,7 @@ def run(args):
     from display.outputs import check_output_dir
     from display.renderer import Renderer
     from fitting import load_fit
-    from radiosity.formats import load_solution
+    from radiosity.files.solution import load_solution
 
     check_exposure(args.exposure)
     check_sample_count(args.samples)

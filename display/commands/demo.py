@@ -6,7 +6,7 @@ from __future__ import annotations
 from fractions import Fraction
 
 from display.gl import check_sample_count
-from radiosity.formats import presets
+from radiosity.policies import presets
 
 from .common import add_samples_flag, size
 
@@ -67,7 +67,7 @@ def _walkthrough(out, samples):
         return
     from display.window import Walkthrough
     from fitting import load_fit
-    from radiosity.formats import load_solution
+    from radiosity.files.solution import load_solution
 
     from .view import open_window
 

@@ -7,8 +7,8 @@ import numpy as np
 
 from display.gl import check_sample_count
 from fitting.model import PARTS
-from radiosity.formats import InputError
-from radiosity.formats.limits import check_exposure
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import check_exposure
 
 from .common import add_camera_flags, add_glass_flag, add_samples_flag, check_output_file, display_mode, rendering
 

@@ -8,8 +8,9 @@ import os
 
 import numpy as np
 
-from radiosity.formats import InputError, presets
-from radiosity.formats.limits import available_memory, check_exposure, check_seed
+from radiosity.files.errors import InputError
+from radiosity.policies import presets
+from radiosity.policies.limits import available_memory, check_exposure, check_seed
 
 from .common import DefaultSize, add_camera_flags, check_drawable, check_output_file, sniff
 

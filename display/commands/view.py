@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from display.gl import check_image_memory, check_sample_count
-from radiosity.formats import InputError
-from radiosity.formats.limits import check_exposure
+from radiosity.files.errors import InputError
+from radiosity.policies.limits import check_exposure
 
 from .common import (
     add_camera_flags,

@@ -1,5 +1,5 @@
-// The light from outside the scene where no object is (radiosity.formats.environment):
-// the pixel's ray (as radiosity.formats.camera.Camera.pixel_rays makes it) turned into
+// The light from outside the scene where no object is (radiosity.physics.environment):
+// the pixel's ray (as radiosity.files.camera.Camera.pixel_rays makes it) turned into
 // the environment's frame, its latitude-longitude (u, v) in Mitsuba 3's convention, the
 // map read bilinearly: column i at u = (i + 0.5) / W, repeating (GL_REPEAT in s), row j
 // at v = j / (H - 1) (t = (v (H - 1) + 0.5) / H, clamped), times its scale.

@@ -1,4 +1,4 @@
-// An object's opacity mask (radiosity.formats.texture: a leaf's cut-out): the fragment is
+// An object's opacity mask (radiosity.physics.textures: a leaf's cut-out): the fragment is
 // discarded where the mask reads below the cut-off, as the solver's and the path tracer's
 // rays pass through there (radiosity.transport.embree's filter). Read bilinear at the base
 // level, as they read it: a mipmapped mask would thin the leaves with distance.

@@ -1,9 +1,9 @@
-// The emitters' glossy highlights: the same arithmetic as radiosity.formats.emitters
+// The emitters' glossy highlights: the same arithmetic as radiosity.physics.emitters
 // (highlight_integral, _culled, the visibility of each part blended from the triangle's
 // vertices); tested against it. Compiles to nothing under VL_NO_EMITTERS.
 // Prepended #defines (display.glsl.defines; VL_STORE_PAGES the renderer's): VL_TEXTURE_WIDTH, VL_CULL,
 // VL_MAX_POLYGON_VERTICES, and the quadrature of the emitter nodes N
-// (radiosity.formats.emitters.rules): VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W,
+// (radiosity.physics.emitters.rules): VL_SPHERE_NODES, VL_SPHERE_S, VL_SPHERE_W,
 // VL_SECTOR_NODES, VL_SECTOR_S, VL_SECTOR_W (the lists comma-separated).
 //
 // Uniforms (textures as display.glsl.emitter_table lays them out):
@@ -198,7 +198,7 @@ float spot_falloff(float theta, float cutoff, float beam) {   // Mitsuba 3's spo
 }
 // where a delta part's light comes from at x: the unit wi toward it, and the factor its
 // Le is weighted by (1 / d^2 times the spot's profile for a point, 1 for a direction; 0:
-// unusable) (radiosity.formats.emitters.delta_incidence)
+// unusable) (radiosity.physics.emitters.delta_incidence)
 float delta_incidence(int part, bool direction, vec3 x, out vec3 wi) {
     vec3 q = emitter_point(part, 0);
     wi = -q;
@@ -214,7 +214,7 @@ float delta_incidence(int part, bool direction, vec3 x, out vec3 wi) {
     return scale;
 }
 // a delta part's J: the lobe and the cosine at its one direction, times 1 / d^2 and the
-// spot's profile for a point (radiosity.formats.emitters.delta_integral)
+// spot's profile for a point (radiosity.physics.emitters.delta_integral)
 float delta_integral(int part, bool direction, vec3 x, vec3 n, vec3 r, float p) {
     vec3 wi;
     float scale = delta_incidence(part, direction, x, wi);
@@ -243,7 +243,7 @@ float part_visibility(int i, ivec3 vertices, vec3 weights) {
     if (weights.z != 0.0) v += weights.z * visibility_at(vertices.z, i);
     return v;
 }
-// a microfacet lobe's highlights (radiosity.formats.emitters._microfacet_radiance): an
+// a microfacet lobe's highlights (radiosity.physics.emitters._microfacet_radiance): an
 // area part by linearly transformed cosines with Schlick's curve through emitter_f0
 // integrated over the lobe, a delta part the lobe at its direction with F(wi.h)
 vec3 microfacet_term(vec3 x, vec3 n, vec3 w, ivec3 vertices, vec3 weights) {

@@ -5,7 +5,7 @@
 uniform ivec2 base;          // the object's first value: (layer, texel) in the store
 uniform int grid_n;          // 0 for a diffuse object (D = 1)
 const float FOUR_OVER_PI = 1.2732395447351628;
-vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere_to_square
+vec2 hemisphere_to_square(vec3 w) {   // radiosity.physics.directions.hemisphere_to_square
     w = normalize(w);
     float z = clamp(w.z, 0.0, 1.0);
     float radius = z > 0.5 ? length(w.xy) / sqrt(1.0 + z) : sqrt(1.0 - z);
@@ -18,7 +18,7 @@ vec2 hemisphere_to_square(vec3 w) {   // radiosity.formats.directions.hemisphere
     else { a = -radius; b = t > 0.0 ? radius * (4.0 - t) : -radius * (4.0 + t); }
     return clamp(vec2(a, b), -1.0, 1.0);
 }
-vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.formats.directions.grid_lookup_weights
+vec3 lookup(int vertex, vec3 n, vec3 t, vec3 w) {   // radiosity.physics.directions.grid_lookup_weights
     if (grid_n == 0) return store_value(base, vertex, 1, 0).rgb;
     int D = grid_n * grid_n;
     vec3 bt = cross(n, t);

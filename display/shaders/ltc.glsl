@@ -1,11 +1,11 @@
 // A microfacet lobe's highlights by linearly transformed cosines: the same arithmetic as
-// radiosity.formats.ltc (cell, view_frame, polygon_cosine, polygon_integral,
+// radiosity.physics.ltc (cell, view_frame, polygon_cosine, polygon_integral,
 // sphere_integral, ndf, smith_g1, lobe_value); tested against it.
 //
 // Prepended #defines (display.glsl.defines): VL_LTC_ALPHA_MIN, VL_LTC_SPHERE_SIDES,
-// VL_LTC_SPHERE_SCALE, VL_LTC_CULL, VL_LTC_MAX_RATIO (radiosity.formats.ltc's constants).
+// VL_LTC_SPHERE_SCALE, VL_LTC_CULL, VL_LTC_MAX_RATIO (radiosity.physics.ltc's constants).
 // Uniforms:
-//   ltc_table     RGBA32F (display.glsl.ltc_texture: radiosity.formats.ltc.table_texture):
+//   ltc_table     RGBA32F (display.glsl.ltc_texture: radiosity.physics.ltc.table_texture):
 //                 row (lobe - 1) S + i, texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick)
 //   emitter_lobe  1 GGX, 2 Beckmann (0: the Phong lobe of emitters.glsl)
 //   emitter_alpha its roughness
@@ -117,7 +117,7 @@ bool ltc_sphere_polygon(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, out
     return true;
 }
 // The vector form factor (its z: I) of part `part` (head: its table row's texel 0) at x in
-// the frame (t, b, n) (radiosity.formats.ltc.polygon_integral, sphere_integral,
+// the frame (t, b, n) (radiosity.physics.ltc.polygon_integral, sphere_integral,
 // polygon_cosine): each vertex mapped by alpha M^-1, the polygon clipped to the transformed
 // cosine's horizon edge by edge, the edges' terms summed. No arrays: llvmpipe keeps them
 // slowly, and a vertex is read or made where it is needed.
@@ -157,7 +157,7 @@ float ltc_ndf(int lobe, float alpha, float cos_h) {
     }
     return exp(-(1.0 - c2) / (c2 * a2)) / (LTC_PI * a2 * c2 * c2);
 }
-// radiosity.formats.ltc.culled: the part's bounding sphere wholly below the tangent plane,
+// radiosity.physics.ltc.culled: the part's bounding sphere wholly below the tangent plane,
 // or (alpha < 0.5) nowhere near enough the mirror direction r for D to reach LTC_CULL of its peak
 bool ltc_culled(int lobe, float alpha, vec4 bound, vec3 x, vec3 n, vec3 r) {
     vec3 c = bound.xyz - x;
@@ -206,7 +206,7 @@ float ltc_lobe_ratio(vec3 f, vec4 k, int lobe, float alpha, float cos_o, float n
     float value = ltc_lobe_value(lobe, alpha, w, vec3(sqrt(max(0.0, 1.0 - cos_o * cos_o)), 0.0, cos_o), vec3(0.0, 0.0, 1.0), cih);
     return min(value / (norm * density), LTC_MAX_RATIO);
 }
-// I of part `part` corrected towards the lobe (radiosity.formats.ltc.fan_integral): the fan of
+// I of part `part` corrected towards the lobe (radiosity.physics.ltc.fan_integral): the fan of
 // triangles from the part's representative direction to each edge, each triangle's integral
 // times ltc_lobe_ratio at its own representative direction
 float ltc_part_integral(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, vec4 k, int lobe, float alpha, float cos_o,
@@ -221,7 +221,7 @@ float ltc_part_integral(int part, vec4 head, vec3 x, vec3 t, vec3 b, vec3 n, vec
     if (sphere) ltc_sphere_polygon(part, head, x, t, b, n, c, u, v, spread);   // ltc_part_form_factor's polygon
     vec3 first = ltc_vertex(part, 0, x, t, b, n, sphere, c, u, v, spread);
     // the fan's centre: the representative direction where it lies inside the polygon, else
-    // the mean of the vertices' directions (radiosity.formats.ltc._fan_centre)
+    // the mean of the vertices' directions (radiosity.physics.ltc._fan_centre)
     bool pos = true, neg = true;
     vec3 mean = vec3(0.0);
     vec3 prev = first;

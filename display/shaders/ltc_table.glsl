@@ -1,7 +1,7 @@
-// The table of linearly transformed cosines and its bilinear read (radiosity.formats.ltc.cell),
+// The table of linearly transformed cosines and its bilinear read (radiosity.physics.ltc.cell),
 // shared by the highlights (ltc.glsl) and the near mirrors (near_fragment.glsl).
 // Prepended #define: VL_LTC_ALPHA_MIN. Uniform: ltc_table, RGBA32F
-// (display.glsl.ltc_texture: radiosity.formats.ltc.table_texture): row (lobe - 1) S + i,
+// (display.glsl.ltc_texture: radiosity.physics.ltc.table_texture): row (lobe - 1) S + i,
 // texels 2 j (k00, k02, k20, k22) and 2 j + 1 (norm, schlick).
 uniform sampler2D ltc_table;
 const float LTC_ALPHA_MIN = VL_LTC_ALPHA_MIN;

@@ -1,8 +1,8 @@
-// A textured object's diffuse term (radiosity.formats.texture): kd * texture(uv) / pi * E,
+// A textured object's diffuse term (radiosity.physics.textures): kd * texture(uv) / pi * E,
 // the texture read per pixel, uv and the irradiance E interpolated from the vertices.
 // Compiled in under #define VL_TEXTURED (the programs of textured objects); the image is
 // uploaded bottom row first, so that t = v (v up, as the files' uvs) and GL's bilinear,
-// repeating filter is radiosity.formats.texture.lookup's.
+// repeating filter is radiosity.physics.textures.lookup's.
 #ifdef VL_TEXTURED
 uniform sampler2D diffuse_texture;
 uniform vec3 texture_kd;

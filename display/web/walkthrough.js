@@ -676,7 +676,7 @@ export async function loadFit(url, maxTexture, reversed = false) {
 
 // ------------------------------------------------------------------------------ the page
 
-// radiosity.formats.camera.fov_y_deg: the vertical field of view of a width x height image
+// radiosity.files.camera.fov_y_deg: the vertical field of view of a width x height image
 // whose field of view along axis (x, y, diagonal, smaller, larger: Mitsuba's fov_axis) is fov
 const FOV_AXES = ['x', 'y', 'diagonal', 'smaller', 'larger'];
 function verticalFov(fov, axis, width, height) {
@@ -896,7 +896,7 @@ class Walkthrough {
     }
 
     // the background's camera uniforms (display.renderer.Renderer._draw_background): the
-    // camera's right, up and forward (radiosity.formats.camera.Camera.basis: right =
+    // camera's right, up and forward (radiosity.files.camera.Camera.basis: right =
     // forward x up), tan(fov / 2) times the aspect and 1, the framebuffer's size
     aimBackground(width, height) {
         const u = this.background.material.uniforms;

@@ -23,7 +23,7 @@ from importlib import resources
 import numpy as np
 import trimesh
 
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
 from radiosity.scene import teapot
 
 SCENES = ("cornell", "cornell-teapot", "plates")

@@ -1,4 +1,4 @@
-"""Columns of the packed material table (``radiosity.scene.materials.pack_materials``),
+"""Columns of the packed material table (``radiosity.scene.material_kernels.pack_materials``),
 one row per material, read by every numba kernel that shades a surface.
 
 The first columns hold the modified-Phong model (``KD`` .. ``HAS_FRESNEL``); every
@@ -8,7 +8,7 @@ says which model the transport kernels evaluate (``KIND_PHONG``, ``KIND_ROUGH_PL
 ``KIND_ROUGH_CONDUCTOR``, and the glass kinds from ``KIND_DIELECTRIC`` on, which
 reflect and transmit on both faces); the other kinds' own parameters follow it. Kept in a
 module of its own so that the kinds' kernels (``radiosity.scene.microfacet_kernels``)
-and the dispatch (``radiosity.scene.materials``) share them without importing each other.
+and the dispatch (``radiosity.scene.material_kernels``) share them without importing each other.
 """
 
 KD = 0  # 3 columns: diffuse reflectance (a rough plastic: its substrate's, scaled; see MF_DIFFUSE_NORM)

@@ -20,7 +20,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
 
 # corner k of a face starts edge k, which runs to corner (k + 1) % 3
 _EDGE_CORNERS = np.array([[0, 1], [1, 2], [2, 0]])

@@ -1,4 +1,4 @@
-"""numpy oracle of the glass kinds (``radiosity.formats.material.Glass``), written from the
+"""numpy oracle of the glass kinds (``radiosity.physics.materials.Glass``), written from the
 formulas (Walter et al. 2007; Mitsuba 3's ``dielectric``, ``thindielectric`` and
 ``roughdielectric``), which tests hold the kernels (``radiosity.scene.glass_kernels``)
 to. Conventions are the kernels': z the outward normal, wo and wi pointing away from the
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radiosity.formats.material import Glass
+from radiosity.physics.materials import Glass
 from radiosity.scene.microfacet import fresnel_dielectric, masking, ndf
 
 __all__ = ["RoughDielectric", "reflectance"]

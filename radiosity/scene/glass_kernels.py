@@ -1,4 +1,4 @@
-"""numba kernels of the glass kinds (``radiosity.formats.material.Glass``): a dielectric
+"""numba kernels of the glass kinds (``radiosity.physics.materials.Glass``): a dielectric
 interface that reflects and transmits, on either face.
 
 Conventions differ from the reflecting kinds' in one way: the local frame's z is the
@@ -32,6 +32,7 @@ import math
 
 import numba
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.scene.columns import (
     GLASS_TRANSMITTANCE,
     KIND,

@@ -2,10 +2,10 @@
 density and albedo, beside the numba kernels that run it.
 
 A material is of one kind (``kind_of``): ``"phong"`` (Lambert plus modified Phong, with
-or without Schlick's Fresnel: ``radiosity.formats.material``), ``"roughplastic"`` or
+or without Schlick's Fresnel: ``radiosity.physics.materials``), ``"roughplastic"`` or
 ``"roughconductor"`` (a ``Microfacet`` model: ``radiosity.scene.microfacet_kernels``).
 Every kernel of the project that shades a surface goes through the dispatch of
-``radiosity.scene.materials`` (``brdf_eval``, ``brdf_pdf``, ``brdf_sample``,
+``radiosity.scene.material_kernels`` (``brdf_eval``, ``brdf_pdf``, ``brdf_sample``,
 ``deposit_weight``, ``diffuse_exitance``), which reads the row's ``KIND`` column; the
 oracle of each kind (``oracle``) is plain numpy, written from the formulas, and the tests
 (tests/radiosity/scene/test_material_kinds.py) hold the kernels to it for every kind in
@@ -13,7 +13,7 @@ oracle of each kind (``oracle``) is plain numpy, written from the formulas, and 
 mirror direction, the smallest and largest roughness or exponent), the sampler by a
 chi-square test against the oracle's density, energy and reciprocity.
 
-Adding a kind: its parameters (a record in ``radiosity.formats.material`` and its file
+Adding a kind: its parameters (a record in ``radiosity.physics.materials`` and its file
 key, a versioned addition in docs/formats.md), its columns in ``radiosity.scene.columns``
 and a ``KIND_*`` code, its kernels and their branch in the dispatch, its oracle here and a
 row of ``KINDS`` (the tests then cover it), and how the displays draw it.
@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from radiosity.formats.material import Material
+from radiosity.physics.materials import Material
 from radiosity.scene import microfacet
 from radiosity.scene.columns import KIND_PHONG, KIND_ROUGH_CONDUCTOR, KIND_ROUGH_PLASTIC
-from radiosity.scene.materials import P_SPECULAR_MIN, albedo, microfacet_reference
+from radiosity.scene.material_kernels import P_SPECULAR_MIN, albedo, microfacet_reference
 
 __all__ = ["KINDS", "Kind", "MicrofacetOracle", "PhongOracle", "kind_of", "oracle"]
 
@@ -39,7 +39,7 @@ def _unit_rows(w) -> np.ndarray:
 
 
 class PhongOracle:
-    """numpy evaluation of the Phong kind (``radiosity.formats.material``'s formulas)."""
+    """numpy evaluation of the Phong kind (``radiosity.physics.materials``'s formulas)."""
 
     def __init__(self, material: Material):
         self.material = material

@@ -1,5 +1,5 @@
 """Delta lights as scenes declare them: a point, a spot (a point with Mitsuba 3's cone)
-and a directional light (a sun), each a ``radiosity.formats.emitters.EmitterPart`` of
+and a directional light (a sun), each a ``radiosity.physics.emitters.EmitterPart`` of
 kind "point" or "direction" in ``Scene.lights``.
 
     point_light, spot_light, directional_light   checked, one InputError line each
@@ -7,7 +7,7 @@ kind "point" or "direction" in ``Scene.lights``.
     describe                                     what ``vlights scene-info`` says of one
 
 The spot's defaults are Mitsuba 3's (``spot``): ``cutoff_deg`` 20, ``beam_deg`` 3/4 of
-the cutoff; its profile is ``radiosity.formats.emitters.spot_falloff``. A directional
+the cutoff; its profile is ``radiosity.physics.emitters.spot_falloff``. A directional
 light's ``direction`` is the way its light travels (Mitsuba's ``direction``), its
 ``irradiance`` what a surface facing it receives.
 """
@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from radiosity.formats.emitters import MAX_LIGHTS, EmitterPart, SpotProfile
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import FLOAT32_MAX
+from radiosity.files.errors import InputError
+from radiosity.physics.emitters import MAX_LIGHTS, EmitterPart, SpotProfile
+from radiosity.physics.materials import FLOAT32_MAX
 
 __all__ = ["DEFAULT_CUTOFF_DEG", "TOML_KINDS", "describe", "directional_light", "lights_from_toml", "point_light",
            "spot_light"]

@@ -45,16 +45,17 @@ import numpy as np
 import trimesh
 from PIL import Image
 
-from radiosity.formats.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.inputs import TEXT_BYTES, loads_toml, read_input_bytes
-from radiosity.formats.material import FLOAT32_MAX, fresnel_kd_limit
-from radiosity.formats.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
-from radiosity.formats.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
+from radiosity.files.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.inputs import TEXT_BYTES, loads_toml, read_input_bytes
+from radiosity.files.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
+from radiosity.files.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
+from radiosity.physics.environment import Environment, read_environment_image
+from radiosity.physics.materials import FLOAT32_MAX, fresnel_kd_limit
+from radiosity.physics.textures import read_texture, texture_from_image
 from radiosity.scene import builtins, geometry
-from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.lights import lights_from_toml
-from radiosity.scene.materials import Material
+from radiosity.scene.material_kernels import Material
 from radiosity.scene.meshfiles import (
     MESH_SUFFIXES,
     mesh_uvs,
@@ -66,7 +67,6 @@ from radiosity.scene.meshfiles import (
 from radiosity.scene.microfacet import phong_exponent
 from radiosity.scene.mitsuba import load_mitsuba
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, MAX_COORDINATE, Scene, build_object, with_backs
-from radiosity.scene.textures import read_texture, texture_from_image
 
 _MATERIAL_KEYS = {"diffuse", "specular", "exponent", "emission", "diffuse_texture"}
 _OBJECT_KEYS = {
@@ -109,7 +109,7 @@ def load_scene(source):
     )
 
 
-# Each suffix ``load_scene`` reads (``radiosity.formats.sniff``'s SCENE_SUFFIXES and
+# Each suffix ``load_scene`` reads (``radiosity.files.sniff``'s SCENE_SUFFIXES and
 # MESH_SUFFIXES) as help texts name it
 FORMAT_NAMES = {
     ".toml": "a TOML scene", ".xml": "a Mitsuba XML scene, versions 0.4-0.6 and 2-3", ".obj": "OBJ/MTL",

@@ -1,5 +1,5 @@
 """Fitting the linearly transformed cosines (Heitz et al. 2016) of the microfacet lobes,
-offline: what ``radiosity/formats/data/ltc.npz`` holds and ``radiosity.formats.ltc``
+offline: what ``radiosity/physics/data/ltc.npz`` holds and ``radiosity.physics.ltc``
 reads.
 
 For a lobe (GGX or Beckmann, roughness alpha) seen from wo at theta_o from the normal,

@@ -17,10 +17,10 @@ import warnings
 import numpy as np
 import trimesh
 
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.inputs import MESH_BYTES, check_input_file, loads_json, read_input_bytes
-from radiosity.formats.sniff import MESH_SUFFIXES as _MESH_SUFFIXES
-from radiosity.formats.texture import MAX_TEXTURE_PIXELS
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.inputs import MESH_BYTES, check_input_file, loads_json, read_input_bytes
+from radiosity.files.sniff import MESH_SUFFIXES as _MESH_SUFFIXES
+from radiosity.physics.textures import MAX_TEXTURE_PIXELS
 
 MESH_SUFFIXES = set(_MESH_SUFFIXES)
 

@@ -28,12 +28,12 @@ conductors ``material="none"`` (eta 0, k 1: a perfect mirror) or a named metal f
 ``METALS`` (RGB eta, k as Mitsuba 3's ``scalar_rgb`` variant uses them, read from
 Mitsuba itself by ``benchmarks/mitsuba_materials.py`` into ``data/mitsuba_metals.json``).
 
-Conventions as in ``radiosity.scene.materials``: local frame (z the normal), wi and wo
+Conventions as in ``radiosity.scene.material_kernels``: local frame (z the normal), wi and wo
 unit vectors pointing away from the surface, arrays of shape (..., 3), BRDF values
 without the cosine (Mitsuba's ``eval`` returns f cos(theta_o)).
 
 The mapping, ``phong_lobe_for(kind, distribution, alpha, **params)``, gives the
-modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
+modified-Phong (kd, ks, n) of ``radiosity.scene.material_kernels`` by this rule:
 
 - n(alpha) = ``phong_exponent(distribution, alpha)`` = c / alpha^2 + d + e alpha^2
   (``RULE``), 0 from its first root on (alpha about 0.74 for GGX, 0.61 for Beckmann:
@@ -55,7 +55,7 @@ modified-Phong (kd, ks, n) of ``radiosity.scene.materials`` by this rule:
   incidence; the glTF loader's (2/alpha^2 - 2)/4 is 2.7 (GGX) and 1.6 (Beckmann) times
   too broad (glTF's roughness is GGX's).
 - Fresnel (the rule for every microfacet material): the lobe gets Schlick's term
-  (``radiosity.formats.material``) with F0 the exact reflectance at normal incidence
+  (``radiosity.physics.materials``) with F0 the exact reflectance at normal incidence
   (``normal_reflectance``: the dielectric's for plastics, the conductor's per channel
   for metals); ks, the lobe's scale, is the least-squares fit of its specular albedo ks
   (F0 S_n + (1 - F0) Q_n)(theta) to the microfacet term's (times specular_reflectance)
@@ -102,8 +102,8 @@ from pathlib import Path
 import numpy as np
 from scipy.special import erf
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import (
+from radiosity.files.errors import InputError
+from radiosity.physics.materials import (
     MAX_EXPONENT,
     fresnel_dielectric,
     fresnel_kd_limit,

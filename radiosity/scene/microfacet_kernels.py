@@ -29,7 +29,7 @@ interface with Mitsuba's probability (1 - t(cos_o)) w / ((1 - t(cos_o)) w + t(co
 (1 - w)), w = mean(s) / (mean(s) + mean(kd)), at least ``P_MIN`` either way where both
 parts reflect; otherwise the cosine-weighted hemisphere.
 
-Conventions as in ``radiosity.scene.materials``: the local shading frame (z the normal),
+Conventions as in ``radiosity.scene.material_kernels``: the local shading frame (z the normal),
 wi and wo unit vectors pointing away from the surface, values without the cosine.
 """
 
@@ -40,6 +40,7 @@ import math
 
 import numba
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.scene.columns import (
     KD,
     KIND,

@@ -54,7 +54,7 @@ Emitters
     ``to_world``'s +z) as the scene's delta lights (``radiosity.scene.lights``);
     ``constant`` (radiance) and ``envmap`` (filename: .exr, .hdr, .pfm or an 8-bit
     image, sRGB-decoded; scale; to_world, its rotation) become the scene's environment
-    (``radiosity.scene.environment``; one per scene: a second is left out with a
+    (``radiosity.physics.environment``; one per scene: a second is left out with a
     warning); the sun and sky models are not modelled yet: left out with a warning.
 Sensor
     ``perspective`` / ``thinlens`` as the scene's camera: ``fov`` with its
@@ -82,18 +82,18 @@ from xml.parsers import expat
 
 import numpy as np
 
-from radiosity.formats.camera import Camera, fov_y_deg, pose_from_matrix
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, check_input_file, read_input_bytes
-from radiosity.formats.material import MAX_ALPHA, MIN_ALPHA, Glass, Microfacet, fresnel_kd_limit, srgb_to_linear
+from radiosity.files.camera import Camera, fov_y_deg, pose_from_matrix
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, check_input_file, read_input_bytes
+from radiosity.physics.environment import Environment, read_environment_image
+from radiosity.physics.materials import MAX_ALPHA, MIN_ALPHA, Glass, Microfacet, fresnel_kd_limit, srgb_to_linear
+from radiosity.physics.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 from radiosity.scene import builtins, microfacet
-from radiosity.scene.environment import Environment, read_environment_image
 from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
-from radiosity.scene.materials import Material
+from radiosity.scene.material_kernels import Material
 from radiosity.scene.meshfiles import read_mesh_parts
 from radiosity.scene.model import DEFAULT_CREASE_ANGLE_DEG, Scene, build_object, with_backs
 from radiosity.scene.spectra import spectrum_to_rgb
-from radiosity.scene.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
 
 __all__ = ["Tessellation", "load_mitsuba", "read_serialized"]
 

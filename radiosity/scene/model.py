@@ -19,14 +19,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radiosity.formats.camera import Camera
-from radiosity.formats.emitters import MAX_LIGHTS, EmitterPart
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.npz import check_member_name
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.npz import check_member_name
+from radiosity.physics.emitters import MAX_LIGHTS, EmitterPart
+from radiosity.physics.environment import Environment
+from radiosity.physics.textures import Cutout, check_opacity, check_texture, cutout_of
 from radiosity.scene import geometry
-from radiosity.scene.environment import Environment
-from radiosity.scene.materials import Material
-from radiosity.scene.textures import Cutout, check_opacity, check_texture, cutout_of
+from radiosity.scene.material_kernels import Material
 
 DEFAULT_CREASE_ANGLE_DEG = 40.0
 # The ray tracer (Embree) works in single precision. Beyond about 1e12 its intersection
@@ -47,12 +47,12 @@ class SceneObject:
     normals   : (V, 3) float64, unit shading normals (split at creases)
     tangents  : (V, 3) float64, unit, orthogonal to the normals
     faces     : (F, 3) int64, counter-clockwise seen from the front
-    uvs       : (V, 2) float64 texture coordinates, or None (``radiosity.scene.textures``
+    uvs       : (V, 2) float64 texture coordinates, or None (``radiosity.physics.textures``
                 states their convention: v up, repeating)
     texture   : (H, W, 3) float32 linear RGB in [0, 1], row 0 the top, or None: the
                 diffuse reflectance is then kd * texture(uv) (``textures.lookup``)
     opacity   : (H, W) float32 in [0, 1], row 0 the top, or None: a mask; the surface
-                is there only where opacity(uv) >= ``textures.CUTOFF`` (needs uvs; an
+                is there only where opacity(uv) >= ``textures.OPACITY_CUTOFF`` (needs uvs; an
                 untextured object given one is textured white, as the files carry a
                 mask with the textured term)
 
@@ -165,8 +165,8 @@ class Scene:
     camera: Camera | None = None
     source: str = ""
     film: tuple[int, int] | None = None  # the image size the scene asks for (a Mitsuba sensor's film), if any
-    environment: Environment | None = None  # light from outside the scene (``radiosity.scene.environment``)
-    # delta lights (``radiosity.formats.emitters`` parts of kind "point", with an optional
+    environment: Environment | None = None  # light from outside the scene (``radiosity.physics.environment``)
+    # delta lights (``radiosity.physics.emitters`` parts of kind "point", with an optional
     # spot profile, and "direction"), each named by its ``source``: they light the scene
     # and its glossy objects reflect them, but nothing sees them
     lights: tuple[EmitterPart, ...] = ()

@@ -57,8 +57,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radiosity.formats import presets
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
+from radiosity.policies import presets
 from radiosity.scene.geometry import unique_edges
 from radiosity.transport import density
 from radiosity.transport.solve import SolveOptions, solve
@@ -192,7 +192,7 @@ def _with_stats(solution, knobs, before, after, passes, max_edge, chosen_by=None
 def vertex_values(obj_solution):
     """(V,) float64: the luminance of the outgoing radiance without emission (averaged
     over the direction grid of a glossy object). A textured object's radiance leaves its
-    diffuse term out (``radiosity.formats.texture``): it is added back with the
+    diffuse term out (``radiosity.physics.textures``): it is added back with the
     texture's mean colour, so that the mesh follows the light as on the same object
     untextured (the texture's own detail is drawn per pixel, not by the mesh)."""
     # the mean in float64 straight from the float32 radiance (no float64 copy of the

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from radiosity.scene.environment import no_environment
-from radiosity.scene.materials import KD, albedo_table, pack_materials
-from radiosity.scene.textures import atlas
+from radiosity.physics.environment import no_environment
+from radiosity.physics.textures import atlas
+from radiosity.scene.material_kernels import KD, albedo_table, pack_materials
 from radiosity.transport import lights as delta
 from radiosity.transport.gather import gather_outputs, trace_gather
 from radiosity.transport.photons import trace_photons

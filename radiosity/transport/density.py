@@ -27,7 +27,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from radiosity.formats.presets import MAX_SPARSE_RINGS, MIN_PHOTONS
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.policies.presets import MAX_SPARSE_RINGS, MIN_PHOTONS
 from radiosity.scene.geometry import unique_edges
 
 _CONDITION_LIMIT = 1e-3  # below this (relative) Schur complement, fall back to S0 / K0

@@ -17,7 +17,7 @@ What goes where
   - a worker lost mid-run: Dask reruns its tasks elsewhere; being pure functions of
     their inputs they return the same bits. Ctrl-C cancels the outstanding futures.
 
-Where it runs: ``radiosity.formats.cluster`` (shared with the fit) reaches the scheduler.
+Where it runs: ``radiosity.policies.cluster`` (shared with the fit) reaches the scheduler.
 
 Dask is optional (``pip install ".[dask]"``); this module imports it only when used.
 """

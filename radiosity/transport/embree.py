@@ -42,7 +42,8 @@ from numba import carray, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from radiosity.scene.textures import CUTOFF, texel
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.textures import OPACITY_CUTOFF, texel
 from radiosity.transport.signals import HeldSignals
 
 MISS = -1
@@ -153,7 +154,7 @@ def _pointer(typingctx, address):
 @numba.cfunc(types.void(types.CPointer(types.int64)), cache=True, nopython=True)
 def _cut(args):
     """Embree's filter function of the masked geometry (intersect and occluded alike):
-    a candidate hit whose mask reads below CUTOFF at its texture coordinates (the
+    a candidate hit whose mask reads below OPACITY_CUTOFF at its texture coordinates (the
     corners' uvs at the hit's barycentrics, ``texel``: bilinear, repeating) is
     rejected, and Embree goes on to the next."""
     n = args[ARG_N] & 0xFFFFFFFF  # the unsigned int N, then the struct's padding
@@ -178,7 +179,7 @@ def _cut(args):
         w = 1.0 - u - v
         tu = w * uvs[tri, 0] + u * uvs[tri, 2] + v * uvs[tri, 4]
         tv = w * uvs[tri, 1] + u * uvs[tri, 3] + v * uvs[tri, 5]
-        if texel(pixels, offsets, sizes, image[tri], tu, tv)[0] < CUTOFF:
+        if texel(pixels, offsets, sizes, image[tri], tu, tv)[0] < OPACITY_CUTOFF:
             valid[k] = 0
 
 

@@ -17,10 +17,11 @@ import math
 import numba
 import numpy as np
 
-from radiosity.formats.directions import square_boundary_nb
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.directions import square_boundary_nb
+from radiosity.physics.environment import env_lookup
 from radiosity.scene.columns import KIND, KIND_DIELECTRIC, KIND_PHONG, MF_ALPHA, MF_DISTRIBUTION, MF_GGX
-from radiosity.scene.environment import env_lookup
-from radiosity.scene.materials import (
+from radiosity.scene.material_kernels import (
     EMISSION,
     EXPONENT,
     HAS_FRESNEL,

@@ -1,4 +1,4 @@
-"""The emitters' direct glossy highlights in closed form (``radiosity.formats.emitters``):
+"""The emitters' direct glossy highlights in closed form (``radiosity.physics.emitters``):
 what fraction of each emitter part every glossy vertex sees, by shadow rays, and the
 highlights' radiance on each glossy object's direction grid.
 
@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radiosity.formats.emitters import emitter_grid
+from radiosity.physics.emitters import emitter_grid
 from radiosity.scene.geometry import face_normals
 
 __all__ = ["COARSE_SAMPLES", "MAX_RECEIVER_PARTS", "grid_highlights", "object_parts", "r2_points", "visibility"]

@@ -1,5 +1,5 @@
 """Delta lights in the transport kernels: points (with an optional spot profile) and
-directions (``Scene.lights``, ``radiosity.formats.emitters`` parts of kind "point" and
+directions (``Scene.lights``, ``radiosity.physics.emitters`` parts of kind "point" and
 "direction"). Nothing can hit them: they light the scene through their photons and
 through next-event estimates (the gather's at glossy hits of its paths, the path
 tracer's at every hit), and the solver adds their direct glossy highlights in closed
@@ -30,10 +30,12 @@ import math
 import numba
 import numpy as np
 
-from radiosity.formats.emitters import DIRECTION, PackedParts, delta_incidence, spot_falloff
-from radiosity.scene.materials import onb
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.cdf import search_cdf
+from radiosity.physics.emitters import DIRECTION, PackedParts, delta_incidence, spot_falloff
+from radiosity.scene.material_kernels import onb
 from radiosity.transport.records import LightArrays
-from radiosity.transport.sampling import cosine_direction, search_cdf
+from radiosity.transport.sampling import cosine_direction
 
 __all__ = ["arriving", "emit_delta", "light_arrays", "no_lights", "photon_power", "pick_light", "power", "reach",
            "unreached"]

@@ -1,7 +1,7 @@
 """A path tracer: the ground truth the walkthrough is measured against.
 
-Unidirectional paths from a pinhole camera (``radiosity.formats.camera``), next-event estimation on the
-emitters and the environment (``radiosity.scene.environment``) combined with BRDF sampling by multiple importance sampling (power
+Unidirectional paths from a pinhole camera (``radiosity.files.camera``), next-event estimation on the
+emitters and the environment (``radiosity.physics.environment``) combined with BRDF sampling by multiple importance sampling (power
 heuristic), and on the delta lights (``radiosity.transport.lights``: points, spots,
 directions, which no ray can hit, so their estimate is unweighted), Russian roulette from bounce ``ROULETTE_DEPTH`` on, a box pixel filter
 (uniform positions inside the pixel). It reads the same merged scene arrays, BRDF
@@ -34,12 +34,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.limits import check_seed
-from radiosity.formats.material import Material
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.files.errors import InputError
+from radiosity.physics.environment import Environment, env_lookup, env_pdf, env_sample
+from radiosity.physics.materials import Material
+from radiosity.policies.limits import check_seed
 from radiosity.scene.columns import KIND, KIND_DIELECTRIC
-from radiosity.scene.environment import Environment, env_lookup, env_pdf, env_sample
-from radiosity.scene.materials import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
+from radiosity.scene.material_kernels import EMISSION, KD, KS, NCOL, brdf_eval, brdf_pdf, brdf_sample, onb, textured_row
 from radiosity.scene.model import Scene, SceneObject
 from radiosity.transport.batches import scene_arrays
 from radiosity.transport.embree import (

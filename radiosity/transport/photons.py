@@ -21,9 +21,10 @@ import math
 import numba
 import numpy as np
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.environment import env_lookup, env_sample
 from radiosity.scene.columns import KIND, KIND_DIELECTRIC
-from radiosity.scene.environment import env_lookup, env_sample
-from radiosity.scene.materials import (
+from radiosity.scene.material_kernels import (
     EMISSION,
     HAS_FRESNEL,
     KD,

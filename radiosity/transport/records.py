@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radiosity.scene.environment import EnvArrays
+from radiosity.physics.environment import EnvArrays
 from radiosity.transport.embree import Hits, empty_hits
 
 # tally slots of a photon batch (RGB triples, then counts)
@@ -84,7 +84,7 @@ class SceneArrays(NamedTuple):
     direct_cdf, direct_triangles, direct_area_pdf : the same over the emitters whose direct
                      glossy highlight the gather estimates (its vertices' light samples and
                      the emission its rays find on their first segment); the others'
-                     (analytic emitter parts, ``radiosity.scene.emitters``) the solver adds
+                     (analytic emitter parts, ``radiosity.scene.emitter_parts``) the solver adds
                      in closed form. The same arrays as emit_* when every emitter is gathered.
                      emit_area_pdf and direct_area_pdf count the triangles alone: a photon
                      or light sample picks the environment first, with ``env``'s shares

@@ -21,6 +21,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+
 STREAM_EMIT, STREAM_BOUNCE, STREAM_LIGHT, STREAM_GATHER = 1, 2, 3, 4
 STREAM_LOBE, STREAM_GATHER_LIGHT, STREAM_GATHER_DELTA = 5, 6, 7
 STREAM_CAMERA, STREAM_PATH = 11, 12

@@ -18,9 +18,11 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
+from radiosity.physics.cdf import search_cdf
+from radiosity.physics.textures import texel
 from radiosity.scene.glass_kernels import glass_sample
-from radiosity.scene.materials import onb
-from radiosity.scene.textures import texel
+from radiosity.scene.material_kernels import onb
 
 
 @intrinsic
@@ -44,19 +46,6 @@ def prefetch_row(typingctx, array, row):
         return context.get_dummy_value()
 
     return types.void(array, row), codegen
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def search_cdf(cdf, u):
-    """np.searchsorted(cdf, u, side="right") by hand: numba's, for one number, allocates."""
-    lo, hi = 0, len(cdf)
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if cdf[mid] <= u:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -35,15 +35,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from radiosity.formats import directions, presets
-from radiosity.formats.emitters import MAX_NODES
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.formats.limits import available_memory, check_seed
-from radiosity.formats.material import FLOAT32_MAX
-from radiosity.formats.solution import ObjectSolution, Solution
-from radiosity.formats.texture import TexturedDiffuse
-from radiosity.scene.emitters import emitter_parts
-from radiosity.scene.materials import diffuse_exitances, diffuse_reflectance
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
+from radiosity.physics.emitters import MAX_NODES
+from radiosity.physics.materials import FLOAT32_MAX
+from radiosity.physics.textures import TexturedDiffuse
+from radiosity.policies import presets
+from radiosity.policies.limits import available_memory, check_seed
+from radiosity.scene.emitter_parts import emitter_parts
+from radiosity.scene.material_kernels import diffuse_exitances, diffuse_reflectance
 from radiosity.transport import density, highlights, regather
 from radiosity.transport import lights as delta_lights
 from radiosity.transport.batches import (  # noqa: F401 (the units of work, importable from the solver too)
@@ -187,7 +188,7 @@ class SolveOptions:
         if self.grid is not None and not (isinstance(self.grid, int) and 1 <= self.grid <= 256):
             raise InputError(f"--grid must be a whole number from 1 to 256, got {self.grid}")
         if self.scheduler != "threads":
-            from radiosity.formats.cluster import check_scheduler
+            from radiosity.policies.cluster import check_scheduler
 
             check_scheduler(self.scheduler)
         check_seed(self.seed)
@@ -291,7 +292,7 @@ def _runner(opts, settings, client):
     connected now: a bad address fails before any work) or this process's threads."""
     if client is None and opts.scheduler == "threads":
         return ThreadRunner(settings["threads"])
-    from radiosity.formats.cluster import connect
+    from radiosity.policies.cluster import connect
     from radiosity.transport.distributed import DaskRunner
 
     if client is not None:

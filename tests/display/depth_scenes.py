@@ -17,10 +17,11 @@ gap; 1e4: a 100 km room with a 10 m gap), eyes included.
 import numpy as np
 
 from fitting import FittedModel, FittedObject
-from radiosity.formats import Camera, directions
-from radiosity.formats.environment import EnvironmentLight
-from radiosity.formats.material import Material
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
+from radiosity.physics.environment import EnvironmentLight
+from radiosity.physics.materials import Material
 from radiosity.scene.model import BACK_OFFSET, build_object, with_backs
 
 ROOM = 10.0   # the room's side at scale 1 (metres)

@@ -6,9 +6,9 @@ import numpy as np
 
 from fitting import FittedModel, FittedObject
 from fitting.model import directional
-from radiosity.formats import directions
-from radiosity.formats.camera import Camera
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
 
 DIFFUSE = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
 GLOSSY = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 20.0, "emission": [0.0, 0.0, 0.0]}

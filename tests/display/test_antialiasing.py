@@ -43,7 +43,8 @@ from display.gl import (
     sample_plan,
 )
 from display.renderer import Renderer
-from radiosity.formats import Camera, InputError
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
 
 WALL, TILE = 0.25, 2.0
 ANGLE = 2.0  # degrees: the edge moves 0.035 pixel a row, so the rows see every sub-pixel position

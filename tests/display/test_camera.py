@@ -11,8 +11,8 @@ from display.camera import resolve_camera
 from display.commands.common import add_camera_flags
 from display.compare import orbit
 from display.video import walkthrough_path
-from radiosity.formats import Camera, InputError
-from radiosity.formats.camera import fov_y_deg
+from radiosity.files.camera import Camera, fov_y_deg
+from radiosity.files.errors import InputError
 
 SCENE = Camera((6.9, 1.65, 2.55), (6.0, 1.65, 2.12), (0.0, 1.0, 0.0), 70.0, 1280, 720, "x")  # fov 70 along x
 BOUNDS = [[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]

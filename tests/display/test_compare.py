@@ -12,7 +12,7 @@ from display_fixtures import assert_refused, listing, tiny_fit, tiny_solution
 
 from display.compare import json_text
 from display.metrics import metrics
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 
 def strict_json(text):

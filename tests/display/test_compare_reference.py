@@ -13,7 +13,9 @@ from display_fixtures import assert_refused, listing
 
 from display.compare import reference_at, reference_files
 from display.metrics import mean_ratio
-from radiosity.formats import Camera, InputError, load_solution
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
+from radiosity.files.solution import load_solution
 
 OpenEXR = pytest.importorskip("OpenEXR")
 

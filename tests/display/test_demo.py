@@ -10,7 +10,7 @@ from display.cli import main
 from display.demo import verdict, verdict_markdown, verdict_text
 from display.export import load_export
 from fitting import load_fit
-from radiosity.formats import presets
+from radiosity.policies import presets
 
 pytestmark = pytest.mark.gl
 

@@ -20,7 +20,7 @@ from depth_scenes import SKY, VIEWS, casting, expected, interior, solution, view
 import display.renderer
 from display.gl import depth_control
 from display.renderer import NEAR_FRACTION, Depth, Renderer, depth_range
-from radiosity.formats import Camera
+from radiosity.files.camera import Camera
 
 pytestmark = pytest.mark.gl
 

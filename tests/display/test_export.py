@@ -35,9 +35,9 @@ from display.export import (
 from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table
-from radiosity.formats import InputError
-from radiosity.formats.emitters import EmitterPart, SpotProfile
-from radiosity.formats.material import Microfacet
+from radiosity.files.errors import InputError
+from radiosity.physics.emitters import EmitterPart, SpotProfile
+from radiosity.physics.materials import Microfacet
 
 # Emitter parts in front of the tiny scene, each seen in it from test_web's camera: a
 # sphere lamp in the tile, a square panel and a triangle in the wall, and a sphere that
@@ -412,7 +412,7 @@ def test_microfacet_lobes_make_a_version_7_file_that_round_trips(tmp_path, rng):
     import re
 
     from display.export import shading_module
-    from radiosity.formats.ltc import highlight_lobe, table_texture
+    from radiosity.physics.ltc import highlight_lobe, table_texture
 
     model = microfacet_model(rng)
     path = tmp_path / FILE

@@ -27,8 +27,8 @@ from display.export import (
     load_export,
 )
 from fitting import load_fit
-from radiosity.formats import InputError
-from radiosity.formats.environment import EnvironmentLight
+from radiosity.files.errors import InputError
+from radiosity.physics.environment import EnvironmentLight
 
 TURN = Rotation.from_euler("xyz", [20, -70, 10], degrees=True).as_matrix()  # float64 with no short decimal form
 

@@ -22,7 +22,7 @@ from display.export_limits import FitSizes, ObjectSizes, check_export_memory, ch
 from display.glsl import FLOAT_TEXTURE_WIDTH
 from display.store import SAY_BYTES
 from fitting.model import FittedModel, FittedObject
-from radiosity.formats.environment import EnvironmentLight
+from radiosity.physics.environment import EnvironmentLight
 
 GIB = 2**30
 

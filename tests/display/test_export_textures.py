@@ -22,9 +22,9 @@ from test_export import bits_equal, glb_header, rewrite_json, validate
 
 from display.export import FILE, SAMPLER, TEXTURED_VERSION, UNTEXTURED_VERSION, export_glb, load_export, srgb8
 from fitting import FittedModel, load_fit
-from radiosity.formats import InputError
-from radiosity.formats.material import srgb_to_linear
-from radiosity.formats.texture import TexturedDiffuse, linear_to_srgb8
+from radiosity.files.errors import InputError
+from radiosity.physics.materials import srgb_to_linear
+from radiosity.physics.textures import TexturedDiffuse, linear_to_srgb8
 
 SRGB8 = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)  # the linear value of each 8-bit code
 KDS = {"wall": (0.7, 0.55, 0.35), "tile": (0.3, 0.45, 0.6)}

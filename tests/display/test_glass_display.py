@@ -18,10 +18,10 @@ from display.renderer import Renderer
 from fitting import FitOptions, fit
 from fitting.model import load_fit
 from fitting.probe import decode
-from radiosity.formats import Camera
-from radiosity.formats.directions import grid_directions
-from radiosity.formats.environment import EnvironmentLight
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.directions import grid_directions
+from radiosity.physics.environment import EnvironmentLight
 from radiosity.scene import builtins
 from radiosity.scene.microfacet import fresnel_dielectric
 
@@ -279,8 +279,8 @@ def test_a_mirror_with_a_thin_back_is_flat_and_its_plane_is_its_front():
 def test_a_bad_glass_or_mirror_entry_in_a_fit_is_refused_in_one_line(tmp_path, key, entry, fragment):
     import json
 
-    from radiosity.formats.errors import InputError
-    from radiosity.formats.npz import write_archive
+    from radiosity.files.errors import InputError
+    from radiosity.files.npz import write_archive
 
     model = fit(_furnace(_ball(), *_opaque()), FitOptions.for_quality("draft"))
     model.save(tmp_path / "fit.npz")
@@ -300,7 +300,7 @@ def test_a_bad_glass_or_mirror_entry_in_a_fit_is_refused_in_one_line(tmp_path, k
 
 
 def _near_material(alpha, kind="roughplastic"):
-    from radiosity.formats.material import Microfacet
+    from radiosity.physics.materials import Microfacet
 
     eta, k = ((1.5,) * 3, (0.0,) * 3) if kind == "roughplastic" else ((0.2, 0.9, 1.1), (3.9, 2.4, 2.2))
     mf = Microfacet(kind, "ggx", alpha, eta, k, specular_reflectance=(0.9, 0.8, 0.7),
@@ -331,8 +331,8 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
     exact Fresnel of the oracle, radiosity.scene.microfacet). The fitted display draws the
     same from the part fit.npz keeps (version 10). Drawn from the grid (near mirrors off),
     it is not that."""
-    from radiosity.formats.ltc import lobe_albedo
-    from radiosity.formats.material import Microfacet
+    from radiosity.physics.ltc import lobe_albedo
+    from radiosity.physics.materials import Microfacet
     from radiosity.scene.microfacet import fresnel_dielectric
 
     material = _near_material(0.01, kind)
@@ -376,11 +376,11 @@ def test_a_near_mirror_shows_its_base_and_the_scene_in_its_plane_weighed_by_its_
 
 
 def test_a_fit_keeps_a_near_mirror_s_own_part_and_reads_it_back(tmp_path):
-    """fit.npz version 10: the part ``radiosity.formats.material.near_base`` takes from the
+    """fit.npz version 10: the part ``radiosity.physics.materials.near_base`` takes from the
     solution's grid, with the object's microfacet model; read back the same. A rough one
     (above NEAR_MIRROR_ALPHA) keeps none, and its fit is version 8 or lower."""
     from display.mirror import NEAR_MIRROR_ALPHA
-    from radiosity.formats.material import near_base
+    from radiosity.physics.materials import near_base
 
     floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
     grid = np.array([0.3, 0.05, 0.2, 0.1])[None, :, None] * np.array([1.0, 0.8, 0.6])
@@ -407,8 +407,8 @@ def test_a_fit_keeps_a_near_mirror_s_own_part_and_reads_it_back(tmp_path):
 def test_a_fit_with_a_broken_near_mirror_is_refused_in_one_line(tmp_path, change, words):
     import json
 
-    from radiosity.formats.errors import InputError
-    from radiosity.formats.npz import write_archive
+    from radiosity.files.errors import InputError
+    from radiosity.files.npz import write_archive
 
     floor = _quad("floor", [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [0.0, 0.0, 1.0], 0.0, _near_material(0.01))
     floor = replace(floor, radiance=np.tile(np.array([0.3, 0.05, 0.2, 0.1])[None, :, None] * np.ones(3), (4, 1, 1)))

@@ -23,7 +23,7 @@ from child_process import Child, vlights
 from display_fixtures import assert_refused, listing, tiny_solution, write_pair
 
 import display.demo
-from radiosity.formats.atomic import atomic_output
+from radiosity.files.atomic import atomic_output
 
 # -- hostile archives ----------------------------------------------------------------------
 
@@ -229,7 +229,7 @@ def test_radiance_beyond_float32_sums_is_refused_not_a_flip_crash(sound_pair, tm
 
 def test_metrics_refuse_images_flip_cannot_take():
     from display.metrics import metrics
-    from radiosity.formats import InputError
+    from radiosity.files.errors import InputError
 
     good = np.ones((4, 4, 3), np.float32)
     for bad in (np.inf, np.nan):
@@ -258,7 +258,7 @@ TARGETS = {
 
 def _long_names_written():
     """Whether this tree's atomic writer takes a name of 255 bytes (its temporary name
-    kept within NAME_MAX: radiosity.formats.atomic)."""
+    kept within NAME_MAX: radiosity.files.atomic)."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as directory:
@@ -333,7 +333,7 @@ def test_output_path_hazards(target, hazard, sound_pair, tmp_path, cli, monkeypa
         return
     if said is None and hazard == "255 bytes" and not suffix.endswith(".mp4") and not is_dir \
             and not _long_names_written():
-        pytest.xfail("radiosity.formats.atomic's temporary name passes NAME_MAX (fixed on the 'inputs' branch)")
+        pytest.xfail("radiosity.files.atomic's temporary name passes NAME_MAX (fixed on the 'inputs' branch)")
     monkeypatch.setattr(display.demo, "_run", lambda *a, **k: pytest.fail("the demo ran past its checks"))
     before = _snapshot(work)
     code, out, err = cli(*[a.format(fit=sound_pair[0], solution=sound_pair[1]) for a in head], path)

@@ -15,7 +15,7 @@ from display.gl import (
     check_image_size,
     image_limits,
 )
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 FAKE = SimpleNamespace(info={"GL_MAX_TEXTURE_SIZE": 4096, "GL_MAX_RENDERBUFFER_SIZE": 8192,
                              "GL_MAX_VIEWPORT_DIMS": (16384, 2048)})

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from display.images import read_hdr_image
-from radiosity.formats import InputError
-from radiosity.formats.errors import SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
 
 OpenEXR = pytest.importorskip("OpenEXR")
 

@@ -8,9 +8,9 @@ import pytest
 
 from display.renderer import Renderer
 from fitting import FitOptions, fit
-from radiosity.formats import Camera
-from radiosity.formats.solution import ObjectSolution, Solution
-from radiosity.formats.texture import TexturedDiffuse, lookup
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.textures import TexturedDiffuse, lookup
 
 BLACK = [0.0, 0.0, 0.0]
 DIFFUSE = np.array([[0.0, 0.0, 1.0]])

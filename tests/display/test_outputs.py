@@ -10,8 +10,8 @@ import pytest
 from display_fixtures import assert_refused, listing, tiny_solution
 
 from display.outputs import check_output_dir, staged_directory
-from radiosity.formats import InputError
-from radiosity.formats.atomic import OutputError
+from radiosity.files.atomic import OutputError
+from radiosity.files.errors import InputError
 
 ENOSPC = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 

@@ -21,8 +21,9 @@ import trimesh
 from display.renderer import Renderer, tonemap
 from fitting import FittedModel, FittedObject, load_fit, shade
 from fitting.model import directional, shade_arrays
-from radiosity.formats import Camera, directions
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
 from radiosity.scene import geometry
 
 pytestmark = pytest.mark.gl

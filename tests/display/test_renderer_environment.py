@@ -1,5 +1,5 @@
 """The environment drawn where no object is, against its numpy reference
-(``radiosity.formats.environment.EnvironmentLight.radiance`` at each pixel's ray,
+(``radiosity.physics.environment.EnvironmentLight.radiance`` at each pixel's ray,
 ``Camera.pixel_rays``), in every mode, turned and scaled; objects in front hide it."""
 
 import numpy as np
@@ -8,9 +8,9 @@ from scipy.spatial.transform import Rotation
 
 from display.renderer import Renderer
 from fitting import FitOptions, fit
-from radiosity.formats import Camera
-from radiosity.formats.environment import EnvironmentLight
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.environment import EnvironmentLight
 
 pytestmark = pytest.mark.gl
 

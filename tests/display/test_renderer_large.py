@@ -6,7 +6,7 @@ grids, per-light coefficients, the emitters' visibility) in paged 2D array textu
 small (16 rows a layer: 65,536 values; a texture a layer) so that a scene of a few
 hundred thousand values spans several layers and textures, with blocks that straddle
 them: its pictures equal those of the same scene in one texture, and its vertex colours
-the numpy references (``radiosity.formats.directions.grid_lookup_weights`` for the
+the numpy references (``radiosity.physics.directions.grid_lookup_weights`` for the
 reference display, ``FittedObject.shade`` for the fitted one). The GLSL address
 arithmetic is checked against Python's integers past 2^31 and 2^32 values; the memory
 refusal against a patched free memory. The real run (``slow``) draws 1.3e8
@@ -24,9 +24,11 @@ from display.renderer import Renderer
 from display.store import MAX_PAGES, WIDTH, store_layout
 from fitting import FittedModel, FittedObject
 from fitting.model import Highlight
-from radiosity.formats import Camera, InputError, directions
-from radiosity.formats.emitters import EmitterPart, emitter_radiance
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
+from radiosity.physics.emitters import EmitterPart, emitter_radiance
 from radiosity.scene import geometry
 
 pytestmark = pytest.mark.gl

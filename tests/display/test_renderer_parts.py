@@ -22,10 +22,10 @@ from display.renderer import PARTS, Renderer
 from fitting import FittedModel, FittedObject
 from fitting.model import Highlight
 from fitting.probe import Probe, albedo_table, decode
-from radiosity.formats import Camera
-from radiosity.formats.emitters import EmitterPart, SpotProfile, emitter_grid, emitter_radiance
-from radiosity.formats.material import Microfacet
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.emitters import EmitterPart, SpotProfile, emitter_grid, emitter_radiance
+from radiosity.physics.materials import Microfacet
 
 pytestmark = pytest.mark.gl
 
@@ -46,7 +46,7 @@ def parts():
 
 def delta_parts():
     """A point, a spot whose cone's edge and transition cross the ball, and a direction
-    (radiosity.formats.emitters' delta parts)."""
+    (radiosity.physics.emitters' delta parts)."""
     point = EmitterPart("point", [[1.2, 1.4, 1.8]], 0.0, [2.0, 1.5, 1.0], "bulb")
     spot = EmitterPart("point", [[-0.8, 1.2, 2.6]], 0.0, [3.0, 3.0, 4.0], "torch",
                        SpotProfile([0.924, -1.099, -1.649], 10.0, 6.0))
@@ -161,7 +161,7 @@ def test_objects_drawing_their_own_parts_per_pixel_equal_the_formula(gl_context,
 
 def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl_context, rng):
     """The emitter term of a Fresnel material: ks weighted by Schlick's F(n . w), on the GPU
-    as in radiosity.formats.emitters (per pixel and Gouraud), and it changes the picture."""
+    as in radiosity.physics.emitters (per pixel and Gouraud), and it changes the picture."""
     f0 = np.array([0.04, 0.3, 0.9])
     model = ball_model(rng, probe=False, lights=1, fresnel=f0)
     obj = model.objects[0]
@@ -187,7 +187,7 @@ def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl
 def test_microfacet_highlights_per_pixel_and_at_the_vertices_equal_the_formula(gl_context, rng, distribution, alpha):
     """A microfacet lobe's highlights (display/shaders/ltc.glsl: linearly transformed cosines
     for the panel and the sphere lamp, the lobe itself for a point, a spot and a direction)
-    on the GPU as in radiosity.formats.emitters, per pixel and Gouraud; every part shows,
+    on the GPU as in radiosity.physics.emitters, per pixel and Gouraud; every part shows,
     and the lobe differs from the Phong stand-in's."""
     mf = Microfacet("roughconductor", distribution, alpha, (0.2, 0.9, 1.1), (3.9, 2.4, 2.2), (0.9, 0.8, 1.0))
     pp = parts() + delta_parts()
@@ -221,7 +221,7 @@ def test_microfacet_highlights_per_pixel_and_at_the_vertices_equal_the_formula(g
 def test_delta_parts_highlights_per_pixel_and_at_the_vertices_equal_the_formula(gl_context, rng, fresnel):
     """A point, a spot and a direction: their highlights (the lobe at their one
     direction, 1 / d^2 and the spot's profile for the point lights) on the GPU as in
-    radiosity.formats.emitters, per pixel and Gouraud; each shows on the ball, and the
+    radiosity.physics.emitters, per pixel and Gouraud; each shows on the ball, and the
     spot's edge crosses it."""
     pp = delta_parts()
     model = ball_model(rng, probe=False, lights=1, fresnel=None if fresnel is None else np.array(fresnel), emitters=pp)
@@ -274,7 +274,7 @@ def test_the_reference_display_adds_the_highlights_back_to_the_rest(gl_context, 
     helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
     tangents = np.cross(normals, helper)
     tangents = (tangents / np.linalg.norm(tangents, axis=1, keepdims=True)).astype(np.float32)
-    from radiosity.formats.directions import grid_directions
+    from radiosity.physics.directions import grid_directions
 
     dirs = grid_directions(12)
     pp = parts()

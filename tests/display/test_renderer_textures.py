@@ -1,6 +1,6 @@
 """A textured object on the GPU against numpy: every display adds kd * texture(uv) / pi
 * E per pixel, uv and E interpolated from the vertices, the texture read as
-``radiosity.formats.texture.lookup`` reads it (bilinear between texel centres,
+``radiosity.physics.textures.lookup`` reads it (bilinear between texel centres,
 repeating, v up).
 
 The scene: a square facing the camera, drawn with one sample per pixel (the pixel
@@ -14,9 +14,9 @@ import pytest
 
 from display.renderer import Renderer
 from fitting import FitOptions, fit
-from radiosity.formats import Camera
-from radiosity.formats.solution import ObjectSolution, Solution
-from radiosity.formats.texture import TexturedDiffuse, lookup
+from radiosity.files.camera import Camera
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.textures import TexturedDiffuse, lookup
 
 pytestmark = pytest.mark.gl
 
@@ -41,7 +41,7 @@ def square_solution(texture, glossy=False, rest=0.05):
     tangents = np.tile([1.0, 0.0, 0.0], (4, 1))
     textured = TexturedDiffuse(uvs=uv_of(positions), irradiance=irradiance_of(positions), texture=texture, kd=KD)
     if glossy:
-        from radiosity.formats.directions import grid_directions
+        from radiosity.physics.directions import grid_directions
 
         dirs = grid_directions(4)
         material = {"diffuse": list(KD), "specular": [0.05] * 3, "exponent": 4.0, "emission": [0, 0, 0]}

@@ -13,7 +13,7 @@ import urllib.request
 import pytest
 
 from display.serve import inside, start
-from radiosity.formats import InputError
+from radiosity.files.errors import InputError
 
 SECRET = b"outside the served directory"
 

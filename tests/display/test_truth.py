@@ -9,7 +9,8 @@ from scipy.ndimage import binary_dilation
 from display.metrics import against_truth
 from display.renderer import Renderer
 from display.truth import ground_truth, load_truth, scene_for_truth
-from radiosity.formats import Camera, InputError
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
 from radiosity.scene.loaders import load_scene
 from radiosity.transport.pathtrace import PathTracer, scene_of_solution
 from radiosity.transport.solve import SolveOptions, solve

@@ -379,7 +379,7 @@ AXIS_CAMERA = {"eye": [0.5, 0.25, -6.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0,
 @pytest.fixture(scope="module")
 def site_axis(tmp_path_factory):
     """(fit.npz, the served export's URL) of the tiny lit scene whose camera's fov is along x."""
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     base = tmp_path_factory.mktemp("web-axis")
     lit_model(True, np.random.default_rng(11), camera=Camera(**AXIS_CAMERA)).save(base / "fit.npz")
@@ -391,7 +391,7 @@ def site_axis(tmp_path_factory):
 @pytest.mark.parametrize("size", [(160, 120), (90, 160)], ids=["wider", "taller"])
 def test_the_page_keeps_the_scene_fov_along_its_axis_as_render_does(browser, site_axis, tmp_path, size, gl_context):
     from display.cli import main
-    from radiosity.formats.camera import fov_y_deg
+    from radiosity.files.camera import fov_y_deg
 
     fit, url = site_axis
     page = open_page(browser, url, f"mode=fitted&exposure={EXPOSURE}", size=size)  # the start camera: the fit's
@@ -759,8 +759,8 @@ def test_textured_page_equals_render(browser, site_textured, tmp_path, mode, vie
     assert_matches(got, want)
     filled = 0.8 if view is VIEW else 0.5  # along the wall, the background takes the left
     assert np.mean(want.max(axis=2) > 10) > filled and np.mean(want == 255) < 0.01
-    from radiosity.formats.material import srgb_to_linear
-    from radiosity.formats.texture import linear_to_srgb8
+    from radiosity.physics.materials import srgb_to_linear
+    from radiosity.physics.textures import linear_to_srgb8
 
     for name, change in (("untextured", lambda t: None), ("flipped", lambda t: t[::-1]),
                          ("encoded", lambda t: linear_to_srgb8(t) / np.float32(255)),
@@ -801,7 +801,7 @@ def site_masked(tmp_path_factory):
     from test_masks_display import _leaf, _mask, _quad
 
     from fitting import FitOptions, fit
-    from radiosity.formats.solution import Solution
+    from radiosity.files.solution import Solution
 
     base = tmp_path_factory.mktemp("web-masked")
     objects = (_leaf(_mask(np.random.default_rng(3)), True), _quad("floor", 0.0, 4.0, 1.0, True),

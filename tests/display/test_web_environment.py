@@ -21,7 +21,7 @@ from test_web import assert_matches, needs_browser, open_page, rendered, screens
 
 from display.serve import start
 from fitting import load_fit
-from radiosity.formats.environment import EnvironmentLight
+from radiosity.physics.environment import EnvironmentLight
 
 TURN = Rotation.from_euler("xyz", [20, -70, 10], degrees=True).as_matrix()  # world from environment
 SCALE = 1.3

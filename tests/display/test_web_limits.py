@@ -20,7 +20,7 @@ from test_web import PAGE, needs_browser, open_page, view_query
 from display.export_limits import ObjectSizes, object_textures
 from display.serve import start
 from fitting import load_fit
-from radiosity.formats.environment import EnvironmentLight
+from radiosity.physics.environment import EnvironmentLight
 
 browser = test_web.browser  # chromium, once for this module (test_web's fixtures)
 site = test_web.site  # the tiny lit scene exported, per-light and shared coefficients

@@ -212,7 +212,7 @@ def test_the_window_keeps_the_scene_fov_along_its_axis_as_render_does(x_display,
     from display_fixtures import lit_model
 
     from display.cli import main
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     camera = Camera((0.5, 0.25, -6.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 24.0, 64, 36, "x")
     model_path = tmp_path / "fit.npz"
@@ -233,7 +233,7 @@ def test_the_window_draws_glass_as_render_does(x_display, tmp_path, gl_context):
 
     from display.renderer import Renderer, tonemap
     from fitting import FitOptions, fit
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     solution = _furnace(_ball(), *_opaque())
     model = fit(solution, FitOptions.for_quality("draft"))

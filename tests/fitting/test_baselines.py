@@ -25,8 +25,8 @@ from fitting.baselines import (
     spherical_harmonics,
 )
 from fitting.data import FitData, fit_data, relative_error
-from radiosity.formats.directions import DIFFUSE_DIRECTIONS, grid_directions
-from radiosity.formats.solution import ObjectSolution
+from radiosity.files.solution import ObjectSolution
+from radiosity.physics.directions import DIFFUSE_DIRECTIONS, grid_directions
 
 MATERIAL = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 50, "emission": [0, 0, 0]}
 
@@ -248,7 +248,7 @@ def test_dominant_direction_off_grid_lobe_within_a_cell(rng):
     assert np.all(angle < spacing), (angle / spacing).round(2)
     assert np.allclose(np.linalg.norm(found, axis=1), 1.0)
     # the (a, b) stored are these directions
-    from radiosity.formats.directions import square_to_hemisphere
+    from radiosity.physics.directions import square_to_hemisphere
 
     a, b = approx.params["square"].T
     np.testing.assert_allclose(square_to_hemisphere(a, b), found, atol=1e-12)

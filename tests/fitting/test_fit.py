@@ -10,8 +10,8 @@ from fitting.fit import fit_lights, problem_for, reconstruct
 from fitting.mixed import SceneGeometry
 from fitting.model import directional, shade_arrays
 from fitting.paper import fit_paper, vertex_coefficients
-from radiosity.formats import directions
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
 from radiosity.scene import geometry
 
 MATERIAL = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 50.0, "emission": [0.0, 0.0, 0.0]}

@@ -10,8 +10,8 @@ from test_fit import synthetic
 from display.cli import main
 from fitting import load_fit
 from fitting.cli import format_report
-from radiosity.formats.presets import preset
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.policies.presets import preset
 
 DIFFUSE_MATERIAL = {"diffuse": [0.5, 0.5, 0.5], "specular": [0.0, 0.0, 0.0], "exponent": 0.0, "emission": [0.0, 0.0, 0.0]}
 
@@ -185,7 +185,7 @@ def test_flags_the_model_honours_are_taken(flags, model, check, solution_file, t
 @pytest.mark.parametrize("quality", ["draft", "medium", "high"])
 def test_fit_options_for_a_quality_follow_its_preset(quality):
     from fitting import FitOptions
-    from radiosity.formats.presets import preset
+    from radiosity.policies.presets import preset
 
     options, knobs = FitOptions.for_quality(quality), preset(quality)
     assert (options.lights, options.iterations, options.probe_sizes, options.probe_lights) == (
@@ -198,8 +198,8 @@ def test_one_default_for_python_and_the_command(quality, tmp_path, capsys):
     options fits at the quality the solution was solved at (the default where it records
     none), and writes the same model, bit for bit, as ``vlights fit`` with no flag."""
     from fitting import FitOptions, fit
-    from radiosity.formats.presets import DEFAULT_QUALITY
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
+    from radiosity.policies.presets import DEFAULT_QUALITY
 
     assert FitOptions() == FitOptions.for_quality(DEFAULT_QUALITY)
     path = small_solution(tmp_path / "s.npz", quality)

@@ -14,9 +14,9 @@ from fitting import mixed
 from fitting.cluster import fit_on_dask
 from fitting.fit import fit, fit_object
 from fitting.memory import PROCESS_BYTES, check_dask_memory, object_bytes
-from radiosity.formats import cluster
-from radiosity.formats.errors import InputError
-from radiosity.formats.solution import Solution, SolutionFile
+from radiosity.files.errors import InputError
+from radiosity.files.solution import Solution, SolutionFile
+from radiosity.policies import cluster
 
 distributed = pytest.importorskip("distributed")
 
@@ -75,7 +75,7 @@ def test_at_most_the_window_of_objects_is_in_flight(client, tmp_path, monkeypatc
 
 
 def test_a_solution_in_memory_is_not_sent_to_dask(path):
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     with pytest.raises(ValueError, match="needs a SolutionFile"):
         fit(load_solution(path), OPTIONS, client=object())

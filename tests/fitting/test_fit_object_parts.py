@@ -50,7 +50,7 @@ def test_a_file_naming_parts_it_does_not_have_is_refused_in_one_line(files, tmp_
     """fit.npz version 6 whose object names a part past the scene's, or one twice."""
     import json
 
-    from radiosity.formats import InputError
+    from radiosity.files.errors import InputError
 
     _, model = files
     model.save(tmp_path / "f.npz")

@@ -14,8 +14,8 @@ from fitting import lobes, mixed
 from fitting.data import fit_data
 from fitting.fit import FitOptions, fit, planned_threads, planned_workers
 from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate, object_bytes
-from radiosity.formats.errors import InputError
-from radiosity.formats.solution import ObjectSolution, Solution, SolutionFile, load_solution
+from radiosity.files.errors import InputError
+from radiosity.files.solution import ObjectSolution, Solution, SolutionFile, load_solution
 
 OPTIONS = FitOptions.for_quality("draft")
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fitting import FitOptions, fit, load_fit
-from radiosity.formats import InputError
-from radiosity.formats.solution import ObjectSolution, Solution
-from radiosity.formats.texture import TexturedDiffuse, lookup
+from radiosity.files.errors import InputError
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics.textures import TexturedDiffuse, lookup
 from radiosity.scene import builtins
 
 KD = (0.8, 0.6, 0.4)
@@ -25,7 +25,7 @@ def textured_solution(rng, glossy):
     texture = rng.uniform(0, 1, (3, 5, 3)).astype(np.float32)
     textured = TexturedDiffuse(uvs=positions[:, :2] / 2 + 0.5, irradiance=rng.uniform(1, 2, (n, 3)), texture=texture, kd=KD)
     if glossy:
-        from radiosity.formats.directions import grid_directions
+        from radiosity.physics.directions import grid_directions
 
         dirs = grid_directions(4)
         radiance = 0.1 + np.broadcast_to(dirs[None, :, 2:3] ** 8, (n, 16, 3)) * rng.uniform(0.5, 1, (n, 1, 3))
@@ -85,7 +85,7 @@ def test_objects_fitted_in_workers_share_the_texture_the_parent_holds(rng, tmp_p
     copy would be a copy each), and the model is the one fitted here."""
     from dataclasses import replace
 
-    from radiosity.formats.solution import SolutionFile
+    from radiosity.files.solution import SolutionFile
 
     ball = textured_solution(rng, True).objects[0]
     solution = Solution(objects=(ball, replace(ball, name="ball2", positions=ball.positions + 3.0)), scene="test")

@@ -14,8 +14,8 @@ from fitting import FitOptions, fit
 from fitting.data import fit_data, perceptual_error
 from fitting.fit import fit_object
 from fitting.model import directional, shade_arrays
-from radiosity.formats import directions
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
 from radiosity.scene import geometry
 
 MATERIAL = {"diffuse": [0.3, 0.3, 0.3], "specular": [0.5, 0.5, 0.5], "exponent": 40.0, "emission": [0.0, 0.0, 0.0]}

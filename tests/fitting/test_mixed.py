@@ -20,8 +20,8 @@ from fitting.mixed import (
     refine,
 )
 from fitting.model import FittedModel, FittedObject, shade_arrays
-from radiosity.formats import directions
-from radiosity.formats.solution import ObjectSolution, Solution
+from radiosity.files.solution import ObjectSolution, Solution
+from radiosity.physics import directions
 from radiosity.scene import geometry
 
 MATERIAL = {"diffuse": [0.2, 0.2, 0.2], "specular": [0.5, 0.5, 0.5], "exponent": 30.0, "emission": [0.0, 0.0, 0.0]}

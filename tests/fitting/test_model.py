@@ -7,7 +7,8 @@ import pytest
 
 from fitting import FittedModel, FittedObject, load_fit, shade
 from fitting.model import directional
-from radiosity.formats import Camera, InputError
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
 
 NAME = "ball"
 
@@ -223,7 +224,7 @@ def test_a_fit_with_delta_parts_is_version_5_and_an_older_one_holding_them_is_re
     import dataclasses
 
     from fitting.model import Highlight
-    from radiosity.formats.emitters import EmitterPart, SpotProfile
+    from radiosity.physics.emitters import EmitterPart, SpotProfile
 
     lamps = (EmitterPart("point", [[0.0, 3.0, 0.0]], 0.0, [5.0, 4.0, 3.0], "torch", SpotProfile([0, -1, 0], 40, 30)),
              EmitterPart("direction", [[0.2, -1.0, 0.1]], 0.0, [1.0, 1.0, 1.0], "sun"))

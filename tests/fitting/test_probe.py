@@ -7,8 +7,8 @@ import pytest
 
 from fitting import glossy, probe
 from fitting.data import FitData
-from radiosity.formats.directions import grid_directions
-from radiosity.formats.material import specular_albedo
+from radiosity.physics.directions import grid_directions
+from radiosity.physics.materials import specular_albedo
 
 
 def unit(v):

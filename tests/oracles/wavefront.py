@@ -26,7 +26,7 @@ import numpy as np
 import radiosity
 from radiosity import jit_cache
 from radiosity.scene.columns import KIND, KIND_DIELECTRIC
-from radiosity.scene.materials import (
+from radiosity.scene.material_kernels import (
     EMISSION,
     EXPONENT,
     HAS_FRESNEL,

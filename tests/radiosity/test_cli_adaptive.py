@@ -26,7 +26,7 @@ def test_scene_info_reports_the_budget(capsys):
 
 
 def test_solve_refines_within_the_budget_and_says_so(tmp_path, capsys):
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     out = tmp_path / "s.npz"
     code, stdout, _ = run(["solve", "cornell", "-o", str(out), "--photons", "40000", "--vertex-budget", "5000"], capsys)
@@ -42,7 +42,7 @@ def test_solve_refines_within_the_budget_and_says_so(tmp_path, capsys):
 
 
 def test_an_explicit_max_edge_is_a_uniform_mesh_unless_adaptive_is_asked(tmp_path, capsys):
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     out = tmp_path / "s.npz"
     argv = ["solve", "cornell", "-o", str(out), "--photons", "20000", "--max-edge", "150"]

@@ -4,7 +4,7 @@ their summary line and their refusals."""
 import numpy as np
 
 from display.cli import main
-from radiosity.formats.solution import load_solution
+from radiosity.files.solution import load_solution
 
 
 def run(argv, capsys):

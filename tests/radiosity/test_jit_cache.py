@@ -96,7 +96,7 @@ def test_an_edit_to_an_inlined_helper_reaches_the_cached_caller(tmp_path, mode, 
 
 
 # a first import of a process: the command, a kernel module of fitting, one of radiosity
-ENTRIES = ["display.cli", "fitting.lobes", "radiosity.formats.emitters"]
+ENTRIES = ["display.cli", "fitting.lobes", "radiosity.physics.emitters"]
 
 CHECK_ALL = textwrap.dedent(
     """\

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
 from radiosity.scene.loaders import load_scene
 
 ROOT = Path(os.environ.get("VLIGHTS_SCENES") or "/work/scenes")

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from test_materials import CHI2_LEVEL, chi_square_test, rng_for
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import (
+from radiosity.files.errors import InputError
+from radiosity.physics.materials import (
     FRESNEL_NORMALISATION,
     _schlick_albedo_rows,
     fresnel_kd_limit,
@@ -22,7 +22,7 @@ from radiosity.formats.material import (
     schlick_albedo,
     specular_albedo,
 )
-from radiosity.scene.materials import (
+from radiosity.scene.material_kernels import (
     F0,
     HAS_FRESNEL,
     NCOL,

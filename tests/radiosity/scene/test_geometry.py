@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
 from radiosity.scene import geometry
 
 

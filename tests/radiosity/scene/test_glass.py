@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import Glass, Material
+from radiosity.files.errors import InputError
+from radiosity.physics.materials import Glass, Material
 from radiosity.scene import glass as oracle
 from radiosity.scene.columns import KIND, KIND_DIELECTRIC, KIND_ROUGH_DIELECTRIC, KIND_THIN_DIELECTRIC
 from radiosity.scene.glass_kernels import glass_sample
-from radiosity.scene.materials import pack_materials
+from radiosity.scene.material_kernels import pack_materials
 from radiosity.scene.microfacet import fresnel_dielectric
 
 

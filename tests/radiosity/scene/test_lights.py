@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from display.cli import main
-from radiosity.formats.errors import InputError, SceneWarning
-from radiosity.scene.emitters import MAX_PARTS, emitter_parts
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.scene.emitter_parts import MAX_PARTS, emitter_parts
 from radiosity.scene.loaders import load_scene
 
 PLANE = """
@@ -124,7 +124,7 @@ def test_a_scene_lit_by_a_delta_light_alone_solves_without_a_word(tmp_path, caps
     out, err = capsys.readouterr()
     assert code == 0, err
     assert "no emitters" not in err and "highlights 1 emitter part(s) in closed form: bulb (point)" in out
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     solution = load_solution(tmp_path / "s.npz")
     assert [p.source for p in solution.lights] == ["bulb"] and solution.object("floor").radiance.max() > 0.1
@@ -155,8 +155,8 @@ def test_delta_lights_come_first_among_the_parts_and_count_in_their_limit(tmp_pa
 def test_truth_of_a_solution_sees_its_delta_lights(tmp_path, capsys):
     """``vlights truth solution.npz`` path-traces the solution's scene: its lights (meta
     'lights') light it as the scene's do; the camera sees none of them."""
-    from radiosity.formats.camera import Camera
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.camera import Camera
+    from radiosity.files.solution import load_solution
     from radiosity.transport.pathtrace import PathTracer, scene_of_solution
     from radiosity.transport.solve import SolveOptions, solve
 
@@ -174,7 +174,7 @@ def test_truth_of_a_solution_sees_its_delta_lights(tmp_path, capsys):
 
 
 def test_more_lights_than_a_file_holds_are_refused_in_one_line(tmp_path):
-    from radiosity.formats.emitters import MAX_LIGHTS
+    from radiosity.physics.emitters import MAX_LIGHTS
 
     many = "".join(f'<emitter type="point"><point name="position" x="{i}" y="1" z="0"/></emitter>\n'
                    for i in range(MAX_LIGHTS + 1))

@@ -13,10 +13,10 @@ import warnings
 import numpy as np
 import pytest
 
-from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
 from radiosity.scene import geometry
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import Material
+from radiosity.scene.material_kernels import Material
 from radiosity.scene.meshfiles import decode_text
 from radiosity.scene.model import MAX_COORDINATE, Scene, build_object
 

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from radiosity.formats.material import Material, Microfacet
+from radiosity.physics.materials import Material, Microfacet
 from radiosity.scene import microfacet
 from radiosity.scene.kinds import KINDS, kind_of, oracle
-from radiosity.scene.materials import eval_brdf, pdf, sample
+from radiosity.scene.material_kernels import eval_brdf, pdf, sample
 
 AL = microfacet.METALS["Al"]
 CU = microfacet.METALS["Cu"]
@@ -234,7 +234,7 @@ def test_monte_carlo_albedo_equals_the_oracle_and_stays_below_one(name):
 
 @pytest.mark.parametrize("name", [n for n in MATERIALS if "plastic" in n or "conductor" in n])
 def test_the_photons_albedo_table_is_the_oracle_s_albedo(name):
-    from radiosity.scene.materials import albedo_table
+    from radiosity.scene.material_kernels import albedo_table
 
     material = MATERIALS[name]
     cos = np.linspace(0.0, 1.0, 129)

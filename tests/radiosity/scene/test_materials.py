@@ -1,4 +1,4 @@
-"""Tests for radiosity.scene.materials: sampling against its density, energy, albedo,
+"""Tests for radiosity.scene.material_kernels: sampling against its density, energy, albedo,
 reciprocity, numerical extremes and material validation.
 
 The sampler is checked by a chi-square goodness-of-fit test over the whole
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from radiosity.formats.errors import InputError
-from radiosity.scene.materials import (
+from radiosity.files.errors import InputError
+from radiosity.scene.material_kernels import (
     EMISSION,
     EXPONENT,
     KD,

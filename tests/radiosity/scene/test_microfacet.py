@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from radiosity.formats.errors import InputError
-from radiosity.formats.material import MAX_EXPONENT
+from radiosity.files.errors import InputError
+from radiosity.physics.materials import MAX_EXPONENT
 from radiosity.scene import microfacet as mf
-from radiosity.scene.materials import Material
+from radiosity.scene.material_kernels import Material
 
 
 def _hemisphere(rng, count):
@@ -200,7 +200,7 @@ def test_mapping_of_albedos():
     incidence (sin 2 theta weighted least squares): better there than matching at normal
     incidence, where the Phong lobe's albedo (falling as about cos theta) is made to
     start higher than the reference's."""
-    from radiosity.formats.material import specular_albedo
+    from radiosity.physics.materials import specular_albedo
 
     kd, ks, n, report = mf.phong_lobe_for("roughplastic", "beckmann", 0.1, fresnel=False)
     assert report["fresnel"] is None
@@ -233,7 +233,7 @@ def test_mapping_with_fresnel():
     specular albedo, kd of b(cos theta) against its diffuse one, within the energy
     limits; the mapped specular albedo then rises towards grazing as the reference's
     does, and fits it better than the constant ks."""
-    from radiosity.formats.material import fresnel_kd_limit, schlick_albedo, schlick_diffuse, specular_albedo
+    from radiosity.physics.materials import fresnel_kd_limit, schlick_albedo, schlick_diffuse, specular_albedo
 
     brdf = mf.reference_brdf("roughplastic", "ggx", 0.15, diffuse_reflectance=0.5)
     kd, ks, n, report = mf.phong_lobe_for("roughplastic", "ggx", 0.15, diffuse_reflectance=0.5)

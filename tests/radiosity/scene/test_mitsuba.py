@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from scene_files import load_warned
 
-from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
 from radiosity.scene import geometry, microfacet
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import albedo
+from radiosity.scene.material_kernels import albedo
 from radiosity.scene.mitsuba import Tessellation, load_mitsuba, read_serialized
 from radiosity.scene.model import BACK_OFFSET
 

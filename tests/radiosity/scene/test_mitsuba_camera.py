@@ -26,8 +26,8 @@ import pytest
 from mitsuba_oracle import run_mitsuba
 from scipy import ndimage
 
-from radiosity.formats.errors import SceneWarning
-from radiosity.formats.hdr import read_hdr_image
+from radiosity.files.errors import SceneWarning
+from radiosity.files.hdr import read_hdr_image
 from radiosity.scene.mitsuba import load_mitsuba
 
 FILM = (96, 54)

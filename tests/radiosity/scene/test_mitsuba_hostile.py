@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
 from radiosity.scene.loaders import load_scene
 
 LAMP = '''<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter></shape>'''

@@ -24,10 +24,10 @@ from PIL import Image
 from scene_files import load_warned
 from scipy.spatial import cKDTree
 
-from radiosity.formats.errors import SceneWarning
+from radiosity.files.errors import SceneWarning
+from radiosity.physics.textures import as_repeating, lookup, srgb_to_linear, wrapped_lookup
 from radiosity.scene import microfacet
 from radiosity.scene.mitsuba import Tessellation, load_mitsuba
-from radiosity.scene.textures import as_repeating, lookup, srgb_to_linear, wrapped_lookup
 
 FINE = Tessellation(segments=512, sphere_levels=6)
 

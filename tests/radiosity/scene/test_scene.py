@@ -9,10 +9,10 @@ import pytest
 import trimesh
 from bad_inputs import BAD_INPUTS, bad_input_path, write
 
-from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
 from radiosity.scene import builtins, geometry
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import albedo
+from radiosity.scene.material_kernels import albedo
 from radiosity.scene.microfacet import RULE
 
 BOX_CENTRE = np.array([278.0, 274.4, 279.6])

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from radiosity.formats import InputError
-from radiosity.formats.camera import fov_y_deg, pose_from_matrix
+from radiosity.files.camera import fov_y_deg, pose_from_matrix
+from radiosity.files.errors import InputError
 from radiosity.scene import builtins
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.model import BACK_OFFSET, is_closed

@@ -11,10 +11,10 @@ import pytest
 import trimesh
 from PIL import Image
 
-from radiosity.formats.errors import SceneWarning
-from radiosity.formats.material import fresnel_kd_limit
+from radiosity.files.errors import SceneWarning
+from radiosity.physics.materials import fresnel_kd_limit
+from radiosity.physics.textures import lookup, srgb_to_linear
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.textures import lookup, srgb_to_linear
 
 # a 2 x 2 image: red top-left, green top-right, blue bottom-left, grey (128) bottom-right
 IMAGE = [[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [128, 128, 128]]]

@@ -56,7 +56,7 @@ def test_options_follow_the_preset_and_refuse_nonsense():
     assert not AdaptiveOptions().resolved("draft", 1000, explicit_max_edge=True)["enabled"]
     assert AdaptiveOptions(enabled=True).resolved("draft", 1000, explicit_max_edge=True)["enabled"]
     assert AdaptiveOptions(vertex_budget=1234).resolved("high", 1000)["vertex_budget"] == 1234
-    from radiosity.formats.errors import InputError
+    from radiosity.files.errors import InputError
 
     with pytest.raises(InputError, match="--vertex-budget"):
         AdaptiveOptions(vertex_budget=0).resolved("draft", 1000)

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 from display.cli import main
-from radiosity.formats import cluster as dask_module
-from radiosity.formats import load_solution
-from radiosity.formats.errors import InputError
-from radiosity.scene.environment import Environment
+from radiosity.files.errors import InputError
+from radiosity.files.solution import load_solution
+from radiosity.physics.environment import Environment
+from radiosity.policies import cluster as dask_module
 from radiosity.scene.loaders import load_scene
 from radiosity.transport import solve as solve_module
 from radiosity.transport.solve import SolveOptions, solve
@@ -338,7 +338,7 @@ def test_dasks_sync_cancel_race_is_not_printed_but_other_loop_errors_are(caplog)
     # logged by tornado with a traceback after our one line. Only that record is dropped.
     import logging
 
-    from radiosity.formats.cluster import _quiet_sync_race
+    from radiosity.policies.cluster import _quiet_sync_race
 
     _quiet_sync_race()
     _quiet_sync_race()  # once is enough: no second filter

@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 from scene_files import scene_from
 
-from radiosity.formats.camera import Camera
-from radiosity.formats.directions import grid_lookup_weights
-from radiosity.formats.emitters import SpotProfile, spot_falloff
+from radiosity.files.camera import Camera
+from radiosity.physics.directions import grid_lookup_weights
+from radiosity.physics.emitters import SpotProfile, spot_falloff
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
 

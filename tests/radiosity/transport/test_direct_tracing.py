@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from oracles import wavefront
 
-from radiosity.formats import directions
-from radiosity.formats.material import fresnel_kd_limit
+from radiosity.physics import directions
+from radiosity.physics.materials import fresnel_kd_limit
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import Material, pack_materials
+from radiosity.scene.material_kernels import Material, pack_materials
 from radiosity.transport import gather, pathtrace, records, solve
 from radiosity.transport import photons as photons_kernel
 from radiosity.transport.embree import MISS, Hits, RayTracer, new_rayhit, origin_offset
@@ -230,7 +230,7 @@ def test_a_gather_block_gives_the_same_bits_as_the_embreex_wavefront(rng, teapot
 
 def test_a_gather_block_with_delta_lights_gives_the_same_bits_as_the_embreex_wavefront(rng):
     """The delta lights' sample at the glossy hits (a point, a spot, a sun) too."""
-    from radiosity.formats.emitters import EmitterPart, SpotProfile
+    from radiosity.physics.emitters import EmitterPart, SpotProfile
 
     lights = (EmitterPart("point", [[278.0, 450.0, 280.0]], 0.0, [4e4, 3e4, 2e4], "bulb"),
               EmitterPart("point", [[100.0, 500.0, 100.0]], 0.0, [9e4] * 3, "torch", SpotProfile([1, -2, 1], 35, 20)),

@@ -6,7 +6,7 @@ several objects, and threads that do not change an answer."""
 import numpy as np
 import pytest
 
-from radiosity.scene.materials import Material
+from radiosity.scene.material_kernels import Material
 from radiosity.scene.model import Scene, build_object
 from radiosity.transport.embree import MISS, RayTracer, inside_triangle, origin_offset
 

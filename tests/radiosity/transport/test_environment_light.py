@@ -16,9 +16,9 @@ import numpy as np
 from analytic import phong
 from scene_files import scene_from
 
-from radiosity.formats.camera import Camera
-from radiosity.scene.environment import Environment
-from radiosity.scene.materials import albedo
+from radiosity.files.camera import Camera
+from radiosity.physics.environment import Environment
+from radiosity.scene.material_kernels import albedo
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -189,7 +189,7 @@ def test_the_solution_file_keeps_the_environment(tmp_path):
     that `vlights truth` on a solution path-traces the same sky and a display draws it."""
     from scipy.spatial.transform import Rotation
 
-    from radiosity.formats.solution import Solution
+    from radiosity.files.solution import Solution
     from radiosity.scene.model import Scene
     from radiosity.transport.pathtrace import scene_of_solution
 

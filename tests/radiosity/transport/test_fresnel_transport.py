@@ -15,9 +15,9 @@ import pytest
 from scene_files import scene_from
 from test_pathtrace import ENCLOSED_QUAD
 
-from radiosity.formats.camera import Camera
-from radiosity.formats.material import FRESNEL_NORMALISATION, fresnel_kd_limit
-from radiosity.scene.materials import Material, albedo
+from radiosity.files.camera import Camera
+from radiosity.physics.materials import FRESNEL_NORMALISATION, fresnel_kd_limit
+from radiosity.scene.material_kernels import Material, albedo
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from radiosity.formats import directions
-from radiosity.scene.materials import Material, pack_materials
+from radiosity.physics import directions
+from radiosity.scene.material_kernels import Material, pack_materials
 from radiosity.transport import gather, records
 
 

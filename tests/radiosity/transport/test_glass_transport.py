@@ -14,7 +14,7 @@
 import numpy as np
 import pytest
 
-from radiosity.formats.camera import Camera
+from radiosity.files.camera import Camera
 from radiosity.scene.loaders import load_scene
 from radiosity.scene.microfacet import fresnel_dielectric
 from radiosity.transport.pathtrace import PathTracer, camera_rays, scene_of_solution
@@ -172,7 +172,7 @@ def test_a_perfect_mirror_is_stored_without_a_grid_and_still_reflects_light(tmp_
     assert mirror.visibility is None and mirror.emitter_parts is None
     path = tmp_path / "s.npz"
     with_mirror.save(path)
-    from radiosity.formats.solution import load_solution
+    from radiosity.files.solution import load_solution
 
     assert load_solution(path).version == 7
     scene = _scene(tmp_path, MIRROR_ROOM.replace('<bsdf type="conductor"><string name="material" value="Ag"/></bsdf>',

@@ -1,5 +1,5 @@
 """The emitters' direct highlights in closed form inside the solver: which emitters
-become parts (radiosity.scene.emitters), what each glossy vertex sees of them
+become parts (radiosity.scene.emitter_parts), what each glossy vertex sees of them
 (transport.highlights.visibility), and the solution's radiance against numeric
 integration and against the gathered estimator it replaces."""
 
@@ -11,7 +11,7 @@ import pytest
 from analytic import PENUMBRA, PENUMBRA_LAMP_HALF
 from scene_files import scene_from
 
-from radiosity.scene.emitters import MAX_OBJECT_PARTS, emitter_parts, object_parts
+from radiosity.scene.emitter_parts import MAX_OBJECT_PARTS, emitter_parts, object_parts
 from radiosity.transport import highlights
 from radiosity.transport.embree import RayTracer
 from radiosity.transport.solve import SolveOptions, solve

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from analytic import GLOSSY_RELAY, glossy_relay_radiance
 
-from radiosity.formats import directions
+from radiosity.physics import directions
 from radiosity.scene.loaders import load_scene
 from radiosity.transport import gather, records, solve
 from radiosity.transport.embree import RayTracer, origin_offset

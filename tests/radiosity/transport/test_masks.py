@@ -12,11 +12,10 @@ import numpy as np
 import pytest
 from scene_files import load_warned
 
-from radiosity.formats.material import Material
-from radiosity.formats.solution import load_solution
-from radiosity.formats.texture import OPACITY_CUTOFF, TexturedDiffuse, lookup
+from radiosity.files.solution import load_solution
+from radiosity.physics.materials import Material
+from radiosity.physics.textures import OPACITY_CUTOFF, Cutout, TexturedDiffuse, cutout_atlas, lookup
 from radiosity.scene.model import Scene, build_object
-from radiosity.scene.textures import Cutout, cutout_atlas
 from radiosity.transport.embree import RayTracer
 from radiosity.transport.pathtrace import PathTracer
 from radiosity.transport.solve import SolveOptions, solve
@@ -139,7 +138,7 @@ def test_the_solver_sees_a_masks_holes_as_cut_geometry():
 def test_the_path_tracer_sees_a_masks_holes_as_cut_geometry():
     """Looking down on the leaf from above the lamp's side: the picture of the masked leaf
     is the picture of the leaf cut to the mask's shape, but at the cut-off line's pixels."""
-    from radiosity.formats import Camera
+    from radiosity.files.camera import Camera
 
     masked, cut = _scenes()
     camera = Camera((0.0, 4.0, 2.5), (0.0, 0.5, 0.0), fov_deg=45, width=48, height=36)
@@ -229,8 +228,8 @@ def test_a_mask_on_a_mesh_without_texture_coordinates_is_left_out_saying_so(tmp_
                                             (np.ones((2, 2, 2), np.float32), "has shape (2, 2, 2)"),
                                             (np.array([["a"]]), "dtype")])
 def test_a_solution_with_a_bad_mask_is_refused_in_one_line(tmp_path, opacity, words):
-    from radiosity.formats.errors import InputError
-    from radiosity.formats.npz import write_archive
+    from radiosity.files.errors import InputError
+    from radiosity.files.npz import write_archive
 
     masked, _ = _scenes()
     sol = solve(masked, SolveOptions(photons=5_000, max_edge=1.0, seed=1))

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from test_fresnel_transport import EMITTING_SPHERE, scene_from, with_material
 
-from radiosity.formats.emitters import emitter_grid
-from radiosity.formats.material import Material, Microfacet
+from radiosity.physics.emitters import emitter_grid
+from radiosity.physics.materials import Material, Microfacet
 from radiosity.scene import microfacet
 from radiosity.scene.kinds import oracle
 from radiosity.scene.loaders import load_scene
@@ -107,7 +107,7 @@ LIT_PLATE = LIT_PLATE.replace("{POINT_LIGHT}", POINT_LIGHT)
 
 def test_a_microfacet_object_draws_every_emitter_in_closed_form_with_its_own_lobe(tmp_path):
     """The lamp's and the point light's highlights on a microfacet object are in closed form
-    with its own lobe (radiosity.formats.ltc), as a Phong object's are with its: both parts
+    with its own lobe (radiosity.physics.ltc), as a Phong object's are with its: both parts
     named, their visibility kept, the grid holding them so (the gather leaves them out); what
     the lamp adds to the plate's grid is that closed form, and it is the oracle's BRDF
     integrated over the lamp to the closed form's accuracy (the plate: Beckmann copper)."""
@@ -176,7 +176,7 @@ def test_the_grid_s_lobe_cone_leaves_out_at_most_the_cutoff_of_the_lobe(distribu
     """What lies beyond half the cone, in the projected distribution of normals D cos
     (the share of reflected light a direction that far from the mirror could get), is the
     gather's LOBE_CUTOFF, to 1 %."""
-    from radiosity.scene.materials import pack_materials
+    from radiosity.scene.material_kernels import pack_materials
     from radiosity.transport.gather import LOBE_CUTOFF, microfacet_cone
 
     material = Material("m", (0.0,) * 3, (1.0,) * 3, 10.0, fresnel=(0.9,) * 3,

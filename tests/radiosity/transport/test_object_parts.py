@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from many_lights import PER_SIDE, solved, two_plates
 
-from radiosity.formats.emitters import emitter_grid
-from radiosity.formats.solution import load_solution
+from radiosity.files.solution import load_solution
+from radiosity.physics.emitters import emitter_grid
 from radiosity.transport.highlights import LEFT_OUT, MAX_RECEIVER_PARTS
 
 

@@ -15,10 +15,10 @@ from analytic import SQUARE_LIGHT, polygon_irradiance
 from scene_files import scene_from
 from scipy.ndimage import binary_dilation
 
-from radiosity.formats.camera import Camera
-from radiosity.formats.errors import InputError
+from radiosity.files.camera import Camera
+from radiosity.files.errors import InputError
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import albedo
+from radiosity.scene.material_kernels import albedo
 from radiosity.transport import pathtrace
 from radiosity.transport.pathtrace import PathTracer
 

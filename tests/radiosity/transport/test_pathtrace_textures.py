@@ -14,9 +14,9 @@ import pytest
 from PIL import Image
 from test_pathtrace import assert_within_monte_carlo_error, plane_hits, render, scene_from
 
-from radiosity.formats.camera import Camera
+from radiosity.files.camera import Camera
+from radiosity.physics.textures import lookup, read_texture
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.textures import lookup, read_texture
 
 ENCLOSED_TEXTURED_QUAD = """
     [materials.sky]

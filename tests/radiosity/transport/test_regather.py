@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from analytic import GLOSSY_RELAY, glossy_relay_radiance
 
-from radiosity.formats.errors import InputError
+from radiosity.files.errors import InputError
 from radiosity.scene.loaders import load_scene
 from radiosity.transport import gather, regather
 from radiosity.transport import solve as solve_module

@@ -11,9 +11,9 @@ kd(x). A texture that varies over the sphere changes rho, not the uniformity.
 import numpy as np
 import pytest
 
-from radiosity.formats.material import Material
-from radiosity.formats.solution import Solution
-from radiosity.formats.texture import TexturedDiffuse, lookup
+from radiosity.files.solution import Solution
+from radiosity.physics.materials import Material
+from radiosity.physics.textures import TexturedDiffuse, lookup
 from radiosity.scene import builtins
 from radiosity.scene.model import Scene, build_object
 from radiosity.transport.solve import SolveOptions, solve
@@ -121,7 +121,7 @@ def test_the_solution_file_keeps_the_texture(tmp_path):
 
 
 def test_an_8_bit_texture_is_stored_as_its_srgb_codes(tmp_path):
-    from radiosity.formats.material import srgb_to_linear
+    from radiosity.physics.materials import srgb_to_linear
 
     codes = np.arange(48, dtype=np.uint8).reshape(4, 4, 3) * 5
     texture = srgb_to_linear(codes / 255.0).astype(np.float32)
@@ -146,7 +146,7 @@ def test_a_glossy_textured_fresnel_object_keeps_the_rest_of_its_radiance():
     """With Fresnel the gather's diffuse part falls as b(cos_o) = 1 - (1 - cos_o)^5; the
     stored radiance leaves out exactly that, so adding it back gives the untextured
     twin's radiance (a constant texture t against kd * t)."""
-    from radiosity.formats.directions import grid_directions
+    from radiosity.physics.directions import grid_directions
 
     kd = np.array([0.5, 0.4, 0.3])
     glossy = dict(specular=(1.0, 1.0, 1.0), exponent=20.0, emission=(1.0, 1.0, 1.0), fresnel=(0.04, 0.04, 0.04))

@@ -13,10 +13,10 @@ import pytest
 from analytic import SQUARE_LIGHT, glossy_furnace_reference, polygon_irradiance
 from scene_files import scene_from
 
-from radiosity.formats import directions
-from radiosity.formats.errors import InputError, SceneWarning
+from radiosity.files.errors import InputError, SceneWarning
+from radiosity.physics import directions
 from radiosity.scene.loaders import load_scene
-from radiosity.scene.materials import Material, eval_brdf
+from radiosity.scene.material_kernels import Material, eval_brdf
 from radiosity.transport import solve as solve_module
 from radiosity.transport.solve import SolveOptions, solve
 
@@ -471,7 +471,7 @@ def test_min_photons_reaches_the_density_estimate(monkeypatch):
     """--min-photons: its default is the presets' MIN_PHOTONS, a negative count is refused
     in one line, and the solve hands the resolved value to every object's density
     estimate (0: kernels are never widened for want of photons)."""
-    from radiosity.formats.presets import MIN_PHOTONS
+    from radiosity.policies.presets import MIN_PHOTONS
     from radiosity.transport import density
 
     scene = load_scene("cornell")
