@@ -553,6 +553,21 @@ def checkouts(rows):
     return out + [""]
 
 
+def startup(rows):
+    out = ["## Start-up", "", where("bench_startup.py", ["startup.jsonl"]), machine(rows), ""]
+    if rows:
+        out += [f"Old: `{rows[0]['old']}`; new: this checkout. Medians of {rows[0]['repeats']} runs each in a fresh "
+                "process, alternating old and new; the heavy modules each imported.", ""]
+    cases = list(dict.fromkeys(r["case"] for r in rows))
+    by = {(r["case"], r["checkout"]): r for r in rows}
+    out += table(["case", "old (s)", "new (s)", "new / old", "old imported", "new imported"],
+                 [[c, num(by[c, "old"]["seconds"], 3), num(by[c, "new"]["seconds"], 3),
+                   num(by[c, "new"]["seconds"] / by[c, "old"]["seconds"], 2),
+                   ", ".join(by[c, "old"]["loaded"]) or "none", ", ".join(by[c, "new"]["loaded"]) or "none"]
+                  for c in cases])
+    return out + [""]
+
+
 def interiors(rows):
     out = ["## The field's interiors", "", where("bench_interiors.py", ["interiors.jsonl", "interiors.png",
                                                                        "interiors_<scene>.png"]), machine(rows)]
@@ -704,6 +719,7 @@ SECTIONS = (
     ("glass_caustic.jsonl", glass),
     ("mirrors.jsonl", mirrors),
     ("checkouts.jsonl", checkouts),
+    ("startup.jsonl", startup),
     ("load.jsonl", load),
     ("textures.jsonl", textures),
     ("scale.jsonl", scale),

@@ -56,6 +56,7 @@ from radiosity.files.atomic import atomic_output
 from radiosity.files.camera import Camera
 from radiosity.files.errors import InputError
 
+from .choices import ORBIT_DEGREES
 from .images import write_npy, write_png
 from .metrics import BLACK, NOT_FINITE, against_truth, is_black, magma, mean_ratio, metrics
 from .outputs import staged_directory
@@ -177,7 +178,6 @@ def _fitted_words(renderer):
     return "fitted: " + (" + ".join(parts) if parts else "emitted colour")
 
 
-ORBIT_DEGREES = 35.0  # figure 5's views 2 and 3: view 1 turned this much each way
 
 
 def figure5_views(base_view):

@@ -27,12 +27,12 @@ from radiosity.files.atomic import atomic_output
 
 from . import compare as _compare
 from . import export as _export
+from .choices import ASPECT, DEMO_SCENES  # noqa: F401 (a demo scene's figures)
 from .gl import DEFAULT_SAMPLES
 from .images import write_figure
 from .outputs import staged_directory
 
-SCENES = ("cornell-teapot", "plates")
-ASPECT = {"plates": 9 / 16}  # height over width of a scene's figures (the plates are wide)
+SCENES = DEMO_SCENES
 FILES = ("summary.json", "report.md", "models.png") + tuple(
     f"{scene}/{name}" for scene in SCENES
     for name in ("solution.npz", "fit.npz", *(f"compare/{f}" for f in _compare.FILES), f"web/{_export.FILE}",

@@ -87,7 +87,7 @@ written as such.
 The shading formula is fit.npz's (``fitting.model.FittedObject.shade``), with these
 arrays. Written through trimesh's glTF exporter (``process=False``: vertices are not
 merged, so no attribute value is lost) and moved into place only when complete.
-``load_export`` reads the file (version 5, 4: no delta parts, 3: no environment either,
+``display.export_reader.load_export`` reads the file (version 5, 4: no delta parts, 3: no environment either,
 2: no textures either, or 1: no emitters and no probes either) back into a ``FittedModel``.
 """
 
@@ -99,13 +99,8 @@ from pathlib import Path
 
 import numpy as np
 
-from radiosity.files.errors import InputError
-from radiosity.physics.ltc import highlight_lobe
-from radiosity.physics.materials import Microfacet
-from radiosity.physics.textures import OPACITY_CUTOFF
-
-__all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "add_export_command", "export_glb",
-           "file_version", "load_export", "page_files", "page_source", "write_export", "write_files"]
+__all__ = ["FILE", "FORMAT", "PAGE", "READS", "SHADERS", "SHADING", "VERSION", "export_glb",
+           "file_version", "page_files", "page_source", "write_export", "write_files"]
 
 FORMAT = "vlights.fit.gltf"
 VERSION = 8
@@ -187,6 +182,8 @@ def _doubles(a):
 
 def mesh_extras(obj):
     """The mesh's ``extras``: the object's lights, highlight and probe (JSON-ready)."""
+    from radiosity.physics.ltc import highlight_lobe
+
     extras = {
         "name": obj.name,
         "lights": obj.n_lights,
@@ -238,7 +235,7 @@ def file_version(model):
     exported, 7 where a highlight has a
     microfacet lobe, 6 where an object names its own emitter parts, 5 with a delta
     emitter part, 4 with an environment, 3 with a textured object, else 2."""
-    if any(_exported_mask(o) is not None for o in model.objects):
+    if any(exported_mask(o) is not None for o in model.objects):
         return VERSION
     if any(o.highlight is not None and o.highlight.microfacet is not None for o in model.objects):
         return LTC_VERSION
@@ -308,7 +305,7 @@ def _visual(obj):
     return TextureVisuals(uv=t.uvs, material=material)
 
 
-def _exported_mask(obj):
+def exported_mask(obj):
     """A textured object's mask as its image's alpha: (H, W) uint8 codes round(255
     opacity) at its texture's size (a 1 x 1 texture, an untextured object's white,
     is spread to the mask's), or None where it has no mask or the mask's size is not
@@ -338,7 +335,7 @@ class _Images:
         for obj in model.objects:
             if obj.textured is None:
                 continue
-            alpha = _exported_mask(obj)
+            alpha = exported_mask(obj)
             key = (id(obj.textured.texture), None if alpha is None else id(obj.textured.opacity))
             if key not in by_array:
                 codes = srgb8(obj.textured.texture)
@@ -359,6 +356,8 @@ class _Images:
         import io
 
         from PIL import Image
+
+        from radiosity.physics.textures import OPACITY_CUTOFF
 
         if not self.codes:
             return
@@ -474,338 +473,3 @@ def write_export(model, out, page=True):
     with staged_directory(out) as stage:
         write_files(model, stage, page)
     return out / FILE
-
-
-def _chunks(path):
-    """The JSON header of a .glb file (a dict) and its binary chunk (bytes, empty if it
-    has none); InputError if it is not one."""
-    data = Path(path).read_bytes()
-    if len(data) < 20 or data[:4] != b"glTF":
-        raise InputError(f"{str(path)!r} is not a binary glTF file")
-    length = int.from_bytes(data[12:16], "little")
-    header = json.loads(data[20:20 + length])
-    start = 20 + length
-    binary = b""
-    if len(data) >= start + 8 and data[start + 4:start + 8] == b"BIN\0":
-        size = int.from_bytes(data[start:start + 4], "little")
-        binary = data[start + 8:start + 8 + size]
-    return header, binary
-
-
-def _read_environment(header, extras, binary, fail):
-    """The ``EnvironmentLight`` of the scene ``extras``' ``"environment"`` and its
-    bufferView among the ``header``'s (None if the file has none)."""
-    from radiosity.physics.environment import EnvironmentLight
-
-    entry = extras.get("environment")
-    if entry is None:
-        return None
-    fail_env = lambda message: fail(f"scene extras 'environment': {message}")  # noqa: E731
-    try:
-        width, height, view = (entry[k] for k in ("width", "height", "bufferView"))
-        rotation = np.asarray(entry["rotation"], np.float64)
-        scale, constant = float(entry["scale"]), entry["constant"]
-    except (KeyError, TypeError, ValueError):
-        raise fail_env("needs 'width', 'height', 'scale', 'rotation' (3 x 3), 'constant' and 'bufferView'") from None
-    numbers = (width, height, view)
-    if any(isinstance(n, bool) or not isinstance(n, int) for n in numbers) or min(width, height) < 1 or view < 0:
-        raise fail_env(f"'width' and 'height' must be whole numbers >= 1 and 'bufferView' >= 0, got {numbers}")
-    if not isinstance(constant, bool):
-        raise fail_env(f"'constant' must be true or false, got {constant!r}")
-    views = header.get("bufferViews") or []
-    want = width * height * 3 * 4
-    if view >= len(views):
-        raise fail_env(f"bufferView {view} does not exist ({len(views)} views)")
-    v = views[view]
-    offset, length = v.get("byteOffset", 0), v.get("byteLength")
-    if v.get("buffer") != 0 or length != want or offset < 0 or offset + length > len(binary):
-        raise fail_env(f"bufferView {view} must hold {height} x {width} x 3 float32 ({want} bytes) of the GLB's "
-                       "own buffer")
-    image = np.frombuffer(binary, "<f4", width * height * 3, offset).reshape(height, width, 3).astype(np.float32)
-    try:
-        return EnvironmentLight(image, scale, rotation, constant, str(entry.get("source", "")))
-    except InputError as exc:
-        raise fail_env(str(exc)) from None
-
-
-def _attribute(attributes, key, v, fail):
-    a = attributes.get(key)
-    if a is None or np.shape(a) != (v, 3):
-        raise fail(f"has no vertex attribute {key} (VEC3)")
-    return np.asarray(a, np.float32)
-
-
-def _read_highlight(info, attributes, v, parts, nodes, fail):
-    """An object's ``Highlight`` from its mesh extras and attributes (None if it has none):
-    of the scene's ``parts`` all, or those its ``highlight.parts`` name (version 6)."""
-    from fitting.model import Highlight
-    from radiosity.physics.emitters import MAX_FILE_PARTS
-
-    entry = info.get("highlight")
-    if entry is None:
-        return None
-    try:
-        ks = np.asarray(entry["ks"], np.float64).reshape(3)
-        exponent = float(entry["exponent"])
-        fresnel = None if entry.get("fresnel") is None else np.asarray(entry["fresnel"], np.float64).reshape(3)
-    except (KeyError, TypeError, ValueError):
-        raise fail("'highlight' needs 'ks' [r, g, b] and 'exponent' (and 'fresnel' [r, g, b] if given)") from None
-    microfacet = None
-    if entry.get("microfacet") is not None:
-        try:
-            microfacet = Microfacet.from_dict(entry["microfacet"])
-        except ValueError as exc:
-            raise fail(f"'highlight' {exc}") from None
-    indices = entry.get("parts")
-    if indices is not None:
-        if not (isinstance(indices, list) and len(indices) <= MAX_FILE_PARTS and len(set(indices)) == len(indices)
-                and all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(parts) for i in indices)):
-            raise fail(f"'highlight' 'parts' must name at most {MAX_FILE_PARTS} distinct parts of the scene's "
-                       f"{len(parts)}")
-        indices = tuple(indices)
-        parts = tuple(parts[i] for i in indices)
-    elif len(parts) > MAX_FILE_PARTS:
-        raise fail(f"'highlight' draws {len(parts)} emitter parts; without its own 'parts' an object draws at most "
-                   f"{MAX_FILE_PARTS}")
-    p = len(parts)
-    columns = [_attribute(attributes, key, v, fail) for key in visibility_attributes(np.zeros((0, p)))]
-    visibility = np.concatenate(columns, axis=1)[:, :p] if columns else np.zeros((v, 0), np.float32)
-    return Highlight(parts, nodes, ks, exponent, np.ascontiguousarray(visibility, np.float32), fresnel, indices,
-                     microfacet)
-
-
-def _read_probe(info, attributes, v, fail):
-    """An object's (``Probe``, weight (V, 3)) from its mesh extras and attributes, or (None, None)."""
-    from fitting.probe import ALBEDO_POINTS, Probe
-
-    entry = info.get("probe")
-    if entry is None:
-        return None, None
-    try:
-        m = int(entry["size"])
-        probe = Probe(texels=np.asarray(entry["texels"], np.float32).reshape(m, m, 3),
-                      centre=np.asarray(entry["centre"], np.float64).reshape(3),
-                      box=np.asarray(entry["box"], np.float64).reshape(2, 3),
-                      albedo=np.asarray(entry["albedo"], np.float64).reshape(ALBEDO_POINTS))
-    except (KeyError, TypeError, ValueError):
-        raise fail(f"'probe' needs 'size' M, 'centre', 'box', 'albedo' ({ALBEDO_POINTS} numbers) and "
-                   "'texels' (M * M * 3 numbers)") from None
-    return probe, _attribute(attributes, "_PROBE", v, fail)
-
-
-def _read_textured(info, mesh, v, fail, decoded):
-    """An object's ``TexturedDiffuse`` from its mesh extras, uvs, image and
-    ``_IRRADIANCE`` (None if it has none). The image's 8-bit sRGB codes are decoded as
-    the solution's are (``radiosity.physics.textures``): a texture that was such a
-    decoding comes back exact; a material whose alphaMode is MASK (version 8) has its
-    mask in the image's alpha (codes / 255). ``decoded`` ((id(image), masked) ->
-    (image, texture, opacity)) holds each image decoded once: objects whose materials share an image share its array, as
-    they do read from fit.npz."""
-    from radiosity.physics.materials import srgb_to_linear
-    from radiosity.physics.textures import TexturedDiffuse
-
-    entry = info.get("textured")
-    if entry is None:
-        return None
-    try:
-        kd = np.asarray(entry["kd"], np.float64).reshape(3)
-    except (KeyError, TypeError, ValueError):
-        raise fail("'textured' needs 'kd' [r, g, b]") from None
-    visual = mesh.visual
-    uv = getattr(visual, "uv", None)
-    if uv is None or np.shape(uv) != (v, 2):
-        raise fail("is textured but has no TEXCOORD_0 (VEC2) for each vertex")
-    material = getattr(visual, "material", None)
-    image = getattr(material, "baseColorTexture", None)
-    if image is None or not hasattr(image, "convert"):
-        raise fail("is textured but its material has no baseColorTexture image")
-    masked = getattr(material, "alphaMode", None) == "MASK"  # version 8: the image's alpha is the mask
-    if (id(image), masked) not in decoded:
-        codes = np.asarray(image.convert("RGBA" if masked else "RGB"))
-        texture = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)[codes[..., :3]]
-        opacity = (codes[..., 3] / np.float32(255.0)).astype(np.float32) if masked else None
-        decoded[(id(image), masked)] = (image, texture, opacity)
-    _, texture, opacity = decoded[(id(image), masked)]
-    irradiance = _attribute(mesh.vertex_attributes, "_IRRADIANCE", v, fail)
-    try:
-        return TexturedDiffuse(uvs=np.asarray(uv, np.float64), irradiance=irradiance, texture=texture, kd=kd,
-                               opacity=opacity)
-    except ValueError as exc:
-        raise fail(f"textured: {exc}") from None
-
-
-def load_export(path):
-    """Read a ``scene.glb`` written by ``export_glb`` (version 5, 4, 3, 2 or 1) back into a
-    ``FittedModel`` (arrays float32 / int32 as in ``fitting.model``; a diffuse object's
-    specular is zeros (V, 3); the environment's image exact). InputError if the file is
-    not of this schema."""
-    import trimesh
-
-    from fitting.model import FittedModel, FittedObject
-    from radiosity.files.camera import camera_from_dict
-    from radiosity.physics.emitters import DEFAULT_NODES, MAX_NODES, file_parts
-
-    shown = repr(str(path))
-    header, binary = _chunks(path)
-    extras = (header.get("scenes") or [{}])[0].get("extras") or {}
-    if extras.get("format") != FORMAT or extras.get("version") not in READS:
-        versions = ", ".join(map(str, READS[:-1])) + f" or {READS[-1]}"
-        raise InputError(f"{shown} is not a {FORMAT} version {versions} file")
-    version = extras["version"]
-
-    def fail(message):
-        return InputError(f"{shown}: {message}")
-
-    parts, nodes = (), DEFAULT_NODES
-    if version >= 2:
-        parts = file_parts(extras.get("emitters", []), lambda m: fail(f"scene extras: {m}"), delta=version >= 5,
-                           own=version >= 6)
-        nodes = extras.get("emitter_nodes", DEFAULT_NODES)
-        if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
-            raise fail(f"scene extras 'emitter_nodes' must be a whole number from 1 to {MAX_NODES}, got {nodes!r}")
-    environment = _read_environment(header, extras, binary, fail) if version >= 4 else None  # before trimesh's checks
-    scene = trimesh.load(path, file_type="glb", force="scene", process=False)
-    objects, decoded = [], {}  # decoded: each image decoded once (_read_textured)
-    for name in extras["objects"]:
-        mesh = scene.geometry[name]
-        info = mesh.metadata
-        k = int(info["lights"])
-        v = len(mesh.vertices)
-        attributes = mesh.vertex_attributes
-
-        def object_fail(message, name=name):
-            return fail(f"object {name!r} {message}")
-
-        if k == 0:
-            specular = np.zeros((v, 3), np.float32)
-        elif info["per_light"]:
-            specular = np.stack([np.asarray(attributes[f"_SPECULAR_{i}"], np.float32) for i in range(k)], axis=1)
-        else:
-            specular = np.asarray(attributes["_SPECULAR"], np.float32)
-        highlight, (probe, weight), textured = None, (None, None), None
-        if version >= 2:
-            highlight = _read_highlight(info, attributes, v, parts, nodes, object_fail)
-            probe, weight = _read_probe(info, attributes, v, object_fail)
-        if version >= 3:
-            textured = _read_textured(info, mesh, v, object_fail, decoded)
-        objects.append(FittedObject(
-            name=name,
-            positions=np.asarray(mesh.vertices, np.float32),
-            normals=np.asarray(mesh.vertex_normals, np.float32),
-            faces=np.asarray(mesh.faces, np.int32),
-            emitted=np.asarray(attributes["_EMITTED"], np.float32),
-            specular=specular,
-            light_pos=np.asarray(info["light_pos"], np.float32).reshape(k, 4),
-            light_rgb=np.asarray(info["light_rgb"], np.float32).reshape(k, 3),
-            shininess=np.asarray(info["shininess"], np.float32).reshape(k),
-            highlight=highlight,
-            probe=probe,
-            probe_weight=weight,
-            textured=textured,
-        ))
-    camera = camera_from_dict(extras["camera"], where="scene extras 'camera'") if "camera" in extras else None
-    return FittedModel(objects=tuple(objects), source=extras.get("source", ""), model=extras.get("model", ""),
-                       camera=camera, emitters=parts, emitter_nodes=nodes, environment=environment)
-
-
-def add_export_command(subparsers):
-    """``vlights export fit.npz -o DIR``: DIR/scene.glb."""
-    p = subparsers.add_parser(
-        "export",
-        help="write a fitted model as binary glTF (DIR/scene.glb) with the WebGL walkthrough page beside it",
-        description="Write fit.npz as DIR/scene.glb, binary glTF 2.0 for other viewers: each object's mesh, "
-        "the fitted model's per-vertex arrays as float32 vertex attributes (_EMITTED, _SPECULAR or _SPECULAR_0 "
-        ".., _PROBE, _VISIBILITY_0 .., a textured object's TEXCOORD_0, _IRRADIANCE and its image as the base "
-        "colour texture), its lights, highlight and probe in the mesh's extras, the emitters, camera and "
-        "environment in the scene's (the schema: docs/formats.md); and beside it the WebGL walkthrough "
-        "(index.html, its script, the three.js modules and the shader files), which a browser opens through "
-        "'vlights serve DIR' or --serve.",
-    )
-    p.add_argument("fit", help="fit.npz")
-    p.add_argument("-o", "--out", required=True, metavar="DIR",
-                   help=f"output directory, created if missing (not its parents); {FILE}, {PAGE} (the WebGL "
-                   "walkthrough), the three.js modules and the shader files it loads are written into it")
-    p.add_argument("--no-page", dest="page", action="store_false", help=f"write {FILE} alone")
-    p.add_argument("--serve", action="store_true",
-                   help="then serve DIR on 127.0.0.1 (as 'vlights serve DIR') and print the walkthrough's URL")
-    p.add_argument("--port", type=int, default=8000, help="with --serve: TCP port, 0 for any free one (default: %(default)s)")
-    p.set_defaults(func=run_export_command)
-
-
-def _check_fit_file(path):
-    """A fit.npz, or InputError in one line (missing, a directory, a solution.npz, another
-    file): the one sniffer, ``radiosity.files.sniff.require_format``."""
-    import os
-
-    from radiosity.files.sniff import FIT, SOLUTION, input_kind, require_format
-
-    if not os.path.isdir(path) and os.path.exists(path) and input_kind(path) == SOLUTION:
-        raise InputError(f"input {str(path)!r} is a solution.npz, not a fit.npz (run 'vlights fit' on it first)")
-    require_format(path, (FIT,), "input")
-
-
-def run_export_command(args):
-    from display.export_limits import check_export_memory, check_page_textures, fit_sizes
-    from display.outputs import check_output_dir
-    from fitting import load_fit
-
-    _check_fit_file(args.fit)
-    if args.serve and not args.page:
-        raise InputError("--serve needs the page: drop --no-page")
-    files = (FILE, SHADING, *(str(p) for p in page_files())) if args.page else (FILE,)
-    out = check_output_dir(args.out, "-o", files=files, inputs=(args.fit,))
-    sizes = fit_sizes(args.fit)  # from the array headers: the estimate and the page's textures before any work
-    check_export_memory(sizes)
-    if args.page:
-        check_page_textures(sizes)
-    model = load_fit(args.fit)
-    glass = [o.name for o in model.objects if o.glass is not None or o.mirror is not None]
-    if glass:  # the page has no glass or mirror shading yet: left out (vlights view and render draw them)
-        from dataclasses import replace
-
-        if len(glass) == len(model.objects):
-            raise InputError(f"{args.fit}: every object is glass or a mirror, which the page does not draw yet")
-        model = replace(model, objects=tuple(o for o in model.objects if o.glass is None and o.mirror is None))
-        print(f"left out {len(glass)} glass object(s) and mirror(s) ({', '.join(glass[:4])}"
-              f"{', ...' if len(glass) > 4 else ''}): the page does not draw them yet ('vlights view' and "
-              "'vlights render' do)")
-    server = None
-    if args.serve:
-        from display.serve import start
-
-        server = start(out, args.port, must_exist=False)  # the port is had before anything is written
-    try:
-        path = write_export(model, out, page=args.page)
-        lights = sum(o.n_lights for o in model.objects)
-        extra = ""
-        if model.emitters:
-            highlights = sum(o.highlight is not None for o in model.objects)
-            extra += f", {len(model.emitters)} emitter parts highlighted on {highlights} objects"
-        probes = sum(o.probe is not None for o in model.objects)
-        if probes:
-            extra += f", {probes} reflection probes"
-        textured = sum(o.textured is not None for o in model.objects)
-        if textured:
-            extra += f", {textured} textured"
-        masked = [o.name for o in model.objects if o.textured is not None and o.textured.opacity is not None]
-        exported = [name for name in masked if _exported_mask(model.object(name)) is not None]
-        if exported:
-            extra += f", {len(exported)} masked"
-        if model.environment is not None:
-            h, w = model.environment.image.shape[:2]
-            extra += ", a constant environment" if model.environment.constant else f", a {w} x {h} environment"
-        print(f"wrote {path} ({len(model.objects)} objects, {lights} virtual lights{extra}, {path.stat().st_size} bytes)")
-        if len(exported) < len(masked):
-            left = [name for name in masked if name not in exported]
-            print(f"left out the masks of {len(left)} object(s) ({', '.join(left[:4])}{', ...' if len(left) > 4 else ''}): "
-                  "a mask the size of its texture is the image's alpha, and these differ; the page draws them opaque")
-        if args.page:
-            print(f"wrote {out / PAGE} (the walkthrough; open it through 'vlights serve {out}')")
-        if server is not None:
-            from display.serve import serve_until_interrupted
-
-            serve_until_interrupted(server, out)
-    finally:
-        if server is not None:
-            server.close()
-    return 0

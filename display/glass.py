@@ -32,6 +32,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from display.choices import APPROACHES  # noqa: F401 (how a display draws glass)
 from fitting.probe import decode
 from radiosity.files.camera import Camera
 from radiosity.physics.materials import Glass
@@ -39,7 +40,6 @@ from radiosity.physics.materials import Glass
 __all__ = ["APPROACHES", "PROBE_SIZE", "SLAB_RATIO", "components", "cube_views", "glass_of", "octahedral_from_faces",
            "probe_texture", "proxy"]
 
-APPROACHES = ("blend", "probe", "none")
 PROBE_SIZE = 128  # texels of a side of the octahedral map (and pixels of a side of each of the six views)
 SLAB_RATIO = 0.15  # an object whose mean thickness is under this of its box's largest side passes light straight
 _AXES = np.eye(3)

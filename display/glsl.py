@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fitting.model import PARTS
+from fitting.options import PARTS
 from fitting.probe import ALBEDO_POINTS
 from radiosity.physics import ltc
 from radiosity.physics.emitters import CULL, DEFAULT_NODES, MAX_POLYGON_VERTICES, PackedParts, rules

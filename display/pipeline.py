@@ -14,7 +14,7 @@ neither the light transport nor numba.
 
 from __future__ import annotations
 
-__all__ = ["check_spp", "fit_options", "load_scene", "path_trace", "scene_of", "scene_words", "solve"]
+__all__ = ["check_spp", "fit_options", "load_scene", "path_trace", "scene_of", "solve"]
 
 
 def load_scene(source):
@@ -23,14 +23,6 @@ def load_scene(source):
     from radiosity.scene.loaders import load_scene as load
 
     return load(source)
-
-
-def scene_words():
-    """What ``load_scene`` takes, in words, for a help text: every built-in scene and
-    scene format (``radiosity.scene.loaders.scene_words``)."""
-    from radiosity.scene.loaders import scene_words as words
-
-    return words()
 
 
 def solve(scene, quality, seed=1, progress=False):

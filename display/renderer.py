@@ -63,7 +63,8 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from fitting.model import PARTS
+from display.choices import MODE_NAMES, MODE_WORDS, SHADINGS  # noqa: F401 (the modes' words)
+from fitting.options import PARTS
 from radiosity.files.errors import InputError
 from radiosity.physics.emitters import DEFAULT_NODES
 from radiosity.physics.ltc import highlight_lobe
@@ -78,9 +79,6 @@ from .store import MAX_STRIDE, STAGING_BYTES, Estimate, Store, StorePlan, check_
 MODES = ("fitted", "diffuse", "reference")
 # each mode's name as users type and read it: the solution drawn directly is the "solution display" (its id,
 # here and in compare.json, is its first name, "reference", which --mode still reads)
-MODE_WORDS = {"fitted": "fitted", "reference": "solution", "diffuse": "diffuse"}
-MODE_NAMES = {word: mode for mode, word in MODE_WORDS.items()} | {"reference": "reference"}
-SHADINGS = ("gouraud", "pixel")
 LTC_UNIT = 4  # the texture unit of the microfacet lobes' table
 CUTOUT_UNIT = 2  # the texture unit of a masked object's opacity
 GLASS_REFLECTION_SCALE = 2  # a flat glass piece's reflected view: at 1 / this of the frame's size

@@ -4,26 +4,42 @@
     shade(model, name, world_dirs)                    the one reference of the shading formula
     LightSet, FitResult                               what the steps of a fit pass between them
 
-Modules: ``fit`` (orchestration), ``glossy`` (a glossy object part by part and
-``--model auto``), ``mixed`` (virtual lights by variable projection), ``probe``, ``paper``
-(section 3.2), ``lobes`` (the one Blinn-Phong lobe, its gradient and the kernels),
-``loss``, ``model`` (fit.npz and ``shade``), ``results``, ``data``, ``baselines``,
-``cli``; docs/layout.md has the whole map.
+Modules: ``fit`` (orchestration), ``options`` (``FitOptions`` and the words of the
+flags), ``glossy`` (a glossy object part by part and ``--model auto``), ``mixed``
+(virtual lights by variable projection), ``probe``, ``paper`` (section 3.2), ``lobes``
+(the one Blinn-Phong lobe, its gradient and the kernels), ``loss``, ``model`` (fit.npz
+and ``shade``), ``results``, ``data``, ``baselines``, ``cli``; docs/layout.md has the
+whole map.
+
+Each public name is imported from its module the first time it is asked for, so that
+importing the package (as the ``vlights`` command does to build its parser) loads
+neither scipy nor numba.
 """
 
+import importlib
 
-from .fit import FitOptions, fit
-from .model import FittedModel, FittedObject, load_fit, shade, shade_arrays
-from .results import FitResult, LightSet
+_HOMES = {
+    "FitOptions": "options",
+    "fit": "fit",
+    "FittedModel": "model",
+    "FittedObject": "model",
+    "load_fit": "model",
+    "shade": "model",
+    "shade_arrays": "model",
+    "FitResult": "results",
+    "LightSet": "results",
+}
 
-__all__ = [
-    "FitOptions",
-    "FitResult",
-    "FittedModel",
-    "FittedObject",
-    "LightSet",
-    "fit",
-    "load_fit",
-    "shade",
-    "shade_arrays",
-]
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name):
+    if name not in _HOMES:
+        raise AttributeError(f"module 'fitting' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"fitting.{_HOMES[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_HOMES))

@@ -18,14 +18,12 @@ import numpy as np
 from radiosity.files.atomic import check_output
 from radiosity.files.errors import InputError
 from radiosity.files.sniff import SOLUTION, require_format
-from radiosity.files.solution import SolutionFile
 from radiosity.policies.cluster import check_scheduler, connect
 from radiosity.policies.presets import DEFAULT_QUALITY, QUALITIES, preset
 
 from .blocks import BLOCK_SAMPLES
-from .fit import COEFFICIENTS, LIGHT_KINDS, MODELS, FitOptions, fit, planned_threads, planned_workers, quality_of
-from .glossy import MODEL_TARGET
 from .memory import check_dask_memory, check_fit_memory, cores
+from .options import COEFFICIENTS, LIGHT_KINDS, MODEL_TARGET, MODELS, FitOptions, quality_of
 
 
 def _lights(text):
@@ -141,7 +139,7 @@ def _workers(text):
 def fit_quality(args_quality, solution):
     """(quality, how it was chosen): ``--quality`` if given, else the quality recorded
     in the solution's ``settings["quality"]`` if it is one we know, else the default
-    (``fitting.fit.quality_of``)."""
+    (``fitting.options.quality_of``)."""
     if args_quality is not None:
         return args_quality, "--quality"
     return quality_of(solution)
@@ -225,6 +223,10 @@ def _fit(args):
         if args.workers is not None:
             raise InputError("--workers sets this machine's processes: it does not go with --scheduler "
                              f"{args.scheduler} (the cluster's workers fit the objects)")
+    from radiosity.files.solution import SolutionFile  # numba's: loaded once the flags are checked
+
+    from .fit import fit, planned_threads, planned_workers
+
     require_format(args.solution, (SOLUTION,), "solution")
     with SolutionFile(args.solution) as solution:
         solution.validate()  # a bad object is one line before the estimate, not after it and some work
@@ -255,6 +257,8 @@ def _fit_on(scheduler, solution, options):
                           block_samples=options.block_samples)
         # one write: a Ctrl-C cannot come between the line and its end
         sys.stderr.write(f"fit: on dask {client.scheduler.address} ({threads} threads)\n")
+        from .fit import fit
+
         return fit(solution, options, progress=True, client=client)
     finally:
         try:

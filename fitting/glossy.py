@@ -42,13 +42,13 @@ from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES, object_mean, search_slice, ve
 from .data import ErrorSums, FitData, fit_data, object_areas, perceptual_error, relative_error
 from .lobes import MixedLights
 from .loss import loss_weights as make_loss_weights
+from .options import GLOSSY_MODELS
 
 __all__ = ["MODELS", "Components", "fit_components"]
 
-MODELS = ("diffuse", "emitters", "probe", "probe+lights", "lights")
+MODELS = GLOSSY_MODELS
 PROBE_SIZES = (8, 16, 32)
 WITHIN = 0.03  # "auto" keeps a cheaper model whose error is within this fraction of the best's
-MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
 FIRST_LIGHT_PAYS = 0.02  # "auto" fits more lights beside a probe only if the first lowers the perceptual error this much
 HIGHLIGHT = 1.0  # a residual peak above this times the object's mean radiance is a highlight: lights fit it
 BOX_MARGIN = 1e-3  # the probe's proxy box: the scene's bounds grown by this fraction of their diagonal

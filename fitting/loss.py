@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-LOSSES = ("linear", "relative")
+from .options import LOSSES
+
 RELATIVE_FLOOR = 0.05  # eps of the relative loss, as a fraction of the mean radiance
 
 

@@ -47,10 +47,10 @@ from scipy.optimize import minimize
 from .lobes import MixedLights, Samples, mixed_light_sum, mixed_loss_and_gradient, normal_equations
 from .model import light_vectors
 from .nnls import solve_many
+from .options import LIGHT_KINDS
 from .seeds import first_hits, meeting_point, mirror
 
-KINDS = ("auto", "directional", "positional")
-COEFFICIENTS = ("shared", "per-light")
+KINDS = LIGHT_KINDS
 CAP_FACTOR = 8.0  # as paper.CAP_FACTOR: a vertex's highlight stays below 8x its brightest sample
 AUTO_TOLERANCE = 0.005  # "auto": a point light becomes directional if the error grows less than this (relative)
 USELESS = 1e-4  # a light whose part of the model has less than this fraction of the data's energy carries nothing

@@ -73,13 +73,13 @@ from radiosity.physics.materials import Glass, Microfacet
 from radiosity.physics.textures import TexturedDiffuse, read_textured
 
 from .lobes import lobe_vectorised
+from .options import PARTS  # noqa: F401 (the parts a display may switch off)
 from .probe import ALBEDO_POINTS, Probe, probe_values
 
 FORMAT = "vlights.fit"
 VERSION = 10  # the newest version written (a file is written with the lowest that holds it: FittedModel.version)
 READS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
 MAX_PROBE_SIZE = 256
-PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off
 ARRAY_KEYS = ("positions", "normals", "faces", "emitted", "specular", "light_pos", "light_rgb", "shininess")
 ARRAY_KEYS_V1 = ("positions", "normals", "faces", "emitted", "specular", "light_dirs", "light_rgb", "shininess")
 UNIT_TOLERANCE = 1e-3  # a stored light direction's length may be off 1 by this much (float32 storage)

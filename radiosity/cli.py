@@ -7,10 +7,9 @@ import json
 from pathlib import Path
 
 from radiosity.files.atomic import check_output
-from radiosity.info import describe, format_description
-from radiosity.physics.emitters import MAX_NODES
+from radiosity.files.sniff import scene_words
 from radiosity.policies import presets
-from radiosity.scene.loaders import load_scene, scene_words
+from radiosity.policies.limits import MAX_NODES
 
 
 def whole_number(low, high=None):
@@ -193,6 +192,7 @@ def _output_path(path, suffix=".npz", inputs=()):
 
 
 def _solve(args):
+    from radiosity.scene.loaders import load_scene  # the scene stack and numba: once the command runs
     from radiosity.transport.adaptive import solve_adaptive
     from radiosity.transport.solve import SolveOptions
 
@@ -334,6 +334,9 @@ def _adaptive_lines(adaptive):
 
 
 def _scene_info(args):
+    from radiosity.info import describe, format_description
+    from radiosity.scene.loaders import load_scene
+
     scene = load_scene(args.scene)
     max_edge, how = presets.max_edge(scene, args.quality, args.max_edge)
     refined = scene.refined(max_edge)

@@ -6,7 +6,7 @@ registers them, in this order, through ``register``.
     view     view.py      the walkthrough window
     demo     demo.py      the whole pipeline on the built-in scenes
     truth    truth.py     the path-traced ground truth of a view
-    export   display.export (its ``add_export_command``)
+    export   export.py    a fit as glTF with the WebGL page (the writer: display.export)
     serve    serve.py     a static web server for an export
 
 ``common.py`` holds what several of them share: the camera and sample flags and the
@@ -18,16 +18,12 @@ line and exits 2). No command imports the dispatcher.
 
 from __future__ import annotations
 
-from display.export import add_export_command
-
-from . import compare, demo, render, serve, truth, view
+from . import compare, demo, export, render, serve, truth, view
 
 __all__ = ["register"]
 
 
 def register(subparsers):
     """Add every display command to ``subparsers``."""
-    for module in (render, compare, view, demo, truth):
+    for module in (render, compare, view, demo, truth, export, serve):
         module.add_command(subparsers)
-    add_export_command(subparsers)
-    serve.add_command(subparsers)

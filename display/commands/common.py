@@ -24,7 +24,7 @@ _FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
 
 def display_mode(name):
     """argparse's type of --mode: a display's name (``display.renderer.MODE_NAMES``) -> its id."""
-    from display.renderer import MODE_NAMES
+    from display.choices import MODE_NAMES
 
     if name not in MODE_NAMES:
         raise argparse.ArgumentTypeError(f"{name!r} is not a display: choose fitted, solution or diffuse")
@@ -69,7 +69,7 @@ def add_camera_flags(parser, default_size):
 def add_glass_flag(parser):
     """--glass APPROACH: how glass objects are drawn (``display.glass``); --near-mirrors: flat
     sharp plastics drawn as mirrors (``display.mirror.near_mirror_of``)."""
-    from display.glass import APPROACHES
+    from display.choices import APPROACHES
 
     parser.add_argument("--glass", choices=APPROACHES, default=APPROACHES[0],
                         help="how glass is drawn: blend (reflections and refractions from a probe of the scene "

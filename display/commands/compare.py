@@ -27,7 +27,7 @@ __all__ = ["add_command", "run"]
 
 
 def add_command(subparsers):
-    from display.compare import ORBIT_DEGREES
+    from display.choices import ORBIT_DEGREES
 
     p = subparsers.add_parser(
         "compare",

@@ -14,7 +14,8 @@ __all__ = ["add_command", "run"]
 
 
 def add_command(subparsers):
-    from display.demo import ASPECT, SCENES
+    from display.choices import ASPECT
+    from display.choices import DEMO_SCENES as SCENES
 
     scenes = " and ".join(SCENES)
     p = subparsers.add_parser(

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from display.gl import check_sample_count
-from fitting.model import PARTS
+from fitting.options import PARTS
 from radiosity.files.errors import InputError
 from radiosity.policies.limits import check_exposure
 

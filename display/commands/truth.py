@@ -9,6 +9,7 @@ import os
 import numpy as np
 
 from radiosity.files.errors import InputError
+from radiosity.files.sniff import scene_words
 from radiosity.policies import presets
 from radiosity.policies.limits import available_memory, check_exposure, check_seed
 
@@ -21,7 +22,6 @@ MAX_THREADS = 1024  # a thread pool of more would be reported, not run (the path
 
 
 def add_command(subparsers):
-    from display import pipeline
 
     p = subparsers.add_parser(
         "truth",
@@ -35,7 +35,7 @@ def add_command(subparsers):
         "holds no materials and is refused.",
     )
     p.add_argument("input", help="a solution.npz (its meshes and materials, what its displays show) or a scene: "
-                   + pipeline.scene_words())
+                   + scene_words())
     add_camera_flags(p, (512, 512))
     p.add_argument("--spp", type=int, help="samples per pixel (default: the --quality preset's truth_spp)")
     p.add_argument("--quality", choices=presets.QUALITIES, default=presets.DEFAULT_QUALITY,

@@ -1,7 +1,7 @@
 """Reading an image of linear radiance: OpenEXR, Radiance HDR (RGBE), PFM or .npy ->
 (H, W, 3) float32 RGB, row 0 at the top, checked (``read_hdr_image``). Used by
 ``vlights compare --reference`` (through ``display.images``) and by the scene loaders
-(environment maps), so it lives with the formats every stage may import.
+(environment maps), so it lives in the shared core every stage may import.
 """
 
 from __future__ import annotations

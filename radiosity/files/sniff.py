@@ -18,12 +18,18 @@ from radiosity.files.errors import InputError
 from radiosity.files.inputs import MESH_BYTES, NPZ_BYTES, TEXT_BYTES, check_input_file
 from radiosity.files.npz import NPY_MAGIC, NPZ_MAGIC, file_format
 
-__all__ = ["FILE_NAMES", "FIT", "MESH_SUFFIXES", "SCENE_SUFFIXES", "SOLUTION", "input_kind", "require_format"]
+__all__ = ["BUILTIN_SCENES", "FILE_NAMES", "FIT", "FORMAT_NAMES", "MESH_SUFFIXES", "SCENE_SUFFIXES", "SOLUTION", "input_kind",
+           "require_format", "scene_words"]
 
 SOLUTION, FIT = "vlights.solution", "vlights.fit"
 FILE_NAMES = {FIT: "fit.npz", SOLUTION: "solution.npz"}
 SCENE_SUFFIXES = (".toml", ".xml")
 MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".ply", ".stl", ".off")
+BUILTIN_SCENES = ("cornell", "cornell-teapot", "plates")  # ``radiosity.scene.builtins`` builds them
+FORMAT_NAMES = {
+    ".toml": "a TOML scene", ".xml": "a Mitsuba XML scene, versions 0.4-0.6 and 2-3", ".obj": "OBJ/MTL",
+    ".gltf": "glTF", ".glb": "glTF", ".ply": "PLY", ".stl": "STL", ".off": "OFF",
+}
 _LIMITS = {"scene": TEXT_BYTES, "mesh": MESH_BYTES}
 
 
@@ -68,3 +74,18 @@ def require_format(path: str | os.PathLike, accepted: tuple[str, ...], label: st
         "unknown": "not one of this program's .npz files",
     }.get(kind, f"an .npz file of format {kind!r}")
     raise InputError(f"{label} {shown!r} is not a {want}: it is {found}")
+
+
+def scene_words():
+    """What a scene argument takes, in words, for every help text that takes a scene:
+    built from the tables the loaders read (``BUILTIN_SCENES``, the suffixes), so it
+    cannot leave one out; a suffix missing from ``FORMAT_NAMES`` is a KeyError here."""
+
+    def named(suffixes):
+        groups = {}
+        for suffix in suffixes:
+            groups.setdefault(FORMAT_NAMES[suffix], []).append(suffix)
+        return ", ".join(f"{name} ({', '.join(group)})" for name, group in groups.items())
+
+    return (f"a built-in scene ({', '.join(BUILTIN_SCENES)}), {named(SCENE_SUFFIXES)}, "
+            f"or a mesh file: {named(MESH_SUFFIXES)}")

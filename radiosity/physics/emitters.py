@@ -56,6 +56,7 @@ import numpy as np
 from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.files.errors import InputError
 from radiosity.physics import ltc
+from radiosity.policies.limits import DEFAULT_NODES, MAX_NODES  # noqa: F401 (a part's quadrature)
 
 __all__ = [
     "DEFAULT_NODES",
@@ -84,8 +85,6 @@ KINDS = ("sphere", "polygon", "point", "direction")
 DELTA_KINDS = ("point", "direction")  # solution version 4, fit version 5, glTF version 5
 AREA_KINDS = ("sphere", "polygon")  # every version since the parts came (solution 2, fit 3, glTF 2)
 MAX_POLYGON_VERTICES = 8
-DEFAULT_NODES = 8
-MAX_NODES = 32
 MAX_FILE_PARTS = 31  # the parts one object's highlight draws at most: the displays mark its own parts in a 32-bit mask
 MAX_SCENE_PARTS = 4096  # a file's parts at most where each object names its own (solution 5, fit 6, glTF 6)
 MAX_LIGHTS = 1024  # a scene's delta lights at most (a solution's meta "lights")

@@ -9,6 +9,8 @@ import os
 
 from radiosity.files.errors import InputError
 
+DEFAULT_NODES = 8  # quadrature nodes of the emitters' highlights (``--highlight-nodes``, ``radiosity.physics.emitters``)
+MAX_NODES = 32
 SEED_LIMIT = 2**63  # seeds are hashed as unsigned 64-bit numbers; the CLI keeps them in int64
 
 

@@ -7,8 +7,8 @@ all read it. Each knob also has its own flag; a flag given explicitly wins over 
 preset. Mesh refinement is relative to the scene's size, so a preset means the same
 in millimetres and in metres.
 
-It lives with the file formats because every stage reads it: the fitter and the
-display may import nothing else of the radiosity stage.
+Every stage reads it, so it lives in the radiosity stage's shared core (the README's
+stage rule).
 """
 
 from __future__ import annotations

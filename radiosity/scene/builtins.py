@@ -24,9 +24,10 @@ import numpy as np
 import trimesh
 
 from radiosity.files.errors import InputError
+from radiosity.files.sniff import BUILTIN_SCENES
 from radiosity.scene import teapot
 
-SCENES = ("cornell", "cornell-teapot", "plates")
+SCENES = BUILTIN_SCENES
 MESHES = ("teapot", "sphere", "quad", "cube", "disk", "cylinder", "cornell:<part>")
 LIGHT_DROP_MM = 0.1  # the measured light lies in the ceiling plane; lower it this much
 

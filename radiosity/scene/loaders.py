@@ -48,8 +48,7 @@ from PIL import Image
 from radiosity.files.camera import DEFAULT_FOV_Y_DEG, MAX_IMAGE_SIDE, camera_from_dict, pose_from_matrix
 from radiosity.files.errors import InputError, SceneWarning
 from radiosity.files.inputs import TEXT_BYTES, loads_toml, read_input_bytes
-from radiosity.files.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind
-from radiosity.files.sniff import MESH_SUFFIXES as MESH_FILE_SUFFIXES
+from radiosity.files.sniff import FILE_NAMES, SCENE_SUFFIXES, input_kind, scene_words  # noqa: F401 (the loaders' words)
 from radiosity.physics.environment import Environment, read_environment_image
 from radiosity.physics.materials import FLOAT32_MAX, fresnel_kd_limit
 from radiosity.physics.textures import read_texture, texture_from_image
@@ -111,26 +110,6 @@ def load_scene(source):
 
 # Each suffix ``load_scene`` reads (``radiosity.files.sniff``'s SCENE_SUFFIXES and
 # MESH_SUFFIXES) as help texts name it
-FORMAT_NAMES = {
-    ".toml": "a TOML scene", ".xml": "a Mitsuba XML scene, versions 0.4-0.6 and 2-3", ".obj": "OBJ/MTL",
-    ".gltf": "glTF", ".glb": "glTF", ".ply": "PLY", ".stl": "STL", ".off": "OFF",
-}
-
-
-def scene_words():
-    """What ``load_scene`` takes, in words, for every help text that takes a scene: built
-    from the tables it reads (``builtins.SCENES``, the sniffer's suffixes), so it cannot
-    leave one out; a suffix missing from ``FORMAT_NAMES`` is a KeyError here."""
-
-    def named(suffixes):
-        groups = {}
-        for suffix in suffixes:
-            groups.setdefault(FORMAT_NAMES[suffix], []).append(suffix)
-        return ", ".join(f"{name} ({', '.join(group)})" for name, group in groups.items())
-
-    return (f"a built-in scene ({', '.join(builtins.SCENES)}), {named(SCENE_SUFFIXES)}, "
-            f"or a mesh file: {named(MESH_FILE_SUFFIXES)}")
-
 # -- TOML ---------------------------------------------------------------------------
 
 

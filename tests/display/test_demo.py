@@ -8,7 +8,7 @@ import pytest
 
 from display.cli import main
 from display.demo import verdict, verdict_markdown, verdict_text
-from display.export import load_export
+from display.export_reader import load_export
 from fitting import load_fit
 from radiosity.policies import presets
 

@@ -1,6 +1,6 @@
 """``vlights export``: fit.npz -> DIR/scene.glb (display/export.py).
 
-The glTF is read back with trimesh independently of ``display.export.load_export``;
+The glTF is read back with trimesh independently of ``display.export_reader.load_export``;
 every array must come back bit for bit in float32, and shading the re-read arrays with
 ``fitting.model.shade_arrays`` must equal shading the fit. A version 3 fit (emitter
 highlights and reflection probes, ``glossy_model``) must come back from
@@ -30,8 +30,8 @@ from display.export import (
     UNTEXTURED_VERSION,
     VERSION,
     export_glb,
-    load_export,
 )
+from display.export_reader import load_export
 from fitting import FittedModel, load_fit
 from fitting.model import PARTS, Highlight, shade_arrays
 from fitting.probe import Probe, albedo_table

@@ -18,14 +18,8 @@ from scipy.spatial.transform import Rotation
 from test_export import bits_equal, glossy_model, rewrite_json, validate
 from test_export_textures import chunks, textured_model, uv_tolerance
 
-from display.export import (
-    ENVIRONMENT_VERSION,
-    FILE,
-    TEXTURED_VERSION,
-    UNTEXTURED_VERSION,
-    export_glb,
-    load_export,
-)
+from display.export import ENVIRONMENT_VERSION, FILE, TEXTURED_VERSION, UNTEXTURED_VERSION, export_glb
+from display.export_reader import load_export
 from fitting import load_fit
 from radiosity.files.errors import InputError
 from radiosity.physics.environment import EnvironmentLight

@@ -20,7 +20,8 @@ from display_fixtures import lit_model
 from PIL import Image
 from test_export import bits_equal, glb_header, rewrite_json, validate
 
-from display.export import FILE, SAMPLER, TEXTURED_VERSION, UNTEXTURED_VERSION, export_glb, load_export, srgb8
+from display.export import FILE, SAMPLER, TEXTURED_VERSION, UNTEXTURED_VERSION, export_glb, srgb8
+from display.export_reader import load_export
 from fitting import FittedModel, load_fit
 from radiosity.files.errors import InputError
 from radiosity.physics.materials import srgb_to_linear

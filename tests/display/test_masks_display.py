@@ -90,7 +90,8 @@ def test_the_export_keeps_a_mask_as_its_images_alpha_and_reads_it_back(tmp_path,
     left out, and the command names the object."""
     from dataclasses import replace
 
-    from display.export import export_glb, file_version, load_export
+    from display.export import export_glb, file_version
+    from display.export_reader import load_export
 
     mask = _mask(rng)
     solution = Solution(objects=(_leaf(mask, True), _quad("floor", 0.0, 4.0, 1.0, True)), scene="leaf")

@@ -828,7 +828,7 @@ def test_version_8_masks_page_equals_render(browser, site_masked, tmp_path, side
         page.close()
     want = rendered(tmp_path, fit, exposure=1.0, view=view)
     assert_matches(got, want)
-    from display.export import load_export
+    from display.export_reader import load_export
 
     model = load_export(fit.parent / "web" / "scene.glb")
     assert model.object("leaf").textured.opacity is not None
