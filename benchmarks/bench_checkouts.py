@@ -5,10 +5,11 @@ install -e .`` there; a ``git worktree`` of the commit to compare against). Ever
 runs once in each checkout first, unmeasured (numba compiles into the checkout's cache),
 then --repeats times in each, alternating old and new, so that a noisy neighbour slows
 both alike. Per case: the medians of the wall time and of the time the command reports
-itself (``solve``'s "total", ``truth``'s "path traced ... in T s"), their ratio new / old,
+itself (``solve``'s "total", ``truth``'s "path traced ... in T s"; ``fit``: the wall time alone, of
+--solution), their ratio new / old,
 and every run.
 
-    python benchmarks/bench_checkouts.py --old /work/wt/before [--new .] [--repeats 5] [--cases solve,truth]
+    python benchmarks/bench_checkouts.py --old /work/wt/before [--new .] [--repeats 5] [--cases solve,fit,truth --solution S]
 
 Writes results/checkouts.jsonl (one row per case).
 """
@@ -32,20 +33,21 @@ CASES = {
               r"^\s*total\s+([0-9.]+) s"),
     "solve-plates": (["solve", "plates", "--quality", "draft", "-o", "{out}/solution.npz"],
                      r"^\s*total\s+([0-9.]+) s"),
+    "fit": (["fit", "{solution}", "-o", "{out}/fit.npz"], None),  # wall time alone: the fit prints per object
     "truth": (["truth", "cornell-teapot", "--spp", "32", "--size", "512x512", "-o", "{out}/truth.png"],
               r"path traced .* in ([0-9.]+) s"),
 }
 
 
-def run(checkout, case, out):
+def run(checkout, case, out, solution=None):
     args, pattern = CASES[case]
-    command = [str(checkout / ".venv" / "bin" / "vlights"), *(a.format(out=out) for a in args)]
+    command = [str(checkout / ".venv" / "bin" / "vlights"), *(a.format(out=out, solution=solution) for a in args)]
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, cwd=out)
     wall = time.perf_counter() - start
     if done.returncode != 0:
         raise SystemExit(f"{checkout}: {' '.join(command)} failed: {done.stderr.strip()[-400:]}")
-    found = re.search(pattern, done.stderr + done.stdout, re.MULTILINE)
+    found = re.search(pattern, done.stderr + done.stdout, re.MULTILINE) if pattern else None
     return wall, float(found.group(1)) if found else None
 
 
@@ -55,16 +57,20 @@ def main():
     parser.add_argument("--new", type=Path, default=Path(__file__).resolve().parent.parent)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--cases", default="solve,truth")
+    parser.add_argument("--solution", type=Path, help="the solution.npz the case 'fit' fits (both checkouts the same)")
     args = parser.parse_args()
+    if "fit" in args.cases.split(",") and args.solution is None:
+        parser.error("the case 'fit' needs --solution")
+    solution = args.solution.resolve() if args.solution else None
     record = Recorder(benchmark="checkouts", old=str(args.old), new=str(args.new.resolve()))
     for case in args.cases.split(","):
         runs = {"old": [], "new": []}
         with tempfile.TemporaryDirectory() as tmp:
             for which in ("old", "new"):
-                run(getattr(args, which).resolve(), case, tmp)  # compiles, unmeasured
+                run(getattr(args, which).resolve(), case, tmp, solution)  # compiles, unmeasured
             for _ in range(args.repeats):
                 for which in ("old", "new"):
-                    runs[which].append(run(getattr(args, which).resolve(), case, tmp))
+                    runs[which].append(run(getattr(args, which).resolve(), case, tmp, solution))
         row = {"case": case, "repeats": args.repeats}
         for k, name in ((0, "wall"), (1, "reported")):
             old = [r[k] for r in runs["old"] if r[k] is not None]

@@ -136,7 +136,7 @@ def commands(xml, reference, args):
 def compared_size(reference, max_side):
     """compare's --size for ``reference``: its own size shrunk by the least whole factor
     that brings its longer side to ``max_side`` or below (none where it is already)."""
-    from radiosity.files.hdr import read_hdr_image
+    from radiosity.files.images import read_hdr_image
 
     height, width = read_hdr_image(reference).shape[:2]
     factor = next(f for f in range(1, max(height, width) + 1)
@@ -191,7 +191,7 @@ def side_by_side(work, reference, name, numbers, source, path):
     import matplotlib.pyplot as plt
 
     from display.renderer import tonemap
-    from radiosity.files.hdr import read_hdr_image
+    from radiosity.files.images import read_hdr_image
 
     truth = read_hdr_image(reference)
     folder = work / "compare" / "reference"

@@ -105,7 +105,7 @@ def main():
 
     from display.compare import reference_at
     from display.metrics import metrics
-    from radiosity.files.hdr import read_hdr_image
+    from radiosity.files.images import read_hdr_image
     from radiosity.scene.loaders import load_scene
 
     record = Recorder(benchmark="materials")

@@ -124,7 +124,7 @@ def main(argv=None):
     parser.add_argument("--mitsuba-python", help="the Python of a venv with mitsuba installed")
     args = parser.parse_args(argv)
     from display.metrics import metrics
-    from radiosity.files.hdr import read_hdr_image
+    from radiosity.files.images import read_hdr_image
 
     python, version = mitsuba_python(args.mitsuba_python)
     record = Recorder(benchmark="mirrors", spp=args.spp, quality=args.quality, mitsuba=version)

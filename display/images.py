@@ -9,7 +9,7 @@ whole or absent, a failure or Ctrl-C leaves nothing).
                                       PNG, both files or neither
 
 and the one way they read an image of linear radiance (``vlights compare --reference``),
-re-exported from ``radiosity.files.hdr`` (the scene loaders read environment maps with it):
+re-exported from ``radiosity.files.images`` (the scene loaders read environment maps with it):
 
     read_hdr_image(path)              OpenEXR, Radiance HDR (RGBE), PFM or .npy ->
                                       (H, W, 3) float32 RGB, row 0 at the top, checked
@@ -24,7 +24,7 @@ import contextlib
 import numpy as np
 
 from radiosity.files.atomic import atomic_output
-from radiosity.files.hdr import HDR_EXTENSIONS, read_hdr_image
+from radiosity.files.images import HDR_EXTENSIONS, read_hdr_image
 
 __all__ = ["HDR_EXTENSIONS", "read_hdr_image", "write_figure", "write_npy", "write_pictures", "write_png"]
 

@@ -48,7 +48,7 @@ import numpy as np
 
 from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.files.errors import InputError
-from radiosity.files.hdr import HDR_EXTENSIONS, read_hdr_image
+from radiosity.files.images import HDR_EXTENSIONS, read_hdr_image, read_image
 from radiosity.physics.cdf import search_cdf
 
 CONSTANT_ROWS, CONSTANT_COLUMNS = 33, 64  # the image a constant environment is sampled as
@@ -348,15 +348,15 @@ class Environment(EnvironmentLight):
 
 def read_environment_image(path, where):
     """(H, W, 3) float32 linear radiance of an environment map file: OpenEXR, Radiance
-    HDR, PFM or .npy as they are (``formats.hdr.read_hdr_image``); an 8-bit image (PNG,
-    JPEG, ...) sRGB-decoded to [0, 1] (``textures.read_texture``). InputError naming
-    ``where`` and the file."""
-    from radiosity.physics.textures import read_texture
-
-    path = str(path)
-    if path.lower().endswith(HDR_EXTENSIONS):
+    HDR, PFM or .npy checked as radiance (``read_hdr_image``: no NaN, infinite or
+    negative values); an 8- or 16-bit image (PNG, JPEG, ...) sRGB-decoded to [0, 1]
+    (``read_image``). InputError naming ``where`` and the file."""
+    if str(path).lower().endswith(HDR_EXTENSIONS):
         return read_hdr_image(path, f"{where}: environment map")
-    return read_texture(path, where)
+    try:
+        return read_image(path, "environment map").rgb.astype(np.float32)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
 
 # -- numba ------------------------------------------------------------------------------

@@ -55,22 +55,19 @@ at least ``OPACITY_CUTOFF`` (an alpha test, in every stage).
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba
 import numpy as np
-from PIL import Image
 
 from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.files.errors import InputError
-from radiosity.files.inputs import read_input_bytes
+from radiosity.files.images import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, picture_from_array, read_image  # noqa: F401
 from radiosity.physics.materials import srgb_to_linear
 
 KEYS = ("uvs", "irradiance", "texture")
-MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels: a texture larger is refused
 OPACITY_CUTOFF = 0.5  # a mask reading below this is a hole, at and above it the surface (an alpha test)
 
 
@@ -262,13 +259,14 @@ def read_textured(archive, name, n_vertices, kd, masks=False):
 
 
 
-TEXTURE_BYTES = 1 << 30  # an image file larger is refused before it is decoded
 
 
 def texture_from_image(image, where):
-    """A PIL image (8 bits per channel, sRGB-encoded, as PNG and JPEG files hold them)
-    as a texture: (H, W, 3) float32 linear RGB, row 0 the top. Alpha is dropped; a
-    grey image is repeated into the three channels."""
+    """A PIL image (as trimesh decodes a mesh file's images) as a texture: (H, W, 3)
+    float32 linear RGB, row 0 the top, through the one image reader's decoding
+    (``radiosity.files.images.picture_from_array``: 8- and 16-bit sRGB-decoded, float
+    linear). Alpha is dropped; a grey image is repeated into the three channels; its
+    size is checked before its pixels are read."""
     width, height = image.size
     if width < 1 or height < 1:
         raise InputError(f"{where}: the texture is empty ({width} x {height} pixels)")
@@ -276,28 +274,23 @@ def texture_from_image(image, where):
         raise InputError(
             f"{where}: the texture is {width} x {height} pixels, more than the {MAX_TEXTURE_PIXELS:,} allowed"
         )
-    if image.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
-        raise InputError(f"{where}: the texture has {image.mode} pixels; give an 8-bit RGB or grey image")
-    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
-    return srgb_to_linear(rgb).astype(np.float32)
+    if image.mode.startswith("I"):  # 16 bits a channel (pillow's "I;16", or "I" holding them)
+        pixels = np.clip(np.asarray(image), 0, 65535).astype(np.uint16)
+    elif image.mode == "F":
+        pixels = np.asarray(image, dtype=np.float32)
+    else:
+        pixels = np.asarray(image.convert("RGB"))
+    return picture_from_array(pixels, f"{where}: texture", alpha=False).rgb.astype(np.float32)
 
 
 def read_texture(path, where):
-    """A texture from an image file (PNG, JPEG, ... through pillow): (H, W, 3) float32
-    linear RGB (``texture_from_image``). InputError naming ``where`` and the file if
-    it is missing, not an image, or too large."""
+    """A texture from an image file (``radiosity.files.images.read_image``: 8- and 16-bit
+    images sRGB-decoded, OpenEXR, HDR, PFM as they are): (H, W, 3) float32 linear RGB.
+    InputError naming ``where`` and the file if it is missing, not an image, or too large."""
     try:
-        data = read_input_bytes(path, "texture", TEXTURE_BYTES)
+        return read_image(path, "texture").rgb.astype(np.float32)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
-    try:
-        with Image.open(io.BytesIO(data)) as image:
-            image.load()
-            return texture_from_image(image, f"{where}: texture {str(path)!r}")
-    except InputError:
-        raise
-    except (OSError, ValueError, Image.DecompressionBombError) as exc:
-        raise InputError(f"{where}: cannot read the texture {str(path)!r}: {exc}") from None
 
 
 def check_texture(texture, uvs, n_vertices, where):

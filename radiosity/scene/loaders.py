@@ -168,7 +168,7 @@ def _parse_environment(table, base_dir, where):
     if not isinstance(name, str) or not name:
         raise InputError(f"{here}: 'image' must be an image file name, got {name!r}")
     path = Path(base_dir) / name
-    if not path.is_file():
+    if not (path.exists() or path.is_symlink()):  # there but not a regular file: the reader's input check says
         raise InputError(f"{here}: the environment map {str(path)!r} is not found")
     return Environment.from_image(read_environment_image(path, here), scale, rotation, here)
 
@@ -240,7 +240,7 @@ def _parse_textures(table, base_dir, where):
         if not isinstance(name, str) or not name:
             raise InputError(f"{here}: 'diffuse_texture' must be an image file name, got {name!r}")
         path = Path(base_dir) / name
-        if not path.is_file():
+        if not (path.exists() or path.is_symlink()):  # there but not a regular file: the reader's input check says
             raise InputError(f"{here}: the texture {str(path)!r} is not found")
         out[mname] = read_texture(path, here)
     return out

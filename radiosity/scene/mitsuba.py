@@ -70,7 +70,6 @@ element; every approximation a SceneWarning naming them too.
 
 from __future__ import annotations
 
-import io
 import math
 import re
 import struct
@@ -84,10 +83,11 @@ import numpy as np
 
 from radiosity.files.camera import Camera, fov_y_deg, pose_from_matrix
 from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.images import read_image
 from radiosity.files.inputs import MAX_NESTING, MESH_BYTES, TEXT_BYTES, check_input_file, read_input_bytes
 from radiosity.physics.environment import Environment, read_environment_image
 from radiosity.physics.materials import MAX_ALPHA, MIN_ALPHA, Glass, Microfacet, fresnel_kd_limit, srgb_to_linear
-from radiosity.physics.textures import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, WRAP_MODES, as_repeating
+from radiosity.physics.textures import WRAP_MODES, as_repeating
 from radiosity.scene import builtins, microfacet
 from radiosity.scene.lights import DEFAULT_CUTOFF_DEG, directional_light, point_light, spot_light
 from radiosity.scene.material_kernels import Material
@@ -597,78 +597,14 @@ def _uv_transform(props):
     return matrix[np.ix_(keep, keep)]
 
 
-def _check_image_size(node, path, data):
-    """Refuse a picture larger than ``MAX_TEXTURE_PIXELS`` from its header, before it is
-    decoded (a PNG of a few KB may hold 20000 x 20000 pixels): where pillow reads the
-    header; a file it does not read is left to the decoder."""
-    from PIL import Image
-
-    try:
-        with Image.open(io.BytesIO(data)) as image:
-            width, height = image.size
-    except Image.DecompressionBombError:
-        width = height = None
-    except Exception:  # not for pillow, or damaged: imageio says which
-        return
-    if width is None or width * height > MAX_TEXTURE_PIXELS:
-        size = "more pixels than pillow opens" if width is None else f"{width} x {height} pixels"
-        raise node.fail(f"image {str(path)!r} is {size}, more than the {MAX_TEXTURE_PIXELS:,} allowed")
-
-
 def _read_image(node, path, raw=False):
-    """(linear RGB (H, W, 3) float64, alpha (H, W) float64 in [0, 1] or None) of an image
-    file: 8- and 16-bit images sRGB-decoded (unless ``raw``; their alpha linear, as PNG
-    stores it), float images (OpenEXR, through the OpenEXR library) as they are; one
-    channel copied to three."""
-    data = read_input_bytes(path, "texture", TEXTURE_BYTES)
-    if path.suffix.lower() == ".exr":
-        image = _read_exr(node, path, data)
-    else:
-        import imageio.v3 as iio
-
-        _check_image_size(node, path, data)
-        try:
-            image = np.asarray(iio.imread(data, extension=path.suffix.lower() or None))
-        except Exception as exc:  # imageio raises many types for a bad or unknown file
-            raise node.fail(f"cannot read image {str(path)!r}: {exc}") from None
-    if image.ndim == 2:
-        image = image[..., None]
-    if image.ndim != 3 or image.shape[2] not in (1, 2, 3, 4) or image.size == 0:
-        raise node.fail(f"image {str(path)!r} is not an RGB image (shape {image.shape})")
-    if image.shape[0] * image.shape[1] > MAX_TEXTURE_PIXELS:
-        raise node.fail(f"image {str(path)!r} is {image.shape[1]} x {image.shape[0]} pixels, more than the "
-                        f"{MAX_TEXTURE_PIXELS:,} allowed")
-    alpha = image[..., -1] if image.shape[2] in (2, 4) else None
-    image = image[..., :1].repeat(3, axis=2) if image.shape[2] <= 2 else image[..., :3]
-    if np.issubdtype(image.dtype, np.integer):
-        top = np.iinfo(image.dtype).max
-        encoded = image / top
-        return (encoded if raw else srgb_to_linear(encoded)), (None if alpha is None else alpha / top)
-    image = image.astype(np.float64)
-    if not np.isfinite(image).all():
-        raise node.fail(f"image {str(path)!r} holds NaN or infinite values")
-    return image, None
-
-
-def _read_exr(node, path, data):
-    """An OpenEXR image's R, G, B (or its one channel) as (H, W, C) float."""
-    import OpenEXR
-
+    """(linear RGB (H, W, 3) float64, alpha (H, W) float64 in [0, 1] or None) of a
+    bitmap's file, through the one image reader (``radiosity.files.images.read_image``),
+    its refusal named at the element."""
     try:
-        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as exr:
-            channels = {name: np.array(c.pixels) for name, c in exr.channels().items()}
-    except Exception as exc:  # the bindings raise RuntimeError, ValueError, ... for a bad file
-        raise node.fail(f"cannot read the OpenEXR image {str(path)!r}: {' '.join(str(exc).split())}") from None
-    if {"R", "G", "B"} <= set(channels):
-        names = ["R", "G", "B"]
-    elif len(channels) == 1 or "Y" in channels:
-        names = ["Y" if "Y" in channels else next(iter(channels))]
-    else:
-        raise node.fail(f"the OpenEXR image {str(path)!r} has channels {', '.join(sorted(channels))}, not R, G, B or Y")
-    planes = [channels[name] for name in names]
-    if any(p.ndim != 2 or p.shape != planes[0].shape for p in planes):
-        raise node.fail(f"the OpenEXR image {str(path)!r} has channels of different sizes")
-    return np.stack(planes, axis=2)
+        return read_image(path, "image", raw=raw)
+    except InputError as exc:
+        raise node.fail(str(exc)) from None
 
 
 # -- transforms ---------------------------------------------------------------------------

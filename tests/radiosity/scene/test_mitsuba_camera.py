@@ -27,7 +27,7 @@ from mitsuba_oracle import run_mitsuba
 from scipy import ndimage
 
 from radiosity.files.errors import SceneWarning
-from radiosity.files.hdr import read_hdr_image
+from radiosity.files.images import read_hdr_image
 from radiosity.scene.mitsuba import load_mitsuba
 
 FILM = (96, 54)

@@ -1,24 +1,39 @@
-"""Reading an image of linear radiance: OpenEXR, Radiance HDR (RGBE), PFM or .npy ->
-(H, W, 3) float32 RGB, row 0 at the top, checked (``read_hdr_image``). Used by
-``vlights compare --reference`` (through ``display.images``) and by the scene loaders
-(environment maps), so it lives in the shared core every stage may import.
+"""The one image reader: every image any stage reads goes through here.
+
+- ``read_image(path, what)``: a texture, a mask or an environment map, from any scene
+  kind (TOML, Mitsuba XML, the images an MTL or glTF names): 8- and 16-bit images
+  (PNG, JPEG, ... through imageio, their size checked from the header before they are
+  decoded) sRGB-decoded unless ``raw``, their alpha kept; OpenEXR, Radiance HDR, PFM
+  and .npy as the linear values they hold. -> ``Picture`` (linear RGB, alpha or None).
+- ``picture_from_array``: the same decoding of pixels another library has read (the
+  images trimesh decodes for a mesh file).
+- ``read_hdr_image(path, what)``: a linear HDR image alone, checked as radiance (no NaN,
+  infinite or negative values): ``vlights compare --reference``'s image.
+
+OpenEXR is read by the OpenEXR library; RGBE, PFM and NPY by the few lines below.
+Everything lives in the shared core, since every stage reads images.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import os
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 from radiosity.files.camera import MAX_IMAGE_SIDE
 from radiosity.files.errors import InputError, SceneWarning
 
-__all__ = ["HDR_EXTENSIONS", "read_hdr_image"]
+__all__ = ["HDR_EXTENSIONS", "MAX_TEXTURE_PIXELS", "TEXTURE_BYTES", "Picture", "picture_from_array", "read_hdr_image",
+           "read_image"]
 
 HDR_EXTENSIONS = (".exr", ".hdr", ".pfm", ".npy")
+TEXTURE_BYTES = 1 << 30  # an image file of a scene larger is refused before it is decoded
+MAX_TEXTURE_PIXELS = 1 << 26  # 64 Mpixels: a scene's image larger is refused
 HDR_IMAGE_BYTES = 4 * 2**30  # a 16384 x 16384 RGB float32 image is 3 GiB; nothing larger could be drawn
 _LDR_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".webp")
 _MAGIC = (  # (extension, first bytes, name): how a file says what it is
@@ -66,18 +81,123 @@ def read_hdr_image(path, what="--reference"):
         raise InputError(f"{what} {shown!r}: {suffix or 'no extension'}{why} is not a linear HDR image; give "
                          f"{', '.join(HDR_EXTENSIONS[:-1])} or {HDR_EXTENSIONS[-1]}")
     data = read_input_bytes(path, what, HDR_IMAGE_BYTES)
+    return _checked_radiance(_hdr_pixels(data, suffix, f"{what} {shown!r}"), f"{what} {shown!r}")
+
+
+def _hdr_pixels(data, suffix, where):
+    """The pixels of an HDR file's bytes (its kind by ``suffix``, checked against its first
+    bytes), as its reader gives them; InputError naming ``where``."""
     expected = [name for ext, magic, name in _MAGIC if ext == suffix]
     if not any(data.startswith(magic) for ext, magic, _ in _MAGIC if ext == suffix):
         actual = next((name for _, magic, name in _MAGIC if data.startswith(magic)), None)
-        raise InputError(f"{what} {shown!r} is not {expected[0].replace('a colour ', 'a ')}" + (
+        raise InputError(f"{where} is not {expected[0].replace('a colour ', 'a ')}" + (
             f": it is {actual} (its extension is wrong)" if actual else
             " (empty)" if not data else f" (it starts with {data[:8]!r})"))
     reader = {".exr": _read_exr, ".hdr": _read_rgbe, ".pfm": _read_pfm, ".npy": _read_npy}[suffix]
     try:
-        image = reader(data, f"{what} {shown!r}") if reader is _read_exr else reader(data)
+        return reader(data, where) if reader is _read_exr else reader(data)
     except _Bad as exc:
-        raise InputError(f"{what} {shown!r} {exc}") from None
-    return _checked_radiance(image, f"{what} {shown!r}")
+        raise InputError(f"{where} {exc}") from None
+
+
+class Picture(NamedTuple):
+    """An image as the scene loaders keep it: ``rgb`` (H, W, 3) float64 linear (an 8- or
+    16-bit file's values sRGB-decoded unless read raw), ``alpha`` (H, W) float64 in
+    [0, 1] or None (a float image's alpha is not read)."""
+
+    rgb: np.ndarray
+    alpha: np.ndarray | None
+
+
+def read_image(path, what="image", raw=False):
+    """The ``Picture`` of an image file of a scene: OpenEXR, Radiance HDR, PFM or .npy
+    (by the extension) as the linear values it holds; any other (PNG, JPEG, BMP, TGA,
+    TIFF, ... through imageio, 8 or 16 bits a channel) sRGB-decoded unless ``raw``, its
+    alpha (linear, as PNG stores it) kept; one channel copied to three. InputError in
+    one line naming ``what`` and the file: missing, not a regular file, larger than
+    TEXTURE_BYTES, of more than MAX_TEXTURE_PIXELS pixels (checked from the header before
+    it is decoded), not an image this reads, or holding NaN or infinite values."""
+    from radiosity.files.inputs import read_input_bytes
+
+    shown = f"{what} {str(path)!r}"
+    data = read_input_bytes(path, what, TEXTURE_BYTES)
+    suffix = os.path.splitext(str(path))[1].lower()
+    if suffix in HDR_EXTENSIONS:
+        return picture_from_array(_hdr_pixels(data, suffix, shown), shown, raw=True, alpha=False)
+    _check_picture_size(data, shown)
+    if data.startswith(b"\x89PNG\r\n\x1a\n") and data[24:26] in (b"\x10\x02", b"\x10\x06"):
+        return picture_from_array(_rgb16_png(path, data[25] == 6, shown), shown, raw=raw)
+    import imageio.v3 as iio
+
+    try:
+        pixels = np.asarray(iio.imread(data, extension=suffix or None))
+    except Exception as exc:  # imageio raises many types for a bad or unknown file
+        raise InputError(f"cannot read {shown}: {' '.join(str(exc).split())}") from None
+    return picture_from_array(pixels, shown, raw=raw)
+
+
+def _rgb16_png(path, alpha, shown):
+    """A PNG of 16-bit RGB or RGBA (its IHDR's bit depth 16, colour type 2 or 6) as
+    (H, W, 3 or 4) uint16: pillow (imageio's PNG reader) keeps only the top 8 bits of
+    these, ffmpeg (imageio-ffmpeg's) all 16."""
+    import imageio_ffmpeg
+
+    frames = imageio_ffmpeg.read_frames(str(path), pix_fmt="rgba64le", bits_per_pixel=64)
+    try:
+        width, height = next(frames)["size"]
+        pixels = np.frombuffer(next(frames), "<u2").reshape(height, width, 4)
+    except (StopIteration, RuntimeError, OSError, ValueError) as exc:
+        raise InputError(f"cannot read {shown}: {' '.join(str(exc).split()) or 'no image in it'}") from None
+    finally:
+        frames.close()
+    return pixels if alpha else pixels[..., :3]
+
+
+def _check_picture_size(data, shown):
+    """Refuse a picture of more than MAX_TEXTURE_PIXELS from its header, before it is
+    decoded (a PNG of a few hundred bytes may claim 20000 x 20000 pixels): where pillow
+    reads the header; a file it does not read is left to the decoder."""
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            width, height = image.size
+    except Image.DecompressionBombError:
+        width = height = None
+    except Exception:  # not for pillow, or damaged: the decoder says which
+        return
+    if width is None or width * height > MAX_TEXTURE_PIXELS:
+        size = "more pixels than pillow opens" if width is None else f"{width} x {height} pixels"
+        raise InputError(f"{shown} is {size}, more than the {MAX_TEXTURE_PIXELS:,} allowed")
+
+
+def picture_from_array(pixels, shown, raw=False, alpha=True):
+    """The ``Picture`` of decoded pixels (H, W), (H, W, C) with C in 1-4: integers (8 or 16
+    bits) scaled to [0, 1] and sRGB-decoded unless ``raw``, floats as they are; C 2 or 4
+    holds alpha (kept where ``alpha``). InputError naming ``shown`` for another shape, an
+    empty or too large image, or NaN or infinite values."""
+    from radiosity.physics.materials import srgb_to_linear
+
+    image = np.asarray(pixels)
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.ndim != 3 or image.shape[2] not in (1, 2, 3, 4) or image.size == 0:
+        raise InputError(f"{shown} is not an RGB image (shape {image.shape})")
+    if image.shape[0] * image.shape[1] > MAX_TEXTURE_PIXELS:
+        raise InputError(f"{shown} is {image.shape[1]} x {image.shape[0]} pixels, more than the "
+                         f"{MAX_TEXTURE_PIXELS:,} allowed")
+    kept = image[..., -1] if alpha and image.shape[2] in (2, 4) else None
+    rgb = image[..., :1].repeat(3, axis=2) if image.shape[2] <= 2 else image[..., :3]
+    if image.dtype.kind in "ub":
+        top = 1 if image.dtype.kind == "b" else np.iinfo(image.dtype).max
+        encoded = rgb.astype(np.float64) / top
+        return Picture(encoded if raw else srgb_to_linear(encoded), None if kept is None else kept / top)
+    if image.dtype.kind != "f":
+        raise InputError(f"{shown} holds {image.dtype} values, not an image's")
+    rgb = rgb.astype(np.float64)
+    if not np.isfinite(rgb).all():
+        raise InputError(f"{shown} holds NaN or infinite values")
+    return Picture(rgb, None if kept is None else np.clip(kept.astype(np.float64), 0.0, 1.0))
 
 
 def _checked_radiance(image, where):
@@ -92,7 +212,7 @@ def _checked_radiance(image, where):
     if max(h, w) > MAX_IMAGE_SIDE:
         raise InputError(f"{where} is {w}x{h} pixels; at most {MAX_IMAGE_SIDE} a side can be drawn")
     if c not in (1, 3, 4):
-        raise InputError(f"{where} has {c} channels; a reference takes 1 (grey), 3 (RGB) or 4 (RGBA, alpha dropped)")
+        raise InputError(f"{where} has {c} channels; an image takes 1 (grey), 3 (RGB) or 4 (RGBA, alpha dropped)")
     if image.dtype.kind != "f":
         raise InputError(f"{where} holds {image.dtype} values, not floating-point linear radiance")
     rgb = image[:, :, :3] if c >= 3 else np.repeat(image, 3, axis=2)
@@ -171,7 +291,7 @@ def _read_exr(data, where="the image"):
                    "give an image whose pixels cover the whole frame")
     w, h = (display_window[1] - display_window[0] + 1).tolist()
     if max(w, h) > MAX_IMAGE_SIDE or min(w, h) <= 0:
-        raise _Bad(f"is {w}x{h} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
+        raise _Bad(f"is {w}x{h} pixels; an image is 1 to {MAX_IMAGE_SIDE} a side")
     _, _, channels = open_file(False)
     names = sorted(c for c in channels if "." not in c)  # the image's own channels
     layers = sorted({c.rsplit(".", 1)[0] for c in channels if "." in c})  # "layer.X": other images beside it (AOVs)
@@ -180,7 +300,7 @@ def _read_exr(data, where="the image"):
     elif len(names) == 1:
         order = names
     else:
-        raise _Bad(f"has {len(names)} channels ({', '.join(names)}); a reference takes R, G, B (and A, dropped) "
+        raise _Bad(f"has {len(names)} channels ({', '.join(names)}); an image takes R, G, B (and A, dropped) "
                    "or a single channel" + (f", beside layers ({', '.join(layers)}) it leaves" if layers else ""))
     if layers:  # a Mitsuba aov integrator's file: the render is R, G, B; depth, normals, ... are layers
         warnings.warn(f"{where}: its {len(layers)} other layer(s) ({', '.join(layers)}) are not read: the image is "
@@ -214,7 +334,7 @@ def _read_pfm(data):
         raise _Bad(f"has a PFM header of {w}x{h} pixels with scale {scale:g}; sizes are not negative and the "
                    "scale not zero")
     if max(w, h) > MAX_IMAGE_SIDE:
-        raise _Bad(f"is {w}x{h} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
+        raise _Bad(f"is {w}x{h} pixels; an image is 1 to {MAX_IMAGE_SIDE} a side")
     c = 3 if tokens[0] == b"PF" else 1
     need = w * h * c * 4
     if len(data) - pos < need:
@@ -239,7 +359,7 @@ def _read_npy(data):
     if dtype.hasobject:
         raise _Bad("holds Python objects, not numbers (refused: reading them would run code)")
     if len(shape) in (2, 3) and max(shape[:2]) > MAX_IMAGE_SIDE:
-        raise _Bad(f"is {shape[1]}x{shape[0]} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
+        raise _Bad(f"is {shape[1]}x{shape[0]} pixels; an image is 1 to {MAX_IMAGE_SIDE} a side")
     count = math.prod(int(n) for n in shape)  # Python's integers: a header's shape may overflow int64
     need = count * dtype.itemsize
     if len(data) - stream.tell() < need:
@@ -276,7 +396,7 @@ def _read_rgbe(data):
         raise _Bad(f"has a resolution line {' '.join(words)!r} unlike '-Y height +X width'")
     lines, length = int(words[1]), int(words[3])
     if max(lines, length) > MAX_IMAGE_SIDE or min(lines, length) == 0:
-        raise _Bad(f"is {length}x{lines} pixels; a reference is 1 to {MAX_IMAGE_SIDE} a side")
+        raise _Bad(f"is {length}x{lines} pixels; an image is 1 to {MAX_IMAGE_SIDE} a side")
     pixels = _rgbe_scanlines(memoryview(data)[line_end + 1:], lines, length)
     scale = np.ldexp(1.0, pixels[..., 3].astype(np.int32) - 136)
     rgb = np.where(pixels[..., 3:] > 0, (pixels[..., :3] + 0.5) * scale[..., None], 0.0) / (exposure * correction)
