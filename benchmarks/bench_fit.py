@@ -127,7 +127,7 @@ def main(argv=None):
     from fitting import FitOptions
     from fitting.baselines import all_baselines
     from fitting.data import fit_data, relative_error
-    from fitting.fit import fit_lights, problem_for, reconstruct, start_exponent
+    from fitting.lights import fit_lights, problem_for, reconstruct, start_exponent
     from fitting.mixed import SceneGeometry
     from radiosity.policies.presets import preset
     from radiosity.scene.loaders import load_scene

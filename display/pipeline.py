@@ -1,7 +1,8 @@
 """The display's one door to the earlier stages' work.
 
 The rule: display/ reads what the earlier stages wrote (solution.npz, fit.npz) through
-``radiosity.formats`` and ``fitting``'s public API, and imports nothing else of them;
+the radiosity stage's shared core (``radiosity.files``, ``.physics``, ``.policies``)
+and ``fitting``'s public API, and imports nothing else of them;
 the two pipeline commands, which run earlier stages themselves (``vlights demo``:
 solve and fit; ``vlights truth``: path-trace), reach ``radiosity.scene`` and
 ``radiosity.transport`` through this module alone. ``tests/test_imports.py`` checks

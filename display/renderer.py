@@ -233,7 +233,7 @@ class _Object:
         self.mirror = None  # (ks, F0 or None) of a perfect mirror: drawn by what it reflects (``display.mirror``)
         self.plane = None  # a flat mirror's (point, unit normal)
         self.near = None  # a near mirror's ``HighlightLobe`` (``display.mirror.near_mirror_of``)
-        self.near_eta = 0.0  # its base's interface (``formats.material.near_base``; 0 none): the solution's
+        self.near_eta = 0.0  # its base's interface (``physics.materials.near_base``; 0 none): the solution's
         self.fit_near_eta = 0.0  # ... the fit's
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
@@ -633,7 +633,7 @@ class Renderer:
             # diffuse walkthrough of this solution shows)
             mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
-            if obj.near is not None:  # a near mirror's own part (``formats.material.near_base``)
+            if obj.near is not None:  # a near mirror's own part (``physics.materials.near_base``)
                 base, obj.near_eta = near_base(s.material["microfacet"], s.directions,
                                                lambda reduce, s=s: _directional_mean(s.radiance, reduce))
                 obj.add(ctx, "in_base", base)

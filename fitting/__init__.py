@@ -5,7 +5,8 @@
     LightSet, FitResult                               what the steps of a fit pass between them
 
 Modules: ``fit`` (orchestration), ``options`` (``FitOptions`` and the words of the
-flags), ``glossy`` (a glossy object part by part and ``--model auto``), ``mixed``
+flags), ``glossy`` (a glossy object part by part and ``--model auto``: every model, the
+paper's included), ``lights`` (how many virtual lights, fitted how), ``mixed``
 (virtual lights by variable projection), ``probe``, ``paper`` (section 3.2), ``lobes``
 (the one Blinn-Phong lobe, its gradient and the kernels), ``loss``, ``model`` (fit.npz
 and ``shade``), ``results``, ``data``, ``baselines``, ``cli``; docs/layout.md has the

@@ -1,11 +1,12 @@
 """The fitting stage: ``fit(solution, options) -> FittedModel`` (fit.npz, docs/formats.md).
 
-Per object: diffuse objects keep their radiance as the emitted colour and get no
-lights. Glossy objects get either the paper's fit exactly (``paper``: directional
-lights, one specular coefficient per vertex) or, by default, virtual lights of the
-kind the data require (directional or positional), with one coefficient per light at
-each vertex or one shared, fitted by variable projection (``mixed``), with K lights
-given or chosen as the fewest reaching an error target.
+Per object, one path (``fit_object``): glass and perfect mirrors are not fitted (the
+displays draw what they show); diffuse objects keep their radiance as the emitted
+colour and get no lights; every glossy object goes through ``fitting.glossy``, whatever
+its model: the emitters' term, a reflection probe and virtual lights, chosen by
+``--model auto`` or asked for, the paper's lights alone (``--model lights``, ``--method
+paper``) included (their lights: ``fitting.lights``). One record says what was fitted
+(``_record``: the object's ``info`` in fit.npz).
 """
 
 from __future__ import annotations
@@ -20,54 +21,16 @@ import numpy as np
 from radiosity.files.solution import SolutionFile
 from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Material, Microfacet, near_base
 
-from . import blocks, glossy, loss, mixed, paper
-from .data import ErrorSums, fit_data, object_areas, relative_error
+from . import glossy, mixed
+from .data import fit_data, relative_error
+from .lights import LightFitter, start_exponent
+from .lobes import MixedLights
 from .memory import cores, costs
-from .model import FittedModel, FittedObject, Highlight, Mirror, directional
+from .model import FittedModel, FittedObject, Highlight, Mirror
 from .options import COEFFICIENTS, LIGHT_KINDS, METHODS, MODELS, FitOptions, quality_of  # noqa: F401 (the fit's words)
 
 ONE_OBJECT_SHARE = 0.5  # no worker processes when one glossy object has more than this share of the samples
-PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
-
-
-def reconstruct(problem, result):
-    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``mixed.MixedFit``."""
-    return mixed.model_colours(problem, result.lights(), result.emitted, result.specular)
-
-
-def _from_paper(result):
-    """The paper's ``FitResult`` as a ``mixed.MixedFit`` (directional lights, shared)."""
-    return mixed.MixedFit(
-        pos=directional(result.light_dirs), rgb=np.asarray(result.light_rgb, np.float64),
-        shininess=np.asarray(result.shininess, np.float64), emitted=result.emitted, specular=result.specular,
-        sq_error=result.sq_error,
-    )
-
-
-def start_exponent(obj, options):
-    """Where the refinement's exponent starts: the Blinn-Phong exponent that matches the
-    material's modified-Phong lobe about the mirror direction (about 4 n: the half vector
-    turns half as far as the view), within the bounds."""
-    n = float(obj.material.get("exponent", 0.0)) if isinstance(obj.material, dict) else 0.0
-    guess = 4.0 * n + 1.0 if n > 0 else 100.0
-    return float(np.clip(guess, *options.exponent_bounds))
-
-
-def problem_for(data, options, scene):
-    lw = loss.loss_weights(data, options.loss_for("lights"))
-    per_light = options.coefficients == "per-light" and options.method != "paper"
-    return mixed.Problem.make(data, lw, per_light, scene, options.exponent_bounds)
-
-
-def fit_lights(problem, n_lights, options, exponent, previous=None, log=None):
-    """One object's fit (a ``mixed.MixedFit``) with at most ``n_lights`` lights."""
-    if options.method == "paper":
-        lw = loss.loss_weights(problem.data, options.loss_for("lights"))
-        return _from_paper(paper.fit_paper(problem.data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw))
-    return mixed.fit_mixed(
-        problem, n_lights, exponent, light_kind=options.light_kind, per_light_exponents=options.method == "per-light",
-        iterations=options.iterations, previous=previous, log=log,
-    )
+NO_LIGHTS = MixedLights(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))  # a glass, mirror or diffuse object's
 
 
 def _json_number(value):
@@ -89,125 +52,51 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
         info = {"model": kind, "method": "none", "time_s": 0.0,
                 "chosen_by": f"{material.glass.kind if material.is_glass else 'a perfect mirror'}: drawn as {kind}"}
         mirror = None if material.is_glass else Mirror(material.specular, material.fresnel)
-        return replace(_fitted_object(obj, zeros, zeros, (np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)), info),
+        return replace(_fitted_object(obj, zeros, zeros, NO_LIGHTS, info),
                        glass=material.glass, mirror=mirror, textured=None)
-    if not obj.is_diffuse and options.glossy_model != "lights":
-        return _fit_components(obj, options, scene, progress, solution, box)
-    t0 = time.perf_counter()
-    # a glossy object's lights are found on every k-th vertex (at most search_samples
-    # samples), then its coefficients solved on every vertex a block at a time
-    sub = slice(None) if obj.is_diffuse else blocks.search_slice(obj.num_vertices, len(obj.directions),
-                                                                 options.search_samples)
-    area = None if obj.is_diffuse else object_areas(obj)
-    data = fit_data(obj, sub, area)
-    problem = problem_for(data, options, scene)
     if obj.is_diffuse:
-        emitted = data.radiance[:, 0, :]
-        result = mixed.MixedFit(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0), emitted, np.zeros_like(emitted), 0.0)
-        chosen_by = "diffuse: no lights"
-    else:
-        log = None
-        if progress is not None:
-            def log(fit):
-                progress.set_postfix_str(f"{obj.name}: {fit.n_lights} lights", refresh=True)
-        exponent = start_exponent(obj, options)
-        if options.lights == "auto":
-            result, chosen_by = _auto_lights(problem, options, exponent, log)
-        else:
-            result = fit_lights(problem, options.lights, options, exponent, log=log)
-            chosen_by = f"--lights {options.lights}"
-    if (sub.step or 1) > 1:
-        del data, problem
-        result, error, diffuse_part = _lights_on_every_vertex(obj, result, options, scene, area)
-        chosen_by += f"; found on every {sub.step}-th vertex ({len(range(*sub.indices(obj.num_vertices))):,} of {obj.num_vertices:,})"
-    else:
-        error = relative_error(data, reconstruct(problem, result))
-        diffuse_part = relative_error(data, np.broadcast_to(result.emitted[:, None, :], data.radiance.shape))
-    kinds = ["positional" if w == 1 else "directional" for w in result.pos[:, 3]]
+        return _diffuse_object(obj, options)
+    return _glossy_object(obj, options, scene, progress, solution, box)
+
+
+def _diffuse_object(obj, options):
+    """A diffuse object: its one radiance per vertex, no lights."""
+    t0 = time.perf_counter()
+    data = fit_data(obj)
+    emitted = data.radiance[:, 0, :]
+    error = relative_error(data, np.broadcast_to(emitted[:, None, :], data.radiance.shape))
     info = {
-        "model": "diffuse" if obj.is_diffuse else "lights",
-        "method": "diffuse" if obj.is_diffuse else options.method,
-        "loss": options.loss_for("lights"),
-        "chosen_by": chosen_by,
-        "coefficients": "none" if obj.is_diffuse else ("per-light" if result.per_light else "shared"),
-        "kinds": kinds,
-        "shininess": [round(float(p), 4) for p in result.shininess],
+        "model": "diffuse", "method": "diffuse", "loss": options.loss_for("lights"), "chosen_by": "diffuse: no lights",
+        "coefficients": "none", "kinds": [], "shininess": [],
         "error": {
             "relative_rms": _json_number(error["relative_rms"]),
             "worst_vertex": _json_number(error["worst_vertex"]),
             "worst_vertex_index": error["worst_vertex_index"],
-            "diffuse_only_relative_rms": _json_number(diffuse_part["relative_rms"]),
-            "diffuse_only_worst_vertex": _json_number(diffuse_part["worst_vertex"]),
+            "diffuse_only_relative_rms": _json_number(error["relative_rms"]),
+            "diffuse_only_worst_vertex": _json_number(error["worst_vertex"]),
         },
         "time_s": round(time.perf_counter() - t0, 4),
     }
-    if result.iterations:
-        info["iterations"] = result.iterations
-    return _fitted_object(obj, result.emitted, result.specular, (result.pos, result.rgb, result.shininess), info)
+    return _fitted_object(obj, emitted, np.zeros_like(emitted), NO_LIGHTS, info)
 
 
-def _lights_on_every_vertex(obj, result, options, scene, area):
-    """(the ``mixed.MixedFit`` ``result``, its lights held and its per-vertex coefficients
-    solved on every vertex of ``obj``, a block at a time; its ``relative_error``; that of
-    its emitted colour alone)."""
-    v, d = obj.num_vertices, len(obj.directions)
-    mean = blocks.object_mean(obj.radiance, area, options.block_samples)
-    lights = result.lights()
-    emitted = np.empty((v, 3))
-    specular = np.empty((v, result.n_lights, 3) if result.per_light else (v, 3))
-    model, diffuse, sq_error = ErrorSums(mean), ErrorSums(mean), 0.0
-    for sl in blocks.vertex_blocks(v, d, options.block_samples):
-        data = fit_data(obj, sl, area)
-        lw = loss.loss_weights(data, options.loss_for("lights"), mean)
-        problem = mixed.Problem.make(data, lw, result.per_light, scene, options.exponent_bounds)
-        emitted[sl], specular[sl], err = mixed.coefficients(problem, lights)
-        sq_error += err
-        model.add(data, mixed.model_colours(problem, lights, emitted[sl], specular[sl]), sl.start)
-        diffuse.add(data, np.broadcast_to(emitted[sl, None, :], data.radiance.shape), sl.start)
-    return replace(result, emitted=emitted, specular=specular, sq_error=sq_error), model.relative(), diffuse.relative()
-
-
-def _fit_components(obj, options, scene, progress, solution, box):
-    """A glossy object's model of emitter term, probe and lights (``fitting.glossy``)."""
+def _glossy_object(obj, options, scene, progress, solution, box):
+    """A glossy object's model, whatever it is made of (``fitting.glossy.fit_components``:
+    the emitters' term, a probe, virtual lights; the paper's lights alone included)."""
     t0 = time.perf_counter()
-    if solution is None:
-        raise ValueError("the models with emitters and a probe need the solution (its emitters)")
     log = None
     if progress is not None:
         def log(fit):
             progress.set_postfix_str(f"{obj.name}: {fit.n_lights} lights", refresh=True)
-    exponent = start_exponent(obj, options)
-    chosen_by = []
-
-    def lights_for(data, loss_weights, start, count=None, previous=None, alone=False):
-        # count: a quick fit of this many lights (the first light's polish, as many
-        # iterations: whether lights pay), previous: a fit of fewer to continue from,
-        # alone: the model "lights" (--lights of them), which "auto" weighs too
-        problem = mixed.Problem.make(data, loss_weights, options.coefficients == "per-light", scene,
-                                     options.exponent_bounds)
-        quick = replace(options, iterations=min(options.iterations, mixed.FIRST_POLISH_ITERATIONS))
-        if alone:  # count given: a quick fit (as the first light's)
-            opts = options if count is None else quick
-            if options.lights == "auto":
-                return _auto_lights(problem, opts, start, log)[0]
-            return fit_lights(problem, options.lights, opts, start, previous=previous, log=log)
-        if count is not None:
-            return fit_lights(problem, count, quick, start, previous=previous, log=log)
-        if options.probe_lights == "auto":
-            fit, why = _auto_lights(problem, options, start, log)
-            chosen_by.append(why)
-            return fit
-        chosen_by.append(f"{options.probe_lights} lights")
-        return fit_lights(problem, options.probe_lights, options, start, previous=previous, log=log)
-
-    def highlights(vertices):
-        return solution.highlights(obj.name, vertices)
-
-    own = solution.parts_of(obj.name)  # the parts its highlight draws (the object's own, or all)
+    lights = LightFitter(options, scene, log)
+    alone = options.glossy_model == "lights"  # the paper's model: no emitter term, no probe
+    if solution is None and not alone:
+        raise ValueError("the models with emitters and a probe need the solution (its emitters)")
+    own = () if alone else solution.parts_of(obj.name)  # the parts its highlight draws (the object's own, or all)
     parts = len(own) if obj.visibility is not None else 0
-    c = glossy.fit_components(obj, highlights, parts, options, scene, box, exponent, lights_for,
-                              probe_sizes=options.probe_sizes, search_samples=options.search_samples,
-                              block_samples=options.block_samples)
+    c = glossy.fit_components(obj, lambda vertices: solution.highlights(obj.name, vertices), parts, options, scene,
+                              box, start_exponent(obj, options), lights, probe_sizes=options.probe_sizes,
+                              search_samples=options.search_samples, block_samples=options.block_samples)
     highlight = None
     if c.emitters and parts:
         m = obj.material
@@ -217,34 +106,49 @@ def _fit_components(obj, options, scene, progress, solution, box):
                               float(m["exponent"]), np.asarray(obj.visibility, np.float32),
                               None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64), indices,
                               None if lobe is None else Microfacet.from_dict(lobe))
+    specular = c.specular if c.n_lights or alone else np.zeros((obj.num_vertices, 3))
+    weight = None if c.probe is None else np.asarray(c.probe_weight, np.float32)
+    return _fitted_object(obj, c.emitted, specular, c.lights, _record(c, options, lights.chosen_by, t0),
+                          highlight=highlight, probe=c.probe, probe_weight=weight)
+
+
+def _record(c, options, chosen_by, t0):
+    """The one record of what was fitted to a glossy object (its ``info`` in fit.npz):
+    the model, how it was chosen, its lights, its errors, what "auto" tried."""
     per_light = c.n_lights and c.specular.ndim == 3
+    if c.chosen_by:  # the model "lights" asked for: how its count was chosen
+        how = c.chosen_by
+    else:
+        how = ("--model " + options.model) + (f"; lights: {chosen_by[-1]}" if chosen_by and c.n_lights else "")
+    error = {"relative_rms": _json_number(c.error)}
+    if c.worst:
+        error |= {"worst_vertex": _json_number(c.worst["worst_vertex"]), "worst_vertex_index": c.worst["worst_vertex_index"]}
+    error |= {"perceptual": _json_number(c.perceptual), "diffuse_only_relative_rms": _json_number(c.baseline)}
+    if c.worst:
+        error["diffuse_only_worst_vertex"] = _json_number(c.worst["diffuse_only_worst_vertex"])
     info = {
         "model": c.model,
         "method": options.method,
         "loss": c.loss or "none",
-        "chosen_by": ("--model " + options.model) + (f"; lights: {chosen_by[-1]}" if chosen_by and c.n_lights else ""),
-        "coefficients": "per-light" if per_light else ("shared" if c.n_lights else "none"),
+        "chosen_by": how,
+        "coefficients": ("per-light" if c.specular.ndim == 3 else "shared") if c.chosen_by
+        else "per-light" if per_light else ("shared" if c.n_lights else "none"),
         "kinds": ["positional" if w == 1 else "directional" for w in np.asarray(c.lights[0])[:, 3]],
         "shininess": [round(float(p), 4) for p in c.lights[2]],
-        "error": {
-            "relative_rms": _json_number(c.error),
-            "perceptual": _json_number(c.perceptual),
-            "diffuse_only_relative_rms": _json_number(c.baseline),
-        },
+        "error": error,
         "floats": int(c.floats),
         "tried": c.tried,
         **({"why_kept": c.why} if c.why else {}),
         "time_s": round(time.perf_counter() - t0, 4),
     }
-    specular = c.specular if c.n_lights else np.zeros((obj.num_vertices, 3))
-    weight = None if c.probe is None else np.asarray(c.probe_weight, np.float32)
-    return _fitted_object(obj, c.emitted, specular, c.lights, info, highlight=highlight, probe=c.probe,
-                          probe_weight=weight)
+    if c.iterations:
+        info["iterations"] = c.iterations
+    return info
 
 
 def _fitted_object(obj, emitted, specular, lights, info, **parts):
     """The FittedObject of solution object ``obj``: its mesh, these coefficients and
-    lights ((pos, rgb, shininess)), and the version-3 ``parts`` (highlight, probe, weight);
+    lights (a ``lobes.MixedLights``: pos, rgb, shininess), and the version-3 ``parts`` (highlight, probe, weight);
     a textured object's diffuse term is carried as the solution has it (version 4)."""
     pos, rgb, shininess = lights
     near = _near(obj)
@@ -286,33 +190,6 @@ def _near(obj):
                                for i in range(0, len(radiance), step)])
 
     return near_base(model, obj.directions, reduce)
-
-
-def _auto_lights(problem, options, exponent, log=None):
-    """The fewest lights (up to ``max_lights``) reaching the target: lights are added
-    one by one (each fit continues the one before, so the error only falls), and the
-    search stops when the target is reached, or when a light no longer pays (lowers
-    the relative error by less than ``PAYS`` of it), or at ``max_lights``."""
-    data = problem.data
-    empty = mixed.no_lights(problem)
-    fit, last = None, relative_error(data, np.broadcast_to(empty.emitted[:, None, :], data.radiance.shape))["relative_rms"]
-    why = None
-    for k in range(1, options.max_lights + 1):
-        trial = fit_lights(problem, k, options, exponent, previous=fit, log=log)
-        error = relative_error(data, reconstruct(problem, trial))["relative_rms"]
-        if fit is not None and error > last * (1 - PAYS):
-            why = (f"auto: target {options.target:g} not reached; a light more lowered the error by less than "
-                   f"{PAYS:.0%} ({last:.4g} -> {error:.4g}), so {fit.n_lights} lights")
-            break
-        fit, last = trial, error
-        if error <= options.target:
-            why = f"auto: fewest lights reaching {options.target:g}"
-            break
-        if fit.n_lights < k:  # nothing left to explain
-            break
-    if why is None:
-        why = f"auto: target {options.target:g} not reached by {fit.n_lights} lights (--max-lights {options.max_lights})"
-    return fit, why
 
 
 def fit(solution, options=None, progress=False, workers=1, client=None):

@@ -40,6 +40,7 @@ import numpy as np
 from . import mixed, probe
 from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES, object_mean, search_slice, vertex_blocks
 from .data import ErrorSums, FitData, fit_data, object_areas, perceptual_error, relative_error
+from .lights import lights_on_every_vertex, reconstruct
 from .lobes import MixedLights
 from .loss import loss_weights as make_loss_weights
 from .options import GLOSSY_MODELS
@@ -66,7 +67,7 @@ class Components:
     """One glossy object's fitted model.
 
     model: one of MODELS; emitters: whether the emitter term is part of it;
-    emitted (V, 3); lights: (pos (K, 4), rgb (K, 3), shininess (K,));
+    emitted (V, 3); lights: a ``lobes.MixedLights`` (pos (K, 4), rgb (K, 3), shininess (K,));
     specular (V, K, 3) per light or (V, 3) shared; probe: a ``fitting.probe.Probe`` or
     None, probe_weight (V, 3) its per-vertex s; error: relative RMS against the whole
     radiance; floats: the numbers stored (per vertex x V + per object); perceptual: the
@@ -80,7 +81,7 @@ class Components:
     model: str
     emitters: bool
     emitted: np.ndarray
-    lights: tuple
+    lights: MixedLights
     specular: np.ndarray
     probe: probe.Probe | None
     probe_weight: np.ndarray | None
@@ -91,6 +92,9 @@ class Components:
     baseline: float = 0.0  # the relative RMS of each vertex's directional mean (a diffuse walkthrough)
     why: str = ""
     loss: str | None = None  # the loss it was fitted with (``fitting.loss``); None: no fit (the directional mean)
+    chosen_by: str = ""  # the model "lights" asked for: how its count was chosen (--lights K, or "auto"'s reason)
+    worst: dict = field(default_factory=dict)  # the model "lights": its worst vertex and the walkthrough's (relative RMS)
+    iterations: int = 0  # the model "lights": the refinement's iterations
 
     @property
     def n_lights(self):
@@ -122,7 +126,7 @@ def proxy_box_of(positions):
 
 
 def _no_lights():
-    return np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)
+    return MixedLights(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
 
 
 def _lobe_columns(data, lights):
@@ -296,8 +300,8 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     function of a slice of vertices giving theirs; parts: the emitter parts' count;
     options: ``FitOptions`` (model, probe_size, loss, target, lights...); scene: the
     ``mixed.SceneGeometry``; box: the probe's proxy (2, 3); exponent: where the lights'
-    exponent starts; fit_lights(data, loss_weights, exponent) -> ``mixed.MixedFit``
-    (``alone=True``: the lights of the model "lights", which "auto" weighs too);
+    exponent starts; fit_lights: a ``fitting.lights.LightFitter`` (the lights of every
+    model with lights, the model "lights" asked for included: ``_lights_asked``);
     probe_sizes: what "auto" tries. The model is searched for on every k-th vertex, at
     most ``search_samples`` samples, and its per-vertex coefficients then solved on
     every vertex, ``block_samples`` samples at a time (``fitting.blocks``); an object
@@ -307,6 +311,8 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     area = object_areas(obj)
     sub = search_slice(n_vertices, n_directions, search_samples)
     full = fit_data(obj, sub, area)
+    if options.glossy_model == "lights":
+        return _lights_asked(obj, full, options, fit_lights, exponent, (sub, area))
     positions = np.asarray(obj.positions, np.float64)
     centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
     del positions
@@ -315,6 +321,34 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     if sub.step == 1:
         return found
     return _every_vertex(found, obj, of, area, options, (sub, block_samples))
+
+
+def _lights_asked(obj, full, options, lights, exponent, blocking):
+    """The ``Components`` of the model "lights" asked for (``--model lights``, the
+    paper's method): virtual lights alone on the whole radiance, found on ``full`` (every
+    k-th vertex), then their per-vertex coefficients solved on every vertex by the
+    lights' own projection (``lights.lights_on_every_vertex``), as the paper solves them.
+    lights: a ``fitting.lights.LightFitter``; blocking = (the search's slice, the areas)."""
+    sub, area = blocking
+    loss = options.loss_for("lights")
+    problem, found, chosen_by = lights.asked(full, make_loss_weights(full, loss), exponent)
+    n_vertices = obj.num_vertices
+    if (sub.step or 1) > 1:
+        del full, problem
+        found, error, diffuse, seen = lights_on_every_vertex(obj, found, options, lights.scene, area)
+        chosen_by += f"; found on every {sub.step}-th vertex ({len(range(*sub.indices(n_vertices))):,} of {n_vertices:,})"
+    else:
+        approximation = reconstruct(problem, found)
+        error, seen = relative_error(full, approximation), perceptual_error(full, approximation)
+        diffuse = relative_error(full, np.broadcast_to(found.emitted[:, None, :], full.radiance.shape))
+    return Components(
+        model="lights", emitters=False, emitted=found.emitted, lights=MixedLights(found.pos, found.rgb, found.shininess),
+        specular=found.specular, probe=None, probe_weight=None, error=error["relative_rms"],
+        floats=_floats(n_vertices, 0, 0, found.n_lights, False, not found.per_light), perceptual=seen,
+        baseline=diffuse["relative_rms"], loss=loss, chosen_by=chosen_by, iterations=found.iterations,
+        worst={"worst_vertex": error["worst_vertex"], "worst_vertex_index": error["worst_vertex_index"],
+               "diffuse_only_worst_vertex": diffuse["worst_vertex"]},
+    )
 
 
 def _search(full, highlights, material, n_vertices, parts, options, *, place, exponent, fit_lights, probe_sizes):
@@ -345,7 +379,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
         seen = perceptual_error(full, approximation)
         c = Components(
             model=model, emitters=emitters, emitted=emitted,
-            lights=tuple(light_fit[:3]) if light_fit is not None else _no_lights(),
+            lights=MixedLights(*light_fit[:3]) if light_fit is not None else _no_lights(),
             specular=(np.zeros((v, 0, 3)) if light_fit is None else light_fit[3]), probe=probe_fit,
             probe_weight=weight, error=error, floats=floats, perceptual=seen, loss=loss,
         )
@@ -423,8 +457,6 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
                 return weigh(_choose(with_lights, options.model_target, tried, full, floor,
                                      reason="a highlight the probe does not draw: the cheapest model with lights"))
             return weigh(_choose(fits, options.model_target, tried, full, floor, unfloored=with_lights))
-    if wanted == "lights":
-        raise ValueError("the 'lights' model is fitted by fitting.fit (the paper's path)")
     if automatic:
         return weigh(_choose(fits, options.model_target, tried, full, floor))
     return _with_tried([f for f in fits if f.model == wanted][-1], tried, full)

@@ -114,7 +114,7 @@ class SceneGeometry:
 
     @classmethod
     def of_solution(cls, solution):
-        """From a ``radiosity.formats.Solution``: every object's triangles; emitters are
+        """From a ``radiosity.files.solution.Solution``: every object's triangles; emitters are
         the objects whose material emits."""
         return cls.of_meshes((o.positions, o.faces, o.material) for o in solution.objects)
 

@@ -219,7 +219,7 @@ class FittedObject:
     textured: TexturedDiffuse | None = None  # version 4: a textured object's diffuse term
     glass: Glass | None = None  # version 7: drawn as glass (its arrays a black diffuse object's)
     mirror: Mirror | None = None  # version 7: drawn as a mirror (likewise)
-    near_base: np.ndarray | None = None  # version 10: a near mirror's own part (V, 3) (formats.material.near_base) ...
+    near_base: np.ndarray | None = None  # version 10: a near mirror's own part (V, 3) (physics.materials.near_base) ...
     near_microfacet: Microfacet | None = None  # ... and its material's model
 
     def __post_init__(self):

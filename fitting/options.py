@@ -23,6 +23,7 @@ LIGHT_KINDS = ("auto", "directional", "positional")  # a virtual light's kind (`
 COEFFICIENTS = ("shared", "per-light")  # the lights' specular coefficients: one per vertex, or one per light
 LOSSES = ("linear", "relative")  # the loss weights (``fitting.loss``)
 PARTS = ("lights", "probe", "emitters")  # the parts of a model a display may switch off (``--off``)
+PAYS = 0.02  # --lights auto: a light that lowers the relative error by less than this (relative) no longer pays
 MODEL_TARGET = 0.03  # "auto"'s perceptual error target (``data.perceptual_error``)
 
 

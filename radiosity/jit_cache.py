@@ -4,7 +4,7 @@ numba's ``cache=True`` stamps a kernel's cache with the content of the one file 
 kernel is defined in. A kernel's compiled code also holds every jitted function it
 calls (inlined or linked), and those may live in other files: the solver's kernels
 call ``radiosity.scene.material_kernels``, ``radiosity.transport.embree`` and
-``radiosity.formats``; after an edit there, numba would keep running the old code.
+``radiosity.physics``; after an edit there, numba would keep running the old code.
 
 ``install()`` (run when this module is first imported: every module of the project that
 decorates a kernel imports it first) puts ``ProjectCacheLocator`` first among numba's cache locators. For a kernel

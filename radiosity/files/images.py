@@ -121,6 +121,8 @@ def read_image(path, what="image", raw=False):
 
     shown = f"{what} {str(path)!r}"
     data = read_input_bytes(path, what, TEXTURE_BYTES)
+    if not data:
+        raise InputError(f"{shown} is empty")
     suffix = os.path.splitext(str(path))[1].lower()
     if suffix in HDR_EXTENSIONS:
         return picture_from_array(_hdr_pixels(data, suffix, shown), shown, raw=True, alpha=False)

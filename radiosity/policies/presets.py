@@ -21,9 +21,9 @@ from radiosity.files.errors import InputError
 __all__ = ["DEFAULT_QUALITY", "MAX_KERNEL_RINGS", "MAX_MIN_PHOTONS", "MAX_SPARSE_RINGS", "MIN_PHOTONS", "PRESETS", "QUALITIES", "Preset", "max_edge", "preset", "preset_table"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Preset:
-    """Every knob of one quality.
+    """Every knob of one quality, each given by name.
 
     photons          : photons emitted in total
     gather_samples   : gather rays per glossy vertex
@@ -46,7 +46,7 @@ class Preset:
     visibility_samples : shadow rays per glossy vertex and emitter part: how much of each
                        emitter a vertex sees (its highlight's shadow, ``transport.highlights``)
     emitter_nodes    : N of the quadrature of the emitters' highlights (solver and every
-                       display: ``formats.emitters``; more is more exact and slower to draw)
+                       display: ``physics.emitters``; more is more exact and slower to draw)
     probe_sizes      : the reflection probe's sizes (M x M texels) ``vlights fit --model auto``
                        tries for each glossy object (``fitting.glossy``)
     probe_lights     : virtual lights per glossy object beside a probe (what the emitters and
@@ -85,12 +85,26 @@ class Preset:
 # the light placement before it runs on about 1000 vertices: 60 iterations keep the
 # high teapot near two minutes on 2 cores (measured: 106 s, relative RMS 0.125).
 PRESETS = {
-    "draft": Preset(2_000_000, 256, 32, 1, 24, 1.5, 8, 25, (1, 2, 4, 8), 64, True, 1.5, 1, 0.005, 1.0, 0.03, 32, 8, (16, 32), 4),
+    "draft": Preset(
+        photons=2_000_000, gather_samples=256, light_samples=32, kernel_rings=1, max_edge_divisor=24, grid_factor=1.5,
+        fit_lights=8, fit_iterations=25, demo_light_sweep=(1, 2, 4, 8), truth_spp=64, adaptive=True,
+        vertex_budget_factor=1.5, adaptive_passes=1, adaptive_tolerance=0.005, extra_gather=1.0,
+        gather_tolerance=0.03, visibility_samples=32, emitter_nodes=8, probe_sizes=(16, 32), probe_lights=4,
+        fit_search_samples=1 << 18,
+    ),
     "medium": Preset(
-        8_000_000, 1024, 64, 1, 40, 2.5, 8, 40, (1, 2, 4, 8, 16), 256, True, 1.5, 2, 0.005, 0.5, 0.02, 64, 8, (16, 32, 64), 4
+        photons=8_000_000, gather_samples=1024, light_samples=64, kernel_rings=1, max_edge_divisor=40,
+        grid_factor=2.5, fit_lights=8, fit_iterations=40, demo_light_sweep=(1, 2, 4, 8, 16), truth_spp=256,
+        adaptive=True, vertex_budget_factor=1.5, adaptive_passes=2, adaptive_tolerance=0.005, extra_gather=0.5,
+        gather_tolerance=0.02, visibility_samples=64, emitter_nodes=8, probe_sizes=(16, 32, 64), probe_lights=4,
+        fit_search_samples=1 << 18,
     ),
     "high": Preset(
-        32_000_000, 4096, 256, 1, 64, 4.0, 8, 60, (1, 2, 4, 8, 16), 1024, True, 1.5, 2, 0.005, 0.25, 0.01, 128, 12, (32, 64), 8, 1 << 19
+        photons=32_000_000, gather_samples=4096, light_samples=256, kernel_rings=1, max_edge_divisor=64,
+        grid_factor=4.0, fit_lights=8, fit_iterations=60, demo_light_sweep=(1, 2, 4, 8, 16), truth_spp=1024,
+        adaptive=True, vertex_budget_factor=1.5, adaptive_passes=2, adaptive_tolerance=0.005, extra_gather=0.25,
+        gather_tolerance=0.01, visibility_samples=128, emitter_nodes=12, probe_sizes=(32, 64), probe_lights=8,
+        fit_search_samples=1 << 19,
     ),
 }
 QUALITIES = tuple(PRESETS)

@@ -96,7 +96,7 @@ class CameraRays(NamedTuple):
 
 
 def camera_rays(camera):
-    """``CameraRays`` of a ``formats.camera.Camera``."""
+    """``CameraRays`` of a ``files.camera.Camera``."""
     right, up, forward = camera.basis
     half_height = math.tan(math.radians(camera.fov_y_deg) / 2)
     half_width = half_height * camera.width / camera.height

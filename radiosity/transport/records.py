@@ -31,7 +31,7 @@ PHOTON_WAVE = 1024  # photons traced together by trace_photons: a wave's rays, t
 class LightArrays(NamedTuple):
     """A scene's delta lights as the kernels read them (``radiosity.transport.lights``).
 
-    kinds       : (L,) int64          ``formats.emitters`` POINT or DIRECTION
+    kinds       : (L,) int64          ``physics.emitters`` POINT or DIRECTION
     points      : (L, 3, 3) float64   rows 0-2 of ``PackedParts.points``: the position (a
                                       point) or unit direction of travel (a direction); a
                                       spot's axis; (cutoff, beam width (radians), 1 for a spot)

@@ -109,7 +109,7 @@ class SolveOptions:
                      object's ``visibility``, which the displays draw per pixel); False
                      gathers them like any light (for comparisons)
     visibility_samples : shadow rays per glossy vertex and emitter part
-    emitter_nodes  : N of the highlights' quadrature (``formats.emitters``)
+    emitter_nodes  : N of the highlights' quadrature (``physics.emitters``)
     lobe_light     : sample the light where gather paths meet glossy surfaces (True);
                      False finds it through the lobe alone: the
                      same expected value, more noise (for comparisons)

@@ -30,7 +30,7 @@ from radiosity.files.atomic import atomic_output
 
 def refused(result, said, command=None):
     """``assert_refused`` with ``said`` one fragment or a tuple of alternatives (the
-    words differ where radiosity.formats says it first, as on the 'inputs' branch)."""
+    words differ where the shared core's input check says it first)."""
     if isinstance(said, tuple):
         assert_refused(result, command=command)
         assert any(fragment in result[2] for fragment in said), (said, result[2])

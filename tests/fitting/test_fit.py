@@ -6,7 +6,7 @@ import trimesh
 
 from fitting import FitOptions, fit, load_fit, shade
 from fitting.data import fit_data, relative_error
-from fitting.fit import fit_lights, problem_for, reconstruct
+from fitting.lights import fit_lights, problem_for, reconstruct
 from fitting.mixed import SceneGeometry
 from fitting.model import directional, shade_arrays
 from fitting.paper import fit_paper, vertex_coefficients

@@ -80,7 +80,7 @@ def test_images_are_srgb_decoded(tmp_path):
 
 def test_bad_texture_files_are_refused_in_one_line(tmp_path):
     (tmp_path / "bad.png").write_bytes(b"not an image at all")
-    with pytest.raises(InputError, match="cannot read the texture"):
+    with pytest.raises(InputError, match="cannot read texture"):
         read_texture(tmp_path / "bad.png", "here")
     with pytest.raises(InputError, match="here"):
         read_texture(tmp_path / "missing.png", "here")
@@ -257,11 +257,11 @@ def test_obj_texture_coordinates_have_v_up(tmp_path):
 
 def test_gltf_texture_coordinates_run_down_and_are_flipped(tmp_path):
     """glTF's TEXCOORD_0: (0, 0) is the image's top-left corner (trimesh flips v)."""
-    from test_texture_loaders import _gltf
+    from scene_files import gltf_square
 
     _asymmetric_png(tmp_path)
     # trimesh keeps TEXCOORD_0 only on a primitive with a material
-    _gltf(tmp_path, {"name": "picture", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}})
+    gltf_square(tmp_path, {"name": "picture", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}})
     (tmp_path / "s.toml").write_text(textwrap.dedent(QUAD_SCENE.format(builtin="x")).replace(
         'builtin = "x"', 'mesh = "m.gltf"'))
     obj = load_scene(tmp_path / "s.toml").object("picture")

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 from PIL import Image
+from scene_files import gltf_square
 
 from radiosity.files.errors import SceneWarning
 from radiosity.physics.materials import fresnel_kd_limit
@@ -89,45 +90,13 @@ def test_a_map_kd_on_a_mesh_without_uvs_is_its_mean_colour_with_one_warning(tmp_
     assert obj.material.name == "pic (mean texture)"
 
 
-def _gltf(tmp_path, material, name="m.gltf", copies=1):
-    """A unit square in z = 0 facing +z, glTF texture coordinates (v down: y = 1 is v = 0);
-    ``copies`` nodes of it, each one higher in z."""
-    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
-    texcoords = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
-    indices = np.array([0, 1, 2, 0, 2, 3], np.uint16)
-    blob = positions.tobytes() + texcoords.tobytes() + indices.tobytes()
-    (tmp_path / "m.bin").write_bytes(blob)
-    gltf = {
-        "asset": {"version": "2.0"},
-        "scene": 0, "scenes": [{"nodes": list(range(copies))}],
-        "nodes": [{"mesh": 0, "name": f"square{i}", "translation": [0, 0, i]} for i in range(copies)],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
-        "materials": [material],
-        "textures": [{"source": 0}],
-        "images": [{"uri": "t.png"}],
-        "buffers": [{"uri": "m.bin", "byteLength": len(blob)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
-            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
-            {"buffer": 0, "byteOffset": 80, "byteLength": 12},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
-            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
-            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"},
-        ],
-    }
-    (tmp_path / name).write_text(json.dumps(gltf))
-    return tmp_path / name
-
-
 @pytest.mark.parametrize("suffix", [".gltf", ".glb"])
 def test_a_gltf_base_colour_texture_is_a_texture_multiplying_the_factor(tmp_path, suffix):
     _png(tmp_path / "t.png")
     material = {"name": "pic", "pbrMetallicRoughness": {
         "baseColorTexture": {"index": 0}, "baseColorFactor": [0.6, 0.8, 1.0, 1.0], "metallicFactor": 0.0,
         "roughnessFactor": 1.0}}
-    path = _gltf(tmp_path, material)
+    path = gltf_square(tmp_path, material)
     if suffix == ".glb":  # the same file packed into one binary, image and all
         glb = trimesh.load(path).export(file_type="glb")
         path = tmp_path / "m.glb"
@@ -143,7 +112,7 @@ def test_a_textured_glossy_gltf_keeps_its_specular_and_scales_kd(tmp_path):
     _png(tmp_path / "t.png")
     material = {"name": "pic", "pbrMetallicRoughness": {
         "baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 0.3}}
-    obj = load_scene(_gltf(tmp_path, material)).objects[0]
+    obj = load_scene(gltf_square(tmp_path, material)).objects[0]
     assert obj.textured
     # glTF's Schlick F0 = 0.04 (a dielectric), ks 1; kd the factor (1) within the energy bound, the image multiplies it
     assert np.allclose(obj.material.fresnel, 0.04) and np.allclose(obj.material.specular, 1.0)
@@ -155,7 +124,7 @@ def test_a_textured_glossy_gltf_keeps_its_specular_and_scales_kd(tmp_path):
 def test_objects_of_one_textured_material_share_its_image(tmp_path):
     _png(tmp_path / "t.png")
     material = {"name": "pic", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}
-    scene = load_scene(_gltf(tmp_path, material, copies=2))
+    scene = load_scene(gltf_square(tmp_path, material, copies=2))
     assert len(scene.objects) == 2 and all(o.textured for o in scene.objects)
     assert scene.objects[0].texture is scene.objects[1].texture
 
@@ -238,7 +207,7 @@ def test_a_textured_metal_warns_that_its_specular_colour_is_the_mean_and_an_unte
                                                      "roughnessFactor": 0.3}}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        obj = load_scene(_gltf(tmp_path, metal)).objects[0]
+        obj = load_scene(gltf_square(tmp_path, metal)).objects[0]
     said = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
     assert len(said) == 1 and "takes the texture's mean" in said[0]
     mean = (np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]]).sum(axis=0) + GREY) / 4
@@ -247,7 +216,7 @@ def test_a_textured_metal_warns_that_its_specular_colour_is_the_mean_and_an_unte
     limit = fresnel_kd_limit(np.ones(3), f0, obj.material.exponent)
     assert np.allclose(obj.material.diffuse, np.minimum(0.5, limit), atol=1e-6)  # the factor 1 (1 - metallic) alone
     plain = {"name": "plain", "pbrMetallicRoughness": {"metallicFactor": 0.5, "roughnessFactor": 0.3}}
-    gltf = json.loads(_gltf(tmp_path, plain, name="plain.gltf").read_text())
+    gltf = json.loads(gltf_square(tmp_path, plain, name="plain.gltf").read_text())
     with warnings.catch_warnings():
         warnings.simplefilter("error", SceneWarning)
         assert not load_scene(tmp_path / "plain.gltf").objects[0].textured, gltf["materials"]
