@@ -287,8 +287,8 @@ def gather_rays(scene, merged, sa, quality, vertices_per_object=256, seed=1):
             if o.material.is_glossy
         ]
     ).astype(np.int64)
-    strata = int(np.sqrt(settings["gather_samples"]))
-    n_light = settings["light_samples"]
+    strata = int(np.sqrt(settings.gather_samples))
+    n_light = settings.light_samples
     block = records.GatherBlock(seed, vertices, n_light, strata, MAX_GATHER_DEPTH)
     light = records.empty_light_samples(len(vertices) * n_light)
     samples = records.empty_gather_samples(len(vertices) * strata * strata)
@@ -308,7 +308,7 @@ class SameRays:
         from radiosity.transport.embree import RayTracer
         from radiosity.transport.solve import SolveOptions, scene_arrays
 
-        refined = scene.refined(SolveOptions(quality=quality).resolved(scene)["max_edge"])
+        refined = scene.refined(SolveOptions(quality=quality).resolved(scene).max_edge)
         merged = refined.merged()
         self.threads = threads
         self.triangles = len(merged.faces)

@@ -112,7 +112,7 @@ def main(argv=None):
     photons = 500_000 if args.quick else 2_000_000
     opts = SolveOptions(quality="draft", photons=photons, threads=args.threads)
     solve(scene, SolveOptions(photons=1000, gather_samples=4, light_samples=1))  # compile, warm caches
-    refined = scene.refined(opts.resolved(scene)["max_edge"])
+    refined = scene.refined(opts.resolved(scene).max_edge)
 
     # 1 + 2: rays per second, solver against the limit, interleaved runs, medians
     if "rays" in parts:

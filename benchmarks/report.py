@@ -568,6 +568,16 @@ def startup(rows):
     return out + [""]
 
 
+def test_durations(rows):
+    out = ["## The slowest tests", "", "From `VLIGHTS_DURATIONS=benchmarks/results/test_durations.jsonl python -m pytest` "
+           "(`tests/conftest.py` keeps the slowest phases of the run): `test_durations.jsonl`.", ""]
+    if rows:
+        r = rows[0]
+        out += [f"Commit {r['commit']}, {r['cores']} cores, {r['workers']} workers, {r['passed']} tests passed.", ""]
+    out += table(["test", "phase", "seconds"], [[f"`{r['test']}`", r["phase"], num(r["seconds"], 2)] for r in rows])
+    return out + [""]
+
+
 def interiors(rows):
     out = ["## The field's interiors", "", where("bench_interiors.py", ["interiors.jsonl", "interiors.png",
                                                                        "interiors_<scene>.png"]), machine(rows)]
@@ -720,6 +730,7 @@ SECTIONS = (
     ("mirrors.jsonl", mirrors),
     ("checkouts.jsonl", checkouts),
     ("startup.jsonl", startup),
+    ("test_durations.jsonl", test_durations),
     ("load.jsonl", load),
     ("textures.jsonl", textures),
     ("scale.jsonl", scale),

@@ -201,6 +201,30 @@ class Depth(NamedTuple):
         return m
 
 
+class _Highlight(NamedTuple):
+    """An object's emitter term in one mode, as its uniforms take it."""
+
+    base: int  # where its visibility (V, P) starts in the store
+    n_parts: int
+    own: int  # a bit per part that is the object's own (it lights itself: not drawn on it)
+    ks: tuple  # the lobe's specular colour
+    exponent: float
+    f0: tuple  # Schlick's F0 per channel, (-1, -1, -1): no Fresnel
+    table: object  # the emitter table's texture (the object's own parts' or the mode's)
+    lobe: tuple  # (code, alpha) of a microfacet lobe (``radiosity.physics.ltc``), (0, 0.0): Phong
+
+
+class _Probe(NamedTuple):
+    """An object's fitted reflection probe, as its uniforms take it."""
+
+    row: int  # its first row in the probes' atlas
+    size: int  # M of its M x M texels
+    centre: tuple
+    lo: tuple  # its proxy box's corners
+    hi: tuple
+    albedo: np.ndarray  # its table of S (``fitting.probe.ALBEDO_POINTS``), float32
+
+
 class _Object:
     """GPU buffers of one object."""
 
@@ -226,7 +250,7 @@ class _Object:
         # the emitters' highlights per mode ("fitted", "reference"): (visibility base, parts,
         # own-part mask, ks, exponent), absent where the object has none
         self.highlight = {}
-        self.probe = None  # (row in the atlas, M, centre, lo, hi, albedo) of the fitted probe
+        self.probe = None  # the fitted probe (a ``_Probe``)
         self.glossy = False  # a glossy object: lights, a probe or highlights in the fit, a grid in the solution
         self.glass = None  # its ``Glass``: drawn as glass (``display.glass``), after everything else
         self.slab, self.sphere = False, None  # its proxy (``display.glass.proxy``)
@@ -236,9 +260,12 @@ class _Object:
         self.near_eta = 0.0  # its base's interface (``physics.materials.near_base``; 0 none): the solution's
         self.fit_near_eta = 0.0  # ... the fit's
         self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
-        self.back_vaos = {}  # program -> the vertex array of its back faces (positions alone)
+        self.vaos = {}  # (program, attributes, sources, indexed) -> its vertex array, made once (``vao``)
 
     def add(self, ctx, attribute, values):
+        for vao in self.vaos.values():  # a vertex array made before would not see the new attribute
+            vao.release()
+        self.vaos.clear()
         values = np.asarray(values, np.float32)
         self.buffers[attribute] = ctx.buffer(values.tobytes())
         if values.ndim == 2 and values.shape[1] != 3:
@@ -258,17 +285,22 @@ class _Object:
             self.cutout = images.mask(self.name, textured.opacity)
 
     def vao(self, ctx, program, attributes, indexed=True, sources=None):
-        # an attribute with no buffer (in_specular of per-light coefficients) reads the
-        # generic value, unused by the shaders; ``sources`` feeds an attribute from another buffer
+        """The vertex array of ``program`` over these ``attributes``, made the first time a
+        frame asks for it and kept (released with the object): a frame draws with those the
+        frames before made. An attribute with no buffer (in_specular of per-light
+        coefficients) reads the generic value, unused by the shaders; ``sources`` feeds an
+        attribute from another buffer."""
         sources = sources or {}
-        content = [(self.buffers[sources.get(a, a)], self.formats.get(sources.get(a, a), "3f"), a) for a in attributes
-                   if a in program and sources.get(a, a) in self.buffers]
-        if not indexed:
-            return ctx.vertex_array(program, content)
-        return ctx.vertex_array(program, content, index_buffer=self.index, index_element_size=4)
+        key = (program.glo, tuple(attributes), tuple(sorted(sources.items())), indexed)
+        if key not in self.vaos:
+            content = [(self.buffers[sources.get(a, a)], self.formats.get(sources.get(a, a), "3f"), a)
+                       for a in attributes if a in program and sources.get(a, a) in self.buffers]
+            self.vaos[key] = (ctx.vertex_array(program, content, index_buffer=self.index, index_element_size=4)
+                              if indexed else ctx.vertex_array(program, content))
+        return self.vaos[key]
 
     def release(self):
-        for vao in self.back_vaos.values():
+        for vao in self.vaos.values():
             vao.release()
         for b in list(self.buffers.values()) + [self.index]:
             b.release()
@@ -549,7 +581,7 @@ class Renderer:
             self._ltc_texture()
         # the object's own parts (a file's version that names them) get their own table, one per distinct list
         table = self._emitter_table(mode, parts)
-        obj.highlight[mode] = (base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0, table, lobe)
+        obj.highlight[mode] = _Highlight(base, len(parts), own, tuple(float(v) for v in ks), float(exponent), f0, table, lobe)
 
     def _ltc_texture(self):
         """The microfacet lobes' table (``display/shaders/ltc.glsl``), made once."""
@@ -587,8 +619,8 @@ class Renderer:
             weight = np.zeros((obj.n_vertices, 3), np.float32)
             if f.probe is not None:
                 m = f.probe.size
-                obj.probe = (row, m, tuple(map(float, f.probe.centre)), tuple(map(float, f.probe.box[0])),
-                             tuple(map(float, f.probe.box[1])), np.asarray(f.probe.albedo, np.float32))
+                obj.probe = _Probe(row, m, tuple(map(float, f.probe.centre)), tuple(map(float, f.probe.box[0])),
+                                   tuple(map(float, f.probe.box[1])), np.asarray(f.probe.albedo, np.float32))
                 probes.append(np.asarray(f.probe.texels, np.float32))
                 row += m
                 weight = np.asarray(f.probe_weight, np.float32)
@@ -710,20 +742,21 @@ class Renderer:
         """The emitter term's uniforms of ``obj`` in ``mode`` ("fitted" or "reference"),
         drawn if ``on`` and the object has one there."""
         h = obj.highlight.get(mode) if on else None
-        table = h[6] if h is not None else self.default_tables.get(mode)
+        table = h.table if h is not None else self.default_tables.get(mode)
         if table is not None:
             table.use(location=3)
         self._set(program, "emitter_table", 3)
-        self._set(program, "n_parts", 0 if h is None else h[1])
+        self._set(program, "n_parts", 0 if h is None else h.n_parts)
         if h is not None:
-            self._set(program, "visibility_base", self.layout.address(h[0]))
-            self._set(program, "own_parts", h[2])
-            self._set(program, "emitter_ks", h[3])
-            self._set(program, "emitter_exponent", h[4])
-            self._set(program, "emitter_f0", h[5])
-            self._set(program, "emitter_lobe", h[7][0])
-            self._set(program, "emitter_alpha", h[7][1])
-            if h[7][0]:
+            self._set(program, "visibility_base", self.layout.address(h.base))
+            self._set(program, "own_parts", h.own)
+            self._set(program, "emitter_ks", h.ks)
+            self._set(program, "emitter_exponent", h.exponent)
+            self._set(program, "emitter_f0", h.f0)
+            code, alpha = h.lobe
+            self._set(program, "emitter_lobe", code)
+            self._set(program, "emitter_alpha", alpha)
+            if code:
                 self.ltc.use(location=LTC_UNIT)
             self._set(program, "ltc_table", LTC_UNIT)
 
@@ -732,14 +765,14 @@ class Renderer:
         if self.probes is not None:
             self.probes.use(location=5)
         self._set(program, "probes", 5)
-        self._set(program, "probe_size", 0 if p is None else p[1])
+        self._set(program, "probe_size", 0 if p is None else p.size)
         if p is not None:
-            self._set(program, "probe_row", p[0])
-            self._set(program, "probe_centre", p[2])
-            self._set(program, "probe_lo", p[3])
-            self._set(program, "probe_hi", p[4])
+            self._set(program, "probe_row", p.row)
+            self._set(program, "probe_centre", p.centre)
+            self._set(program, "probe_lo", p.lo)
+            self._set(program, "probe_hi", p.hi)
             if "probe_albedo" in program:
-                program["probe_albedo"].write(p[5].tobytes())
+                program["probe_albedo"].write(p.albedo.tobytes())
 
     def _bind_fitted(self, program, obj, n, mode="fitted", parts=PARTS):
         """Uniforms and textures of ``obj``'s fitted shading, ``n`` lights, the ``parts``
@@ -951,9 +984,7 @@ class Renderer:
             # diffuse with a solution: its directional mean, not the fitted emitted colour
             # (with a probe or highlights that is only part of what is diffuse)
             sources = {"in_emitted": "in_mean"} if mode == "diffuse" and mask is None and "in_mean" in obj.buffers else None
-            vao = obj.vao(ctx, program, attributes, sources=sources)
-            vao.render(moderngl.TRIANGLES)
-            vao.release()
+            obj.vao(ctx, program, attributes, sources=sources).render(moderngl.TRIANGLES)
         # the backs, after every front: black where nearer than every front (strictly); a
         # masked object's with its holes
         back_key = "back-attributes" if program_key == "attributes" else "back"
@@ -971,9 +1002,7 @@ class Renderer:
             if obj.cutout is not None:
                 obj.cutout.use(location=CUTOUT_UNIT)
                 self._set(program, "cutout_texture", CUTOUT_UNIT)
-            if program not in obj.back_vaos:
-                obj.back_vaos[program] = obj.vao(ctx, program, ("in_position", "in_uv"))
-            obj.back_vaos[program].render(moderngl.TRIANGLES)
+            obj.vao(ctx, program, ("in_position", "in_uv")).render(moderngl.TRIANGLES)
         ctx.polygon_offset = (0.0, 0.0)
         ctx.cull_face = "back"
         ctx.disable(moderngl.CULL_FACE)
@@ -1049,9 +1078,7 @@ class Renderer:
                 self._set(program, name, value)
             if planar and "glass_mvp" in program:
                 program["glass_mvp"].write(reflected_mvp)
-            vao = obj.vao(ctx, program, ("in_position", "in_normal"))
-            vao.render(moderngl.TRIANGLES)
-            vao.release()
+            obj.vao(ctx, program, ("in_position", "in_normal")).render(moderngl.TRIANGLES)
 
     def _draw_near_mirrors(self, view, mode, objects, seen):
         """The near mirrors ``objects`` (depth-tested, their backs black): their base and
@@ -1085,10 +1112,8 @@ class Renderer:
             else:
                 base, eta = "in_emitted", 0.0
             self._set(program, "near_eta", eta)
-            vao = obj.vao(ctx, program, ("in_position", "in_normal", "in_emitted", "in_uv", "in_irradiance"),
-                          sources={"in_emitted": base})
-            vao.render(moderngl.TRIANGLES)
-            vao.release()
+            obj.vao(ctx, program, ("in_position", "in_normal", "in_emitted", "in_uv", "in_irradiance"),
+                    sources={"in_emitted": base}).render(moderngl.TRIANGLES)
 
     def _draw_glass(self, view, objects, probes, planes):
         """The glass pieces ``objects`` over what is drawn (either face, depth-tested): what they
@@ -1118,9 +1143,7 @@ class Renderer:
             if blend:
                 ctx.enable(moderngl.BLEND)
                 ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-            vao = obj.vao(ctx, program, ("in_position", "in_normal"))
-            vao.render(moderngl.TRIANGLES)
-            vao.release()
+            obj.vao(ctx, program, ("in_position", "in_normal")).render(moderngl.TRIANGLES)
             ctx.disable(moderngl.BLEND)
 
     def render(self, view, mode="fitted", shading="pixel", lights=None, *, samples=None, parts=PARTS,
@@ -1207,7 +1230,6 @@ class Renderer:
         self._scratch.use()
         vao.transform(out, moderngl.POINTS, vertices=obj.n_vertices)
         colours = np.frombuffer(out.read(), np.float32).reshape(-1, 3).copy()
-        vao.release()
         out.release()
         return colours
 

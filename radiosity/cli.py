@@ -218,7 +218,7 @@ def _solve(args):
     )
     settings = opts.resolved(scene)  # refuse bad knobs before any work
     adaptive = adaptive_options(args)
-    adaptive.resolved(args.quality, scene.refined(settings["max_edge"]).n_vertices, args.max_edge is not None)
+    adaptive.resolved(args.quality, scene.refined(settings.max_edge).n_vertices, args.max_edge is not None)
     solution = solve_adaptive(scene, opts, adaptive, progress=True)
     solution.save(out)
     print(format_summary(solution, out))

@@ -35,3 +35,38 @@ def client():
     yield c
     c.close()
     cluster.close()
+
+
+SLOWEST = 20  # the slowest tests a run keeps (``VLIGHTS_DURATIONS=FILE``)
+
+
+def slowest_tests(reports, count=SLOWEST):
+    """[{"test", "phase", "seconds"}] of the ``count`` slowest phases (setup, call,
+    teardown) among pytest's ``reports``, slowest first."""
+    rows = [{"test": r.nodeid, "phase": r.when, "seconds": round(float(r.duration), 3)} for r in reports
+            if getattr(r, "duration", None) is not None and getattr(r, "when", None)]
+    return sorted(rows, key=lambda row: -row["seconds"])[:count]
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """With ``VLIGHTS_DURATIONS=FILE`` set, the run's slowest tests are kept in FILE (one
+    JSON row per test, with the commit, the cores and the run's totals), where
+    ``benchmarks/report.py`` reads them (``benchmarks/results/test_durations.jsonl``)."""
+    import json
+    import os
+    import subprocess
+
+    target = os.environ.get("VLIGHTS_DURATIONS")
+    if not target:
+        return
+    reports = [r for key in ("passed", "failed", "error", "skipped") for r in terminalreporter.stats.get(key, [])]
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            cwd=config.rootpath).stdout.strip()
+    context = {"commit": commit, "cores": os.cpu_count(), "workers": getattr(config.option, "numprocesses", None),
+               "passed": len(terminalreporter.stats.get("passed", [])), "exit_status": int(exitstatus)}
+    try:
+        with open(target, "w") as f:
+            for row in slowest_tests(reports):
+                f.write(json.dumps(context | row) + "\n")
+    except OSError as exc:
+        terminalreporter.write_line(f"VLIGHTS_DURATIONS: cannot keep the durations in {target!r}: {exc.strerror}")

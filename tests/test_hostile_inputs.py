@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bad_inputs import GOOD_MATERIAL, npy_bytes, replace_member, tiny_solution, write
+from refusals import assert_refused
 
 from display.cli import main
 from radiosity.files.camera import load_views
@@ -64,11 +65,7 @@ def run(argv, capsys):
 
 
 def refused(argv, capsys, fragment=""):
-    code, out, err = run(argv, capsys)
-    assert code == 2, (code, out, err)
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    assert fragment in err, err
-    return err
+    return assert_refused(run(argv, capsys), fragment, quiet=False)
 
 
 @pytest.fixture

@@ -148,8 +148,9 @@ def _rgb16_png(path, alpha, shown):
     try:
         width, height = next(frames)["size"]
         pixels = np.frombuffer(next(frames), "<u2").reshape(height, width, 4)
-    except (StopIteration, RuntimeError, OSError, ValueError) as exc:
-        raise InputError(f"cannot read {shown}: {' '.join(str(exc).split()) or 'no image in it'}") from None
+    except (StopIteration, RuntimeError, OSError, ValueError):  # ffmpeg's whole log: not one line
+        raise InputError(f"cannot read {shown}: a 16-bit PNG that is truncated or corrupt (ffmpeg decodes none of "
+                         "it)") from None
     finally:
         frames.close()
     return pixels if alpha else pixels[..., :3]

@@ -75,6 +75,15 @@ FIRST_PASS_PHOTONS = 0.5  # the estimate passes trace this fraction of the photo
 FIRST_PASS_GATHER = 64  # ... and at most this many gather rays per glossy vertex
 
 
+class AdaptiveKnobs(NamedTuple):
+    """The refinement's knobs with their values (``AdaptiveOptions.resolved``)."""
+
+    enabled: bool
+    passes: int
+    tolerance: float
+    vertex_budget: int
+
+
 @dataclass(frozen=True)
 class AdaptiveOptions:
     """Knobs of the refinement; None means "as the quality preset says".
@@ -92,7 +101,7 @@ class AdaptiveOptions:
     tolerance: float | None = None
 
     def resolved(self, quality, uniform_vertices, explicit_max_edge=False):
-        """Every knob with its value (a plain dict). ``explicit_max_edge``: the mesh size
+        """Every knob with its value (an ``AdaptiveKnobs``). ``explicit_max_edge``: the mesh size
         was given (``--max-edge``), which asks for that uniform mesh, so refinement is
         then off unless ``enabled`` says otherwise."""
         preset = presets.preset(quality)
@@ -111,8 +120,8 @@ class AdaptiveOptions:
             raise InputError(f"adaptive passes must be a whole number >= 0, got {out['passes']}")
         if not out["tolerance"] > 0:
             raise InputError(f"adaptive tolerance must be positive, got {out['tolerance']}")
-        out["vertex_budget"] = int(budget)
-        return out
+        return AdaptiveKnobs(enabled=out["enabled"], passes=out["passes"], tolerance=out["tolerance"],
+                             vertex_budget=int(budget))
 
 
 def solve_adaptive(scene, opts=None, adaptive=None, progress=False, client=None):
@@ -126,36 +135,36 @@ def solve_adaptive(scene, opts=None, adaptive=None, progress=False, client=None)
     opts = SolveOptions() if opts is None else opts
     adaptive = AdaptiveOptions() if adaptive is None else adaptive
     settings = opts.resolved(scene)
-    max_edge = settings["max_edge"]
+    max_edge = settings.max_edge
     coarse = scene.refined(max_edge)
     knobs = adaptive.resolved(opts.quality, coarse.n_vertices, explicit_max_edge=opts.max_edge is not None)
-    if not knobs["enabled"] or knobs["passes"] == 0:
+    if not knobs.enabled or knobs.passes == 0:
         solution = solve(scene, opts, progress=progress, client=client)
         return _with_stats(solution, knobs, coarse.n_vertices, coarse.n_vertices, [], max_edge)
 
     fixed = replace(opts, max_edge=max_edge)  # the same length on every pass, however chosen
     cheap = replace(
         fixed,
-        photons=max(1, int(settings["photons"] * FIRST_PASS_PHOTONS)),
-        gather_samples=min(settings["gather_samples"], FIRST_PASS_GATHER),
-        light_samples=min(settings["light_samples"], FIRST_PASS_GATHER // 4),
+        photons=max(1, int(settings.photons * FIRST_PASS_PHOTONS)),
+        gather_samples=min(settings.gather_samples, FIRST_PASS_GATHER),
+        light_samples=min(settings.light_samples, FIRST_PASS_GATHER // 4),
         extra_gather=0.0,  # the estimate needs no extra gather passes
         emitter_highlights=False,  # nor the highlights' closed form: gathered, their mean is the same
     )
     passes = []
     current = coarse
-    budget = knobs["vertex_budget"]
+    budget = knobs.vertex_budget
     weights = object_weights(coarse, max_edge)
-    for k in range(knobs["passes"]):
+    for k in range(knobs.passes):
         if current.n_vertices >= budget:
             break
         t0 = time.perf_counter()
         estimate = solve(current, cheap, progress=progress, client=client)
-        marks = mark_edges(current, estimate, knobs["tolerance"], max_edge, weights)
+        marks = mark_edges(current, estimate, knobs.tolerance, max_edge, weights)
         del estimate  # its radiance is the size of the final solve's: not held through it
         # each pass may spend its share of what is left, so later passes (which see the
         # features the earlier ones began to resolve) still have vertices to place
-        share = current.n_vertices + (budget - current.n_vertices) // (knobs["passes"] - k)
+        share = current.n_vertices + (budget - current.n_vertices) // (knobs.passes - k)
         refined = refine_within_budget(current, marks, share)
         passes.append(
             {"vertices": current.n_vertices, "refined_to": refined.n_vertices, "time_s": round(time.perf_counter() - t0, 3)}
@@ -165,22 +174,22 @@ def solve_adaptive(scene, opts=None, adaptive=None, progress=False, client=None)
         current = refined
     solution = solve(current, fixed, progress=progress, client=client)
     return _with_stats(
-        solution, knobs, coarse.n_vertices, current.n_vertices, passes, max_edge, settings["max_edge_chosen_by"]
+        solution, knobs, coarse.n_vertices, current.n_vertices, passes, max_edge, settings.max_edge_chosen_by
     )
 
 
 def _with_stats(solution, knobs, before, after, passes, max_edge, chosen_by=None):
     stats = dict(solution.stats)
     stats["adaptive"] = {
-        "enabled": bool(knobs["enabled"]),
+        "enabled": bool(knobs.enabled),
         "vertices_before": int(before),
         "vertices_after": int(after),
-        "vertex_budget": knobs["vertex_budget"],
-        "tolerance": knobs["tolerance"],
+        "vertex_budget": knobs.vertex_budget,
+        "tolerance": knobs.tolerance,
         "passes": passes,
     }
     settings = dict(solution.settings)
-    settings.update({"adaptive": bool(knobs["enabled"]), "vertex_budget": knobs["vertex_budget"], "max_edge": max_edge})
+    settings.update({"adaptive": bool(knobs.enabled), "vertex_budget": knobs.vertex_budget, "max_edge": max_edge})
     if chosen_by is not None:
         settings["max_edge_chosen_by"] = chosen_by
     return replace(solution, stats=stats, settings=settings)
@@ -315,7 +324,7 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
         if o.material.is_emitter or not v.any():
             continue
         edges, err = edge_errors(o.positions, o.normals, o.tangents, o.faces, v)
-        sigma = value_noise(o, v, photon_power, settings["gather_samples"], settings["kernel_rings"])
+        sigma = value_noise(o, v, photon_power, settings.gather_samples, settings.kernel_rings)
         a, b = edges[:, 0], edges[:, 1]
         noise = NOISE_SIGMAS * 0.5 * (sigma[a] + sigma[b])
         target = tolerance * np.sqrt(np.maximum(0.5 * (v[a] + v[b]), floor) * level)
@@ -325,7 +334,7 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
         if not marked.any():
             continue
         wanted = np.minimum(np.sqrt(ratio[marked]) / length[marked], 1 / (MIN_EDGE_FRACTION * max_edge))
-        out[o.name] = Marks(edges[marked], wanted, ratio[marked], v > floor, edges, settings["kernel_rings"] + 1)
+        out[o.name] = Marks(edges[marked], wanted, ratio[marked], v > floor, edges, settings.kernel_rings + 1)
     return out
 
 

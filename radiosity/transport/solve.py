@@ -26,12 +26,14 @@ refinement) are refused with an InputError naming the estimate and the memory.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
 import warnings
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -65,6 +67,10 @@ from radiosity.transport.records import (
     T_INCIDENT,
     T_TERMINATED,
     GatherBlock,
+    empty_gather_samples,
+    empty_light_samples,
+    empty_path_buffers,
+    empty_rays,
     empty_tally,
 )
 from radiosity.transport.threads import ThreadRunner
@@ -75,15 +81,50 @@ GATHER_BLOCK_SAMPLES = 1 << 16  # rays (light + gather) of a gather block, about
 MAX_VISIBILITY_SAMPLES = 4096
 
 # bytes per element of the arrays that grow with the knobs (see ``memory_estimate``)
-_PHOTON_VERTEX_BYTES = 9 * 8  # a batch's density moments, per vertex
-_LIGHT_SAMPLE_BYTES = 12 + 12 + 4 + 24 + 24 + 8 + 1 + 29 + 48  # LightSamples, the shadow-ray copies, output weights
-_GATHER_SAMPLE_BYTES = 72 + 32 + 56 + 16 + 16 + 56 + 48  # GatherSamples, paths, next paths, pdfs, hits, copies, weights
+def record_bytes(record):
+    """Bytes of a record of arrays (a NamedTuple of arrays and of such records)."""
+    return sum(record_bytes(f) if isinstance(f, tuple) else np.asarray(f).nbytes for f in record)
+
+
+_SAMPLE_WEIGHT_BYTES = 48  # a sample's two RGB float64 weights in the block's outputs
+_SHADOW_RAY_BYTES = record_bytes(empty_light_samples(1)._replace(wi=(), radiance=(), pdf=()))  # the copy Embree reads
+_PHOTON_VERTEX_BYTES = record_bytes(empty_tally(1)) - record_bytes(empty_tally(0))  # a batch's density moments, per vertex
+_LIGHT_SAMPLE_BYTES = record_bytes(empty_light_samples(1)) + _SHADOW_RAY_BYTES + _SAMPLE_WEIGHT_BYTES
+_GATHER_SAMPLE_BYTES = (record_bytes(empty_gather_samples(1)) + record_bytes(empty_path_buffers(1))  # the paths, the next
+                        + record_bytes(empty_rays(1)) + _SAMPLE_WEIGHT_BYTES)  # the rays' copy, the weights
 _OUTPUT_BYTES = 3 * 4  # per vertex and direction: float32 radiance, summed and written in place
 # the rest, measured (benchmarks/bench_scale.py, draft, 87k and 553k vertices: 1.2 and 1.8 kB a
 # vertex besides the parts above and the process): the scene, its refined and merged meshes,
 # Embree's BVH, the density estimate's arrays, the solution's arrays as written
 _SCENE_VERTEX_BYTES = 2_500
 _PROCESS_BYTES = 250 * 2**20  # Python, numpy, scipy, numba, Embree before any scene
+
+
+@dataclass(frozen=True)
+class SolveSettings:
+    """Every knob of a solve with its value for one scene (``SolveOptions.resolved``),
+    checked; ``meta()`` is the solution file's ``settings`` (JSON, in this order)."""
+
+    quality: str
+    photons: int
+    gather_samples: int
+    light_samples: int
+    kernel_rings: int
+    min_photons: int
+    extra_gather: float
+    gather_tolerance: float
+    grid: int | None
+    lobe_light: bool
+    emitter_highlights: bool
+    visibility_samples: int
+    emitter_nodes: int
+    seed: int
+    threads: int
+    max_edge: float
+    max_edge_chosen_by: str
+
+    def meta(self):
+        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)
@@ -138,7 +179,8 @@ class SolveOptions:
     scheduler: str = "threads"
 
     def resolved(self, scene):
-        """Every knob with its value for this scene (a plain dict, JSON-ready)."""
+        """Every knob with its value for this scene (a ``SolveSettings``), checked: one
+        line naming the flag for a value out of range or a solve that cannot fit."""
         preset = presets.preset(self.quality)
         out = {
             "quality": self.quality,
@@ -199,16 +241,17 @@ class SolveOptions:
             )
         strata = math.isqrt(out["gather_samples"] - 1) + 1
         out["gather_samples"] = strata * strata
+        settings = SolveSettings(**out)
         # the sizes before refinement (a lower bound): refuse hopeless knobs before any work;
         # ``solve`` checks again with the refined mesh
-        check_memory(out, scene.n_vertices, _glossy_sizes(scene.objects, out))
-        return out
+        check_memory(settings, scene.n_vertices, _glossy_sizes(scene.objects, settings))
+        return settings
 
 
 def _glossy_sizes(objects, settings):
     """[(name, vertices, grid n)] of the glossy objects (``Material.has_grid``: a perfect mirror has none)."""
     return [
-        (o.name, o.n_vertices, settings["grid"] or directions.grid_size(o.material.exponent, settings["quality"]))
+        (o.name, o.n_vertices, settings.grid or directions.grid_size(o.material.exponent, settings.quality))
         for o in objects
         if o.material.has_grid
     ]
@@ -222,17 +265,17 @@ def _gather_block_size(n_light, n_gather):
 def memory_estimate(settings, n_vertices, glossy):
     """Peak bytes of the arrays that grow with the knobs, by part.
 
-    settings : ``SolveOptions.resolved``; n_vertices : vertices of the scene;
+    settings : a ``SolveSettings``; n_vertices : vertices of the scene;
     glossy : [(name, vertices, grid n)] of its glossy objects. Returns {part: bytes}:
     ``photons`` (the batches in flight: their density moments), ``gather
     buffers`` (the blocks in flight: light samples, gather rays and paths, outputs)
     and ``gather output`` (every glossy object's radiance, V x D x 3).
     """
-    in_flight = 2 * settings["threads"] + 1  # ``threads.run_ordered`` keeps at most this many jobs
-    photons = settings["photons"]
+    in_flight = 2 * settings.threads + 1  # ``threads.run_ordered`` keeps at most this many jobs
+    photons = settings.photons
     batches = min(in_flight, -(-photons // PHOTON_BATCH)) + 1  # + the running sums
     per_batch = n_vertices * _PHOTON_VERTEX_BYTES  # the waves' ray buffers are small (PHOTON_WAVE rows)
-    n_light, n_gather = settings["light_samples"], settings["gather_samples"]
+    n_light, n_gather = settings.light_samples, settings.gather_samples
     block = _gather_block_size(n_light, n_gather)
     buffers = output = 0
     for _, vertices, grid_n in glossy:
@@ -291,7 +334,7 @@ def _runner(opts, settings, client):
     """Where the batches run: the given Dask client, a Dask cluster (``opts.scheduler``,
     connected now: a bad address fails before any work) or this process's threads."""
     if client is None and opts.scheduler == "threads":
-        return ThreadRunner(settings["threads"])
+        return ThreadRunner(settings.threads)
     from radiosity.policies.cluster import connect
     from radiosity.transport.distributed import DaskRunner
 
@@ -323,28 +366,105 @@ def solve(scene, opts=SolveOptions(), progress=False, client=None):
         runner.close()
 
 
+class _Photons(NamedTuple):
+    """What the photon pass leaves: the density moments, the energy tally, the power
+    emitted (RGB), whether anything emits, the photons traced and their rays, the power
+    of delta lights no photon carried (RGB)."""
+
+    moment0: np.ndarray
+    moment1: np.ndarray
+    tally: np.ndarray
+    emitted: np.ndarray
+    lit: bool
+    total: int
+    rays: int
+    unreached: np.ndarray
+
+
 def _solve(scene, settings, runner, progress):
+    """The solution of ``scene``: photons, then each vertex's irradiance, the glossy
+    vertices' gather, the emitters' highlights in closed form, each object's radiance."""
     make_bar = _progress_factory(progress)
     times = {}
     t0 = time.perf_counter()
-    refined = scene.refined(settings["max_edge"])
+    refined = scene.refined(settings.max_edge)
     check_memory(settings, refined.n_vertices, _glossy_sizes(refined.objects, settings),
                  say=(lambda line: print(line, file=sys.stderr)) if progress else None)
     merged = refined.merged()
     # parts from the scene as given: refinement would add vertices off a sphere lamp
-    parts, analytic = emitter_parts(scene) if settings["emitter_highlights"] else ((), ())
+    parts, analytic = emitter_parts(scene) if settings.emitter_highlights else ((), ())
     # every delta light's direct highlight is in closed form (exact, and nothing else can find
     # it), drawn per pixel where it is a part, else kept in the grid
     closed = parts + tuple(light for light in scene.lights if not any(light is p for p in parts))
     sa = scene_arrays(refined, merged, origin_offset(merged.positions), analytic)
-    seed = settings["seed"]
-    runner.start(merged, sa, seed)
+    runner.start(merged, sa, settings.seed)
     times["setup"] = time.perf_counter() - t0
-    threads = runner.threads
 
-    # -- photons ------------------------------------------------------------------
     t0 = time.perf_counter()
-    total = settings["photons"]
+    photons = _photon_pass(refined, sa, runner, settings, make_bar)
+    times["photons"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    irradiance = _irradiance(refined, merged, photons, settings)
+    times["density"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    rays_before = runner.rays_cast
+    grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
+    work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
+    bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
+    offsets = merged.vertex_offset
+    glossy = [
+        (o, offsets[i], directions.grid_directions(grid_sizes[o.name]))
+        for i, o in enumerate(refined.objects)
+        if o.material.has_grid
+    ]
+    try:
+        gathered, regathered = _gather_glossy(runner, sa, settings.seed, irradiance, glossy, settings, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    gather_rays = runner.rays_cast - rays_before
+    times["gather"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    visible, own_parts, shadow_rays = _closed_form_highlights(merged, sa, (parts, closed), glossy, gathered, settings)
+    times["highlights"] = time.perf_counter() - t0
+    results, textured = _radiance_of_objects(refined, offsets, irradiance, gathered, {o.name: d for o, _, d in glossy})
+
+    stats = {
+        "photons": int(photons.total) if photons.lit else 0,
+        "rays": int(runner.rays_cast),
+        "photon_rays": int(photons.rays),
+        "gather_rays": int(gather_rays),
+        "visibility_rays": int(shadow_rays),
+        "emitter_parts": {name: sum(p.source == name for p in parts) for name in (*analytic, *(
+            p.source for p in parts if p.is_delta))},
+        "time_s": {k: round(v, 4) for k, v in times.items()},
+        "photon_rays_per_s": photons.rays / times["photons"] if times["photons"] > 0 else 0.0,
+        "gather_rays_per_s": gather_rays / times["gather"] if times["gather"] > 0 else 0.0,
+        "seed": settings.seed,
+        "threads": runner.threads,
+        "scheduler": runner.description,
+        "quality": settings.quality,
+        "triangles": int(refined.n_triangles),
+        "vertices": int(refined.n_vertices),
+        "grid": grid_sizes,
+        "regather": regathered,
+        "energy": _energy(photons, bool(refined.lights)),
+    }
+    objects = _object_solutions(results, textured, visible, own_parts, len(parts))
+    return Solution(
+        objects=objects, settings=settings.meta(), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
+        emitters=parts, emitter_nodes=int(settings.emitter_nodes), environment=scene.environment,
+        lights=scene.lights, microfacet_highlights=True,
+    )
+
+
+def _photon_pass(refined, sa, runner, settings, make_bar):
+    """The photons of every emitter, the environment and the delta lights, traced
+    (``runner.photon_batches``) into each vertex's density moments (a ``_Photons``)."""
+    total = settings.photons
     photon_sums = empty_tally(len(sa.positions))
     emitted = np.zeros(3)
     for o in refined.emitters:
@@ -371,66 +491,56 @@ def _solve(scene, settings, runner, progress):
     if refined.lights and lit:  # a point light's power its photons do not carry leaves the scene at once
         unreached = delta_lights.unreached(refined.lights, sa.lights.center, sa.lights.radius)
         tally[T_ESCAPED:T_ESCAPED + 3] += unreached
-    photon_rays = runner.rays_cast - rays_before
-    times["photons"] = time.perf_counter() - t0
+    return _Photons(moment0, moment1, tally, emitted, lit, total, runner.rays_cast - rays_before, unreached)
 
-    # -- density ------------------------------------------------------------------
-    t0 = time.perf_counter()
-    irradiance = np.zeros_like(moment0)
+
+def _irradiance(refined, merged, photons, settings):
+    """Each vertex's irradiance (N, 3) from the photons' density moments (``density.irradiance``)."""
+    irradiance = np.zeros_like(photons.moment0)
     offsets = merged.vertex_offset
-    photon_power = float(emitted.sum()) / total if lit and total else 0.0  # the RGB sum one photon carries
+    total = photons.total
+    photon_power = float(photons.emitted.sum()) / total if photons.lit and total else 0.0  # the RGB sum one photon carries
     for i, o in enumerate(refined.objects):
         sl = slice(offsets[i], offsets[i + 1])
         irradiance[sl] = density.irradiance(
-            o.positions, o.normals, o.tangents, o.faces, moment0[sl], moment1[sl], settings["kernel_rings"],
-            photon_power=photon_power, max_radius=settings["max_edge"], min_photons=settings["min_photons"],
+            o.positions, o.normals, o.tangents, o.faces, photons.moment0[sl], photons.moment1[sl], settings.kernel_rings,
+            photon_power=photon_power, max_radius=settings.max_edge, min_photons=settings.min_photons,
         )
-    times["density"] = time.perf_counter() - t0
+    return irradiance
 
-    # -- gather -------------------------------------------------------------------
-    t0 = time.perf_counter()
-    rays_before = runner.rays_cast
-    results = []
-    grid_sizes = {name: grid_n for name, _, grid_n in _glossy_sizes(refined.objects, settings)}
-    work = sum(o.n_vertices for o in refined.objects if o.name in grid_sizes)
-    bar = make_bar(total=work, desc="gather", unit="vertex") if work else None
-    glossy = [
-        (o, offsets[i], directions.grid_directions(grid_sizes[o.name]))
-        for i, o in enumerate(refined.objects)
-        if o.material.has_grid
-    ]
-    try:
-        gathered, regathered = _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    glossy_dirs = {o.name: dirs for o, _, dirs in glossy}
-    gather_rays = runner.rays_cast - rays_before
-    times["gather"] = time.perf_counter() - t0
 
-    # -- the emitters' direct highlights, in closed form ---------------------------------
-    t0 = time.perf_counter()
-    visible = {}
-    shadow_rays = 0
-    own_parts = {}  # a glossy object's parts (indices) where the scene has more than one object draws
+def _closed_form_highlights(merged, sa, emitters, glossy, gathered, settings):
+    """The emitters' direct highlights on the glossy objects, in closed form: added to
+    ``gathered`` where a part is kept in the grid; returns (each object's visibility of the
+    parts it draws, its own parts where it draws them, the shadow rays cast).
+    emitters = (the parts drawn per pixel, every part in closed form)."""
+    parts, closed = emitters
+    visible, own_parts, shadow_rays = {}, {}, 0  # own_parts: where the scene has more than one object draws
     if closed and glossy:
         tracer = RayTracer(merged.positions, merged.faces, cutout=merged.cutout)
         for o, _, dirs in glossy:
             if len(parts) > highlights.MAX_RECEIVER_PARTS:
                 grid, own_parts[o.name], visible[o.name] = highlights.object_parts(
-                    tracer, closed, o, dirs, settings["visibility_samples"], sa.epsilon, settings["emitter_nodes"],
+                    tracer, closed, o, dirs, settings.visibility_samples, sa.epsilon, settings.emitter_nodes,
                     drawn=len(parts))
                 gathered[o.name] += grid
                 continue
             seen = highlights.visibility(
-                tracer, closed, o.positions, o.normals, settings["visibility_samples"], sa.epsilon, source=o.name
+                tracer, closed, o.positions, o.normals, settings.visibility_samples, sa.epsilon, source=o.name
             )
-            gathered[o.name] += highlights.grid_highlights(closed, o, dirs, seen, settings["emitter_nodes"])
+            gathered[o.name] += highlights.grid_highlights(closed, o, dirs, seen, settings.emitter_nodes)
             visible[o.name] = np.ascontiguousarray(seen[:, :len(parts)])
         shadow_rays = tracer.rays_cast
         tracer.close()
-    times["highlights"] = time.perf_counter() - t0
-    textured = {}
+    return visible, own_parts, shadow_rays
+
+
+def _radiance_of_objects(refined, offsets, irradiance, gathered, glossy_dirs):
+    """([(object, its directions, its radiance (V, D, 3))], {name: ``TexturedDiffuse``}):
+    a diffuse object's kd / pi E plus its emission in one direction, a glossy one's
+    gathered grid; a textured object's diffuse term kept apart (the displays draw it per
+    pixel)."""
+    results, textured = [], {}
     for i, o in enumerate(refined.objects):
         sl = slice(offsets[i], offsets[i + 1])
         kd = diffuse_reflectance(o.material)  # the kd the photons' estimate is for (a rough plastic's own)
@@ -454,37 +564,6 @@ def _solve(scene, settings, runner, progress):
             dirs = directions.DIFFUSE_DIRECTIONS
             radiance = (diffuse + np.asarray(o.material.emission))[:, None, :]
         results.append((o, dirs, radiance))
-
-    stats = {
-        "photons": int(total) if lit else 0,
-        "rays": int(runner.rays_cast),
-        "photon_rays": int(photon_rays),
-        "gather_rays": int(gather_rays),
-        "visibility_rays": int(shadow_rays),
-        "emitter_parts": {name: sum(p.source == name for p in parts) for name in (*analytic, *(
-            p.source for p in parts if p.is_delta))},
-        "time_s": {k: round(v, 4) for k, v in times.items()},
-        "photon_rays_per_s": photon_rays / times["photons"] if times["photons"] > 0 else 0.0,
-        "gather_rays_per_s": gather_rays / times["gather"] if times["gather"] > 0 else 0.0,
-        "seed": seed,
-        "threads": threads,
-        "scheduler": runner.description,
-        "quality": settings["quality"],
-        "triangles": int(refined.n_triangles),
-        "vertices": int(refined.n_vertices),
-        "grid": grid_sizes,
-        "regather": regathered,
-        "energy": {
-            "emitted": emitted.tolist(),
-            "escaped": tally[T_ESCAPED:T_ESCAPED + 3].tolist(),
-            "absorbed": tally[T_ABSORBED:T_ABSORBED + 3].tolist(),
-            "backface": tally[T_BACKFACE:T_BACKFACE + 3].tolist(),
-            "terminated": tally[T_TERMINATED:T_TERMINATED + 3].tolist(),
-            "incident": tally[T_INCIDENT:T_INCIDENT + 3].tolist(),
-            "photon_hits": int(tally[T_HITS]),
-            **({"unreached": unreached.tolist()} if refined.lights else {}),  # of escaped: no photon carried it
-        },
-    }
     for o, _, radiance in results:
         peak = float(np.max(radiance))
         if peak > FLOAT32_MAX:
@@ -492,7 +571,27 @@ def _solve(scene, settings, runner, progress):
                 f"object {o.name!r}: radiance reaches {peak:.3g}, beyond the largest single-precision number "
                 f"({FLOAT32_MAX:.3g}) the solution file can hold; lower the emission"
             )
-    objects = tuple(
+    return results, textured
+
+
+def _energy(photons, delta_lights_present):
+    """Where the photons' power went (the stats' ``energy``): emitted, escaped, absorbed..."""
+    tally = photons.tally
+    return {
+        "emitted": photons.emitted.tolist(),
+        "escaped": tally[T_ESCAPED:T_ESCAPED + 3].tolist(),
+        "absorbed": tally[T_ABSORBED:T_ABSORBED + 3].tolist(),
+        "backface": tally[T_BACKFACE:T_BACKFACE + 3].tolist(),
+        "terminated": tally[T_TERMINATED:T_TERMINATED + 3].tolist(),
+        "incident": tally[T_INCIDENT:T_INCIDENT + 3].tolist(),
+        "photon_hits": int(tally[T_HITS]),
+        **({"unreached": photons.unreached.tolist()} if delta_lights_present else {}),  # of escaped: no photon carried it
+    }
+
+
+def _object_solutions(results, textured, visible, own_parts, n_parts):
+    """The ``ObjectSolution`` of every object, as the file keeps them (float32, int32)."""
+    return tuple(
         ObjectSolution(
             name=o.name,
             positions=o.positions.astype(np.float32),
@@ -502,17 +601,12 @@ def _solve(scene, settings, runner, progress):
             directions=np.asarray(dirs, dtype=np.float32),
             radiance=np.asarray(radiance, dtype=np.float32),
             material=o.material.to_dict(),
-            visibility=visible.get(o.name, np.ones((o.n_vertices, len(parts)), np.float32))
-            if o.material.has_grid and parts else None,
+            visibility=visible.get(o.name, np.ones((o.n_vertices, n_parts), np.float32))
+            if o.material.has_grid and n_parts else None,
             emitter_parts=own_parts.get(o.name) if o.material.has_grid else None,
             textured=textured.get(o.name),
         )
         for o, dirs, radiance in results
-    )
-    return Solution(
-        objects=objects, settings=dict(settings), stats=stats, scene=scene.source or scene.name, camera=scene.camera,
-        emitters=parts, emitter_nodes=int(settings["emitter_nodes"]), environment=scene.environment,
-        lights=scene.lights, microfacet_highlights=True,
     )
 
 
@@ -533,10 +627,10 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
     its value, far below their noise, and a float64 sum of every glossy object (then
     its float32 copy) was most of a large scene's peak (a staircase of 572,000 vertices:
     6.4 GB of sums and 3.2 GB of copies, 12.5 GB in all)."""
-    strata = math.isqrt(settings["gather_samples"])
+    strata = math.isqrt(settings.gather_samples)
 
     # light samples per vertex: none where no emitter is left to sample (every one in closed form)
-    n_light = settings["light_samples"] if sa.direct_area_pdf.any() else 0
+    n_light = settings.light_samples if sa.direct_area_pdf.any() else 0
     radiance = {o.name: np.zeros((o.n_vertices, len(dirs), 3), np.float32) for o, _, dirs in glossy}
     variance = {o.name: np.zeros(o.n_vertices) for o, _, _ in glossy}
 
@@ -547,11 +641,11 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
         result goes (its object, its pass)."""
         vertices = local.astype(np.int64) + offset
         pass_seed = regather.pass_seed(seed, k)
-        block = _gather_block_size(n_light, settings["gather_samples"])
+        block = _gather_block_size(n_light, settings.gather_samples)
         return [
             (
                 GatherBlock(
-                    pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings["lobe_light"], k == 0,
+                    pass_seed, vertices[s:s + block], n_light, strata, MAX_GATHER_DEPTH, settings.lobe_light, k == 0,
                 ),
                 obj,
                 offset,
@@ -580,13 +674,13 @@ def _gather_glossy(runner, sa, seed, irradiance, glossy, settings, bar):
 
     run([job for obj, offset, _ in glossy for job in jobs_of_pass(0, obj, offset, np.arange(obj.n_vertices))])
     own = {o.name: np.ones(o.n_vertices, dtype=np.int64) for o, _, _ in glossy}
-    tolerance = {o.name: settings["gather_tolerance"] for o, _, _ in glossy}
-    if settings["extra_gather"] > 0:
+    tolerance = {o.name: settings.gather_tolerance for o, _, _ in glossy}
+    if settings.extra_gather > 0:
         for obj, _, _ in glossy:
             noise = regather.relative_noise(radiance[obj.name], variance[obj.name])
             predicted = regather.neighbour_noise(obj.faces, obj.n_vertices, noise)
             own[obj.name], tolerance[obj.name] = regather.plan_passes(
-                predicted, settings["gather_tolerance"], settings["extra_gather"]
+                predicted, settings.gather_tolerance, settings.extra_gather
             )
         passes = np.concatenate(list(own.values())) if own else np.ones(0, dtype=np.int64)
         if bar is not None and getattr(bar, "total", None) is not None:  # the bar grows by the extra work

@@ -3,6 +3,7 @@ milliseconds) and checks of a command's refusal. The scene is a wall (diffuse) w
 tile (glossy, one virtual light) in front of it, seen by the framing view from -z."""
 
 import numpy as np
+from refusals import assert_refused  # noqa: F401 (the display tests' name for it)
 
 from fitting import FittedModel, FittedObject
 from fitting.model import directional
@@ -79,18 +80,6 @@ def write_pair(directory, solution, lights=1):
     solution.save(solution_path)
     tiny_fit(solution, lights).save(fit_path)
     return fit_path, solution_path
-
-
-def assert_refused(result, *fragments, command=None):
-    """Exit status 2, nothing on stdout, one line on stderr holding every fragment."""
-    code, out, err = result
-    assert code == 2, (code, out, err)
-    assert out == "", out
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    if command is not None:
-        assert err.startswith(f"vlights {command}: error: "), err
-    for fragment in fragments:
-        assert fragment in err, (fragment, err)
 
 
 def listing(path):

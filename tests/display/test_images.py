@@ -8,9 +8,10 @@ import struct
 
 import numpy as np
 import pytest
+from refusals import input_error
 
 from display.images import read_hdr_image
-from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.errors import SceneWarning
 
 OpenEXR = pytest.importorskip("OpenEXR")
 
@@ -29,13 +30,7 @@ def write_exr(path, channels, compression=None):
 
 def refused(path, *fragments):
     """The InputError of reading ``path``: one line naming the file and every fragment."""
-    with pytest.raises(InputError) as info:
-        read_hdr_image(path)
-    message = str(info.value)
-    assert "\n" not in message and str(path) in message, message
-    for fragment in fragments:
-        assert fragment in message, (fragment, message)
-    return message
+    return input_error(lambda: read_hdr_image(path), *fragments, names=str(path))
 
 
 # --- OpenEXR ---------------------------------------------------------------------------

@@ -231,7 +231,7 @@ def test_every_value_reads_back_through_the_store(gl_context, rng, small_store):
         cases.append(block_cases(r.layout, obj.base, len(s.radiance), s.radiance.shape[1]))
         expected.append(np.asarray(rest, np.float32).reshape(-1, 3))
         for mode, visibility in (("reference", s.visibility), ("fitted", f.highlight.visibility)):
-            cases.append(block_cases(r.layout, obj.highlight[mode][0], *visibility.shape))
+            cases.append(block_cases(r.layout, obj.highlight[mode].base, *visibility.shape))
             expected.append(np.stack([visibility.reshape(-1), np.zeros(visibility.size), np.zeros(visibility.size)],
                                      axis=1).astype(np.float32))
         cases.append(block_cases(r.layout, obj.coefficient_base, len(f.specular), f.n_lights))

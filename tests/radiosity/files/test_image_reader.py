@@ -174,3 +174,12 @@ def test_eight_bits_decode_as_before(tmp_path):
     Image.fromarray(rgb8, "RGB").save(buffer, format="PNG")
     (tmp_path / "t.png").write_bytes(buffer.getvalue())
     assert np.array_equal(read_texture(tmp_path / "t.png", "here"), srgb_to_linear(rgb8 / 255.0).astype(np.float32))
+
+
+@pytest.mark.parametrize("cut", [0.5, 0.9])
+def test_a_truncated_16_bit_png_is_refused_in_one_line(tmp_path, cut):
+    data = _png16(tmp_path / "t.png").read_bytes()
+    (tmp_path / "t.png").write_bytes(data[:int(len(data) * cut)] if cut < 0.9 else data[:33] + b"\0" * 40)
+    with pytest.raises(InputError, match=r"^cannot read texture '.*t.png': a 16-bit PNG that is truncated or corrupt") as info:
+        read_image(tmp_path / "t.png", "texture")
+    assert len(str(info.value)) < 200

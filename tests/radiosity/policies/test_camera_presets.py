@@ -59,5 +59,5 @@ def test_the_solver_reads_the_table(monkeypatch):
     scene = load_scene("cornell")
     monkeypatch.setitem(presets.PRESETS, "draft", dataclasses.replace(presets.PRESETS["draft"], photons=1234, max_edge_divisor=10))
     settings = SolveOptions(quality="draft").resolved(scene)
-    assert settings["photons"] == 1234 and settings["max_edge"] == pytest.approx(scene.diagonal / 10)
-    assert SolveOptions(quality="draft", photons=99).resolved(scene)["photons"] == 99
+    assert settings.photons == 1234 and settings.max_edge == pytest.approx(scene.diagonal / 10)
+    assert SolveOptions(quality="draft", photons=99).resolved(scene).photons == 99

@@ -52,10 +52,10 @@ def test_dilation_spreads_by_rings_but_not_into_black():
 
 def test_options_follow_the_preset_and_refuse_nonsense():
     knobs = AdaptiveOptions().resolved("draft", 1000)
-    assert knobs["enabled"] and knobs["vertex_budget"] == 1500
-    assert not AdaptiveOptions().resolved("draft", 1000, explicit_max_edge=True)["enabled"]
-    assert AdaptiveOptions(enabled=True).resolved("draft", 1000, explicit_max_edge=True)["enabled"]
-    assert AdaptiveOptions(vertex_budget=1234).resolved("high", 1000)["vertex_budget"] == 1234
+    assert knobs.enabled and knobs.vertex_budget == 1500
+    assert not AdaptiveOptions().resolved("draft", 1000, explicit_max_edge=True).enabled
+    assert AdaptiveOptions(enabled=True).resolved("draft", 1000, explicit_max_edge=True).enabled
+    assert AdaptiveOptions(vertex_budget=1234).resolved("high", 1000).vertex_budget == 1234
     from radiosity.files.errors import InputError
 
     with pytest.raises(InputError, match="--vertex-budget"):

@@ -7,6 +7,7 @@ light (glossy furnace), non-determinism, or NaN at the extremes.
 """
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -373,7 +374,7 @@ def test_photon_counts_beyond_2_40_are_refused():
     scene = load_scene("cornell")
     with pytest.raises(InputError, match=r"--photons 1,099,511,627,777 is more than .* \(2\^40\)"):
         SolveOptions(photons=2**40 + 1).resolved(scene)
-    assert SolveOptions(photons=2**40).resolved(scene)["photons"] == 2**40  # counting is lazy: no list of batches
+    assert SolveOptions(photons=2**40).resolved(scene).photons == 2**40  # counting is lazy: no list of batches
 
 
 @pytest.mark.parametrize("rings", [65, 1000, 10**9])
@@ -382,7 +383,7 @@ def test_kernel_rings_beyond_the_scene_are_refused_from_python_too(rings):
     scene = load_scene("cornell")
     with pytest.raises(InputError, match=f"--kernel-rings must be a whole number from 0 to 64, got {rings}"):
         SolveOptions(kernel_rings=rings).resolved(scene)
-    assert SolveOptions(kernel_rings=64).resolved(scene)["kernel_rings"] == 64
+    assert SolveOptions(kernel_rings=64).resolved(scene).kernel_rings == 64
 
 
 def test_max_edge_must_be_finite():
@@ -404,7 +405,7 @@ def test_memory_estimate_grows_with_each_knob():
         (dict(light_samples=100_000), "gather buffers"),
         (dict(threads=8), "gather buffers"),
     ):
-        assert solve_module.memory_estimate(base | change, 10_000, glossy)[part] > 2 * parts[part], change
+        assert solve_module.memory_estimate(replace(base, **change), 10_000, glossy)[part] > 2 * parts[part], change
     assert solve_module.memory_estimate(base, 10_000, [("pot", 5000, 34)])["gather output"] == 4 * parts["gather output"]
 
 
@@ -475,7 +476,7 @@ def test_min_photons_reaches_the_density_estimate(monkeypatch):
     from radiosity.transport import density
 
     scene = load_scene("cornell")
-    assert SolveOptions().resolved(scene)["min_photons"] == MIN_PHOTONS == 16
+    assert SolveOptions().resolved(scene).min_photons == MIN_PHOTONS == 16
     with pytest.raises(InputError, match="--min-photons must be a whole number >= 0, got -1"):
         SolveOptions(min_photons=-1).resolved(scene)
     seen = []
