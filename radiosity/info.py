@@ -91,11 +91,11 @@ def describe(scene, refined, max_edge, how, adaptive=None):
         "adaptive": None
         if adaptive is None
         else {
-            "enabled": bool(adaptive["enabled"]),
+            "enabled": bool(adaptive.enabled),
             "vertices_before": refined.n_vertices,
-            "vertex_budget": adaptive["vertex_budget"],
-            "passes": adaptive["passes"],
-            "tolerance": adaptive["tolerance"],
+            "vertex_budget": adaptive.vertex_budget,
+            "passes": adaptive.passes,
+            "tolerance": adaptive.tolerance,
         },
     }
 

@@ -7,7 +7,7 @@ import sys
 from types import SimpleNamespace
 
 import pytest
-from conftest import slowest_tests
+from durations import slowest_tests
 from source_imports import REPOSITORY
 
 

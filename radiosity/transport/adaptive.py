@@ -324,7 +324,7 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
         if o.material.is_emitter or not v.any():
             continue
         edges, err = edge_errors(o.positions, o.normals, o.tangents, o.faces, v)
-        sigma = value_noise(o, v, photon_power, settings.gather_samples, settings.kernel_rings)
+        sigma = value_noise(o, v, photon_power, settings["gather_samples"], settings["kernel_rings"])
         a, b = edges[:, 0], edges[:, 1]
         noise = NOISE_SIGMAS * 0.5 * (sigma[a] + sigma[b])
         target = tolerance * np.sqrt(np.maximum(0.5 * (v[a] + v[b]), floor) * level)
@@ -334,7 +334,7 @@ def mark_edges(scene, solution, tolerance, max_edge, weights=None):
         if not marked.any():
             continue
         wanted = np.minimum(np.sqrt(ratio[marked]) / length[marked], 1 / (MIN_EDGE_FRACTION * max_edge))
-        out[o.name] = Marks(edges[marked], wanted, ratio[marked], v > floor, edges, settings.kernel_rings + 1)
+        out[o.name] = Marks(edges[marked], wanted, ratio[marked], v > floor, edges, settings["kernel_rings"] + 1)
     return out
 
 
