@@ -51,10 +51,8 @@ def glass_of(source) -> Glass | None:
     glass = getattr(source, "glass", None)
     if glass is not None:
         return glass
-    material = getattr(source, "material", None)
-    if isinstance(material, dict) and "glass" in material:
-        return Glass.from_dict(material["glass"])
-    return None
+    record = getattr(source, "material_record", None)  # a solution object's
+    return None if record is None else record.glass
 
 
 def cube_views(centre, size=PROBE_SIZE):

@@ -35,7 +35,7 @@ from dataclasses import replace
 import numpy as np
 
 from radiosity.physics.ltc import highlight_lobe
-from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Material, Microfacet
+from radiosity.physics.materials import NEAR_MIRROR_ALPHA
 
 __all__ = ["FLAT_THICKNESS", "NEAR_MIRROR_ALPHA", "mirror_of", "mirrored_view", "near_mirror_of", "plane_of"]
 
@@ -48,11 +48,9 @@ def mirror_of(source):
     mirror = getattr(source, "mirror", None)
     if mirror is not None:
         return tuple(mirror.specular), mirror.fresnel
-    material = getattr(source, "material", None)
-    if isinstance(material, dict):
-        m = Material(getattr(source, "name", "mirror"), **material)
-        if m.is_mirror:
-            return m.specular, m.fresnel
+    m = getattr(source, "material_record", None)  # a solution object's
+    if m is not None and m.is_mirror:
+        return m.specular, m.fresnel
     return None
 
 
@@ -60,10 +58,8 @@ def near_mirror_of(source):
     """The ``HighlightLobe`` (ks, F0, lobe code, alpha) of a near mirror's material, from a
     solution object's material or a fitted object's highlight; None where there is no
     microfacet model of roughness at most ``NEAR_MIRROR_ALPHA`` (flatness is ``plane_of``'s)."""
-    model = None
-    material = getattr(source, "material", None)
-    if isinstance(material, dict) and material.get("microfacet") is not None:
-        model = Microfacet.from_dict(material["microfacet"])
+    record = getattr(source, "material_record", None)  # a solution object's
+    model = None if record is None else record.microfacet
     highlight = getattr(source, "highlight", None)
     if model is None and highlight is not None and getattr(highlight, "microfacet", None) is not None:
         model = highlight.microfacet

@@ -666,7 +666,7 @@ class Renderer:
             mean = _directional_mean(s.radiance)
             obj.add(ctx, "in_mean", mean)
             if obj.near is not None:  # a near mirror's own part (``physics.materials.near_base``)
-                base, obj.near_eta = near_base(s.material["microfacet"], s.directions,
+                base, obj.near_eta = near_base(s.material_record.microfacet, s.directions,
                                                lambda reduce, s=s: _directional_mean(s.radiance, reduce))
                 obj.add(ctx, "in_base", base)
             if "in_emitted" not in obj.buffers:  # a solution alone
@@ -681,9 +681,9 @@ class Renderer:
             split = not s.is_diffuse and bool(parts) and s.visibility is not None
             obj.base = plan.add(s.radiance.size // 3, lambda s=s, split=split: _grid_chunks(solution, s, split))
             if split:
-                m = s.material
-                self._highlight("reference", obj, parts, s.visibility, m["specular"], m["exponent"],
-                                plan, fresnel=m.get("fresnel"), microfacet=solution.lobe_of(s.name))
+                m = s.material_record
+                self._highlight("reference", obj, parts, s.visibility, m.specular, m.exponent,
+                                plan, fresnel=m.fresnel, microfacet=solution.lobe_of(s.name))
 
     @property
     def uploaded_bytes(self):

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from radiosity.files.solution import SolutionFile
-from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Material, Microfacet, near_base
+from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Microfacet, near_base
 
 from . import glossy, mixed
 from .data import fit_data, relative_error
@@ -45,8 +45,8 @@ def fit_object(obj, options, scene=None, progress=None, solution=None, box=None)
     ``solution`` (its emitters) and ``box`` (the probe's proxy) for the models with emitters and a probe.
     A glass object or a perfect mirror is not fitted: the displays draw what it shows
     (``display.glass``, ``display.mirror``)."""
-    material = Material(obj.name, **obj.material) if isinstance(obj.material, dict) else None
-    if material is not None and (material.is_glass or material.is_mirror):
+    material = obj.material_record
+    if material.is_glass or material.is_mirror:
         zeros = np.zeros((obj.num_vertices, 3))
         kind = "glass" if material.is_glass else "mirror"
         info = {"model": kind, "method": "none", "time_s": 0.0,
@@ -99,12 +99,12 @@ def _glossy_object(obj, options, scene, progress, solution, box):
                               search_samples=options.search_samples, block_samples=options.block_samples)
     highlight = None
     if c.emitters and parts:
-        m = obj.material
+        m = obj.material_record
         indices = None if obj.emitter_parts is None else tuple(int(i) for i in obj.emitter_parts)
         lobe = solution.lobe_of(obj.name)
-        highlight = Highlight(tuple(own), solution.emitter_nodes, np.asarray(m["specular"], np.float64),
-                              float(m["exponent"]), np.asarray(obj.visibility, np.float32),
-                              None if m.get("fresnel") is None else np.asarray(m["fresnel"], np.float64), indices,
+        highlight = Highlight(tuple(own), solution.emitter_nodes, np.asarray(m.specular, np.float64),
+                              float(m.exponent), np.asarray(obj.visibility, np.float32),
+                              None if m.fresnel is None else np.asarray(m.fresnel, np.float64), indices,
                               None if lobe is None else Microfacet.from_dict(lobe))
     specular = c.specular if c.n_lights or alone else np.zeros((obj.num_vertices, 3))
     weight = None if c.probe is None else np.asarray(c.probe_weight, np.float32)
@@ -154,7 +154,7 @@ def _fitted_object(obj, emitted, specular, lights, info, **parts):
     near = _near(obj)
     if near is not None:
         parts = {**parts, "near_base": near[0].astype(np.float32),
-                 "near_microfacet": Microfacet.from_dict(obj.material["microfacet"])}
+                 "near_microfacet": obj.material_record.microfacet}
     return FittedObject(
         name=obj.name,
         positions=np.asarray(obj.positions, np.float32),
@@ -179,8 +179,8 @@ def _near(obj):
     for a glossy solution object of a microfacet material at most ``NEAR_MIRROR_ALPHA`` rough,
     which a display may draw as one (flat ones: ``display.mirror``), else None. From the
     solution's grid, a chunk of vertices at a time."""
-    model = obj.material.get("microfacet") if isinstance(obj.material, dict) else None
-    if model is None or obj.is_diffuse or Microfacet.from_dict(model).alpha > NEAR_MIRROR_ALPHA:
+    model = obj.material_record.microfacet
+    if model is None or obj.is_diffuse or model.alpha > NEAR_MIRROR_ALPHA:
         return None
     radiance = obj.radiance
     step = max(1, NEAR_CHUNK_VALUES // max(radiance.shape[1], 1))

@@ -316,7 +316,7 @@ def fit_components(obj, highlights, parts, options, scene, box, exponent, fit_li
     positions = np.asarray(obj.positions, np.float64)
     centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
     del positions
-    found = _search(full, np.asarray(of(sub), np.float64), obj.material, n_vertices, parts, options,
+    found = _search(full, np.asarray(of(sub), np.float64), obj.material_record, n_vertices, parts, options,
                     place=(centre, box), exponent=exponent, fit_lights=fit_lights, probe_sizes=probe_sizes)
     if sub.step == 1:
         return found
@@ -365,7 +365,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
     # the loss weights, of what a viewer sees (the whole radiance), of each loss fitted
     # ("auto" may try both: ``_choose_loss``)
     weights = {options.loss_for("probe"): make_loss_weights(full, options.loss_for("probe"))}
-    albedo = probe.albedo_table(material["exponent"])
+    albedo = probe.albedo_table(material.exponent)
     tried, fits = [], []
 
     def record(model, size, emitters, emitted, *, light_fit=None, probe_fit=None, weight=None, probe_term=None,

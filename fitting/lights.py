@@ -37,7 +37,7 @@ def start_exponent(obj, options):
     """Where the refinement's exponent starts: the Blinn-Phong exponent that matches the
     material's modified-Phong lobe about the mirror direction (about 4 n: the half vector
     turns half as far as the view), within the bounds."""
-    n = float(obj.material.get("exponent", 0.0)) if isinstance(obj.material, dict) else 0.0
+    n = float(obj.material_record.exponent)
     guess = 4.0 * n + 1.0 if n > 0 else 100.0
     return float(np.clip(guess, *options.exponent_bounds))
 

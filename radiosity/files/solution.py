@@ -61,6 +61,7 @@ applies the same checks but raises ``ValueError`` (a bug, not a user error).
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from dataclasses import dataclass, field
@@ -189,6 +190,12 @@ class ObjectSolution:
     visibility: np.ndarray | None = None
     textured: TexturedDiffuse | None = None
     emitter_parts: np.ndarray | None = None
+
+    @functools.cached_property
+    def material_record(self) -> Material:
+        """The object's material as the validated record (``Material``): what every
+        stage reads of it; ``material`` is the file's dict."""
+        return Material(self.name, **self.material)
 
     def __post_init__(self) -> None:
         name = _check_name(self.name)
@@ -441,11 +448,10 @@ class Solution:
         delta light, else 3 with a textured object or an environment, else 2."""
         if any(o.textured is not None and o.textured.opacity is not None for o in self.objects):
             return 9
-        microfacet = any(isinstance(o.material, dict) and "microfacet" in o.material for o in self.objects)
+        microfacet = any(o.material_record.microfacet is not None for o in self.objects)
         if microfacet and self.microfacet_highlights:
             return 8
-        if any(isinstance(o.material, dict) and ("glass" in o.material or Material(o.name, **o.material).is_mirror)
-               for o in self.objects):
+        if any(o.material_record.is_glass or o.material_record.is_mirror for o in self.objects):
             return 7
         if microfacet:
             return 6
@@ -502,12 +508,12 @@ class Solution:
         parts = self.parts_of(name)
         if o.is_diffuse or not parts:
             return np.zeros(o.radiance[vertices].shape)
-        m = o.material
+        m = o.material_record
         visibility = None if o.visibility is None else o.visibility[vertices]
         return emitter_grid(
             parts, o.positions[vertices], o.normals[vertices], o.tangents[vertices], o.directions,
-            m["specular"], m["exponent"], visibility=visibility, nodes=self.emitter_nodes, source=name,
-            fresnel=m.get("fresnel"), microfacet=self.lobe_of(name),
+            m.specular, m.exponent, visibility=visibility, nodes=self.emitter_nodes, source=name,
+            fresnel=m.fresnel, microfacet=self.lobe_of(name),
         )
 
     def lobe_of(self, name: str) -> dict | None:

@@ -206,7 +206,7 @@ def vertex_values(obj_solution):
     untextured (the texture's own detail is drawn per pixel, not by the mesh)."""
     # the mean in float64 straight from the float32 radiance (no float64 copy of the
     # whole grid), then less the emission: the same bits wherever the emission is 0
-    mean = obj_solution.radiance.mean(axis=1, dtype=np.float64) - np.asarray(obj_solution.material["emission"])
+    mean = obj_solution.radiance.mean(axis=1, dtype=np.float64) - np.asarray(obj_solution.material_record.emission)
     t = obj_solution.textured
     if t is not None:
         albedo = np.asarray(t.kd) * t.texture.reshape(-1, 3).mean(axis=0, dtype=np.float64)

@@ -669,3 +669,15 @@ def test_normals_and_tangents_must_be_unit_vectors(tmp_path, solution, key, valu
     arrays[f"{GLOSSY_NAME}/{key}"] = broken
     refused(write_npz(tmp_path / "s.npz", meta, arrays), f"'{GLOSSY_NAME}/{key}' has a vector of length {length}",
             "at vertex 1", "must be unit vectors")
+
+
+def test_an_object_s_material_is_read_as_the_validated_record(solution):
+    """Every stage reads a solution object's material through its record (``Material``),
+    the file's dict kept as it is; the record is made once."""
+    from radiosity.physics.materials import Material
+
+    for o in solution.objects:
+        record = o.material_record
+        assert isinstance(record, Material) and record is o.material_record
+        assert record.to_dict() == o.material
+        assert record.exponent == o.material["exponent"] and list(record.specular) == list(o.material["specular"])
