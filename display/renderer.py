@@ -259,7 +259,6 @@ class _Object:
         self.near = None  # a near mirror's ``HighlightLobe`` (``display.mirror.near_mirror_of``)
         self.near_eta = 0.0  # its base's interface (``physics.materials.near_base``; 0 none): the solution's
         self.fit_near_eta = 0.0  # ... the fit's
-        self.bytes = sum(b.size for b in self.buffers.values()) + self.index.size
         self.vaos = {}  # (program, attributes, sources, indexed) -> its vertex array, made once (``vao``)
 
     def add(self, ctx, attribute, values):
@@ -270,7 +269,6 @@ class _Object:
         self.buffers[attribute] = ctx.buffer(values.tobytes())
         if values.ndim == 2 and values.shape[1] != 3:
             self.formats[attribute] = f"{values.shape[1]}f"
-        self.bytes += self.buffers[attribute].size
 
     def add_textured(self, ctx, textured, images):
         """A textured object's diffuse term (``radiosity.physics.textures.TexturedDiffuse``):
@@ -684,18 +682,6 @@ class Renderer:
                 m = s.material_record
                 self._highlight("reference", obj, parts, s.visibility, m.specular, m.exponent,
                                 plan, fresnel=m.fresnel, microfacet=solution.lobe_of(s.name))
-
-    @property
-    def uploaded_bytes(self):
-        """Bytes on the GPU: vertex and index buffers, light tables, the float store (radiance
-        grids, per-light coefficients, visibility), the probes."""
-        total = sum(o.bytes for o in self.objects) + self.images.nbytes
-        total += sum(o.lights.width * o.lights.height * 16 for o in self.objects if o.lights is not None)
-        total += self.store.nbytes
-        if self.probes is not None:
-            total += self.probes.width * self.probes.height * 12
-        total += sum(t.width * t.height * 16 for t in (*self.emitter_tables.values(), *(() if self.ltc is None else (self.ltc,))))
-        return total
 
     def _program(self, key, parts=PARTS, textured=False, extra=()):
         """The program ``key`` (``PROGRAMS``) with the shading code of ``parts`` alone,

@@ -614,3 +614,25 @@ def test_a_nul_named_object_fails_before_the_solve_in_a_real_run(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "U+0000" in result.stderr and "Traceback" not in result.stderr
     assert not Path(tmp_path / "s.npz").exists()
+
+
+FIT_FLAG_EXTREMES = [
+    ["--search-samples", "0"], ["--search-samples", "-5"], ["--search-samples", str(2**41)], ["--search-samples", "1e3"],
+    ["--block-samples", "0"], ["--block-samples", "x"], ["--model-target", "nan"], ["--model-target", "inf"],
+    ["--model-target", "-1"], ["--probe-size", "0"], ["--probe-size", "129"], ["--probe-size", "auto2"],
+    ["--lights", "-1"], ["--lights", "65"], ["--lights", "many"], ["--max-lights", "0"], ["--max-lights", "65"],
+    ["--exponent-bounds", "0", "1"], ["--exponent-bounds", "2", "1"], ["--exponent-bounds", "nan", "1"],
+    ["--exponent-bounds", "1", "inf"], ["--iterations", "-1"], ["--target", "0"], ["--target", "nan"],
+    ["--workers", "0"], ["--workers", "-1"], ["--scheduler", "ftp://host:1"], ["--scheduler", "tcp://"],
+    ["--model", "lights+probe"], ["--method", "fast"], ["--quality", "ultra"],
+]
+
+
+@pytest.mark.parametrize("flags", FIT_FLAG_EXTREMES, ids=" ".join)
+def test_every_fit_flag_at_its_extremes_is_refused_in_one_line_and_writes_nothing(tmp_path, capsys, solution, flags):
+    """The fit's flags at and past their limits (zero, negative, NaN, infinite, too large,
+    not a number, an unknown word): one line, exit 2, no fit.npz and nothing else left."""
+    out = tmp_path / "fit.npz"
+    before = sorted(p.name for p in tmp_path.iterdir())
+    refused(["fit", solution, "-o", out, *flags], capsys)
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == before
