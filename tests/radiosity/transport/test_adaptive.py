@@ -195,35 +195,19 @@ def load_scene_text(tmp_path, text):
     return load_scene(path)
 
 
-def test_the_estimate_pass_gathers_the_emitters_highlights_and_the_final_solve_has_them(monkeypatch):
-    """The estimate passes want each vertex's mean radiance, which the gather gives with
-    or without the highlights' closed form: they skip it (its shadow rays and grids, 11 s
-    of a million-triangle solve), and the solution still carries it."""
-    calls = []
-    real = adaptive.solve
-
-    def recording(scene, opts, **kw):
-        calls.append(opts.emitter_highlights)
-        return real(scene, opts, **kw)
-
-    monkeypatch.setattr(adaptive, "solve", recording)
-    opts = SolveOptions(photons=20_000, gather_samples=4, light_samples=1, max_edge=150.0, seed=3)
-    solution = solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=1))
-    assert calls == [False, True]
-    assert solution.emitters and solution.object("teapot").visibility is not None
-
-
-def test_no_estimate_pass_is_held_through_the_final_solve(monkeypatch):
-    """An estimate pass's radiance is as large as the final solve's (a 447,000-vertex
-    bathroom: 13 GB each): once its marks are taken it is let go, so the final solve
-    runs with no earlier pass alive and the peak is one solve's, not two."""
+@pytest.fixture(scope="module")
+def recorded_passes():
+    """One refined solve of cornell-teapot (two estimate passes), every pass it runs
+    recorded: (whether each asked for the highlights, whether any estimate was still
+    alive when the final solve began, the estimates' weak references, the solution)."""
     import gc
     import weakref
 
-    passes, alive_at_final = [], []
+    highlights, passes, alive_at_final = [], [], []
     real = adaptive.solve
 
     def recording(scene, opts, **kw):
+        highlights.append(opts.emitter_highlights)
         if opts.emitter_highlights:  # the final solve (the estimates skip the highlights)
             gc.collect()
             alive_at_final.extend(ref() is not None for ref in passes)
@@ -232,7 +216,25 @@ def test_no_estimate_pass_is_held_through_the_final_solve(monkeypatch):
             passes.append(weakref.ref(out))
         return out
 
-    monkeypatch.setattr(adaptive, "solve", recording)
-    opts = SolveOptions(photons=20_000, gather_samples=4, light_samples=1, max_edge=150.0, seed=3)
-    solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=2))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(adaptive, "solve", recording)
+        opts = SolveOptions(photons=20_000, gather_samples=4, light_samples=1, max_edge=150.0, seed=3)
+        solution = solve_adaptive(load_scene("cornell-teapot"), opts, AdaptiveOptions(enabled=True, passes=2))
+    return highlights, alive_at_final, passes, solution
+
+
+def test_the_estimate_pass_gathers_the_emitters_highlights_and_the_final_solve_has_them(recorded_passes):
+    """The estimate passes want each vertex's mean radiance, which the gather gives with
+    or without the highlights' closed form: they skip it (its shadow rays and grids, 11 s
+    of a million-triangle solve), and the solution still carries it."""
+    highlights, _, passes, solution = recorded_passes
+    assert highlights == [False] * len(passes) + [True] and len(passes) >= 1
+    assert solution.emitters and solution.object("teapot").visibility is not None
+
+
+def test_no_estimate_pass_is_held_through_the_final_solve(recorded_passes):
+    """An estimate pass's radiance is as large as the final solve's (a 447,000-vertex
+    bathroom: 13 GB each): once its marks are taken it is let go, so the final solve
+    runs with no earlier pass alive and the peak is one solve's, not two."""
+    _, alive_at_final, passes, _ = recorded_passes
     assert len(passes) >= 1 and alive_at_final == [False] * len(passes)

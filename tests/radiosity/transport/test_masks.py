@@ -224,17 +224,23 @@ def test_a_mask_on_a_mesh_without_texture_coordinates_is_left_out_saying_so(tmp_
     assert any("the mesh has no texture coordinates: the mask 'leaf.png' is left out (opaque)" in m for m in messages)
 
 
+@pytest.fixture(scope="module")
+def masked_solution_file(tmp_path_factory):
+    """A small solve of the masked scene, saved once for the tests that corrupt it."""
+    masked, _ = _scenes()
+    path = tmp_path_factory.mktemp("masked") / "s.npz"
+    solve(masked, SolveOptions(photons=5_000, max_edge=1.0, seed=1)).save(path)
+    return path
+
+
 @pytest.mark.parametrize("opacity, words", [(np.full((2, 2), 1.5, np.float32), "outside [0, 1]"),
                                             (np.ones((2, 2, 2), np.float32), "has shape (2, 2, 2)"),
                                             (np.array([["a"]]), "dtype")])
-def test_a_solution_with_a_bad_mask_is_refused_in_one_line(tmp_path, opacity, words):
+def test_a_solution_with_a_bad_mask_is_refused_in_one_line(tmp_path, masked_solution_file, opacity, words):
     from radiosity.files.errors import InputError
     from radiosity.files.npz import write_archive
 
-    masked, _ = _scenes()
-    sol = solve(masked, SolveOptions(photons=5_000, max_edge=1.0, seed=1))
-    sol.save(tmp_path / "s.npz")
-    with np.load(tmp_path / "s.npz", allow_pickle=False) as f:
+    with np.load(masked_solution_file, allow_pickle=False) as f:
         arrays = {k: f[k] for k in f.files if k != "meta"}
         meta = json.loads(str(f["meta"]))
     arrays["leaf/opacity"] = opacity

@@ -250,47 +250,56 @@ def test_sharp_exponent_stays_finite_and_peaks_at_the_mirror(tmp_path):
     assert plate.directions[brightest, 2] > 0.99  # looking straight down at the lamp's image
 
 
-@pytest.mark.parametrize("factor", [1e-3, 1e4])
-def test_scaled_scene_gives_the_same_radiance(tmp_path, factor):
-    def at(scale):
-        return scene_from(
-            tmp_path,
-            f"""
-            [materials.white]
-            diffuse = 0.7
-            [materials.shiny]
-            diffuse = 0.2
-            specular = 0.5
-            exponent = 40
-            [materials.lamp]
-            emission = 4.0
-            [[objects]]
-            name = "room"
-            builtin = "cube"
-            flip = true
-            scale = {2.0 * scale}
-            material = "white"
-            [[objects]]
-            name = "ball"
-            builtin = "sphere"
-            subdivisions = 2
-            scale = {0.4 * scale}
-            material = "shiny"
-            [[objects]]
-            name = "lamp"
-            builtin = "quad"
-            material = "lamp"
-            scale = {0.5 * scale}
-            rotate_deg = [180, 0, 0]
-            translate = [0, {0.99 * scale}, 0]
-            """,
-            name=f"s{scale}.toml",
-        )
+def _room_at(directory, scale):
+    """A closed room with a glossy ball and a lamp, every length times ``scale``."""
+    return scene_from(
+        directory,
+        f"""
+        [materials.white]
+        diffuse = 0.7
+        [materials.shiny]
+        diffuse = 0.2
+        specular = 0.5
+        exponent = 40
+        [materials.lamp]
+        emission = 4.0
+        [[objects]]
+        name = "room"
+        builtin = "cube"
+        flip = true
+        scale = {2.0 * scale}
+        material = "white"
+        [[objects]]
+        name = "ball"
+        builtin = "sphere"
+        subdivisions = 2
+        scale = {0.4 * scale}
+        material = "shiny"
+        [[objects]]
+        name = "lamp"
+        builtin = "quad"
+        material = "lamp"
+        scale = {0.5 * scale}
+        rotate_deg = [180, 0, 0]
+        translate = [0, {0.99 * scale}, 0]
+        """,
+        name=f"s{scale}.toml",
+    )
 
-    kw = dict(photons=100_000, gather_samples=16, light_samples=8, grid=8, seed=2)
-    base = solve(at(1.0), SolveOptions(max_edge=0.5, **kw))
-    scaled = solve(at(factor), SolveOptions(max_edge=0.5 * factor, **kw))
-    for a, b in zip(base.objects, scaled.objects):
+
+SCALED_KNOBS = dict(photons=100_000, gather_samples=16, light_samples=8, grid=8, seed=2)
+
+
+@pytest.fixture(scope="module")
+def unit_room(tmp_path_factory):
+    """The room at scale 1, solved once for every scale it is compared with."""
+    return solve(_room_at(tmp_path_factory.mktemp("room"), 1.0), SolveOptions(max_edge=0.5, **SCALED_KNOBS))
+
+
+@pytest.mark.parametrize("factor", [1e-3, 1e4])
+def test_scaled_scene_gives_the_same_radiance(tmp_path, unit_room, factor):
+    scaled = solve(_room_at(tmp_path, factor), SolveOptions(max_edge=0.5 * factor, **SCALED_KNOBS))
+    for a, b in zip(unit_room.objects, scaled.objects):
         assert a.radiance.shape == b.radiance.shape
         assert np.isclose(b.radiance.mean(), a.radiance.mean(), rtol=0.02), a.name
         assert np.allclose(b.positions, a.positions * factor, rtol=1e-5, atol=1e-6 * factor)
