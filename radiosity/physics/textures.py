@@ -64,7 +64,7 @@ import numpy as np
 
 from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 from radiosity.files.errors import InputError
-from radiosity.files.images import MAX_TEXTURE_PIXELS, TEXTURE_BYTES, picture_from_array, read_image  # noqa: F401
+from radiosity.files.images import MAX_TEXTURE_PIXELS, picture_from_array, read_image
 from radiosity.physics.materials import srgb_to_linear
 
 KEYS = ("uvs", "irradiance", "texture")

@@ -18,9 +18,9 @@ import numpy as np
 import trimesh
 
 from radiosity.files.errors import InputError, SceneWarning
+from radiosity.files.images import MAX_TEXTURE_PIXELS
 from radiosity.files.inputs import MESH_BYTES, check_input_file, loads_json, read_input_bytes
 from radiosity.files.sniff import MESH_SUFFIXES as _MESH_SUFFIXES
-from radiosity.physics.textures import MAX_TEXTURE_PIXELS
 
 MESH_SUFFIXES = set(_MESH_SUFFIXES)
 
