@@ -88,7 +88,7 @@ def subset(data, vertex_fraction, direction_step):
 
 def fitted_model(solution, results):
     """A FittedModel of the whole solution: the glossy objects' fits from ``results``
-    ({name: MixedFit}), the diffuse objects' radiance as their emitted colour."""
+    ({name: LightsFit}), the diffuse objects' radiance as their emitted colour."""
     from fitting import FittedModel, FittedObject
 
     objects = []

@@ -2,7 +2,7 @@
 
     fit(solution, FitOptions(...)) -> FittedModel     fit.npz via FittedModel.save, load_fit
     shade(model, name, world_dirs)                    the one reference of the shading formula
-    LightSet, FitResult                               what the steps of a fit pass between them
+    Lights, LightsFit                                 a set of lights; one object's fit of them
 
 Modules: ``fit`` (orchestration), ``options`` (``FitOptions`` and the words of the
 flags), ``glossy`` (a glossy object part by part and ``--model auto``: every model, the
@@ -27,8 +27,8 @@ _HOMES = {
     "load_fit": "model",
     "shade": "model",
     "shade_arrays": "model",
-    "FitResult": "results",
-    "LightSet": "results",
+    "Lights": "results",
+    "LightsFit": "results",
 }
 
 __all__ = sorted(_HOMES)

@@ -24,13 +24,13 @@ from radiosity.physics.materials import NEAR_MIRROR_ALPHA, Microfacet, near_base
 from . import glossy, mixed
 from .data import fit_data, relative_error
 from .lights import LightFitter, start_exponent
-from .lobes import MixedLights
 from .memory import cores, costs
 from .model import FittedModel, FittedObject, Highlight, Mirror
 from .options import COEFFICIENTS, LIGHT_KINDS, METHODS, MODELS, FitOptions, quality_of  # noqa: F401 (the fit's words)
+from .results import Lights
 
 ONE_OBJECT_SHARE = 0.5  # no worker processes when one glossy object has more than this share of the samples
-NO_LIGHTS = MixedLights(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))  # a glass, mirror or diffuse object's
+NO_LIGHTS = Lights.none()  # a glass, mirror or diffuse object's
 
 
 def _json_number(value):
@@ -148,7 +148,7 @@ def _record(c, options, chosen_by, t0):
 
 def _fitted_object(obj, emitted, specular, lights, info, **parts):
     """The FittedObject of solution object ``obj``: its mesh, these coefficients and
-    lights (a ``lobes.MixedLights``: pos, rgb, shininess), and the version-3 ``parts`` (highlight, probe, weight);
+    lights (a ``results.Lights``: pos, rgb, shininess), and the version-3 ``parts`` (highlight, probe, weight);
     a textured object's diffuse term is carried as the solution has it (version 4)."""
     pos, rgb, shininess = lights
     near = _near(obj)

@@ -41,9 +41,9 @@ from . import mixed, probe
 from .blocks import BLOCK_SAMPLES, SEARCH_SAMPLES, object_mean, search_slice, vertex_blocks
 from .data import ErrorSums, FitData, fit_data, object_areas, perceptual_error, relative_error
 from .lights import lights_on_every_vertex, reconstruct
-from .lobes import MixedLights
 from .loss import loss_weights as make_loss_weights
 from .options import GLOSSY_MODELS
+from .results import Lights
 
 __all__ = ["MODELS", "Components", "fit_components"]
 
@@ -67,7 +67,7 @@ class Components:
     """One glossy object's fitted model.
 
     model: one of MODELS; emitters: whether the emitter term is part of it;
-    emitted (V, 3); lights: a ``lobes.MixedLights`` (pos (K, 4), rgb (K, 3), shininess (K,));
+    emitted (V, 3); lights: a ``results.Lights`` (pos (K, 4), rgb (K, 3), shininess (K,));
     specular (V, K, 3) per light or (V, 3) shared; probe: a ``fitting.probe.Probe`` or
     None, probe_weight (V, 3) its per-vertex s; error: relative RMS against the whole
     radiance; floats: the numbers stored (per vertex x V + per object); perceptual: the
@@ -81,7 +81,7 @@ class Components:
     model: str
     emitters: bool
     emitted: np.ndarray
-    lights: MixedLights
+    lights: Lights
     specular: np.ndarray
     probe: probe.Probe | None
     probe_weight: np.ndarray | None
@@ -125,10 +125,6 @@ def proxy_box_of(positions):
     return np.stack([lo - pad, hi + pad])
 
 
-def _no_lights():
-    return MixedLights(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
-
-
 def _lobe_columns(data, lights):
     """(V, D, K) each light's lobe at the data's samples (its colour one)."""
     pos, _, shininess = lights
@@ -139,8 +135,7 @@ def _lobe_columns(data, lights):
     one = np.ones((data.n_vertices, 1, 3))
     tmp = np.empty(data.radiance.shape)
     for k in range(n_k):
-        light = MixedLights(np.ascontiguousarray(pos[k:k + 1], np.float64), np.ones((1, 3)),
-                            np.ascontiguousarray(shininess[k:k + 1], np.float64))
+        light = Lights.of(pos[k:k + 1], np.ones((1, 3)), shininess[k:k + 1])
         mixed.mixed_light_sum(data.normals, data.views, light, samples, one, tmp)
         out[:, :, k] = tmp[:, :, 0]
     return out
@@ -342,7 +337,7 @@ def _lights_asked(obj, full, options, lights, exponent, blocking):
         error, seen = relative_error(full, approximation), perceptual_error(full, approximation)
         diffuse = relative_error(full, np.broadcast_to(found.emitted[:, None, :], full.radiance.shape))
     return Components(
-        model="lights", emitters=False, emitted=found.emitted, lights=MixedLights(found.pos, found.rgb, found.shininess),
+        model="lights", emitters=False, emitted=found.emitted, lights=Lights(found.pos, found.rgb, found.shininess),
         specular=found.specular, probe=None, probe_weight=None, error=error["relative_rms"],
         floats=_floats(n_vertices, 0, 0, found.n_lights, False, not found.per_light), perceptual=seen,
         baseline=diffuse["relative_rms"], loss=loss, chosen_by=chosen_by, iterations=found.iterations,
@@ -379,7 +374,7 @@ def _search(full, highlights, material, n_vertices, parts, options, *, place, ex
         seen = perceptual_error(full, approximation)
         c = Components(
             model=model, emitters=emitters, emitted=emitted,
-            lights=MixedLights(*light_fit[:3]) if light_fit is not None else _no_lights(),
+            lights=Lights(*light_fit[:3]) if light_fit is not None else Lights.none(),
             specular=(np.zeros((v, 0, 3)) if light_fit is None else light_fit[3]), probe=probe_fit,
             probe_weight=weight, error=error, floats=floats, perceptual=seen, loss=loss,
         )

@@ -12,7 +12,6 @@ import numpy as np
 
 from . import blocks, loss, mixed, paper
 from .data import ErrorSums, fit_data, relative_error
-from .model import directional
 from .options import PAYS
 
 __all__ = ["PAYS", "LightFitter", "auto_lights", "fit_lights", "lights_on_every_vertex", "problem_for", "reconstruct",
@@ -20,17 +19,8 @@ __all__ = ["PAYS", "LightFitter", "auto_lights", "fit_lights", "lights_on_every_
 
 
 def reconstruct(problem, result):
-    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``mixed.MixedFit``."""
+    """The model's colours (V, D, 3) at the data's samples; ``result`` a ``results.LightsFit``."""
     return mixed.model_colours(problem, result.lights(), result.emitted, result.specular)
-
-
-def _from_paper(result):
-    """The paper's ``FitResult`` as a ``mixed.MixedFit`` (directional lights, shared)."""
-    return mixed.MixedFit(
-        pos=directional(result.light_dirs), rgb=np.asarray(result.light_rgb, np.float64),
-        shininess=np.asarray(result.shininess, np.float64), emitted=result.emitted, specular=result.specular,
-        sq_error=result.sq_error,
-    )
 
 
 def start_exponent(obj, options):
@@ -49,10 +39,10 @@ def problem_for(data, options, scene):
 
 
 def fit_lights(problem, n_lights, options, exponent, previous=None, log=None):
-    """One object's fit (a ``mixed.MixedFit``) with at most ``n_lights`` lights."""
+    """One object's fit (a ``results.LightsFit``) with at most ``n_lights`` lights."""
     if options.method == "paper":
         lw = loss.loss_weights(problem.data, options.loss_for("lights"))
-        return _from_paper(paper.fit_paper(problem.data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw))
+        return paper.fit_paper(problem.data, n_lights, exponent_bounds=options.exponent_bounds, loss_weights=lw)
     return mixed.fit_mixed(
         problem, n_lights, exponent, light_kind=options.light_kind, per_light_exponents=options.method == "per-light",
         iterations=options.iterations, previous=previous, log=log,
@@ -87,7 +77,7 @@ def auto_lights(problem, options, exponent, log=None):
 
 
 def lights_on_every_vertex(obj, result, options, scene, area):
-    """(the ``mixed.MixedFit`` ``result``, its lights held and its per-vertex coefficients
+    """(the ``results.LightsFit`` ``result``, its lights held and its per-vertex coefficients
     solved on every vertex of ``obj``, a block at a time; its ``relative_error``; that of
     its emitted colour alone; its perceptual error)."""
     v, d = obj.num_vertices, len(obj.directions)
@@ -125,7 +115,7 @@ class LightFitter:
         return mixed.Problem.make(data, loss_weights, per_light, self.scene, options.exponent_bounds)
 
     def asked(self, data, loss_weights, start):
-        """(problem, ``mixed.MixedFit``, how its count was chosen) of the model "lights"
+        """(problem, ``results.LightsFit``, how its count was chosen) of the model "lights"
         asked for (``--model lights``, the paper's method): --lights of them, or "auto"."""
         options = self.options
         problem = self.problem(data, loss_weights)
@@ -135,7 +125,7 @@ class LightFitter:
         return problem, fit_lights(problem, options.lights, options, start, log=self.log), f"--lights {options.lights}"
 
     def __call__(self, data, loss_weights, start, count=None, previous=None, alone=False):
-        """A ``mixed.MixedFit`` of ``data``: ``count`` given, a quick fit of that many
+        """A ``results.LightsFit`` of ``data``: ``count`` given, a quick fit of that many
         lights (the first light's polish, as many iterations: whether lights pay);
         ``previous``, a fit of fewer to continue from; ``alone``, the lights of the model
         "lights" (--lights of them) as "auto" weighs it; else the lights beside a probe

@@ -23,8 +23,8 @@ Contents:
   3-tuples of floats), the one definition of the formula;
 - ``lobe_vectorised``: the same as a numpy ufunc, ``(nx, ny, nz, hx, hy, hz, p)``,
   broadcasting, for the numpy reference ``fitting.model.shade_arrays``;
-- the kernels of the fit: ``one_light`` and ``light_sum`` (the paper's fit), taking
-  plain arrays and the ``Lights`` named tuple; the mixed fitter's kernels below.
+- the kernels of the fit: ``one_light`` (one light's lobe, where the paper's fit places
+  its lights) and, below, the kernels that take a set of lights (a ``fitting.results.Lights``).
 
 numba's on-disk cache (``cache=True``) of every kernel of the project is keyed on all the
 source files of its package and of the packages it may import (radiosity/jit_cache.py),
@@ -43,8 +43,6 @@ from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every sour
 
 __all__ = [
     "NEGLIGIBLE",
-    "Lights",
-    "light_sum",
     "lobe",
     "lobe_gradient",
     "lobe_vectorised",
@@ -52,19 +50,6 @@ __all__ = [
 ]
 
 NEGLIGIBLE = 30.0  # lobe set to 0 where (1 - c) p > NEGLIGIBLE: then c^p < e^-30 ~ 9.4e-14
-
-
-class Lights(NamedTuple):
-    """K directional lights as the kernels take them (C-contiguous float64).
-
-    dirs      : (K, 3) unit vectors towards each light (world)
-    rgb       : (K, 3) each light's colour
-    shininess : (K,) exponent per light
-    """
-
-    dirs: np.ndarray
-    rgb: np.ndarray
-    shininess: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
@@ -128,46 +113,11 @@ def one_light(normals, views, light, shininess, out):
     return out
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
-def light_sum(normals, views, lights, out):
-    """out[v, d, c] = sum_k lights.rgb[k, c] * lobe(n_v, l_k + views[v, d], p_k).
-
-    normals (V, 3), views (V, D, 3), lights a ``Lights``, out (V, D, 3). Returns out.
-    """
-    dirs, rgb, shininess = lights.dirs, lights.rgb, lights.shininess
-    for v in numba.prange(views.shape[0]):
-        n = (normals[v, 0], normals[v, 1], normals[v, 2])
-        for d in range(views.shape[1]):
-            b0, b1, b2 = 0.0, 0.0, 0.0
-            for k in range(dirs.shape[0]):
-                h = (views[v, d, 0] + dirs[k, 0], views[v, d, 1] + dirs[k, 1], views[v, d, 2] + dirs[k, 2])
-                value = lobe(n, h, shininess[k])
-                if value > 0.0:
-                    b0 += rgb[k, 0] * value
-                    b1 += rgb[k, 1] * value
-                    b2 += rgb[k, 2] * value
-            out[v, d, 0], out[v, d, 1], out[v, d, 2] = b0, b1, b2
-    return out
-
-
 # ---------------------------------------------------------------------------------------
-# Lights of either kind (fit.npz version 2) and per-light coefficients: the kernels
-# of ``fitting.mixed``. A light is pos[k] = (x, y, z, w): w = 0 a unit direction towards
+# Lights of either kind (fit.npz version 2, a ``fitting.results.Lights``) and shared or
+# per-light coefficients: the kernels of every fit. A light is pos[k] = (x, y, z, w): w = 0 a unit direction towards
 # a distant light, w = 1 a point light; at a vertex x the light vector is
 # l = normalize(xyz - w x) (no distance attenuation).
-
-
-class MixedLights(NamedTuple):
-    """K lights of either kind as the kernels take them (C-contiguous float64).
-
-    pos       : (K, 4) (x, y, z, w), w = 0 directional (xyz unit), w = 1 positional
-    rgb       : (K, 3) each light's colour (ones where the coefficients are per light)
-    shininess : (K,) exponent per light
-    """
-
-    pos: np.ndarray
-    rgb: np.ndarray
-    shininess: np.ndarray
 
 
 class Samples(NamedTuple):

@@ -44,10 +44,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import minimize
 
-from .lobes import MixedLights, Samples, mixed_light_sum, mixed_loss_and_gradient, normal_equations
+from .lobes import Samples, mixed_light_sum, mixed_loss_and_gradient, normal_equations
 from .model import light_vectors
 from .nnls import solve_many
 from .options import LIGHT_KINDS
+from .results import Lights, LightsFit
 from .seeds import first_hits, meeting_point, mirror
 
 KINDS = LIGHT_KINDS
@@ -64,37 +65,6 @@ FIRST_POLISH_ITERATIONS = 12
 NEAR_LOBES = 3.0  # "auto" does not try as distant a point light whose direction swings this many lobe widths
 SPREAD = 4  # point lights spread over an emitter a mirror ray hits (per-light coefficients)
 SPREAD_SHARPENING = 0.35  # their exponent: the single light's times count^this (measured: 1, 4, 9 lights ~ 230, 360, 470)
-
-
-@dataclass(frozen=True, eq=False)
-class MixedFit:
-    """One object's fit.
-
-    pos (K, 4), rgb (K, 3), shininess (K,): the lights (rgb ones for per-light coefficients)
-    emitted (V, 3); specular (V, 3) shared or (V, K, 3) per light
-    sq_error: the weighted squared error; iterations, evaluations: of the last refinement
-    """
-
-    pos: np.ndarray
-    rgb: np.ndarray
-    shininess: np.ndarray
-    emitted: np.ndarray
-    specular: np.ndarray
-    sq_error: float
-    iterations: int = 0
-    evaluations: int = 0
-
-    @property
-    def n_lights(self):
-        return len(self.pos)
-
-    @property
-    def per_light(self):
-        return self.specular.ndim == 3
-
-    def lights(self):
-        return MixedLights(np.ascontiguousarray(self.pos, np.float64), np.ascontiguousarray(self.rgb, np.float64),
-                           np.ascontiguousarray(self.shininess, np.float64))
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,14 +210,13 @@ def model_colours(problem, lights, emitted, specular):
 
 
 def evaluate(problem, pos, rgb, shininess):
-    """A ``MixedFit`` with the optimal coefficients for these lights (with per-light
+    """A ``LightsFit`` with the optimal coefficients for these lights (with per-light
     coefficients the lights' colours are ones: the coefficients carry the colour)."""
     if problem.per_light:
         rgb = np.ones((len(np.reshape(pos, (-1, 4))), 3))
-    lights = MixedLights(np.ascontiguousarray(pos, np.float64).reshape(-1, 4), np.ascontiguousarray(rgb, np.float64).reshape(-1, 3),
-                         np.ascontiguousarray(shininess, np.float64).reshape(-1))
+    lights = Lights.of(pos, rgb, shininess)
     e, s, err = coefficients(problem, lights)
-    return MixedFit(lights.pos, lights.rgb, lights.shininess, e, s, err)
+    return LightsFit(lights.pos, lights.rgb, lights.shininess, e, s, err)
 
 
 def no_lights(problem):
@@ -294,7 +263,7 @@ class Parameters:
             rgb = rgb_fixed
         shininess = np.exp(np.broadcast_to(x[offset:], (n_k,)))
         pos = np.concatenate([xyz, self.kinds[:, None].astype(np.float64)], axis=1)
-        return MixedLights(np.ascontiguousarray(pos), np.ascontiguousarray(rgb, np.float64), np.ascontiguousarray(shininess)), norm
+        return Lights.of(pos, rgb, shininess), norm
 
     def bounds(self, exponent_bounds):
         n_k = self.n_lights
@@ -326,7 +295,7 @@ def objective(problem, params, rgb_fixed, x):
 
 
 def refine(problem, start, *, per_light_exponents=False, max_iterations=50):
-    """Refine every light of ``start`` (a ``MixedFit``) jointly; returns a ``MixedFit``."""
+    """Refine every light of ``start`` (a ``LightsFit``) jointly; returns a ``LightsFit``."""
     if start.n_lights == 0 or max_iterations <= 0:
         return start
     params = Parameters(
@@ -417,8 +386,7 @@ def seed(problem, fit, light_kind, shininess, taken=()):
 def _light_energy(problem, fit, k):
     """sum w |part of the model due to light k|^2 (loss-weighted)."""
     lights = fit.lights()
-    one = MixedLights(np.ascontiguousarray(lights.pos[k: k + 1]), np.ascontiguousarray(lights.rgb[k: k + 1]),
-                      np.ascontiguousarray(lights.shininess[k: k + 1]))
+    one = Lights.of(lights.pos[k: k + 1], lights.rgb[k: k + 1], lights.shininess[k: k + 1])
     coef = fit.specular[:, k: k + 1, :] if fit.per_light else fit.specular[:, None, :]
     out = np.empty_like(problem.data.radiance)
     mixed_light_sum(problem.data.normals, problem.data.views, one, problem.samples, np.ascontiguousarray(coef), out)
@@ -476,8 +444,8 @@ def fit_mixed(problem, n_lights, shininess, *, light_kind="auto", per_light_expo
               previous=None, log=None):
     """K lights by greedy seeding, each polished with the others, then refined jointly.
 
-    shininess: the starting exponent; previous: a ``MixedFit`` with fewer lights to
-    continue from. Returns a ``MixedFit`` with at most ``n_lights`` lights.
+    shininess: the starting exponent; previous: a ``LightsFit`` with fewer lights to
+    continue from. Returns a ``LightsFit`` with at most ``n_lights`` lights.
     """
     full = problem
     samples = problem.data.n_vertices * problem.data.n_directions

@@ -18,7 +18,6 @@ For one non-diffuse object:
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numba
 import numpy as np
@@ -27,7 +26,8 @@ from scipy.optimize import nnls
 from radiosity import jit_cache  # noqa: F401 (numba's cache keyed on every source a kernel inlines)
 
 from .lobes import one_light
-from .results import FitResult, LightSet
+from .model import directional
+from .results import Lights, LightsFit
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 # a vertex's highlight may exceed its brightest sample this many times (a true peak can
@@ -44,7 +44,7 @@ def mirror(normal, view):
 def greedy_lights(data, shininess, n_lights):
     """Up to ``n_lights`` lights for one exponent, as the paper places them.
 
-    Returns (``LightSet``, lobe values (K, V, D) of its lights); fewer than
+    Returns (``Lights``, directional, lobe values (K, V, D) of its lights); fewer than
     ``n_lights`` lights when the data have nothing left above the lights' sum.
     """
     radiance = data.radiance
@@ -66,7 +66,7 @@ def greedy_lights(data, shininess, n_lights):
         target = radiance[pv, pd]
         rgb = np.stack([nnls(at_peaks, target[:, c])[0] for c in range(3)], axis=1)
         score = score_data - np.tensordot(rgb.sum(axis=1), values[: k + 1], axes=1)
-    lights = LightSet(np.array(dirs).reshape(-1, 3), rgb, np.full(len(dirs), float(shininess)))
+    lights = Lights.of(directional(dirs), rgb, np.full(len(dirs), float(shininess)))
     return lights, values[: len(dirs)]
 
 
@@ -79,7 +79,7 @@ def vertex_coefficients(data, basis, loss_weights=None, lights=None):
     from showing, in any direction, a highlight brighter than ``CAP_FACTOR`` times the
     brightest radiance it has: s * (the lights' peak over the hemisphere) <=
     CAP_FACTOR max_d L, the peak taken over the samples and, given ``lights`` (the
-    ``LightSet`` behind ``basis``), over every view. Without it a lobe too sharp to
+    directional ``Lights`` behind ``basis``), over every view. Without it a lobe too sharp to
     touch any sample direction would be scaled up without bound to reach the data at
     one sample, and blaze between samples. Returns (emitted (V, 3), specular (V, 3),
     weighted squared error).
@@ -88,8 +88,8 @@ def vertex_coefficients(data, basis, loss_weights=None, lights=None):
         loss_weights = np.ones((1, 1, 1))
     s1, sb, sbb, sl, slb, sll = _sums(data.radiance, basis, data.weights, np.ascontiguousarray(loss_weights, np.float64))
     peak = basis.max(axis=1)  # (V, 3)
-    if lights is not None and lights.n_lights:
-        dirs, rgb, exponents = lights.light_dirs, lights.light_rgb, lights.shininess
+    if lights is not None and len(lights.pos):
+        dirs, rgb, exponents = lights.pos[:, :3], lights.rgb, lights.shininess
         # over all views of the hemisphere a light's lobe peaks at 1 if the light is above
         # the horizon, else at the grazing view opposite it: half-vector angle (theta - 90) / 2
         theta = np.arccos(np.clip(data.normals @ dirs.T, -1.0, 1.0))  # (V, K)
@@ -154,12 +154,13 @@ def _sums(L, B, weights, loss_weights):
 def fit_exponent(data, shininess, n_lights, loss_weights=None):
     """The paper's inner loop for one exponent: lights, then vertex coefficients.
 
-    Returns a ``FitResult`` (``shininess`` repeated for each light).
+    Returns a ``LightsFit`` (directional lights, ``shininess`` repeated for each, shared
+    coefficients).
     """
     lights, values = greedy_lights(data, shininess, n_lights)
-    basis = np.tensordot(values, lights.light_rgb, axes=([0], [0])) if lights.n_lights else np.zeros_like(data.radiance)
+    basis = np.tensordot(values, lights.rgb, axes=([0], [0])) if len(lights.pos) else np.zeros_like(data.radiance)
     emitted, specular, err = vertex_coefficients(data, basis, loss_weights, lights)
-    return FitResult(lights=lights, emitted=emitted, specular=specular, sq_error=err)
+    return LightsFit(*lights, emitted=emitted, specular=specular, sq_error=err)
 
 
 def golden_section(f, lo, hi, tolerance):
@@ -185,8 +186,8 @@ def golden_section(f, lo, hi, tolerance):
 
 
 def fit_paper(data, n_lights=8, *, exponent_bounds=(1.0, 1e4), log_tolerance=0.05, loss_weights=None):
-    """The paper's fit of one object: ``fit_exponent``'s ``FitResult`` for the best
-    exponent, its ``search`` the [(exponent, sq_error), ...] in evaluation order."""
+    """The paper's fit of one object: ``fit_exponent``'s ``LightsFit`` for the exponent
+    of the least error that the golden-section search over log p found."""
     lo, hi = (math.log(b) for b in exponent_bounds)
     cache = {}
 
@@ -198,7 +199,6 @@ def fit_paper(data, n_lights=8, *, exponent_bounds=(1.0, 1e4), log_tolerance=0.0
     if hi - lo <= log_tolerance:
         best = 0.5 * (lo + hi)
         error_at(best)
-        evaluations = [(best, cache[best].sq_error)]
     else:
-        best, _, evaluations = golden_section(error_at, lo, hi, log_tolerance)
-    return replace(cache[best], search=tuple((math.exp(x), fx) for x, fx in evaluations))
+        best, _, _ = golden_section(error_at, lo, hi, log_tolerance)
+    return cache[best]

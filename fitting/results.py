@@ -1,109 +1,73 @@
-"""The typed results that pass between the steps of a fit: a set of lights, a fit.
+"""The two records a fit passes between its steps: a set of lights and one object's fit.
 
-Both are frozen: a step that changes a result makes a new one (``dataclasses.replace``,
-``LightSet.extended``). Arrays are float64 on the way in.
+``Lights`` is the one type for a set of virtual lights, of either kind, as every step
+and every kernel of the fit takes them (the paper's directional lights are the case
+w = 0). ``LightsFit`` is the lights with the per-vertex coefficients fitted to them. Both
+are immutable: a step that changes a fit makes a new one (``dataclasses.replace``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from .lobes import Lights
-
-__all__ = ["FitResult", "LightSet"]
+__all__ = ["Lights", "LightsFit"]
 
 
-@dataclass(frozen=True, eq=False)
-class LightSet:
-    """K directional virtual lights.
+class Lights(NamedTuple):
+    """K lights of either kind (C-contiguous float64, as the numba kernels of
+    ``fitting.lobes`` take them).
 
-    light_dirs : (K, 3) float64 unit vectors towards each light (world)
-    light_rgb  : (K, 3) float64 each light's colour
-    shininess  : (K,) float64 each light's exponent (all equal in the paper's model)
+    pos       : (K, 4) (x, y, z, w): w = 0 directional (xyz a unit vector towards the
+                light), w = 1 a point light at xyz
+    rgb       : (K, 3) each light's colour (ones where the coefficients are per light)
+    shininess : (K,) exponent per light
     """
 
-    light_dirs: np.ndarray
-    light_rgb: np.ndarray
+    pos: np.ndarray
+    rgb: np.ndarray
     shininess: np.ndarray
 
-    def __post_init__(self):
-        dirs = np.asarray(self.light_dirs, np.float64).reshape(-1, 3)
-        rgb = np.asarray(self.light_rgb, np.float64).reshape(-1, 3)
-        shininess = np.asarray(self.shininess, np.float64).reshape(-1)
-        if not len(dirs) == len(rgb) == len(shininess):
-            raise ValueError(
-                f"LightSet: {len(dirs)} directions, {len(rgb)} colours and {len(shininess)} exponents; "
-                "expected one of each per light"
-            )
-        object.__setattr__(self, "light_dirs", dirs)
-        object.__setattr__(self, "light_rgb", rgb)
-        object.__setattr__(self, "shininess", shininess)
+    @classmethod
+    def of(cls, pos, rgb, shininess) -> Lights:
+        """The lights of these arrays, made C-contiguous float64 of shapes (K, 4), (K, 3), (K,)."""
+        return cls(np.ascontiguousarray(pos, np.float64).reshape(-1, 4),
+                   np.ascontiguousarray(rgb, np.float64).reshape(-1, 3),
+                   np.ascontiguousarray(shininess, np.float64).reshape(-1))
 
     @classmethod
-    def empty(cls) -> LightSet:
-        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
-
-    @property
-    def n_lights(self) -> int:
-        return len(self.light_dirs)
-
-    def __len__(self) -> int:
-        return self.n_lights
-
-    def extended(self, light_dirs, light_rgb, shininess) -> LightSet:
-        """These lights followed by more: (k, 3), (k, 3), (k,) or one light's (3,), (3,), number."""
-        count = np.size(light_dirs) // 3
-        more = LightSet(light_dirs, light_rgb, np.broadcast_to(np.asarray(shininess, np.float64), (count,)))
-        return LightSet(
-            np.vstack([self.light_dirs, more.light_dirs]),
-            np.vstack([self.light_rgb, more.light_rgb]),
-            np.concatenate([self.shininess, more.shininess]),
-        )
-
-    def kernel_arrays(self) -> Lights:
-        """The lights as the numba kernels of ``fitting.lobes`` take them."""
-        return Lights(
-            np.ascontiguousarray(self.light_dirs),
-            np.ascontiguousarray(self.light_rgb),
-            np.ascontiguousarray(self.shininess),
-        )
+    def none(cls) -> Lights:
+        """No lights (a diffuse, glass or mirror object's)."""
+        return cls(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0))
 
 
 @dataclass(frozen=True, eq=False)
-class FitResult:
-    """One object's fit: lights and per-vertex coefficients.
+class LightsFit:
+    """One object's fit: its lights and the per-vertex coefficients fitted to them.
 
-    lights      : the ``LightSet``
-    emitted     : (V, 3) float64 per-vertex emitted colour
-    specular    : (V, 3) float64 per-vertex specular coefficient
-    sq_error    : the weighted squared error the fit minimised (sum w (L - model)^2)
-    search      : the exponent search, ((exponent, sq_error), ...) in evaluation order
-    iterations  : L-BFGS iterations of the refinement (None: not refined)
-    evaluations : objective evaluations of the refinement (None: not refined)
+    pos (K, 4), rgb (K, 3), shininess (K,): the lights (``lights()`` gives them as a ``Lights``)
+    emitted (V, 3); specular (V, 3) shared or (V, K, 3) per light
+    sq_error: the weighted squared error; iterations, evaluations: of the last refinement
     """
 
-    lights: LightSet
+    pos: np.ndarray
+    rgb: np.ndarray
+    shininess: np.ndarray
     emitted: np.ndarray
     specular: np.ndarray
-    sq_error: float = 0.0
-    search: tuple[tuple[float, float], ...] = ()
-    iterations: int | None = None
-    evaluations: int | None = None
+    sq_error: float
+    iterations: int = 0
+    evaluations: int = 0
 
     @property
-    def light_dirs(self) -> np.ndarray:
-        return self.lights.light_dirs
+    def n_lights(self):
+        return len(self.pos)
 
     @property
-    def light_rgb(self) -> np.ndarray:
-        return self.lights.light_rgb
+    def per_light(self):
+        return self.specular.ndim == 3
 
-    @property
-    def shininess(self) -> np.ndarray:
-        return self.lights.shininess
-
-    @property
-    def n_lights(self) -> int:
-        return self.lights.n_lights
+    def lights(self) -> Lights:
+        return Lights.of(self.pos, self.rgb, self.shininess)

@@ -54,14 +54,14 @@ def synthetic(rng, lights=3, shininess=40.0, grid=12, noise=0.0, scale=1.0, subd
 
 
 def colours(data, result):
-    """The model of a paper / refine ``FitResult`` (directional, shared) at the data's samples."""
-    lights = (directional(result.light_dirs), result.light_rgb, result.shininess)
+    """The model of a shared-coefficient ``LightsFit`` at the data's samples."""
+    lights = (result.pos, result.rgb, result.shininess)
     return shade_arrays(result.emitted[:, None], result.specular[:, None], data.normals[:, None],
                         data.positions[:, None], lights, data.views)
 
 
 def lights_of(solution, options, k, previous=None):
-    """A refined fit (``mixed.MixedFit``) of the solution's one object with k lights."""
+    """A refined fit (``results.LightsFit``) of the solution's one object with k lights."""
     obj = solution.objects[0]
     problem = problem_for(fit_data(obj), options, SceneGeometry.of_solution(solution))
     return problem, fit_lights(problem, k, options, 4 * obj.material["exponent"] + 1, previous=previous)
@@ -81,7 +81,7 @@ def test_single_light_found_by_the_paper_heuristic_alone(rng):
     data = fit_data(solution.objects[0])
     result = fit_paper(data, 1)
     # the brightest sample sits on a grid direction: the light is within about a grid cell
-    assert matched_angles(result.light_dirs, truth["light_dirs"]).max() < 6.0
+    assert matched_angles(result.pos[:, :3], truth["light_dirs"]).max() < 6.0
     assert relative_error(data, colours(data, result))["relative_rms"] < 0.2
 
 

@@ -14,6 +14,7 @@ from fitting import lobes, mixed
 from fitting.data import fit_data
 from fitting.fit import FitOptions, fit, planned_threads, planned_workers
 from fitting.memory import PROCESS_BYTES, SAMPLE_BYTES, check_fit_memory, fit_estimate, object_bytes
+from fitting.results import Lights
 from radiosity.files.errors import InputError
 from radiosity.files.solution import ObjectSolution, Solution, SolutionFile, load_solution
 
@@ -97,7 +98,7 @@ def test_the_lights_loss_has_the_same_bits_on_any_number_of_threads():
     pos = np.concatenate([rng.normal(size=(3, 3)), np.zeros((3, 1))], axis=1)
     pos[:, 2] = np.abs(pos[:, 2]) + 0.5
     pos[:, :3] /= np.linalg.norm(pos[:, :3], axis=1, keepdims=True)
-    lights = lobes.MixedLights(pos, rng.uniform(0.5, 2, (3, 3)), np.array([20.0, 80.0, 300.0]))
+    lights = Lights(pos, rng.uniform(0.5, 2, (3, 3)), np.array([20.0, 80.0, 300.0]))
     v = data.n_vertices
     emitted, coefficients = rng.uniform(0, 0.2, (v, 3)), rng.uniform(0, 1, (v, 3, 3))
     before = numba.get_num_threads()

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from test_fit import synthetic
 
-from fitting import FittedModel, FittedObject, LightSet, shade
+from fitting import FittedModel, FittedObject, Lights, shade
 from fitting.data import fit_data
-from fitting.lobes import NEGLIGIBLE, light_sum, lobe, lobe_gradient, one_light
+from fitting.lobes import NEGLIGIBLE, Samples, lobe, lobe_gradient, mixed_light_sum, one_light
 from fitting.model import directional, shade_arrays
 
 UP = [0.0, 0.0, 1.0]
@@ -83,11 +83,11 @@ def test_the_kernels_and_shade_are_the_same_lobe(rng):
     data = fit_data(solution.objects[0])
     dirs = rng.normal(size=(3, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    lights = LightSet(dirs, rng.uniform(0.5, 2.0, (3, 3)), [3.0, 60.0, 900.0])
+    lights = Lights.of(directional(dirs), rng.uniform(0.5, 2.0, (3, 3)), [3.0, 60.0, 900.0])
     zero, one = np.zeros((data.n_vertices, 1, 3)), np.ones((data.n_vertices, 1, 3))
-    expected = shade_arrays(zero, one, data.normals[:, None], data.positions[:, None],
-                            (directional(lights.light_dirs), lights.light_rgb, lights.shininess), data.views)
-    got = light_sum(data.normals, data.views, lights.kernel_arrays(), np.empty_like(data.radiance))
+    expected = shade_arrays(zero, one, data.normals[:, None], data.positions[:, None], lights, data.views)
+    samples = Samples(np.ascontiguousarray(data.positions, np.float64), data.radiance, data.weights, np.ones((1, 1, 1)))
+    got = mixed_light_sum(data.normals, data.views, lights, samples, one, np.empty_like(data.radiance))
     # shade renormalises the light vector (a point light's needs it): p = 900 magnifies that last bit
     assert np.allclose(got, expected, rtol=1e-11, atol=0)
     single = one_light(data.normals, data.views, dirs[1], 60.0, np.empty(data.radiance.shape[:2]))

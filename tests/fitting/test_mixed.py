@@ -7,9 +7,7 @@ import trimesh
 
 from fitting import FitOptions, fit, shade
 from fitting.data import fit_data, relative_error
-from fitting.lobes import MixedLights
 from fitting.mixed import (
-    MixedFit,
     Parameters,
     Problem,
     SceneGeometry,
@@ -20,6 +18,7 @@ from fitting.mixed import (
     refine,
 )
 from fitting.model import FittedModel, FittedObject, shade_arrays
+from fitting.results import Lights, LightsFit
 from radiosity.files.solution import ObjectSolution, Solution
 from radiosity.physics import directions
 from radiosity.scene import geometry
@@ -306,8 +305,8 @@ def test_refine_never_makes_a_fit_worse():
     problem = problem_of(solution)
     start = evaluate(problem, np.array([[0.0, 0.0, 1.0, 0.0]]), np.ones((1, 3)), np.array([40.0]))
     refined = refine(problem, start, max_iterations=10)
-    assert isinstance(refined, MixedFit) and refined.sq_error <= start.sq_error
-    assert isinstance(refined.lights(), MixedLights)
+    assert isinstance(refined, LightsFit) and refined.sq_error <= start.sq_error
+    assert isinstance(refined.lights(), Lights)
 
 
 def test_an_emitter_of_fewer_triangles_than_its_lights_gets_one_light_on_each():

@@ -13,8 +13,8 @@ from fitting import FitOptions
 from fitting.fit import fit_object
 from fitting.glossy import fit_components
 from fitting.lights import LightFitter, start_exponent
-from fitting.lobes import MixedLights
 from fitting.mixed import SceneGeometry
+from fitting.results import Lights
 
 OPTIONS = FitOptions(probe_sizes=(8,), probe_lights=2, lights=2, iterations=10)
 RECORD = {"model", "method", "loss", "chosen_by", "coefficients", "kinds", "shininess", "error", "floats", "tried",
@@ -59,7 +59,7 @@ def test_the_paper_s_lights_go_through_the_glossy_pipeline_without_the_solution(
     scene = SceneGeometry.of_solution(solution)
     options = replace(OPTIONS, method="paper")
     c = fit_components(obj, None, 0, options, scene, None, start_exponent(obj, options), LightFitter(options, scene))
-    assert c.model == "lights" and isinstance(c.lights, MixedLights) and len(c.lights.pos) == 2
+    assert c.model == "lights" and isinstance(c.lights, Lights) and len(c.lights.pos) == 2
     assert np.all(c.lights.pos[:, 3] == 0)  # the paper's lights are directional
     alone = fit_object(obj, options, scene)
     assert np.array_equal(alone.emitted, np.asarray(c.emitted, np.float32))
@@ -76,3 +76,27 @@ def test_the_lights_found_on_a_subset_are_solved_on_every_vertex():
     assert "found on every" in sub.info["chosen_by"] and "found on every" not in whole.info["chosen_by"]
     assert sub.emitted.shape == whole.emitted.shape == (obj.num_vertices, 3)
     assert sub.info["error"]["relative_rms"] < 2 * whole.info["error"]["relative_rms"] + 0.05
+
+
+@pytest.mark.parametrize("method", ["paper", "refined", "per-light"])
+def test_every_method_gives_one_type_for_its_lights(method):
+    """The paper's fit, the refined fit and per-light exponents all return a
+    ``LightsFit`` whose lights are a ``Lights``; the paper's are directional (w = 0),
+    share one exponent, and carry their colour with shared coefficients."""
+    from fitting.data import fit_data
+    from fitting.lights import fit_lights, problem_for
+    from fitting.results import LightsFit
+
+    solution, obj = _highlighted()
+    options = replace(OPTIONS, model="lights", method=method, coefficients="shared")
+    problem = problem_for(fit_data(obj), options, SceneGeometry.of_solution(solution))
+    found = fit_lights(problem, 2, options, start_exponent(obj, options))
+    assert isinstance(found, LightsFit) and isinstance(found.lights(), Lights)
+    lights = found.lights()
+    assert lights.pos.shape == (found.n_lights, 4) and lights.rgb.shape == (found.n_lights, 3)
+    assert lights.pos.flags.c_contiguous and lights.pos.dtype == np.float64
+    assert found.emitted.shape == (obj.num_vertices, 3) and found.specular.shape == (obj.num_vertices, 3)
+    if method == "paper":
+        assert found.n_lights >= 1 and np.all(lights.pos[:, 3] == 0.0)
+        assert np.allclose(np.linalg.norm(lights.pos[:, :3], axis=1), 1.0)
+        assert np.all(lights.shininess == lights.shininess[0])
