@@ -134,6 +134,35 @@ def make_gather_rays(sa, block, light, samples):
             samples.origins[i, 0], samples.origins[i, 1], samples.origins[i, 2] = ox, oy, oz
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _light_visibility(rt, rayhit, light):
+    """Trace the shadow ray of every light sample that found an emitter (``light.pdf``
+    > 0), setting ``light.visible``; returns their count."""
+    shadow = 0
+    lo, ld = light.origins, light.directions
+    for i in range(len(light.pdf)):
+        if light.pdf[i] > 0.0:
+            light.visible[i] = not occluded1(
+                rt, rayhit, (lo[i, 0], lo[i, 1], lo[i, 2]), (ld[i, 0], ld[i, 1], ld[i, 2]), light.distances[i]
+            )
+            shadow += 1
+    return shadow
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _first_segments(samples, paths):
+    """Every gather ray of ``samples`` as a path of throughput 1 in ``paths`` (path k the
+    gather sample k); returns their count."""
+    n = len(samples.wi)
+    for k in range(n):
+        paths.ids[k] = k
+        for c in range(3):
+            paths.values[k, c] = 1.0
+            paths.origins[k, c] = samples.origins[k, c]
+            paths.directions[k, c] = samples.directions[k, c]
+    return n
+
+
 @numba.njit(cache=True, nogil=True)
 def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     """Trace the light samples and gather paths of a ``GatherBlock`` through the scene
@@ -177,41 +206,26 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     A path's id indexes the block's gather samples (vertex ``block.vertices[id //
     n_gather]``, sample ``id % n_gather``), which also key the random numbers. The
     records are unpacked into locals once (see ``photons.trace_photons``), with the
-    call's own copy of the small material table.
+    call's own copy of the small material table. A Phong hit's light samples are
+    ``_phong_hit``'s, a microfacet hit's ``_microfacet_hit``'s.
     """
     make_gather_rays(sa, block, light, samples)
     positions, normals, faces, face_normals = sa.positions, sa.normals, sa.faces, sa.face_normals
     face_material, materials, epsilon = sa.face_material, sa.materials.copy(), sa.epsilon
     face_texture = sa.face_texture
-    emit_cdf, emit_triangles, emit_area_pdf, direct_area_pdf = (
-        sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf,
-    )  # fmt: skip
+    emit_triangles, emit_area_pdf, direct_area_pdf = sa.emit_triangles, sa.emit_area_pdf, sa.direct_area_pdf
     seed, n_light, n_gather, max_depth = block.seed, block.n_light, block.strata * block.strata, block.max_depth
     vertices, lobe_light = block.vertices, block.lobe_light
     env_active, env_pixels, env_rotation = sa.env.active, sa.env.pixels, sa.env.rotation
     sample_wi, incoming = samples.wi, samples.incoming
     rayhit = new_rayhit()
-    shadow = 0
-    for i in range(len(light.pdf)):
-        if light.pdf[i] > 0.0:
-            lo, ld = light.origins, light.directions
-            light.visible[i] = not occluded1(
-                rt, rayhit, (lo[i, 0], lo[i, 1], lo[i, 2]), (ld[i, 0], ld[i, 1], ld[i, 2]), light.distances[i]
-            )
-            shadow += 1
+    shadow = _light_visibility(rt, rayhit, light)
     paths, spare, hits = buffers.paths, buffers.spare, buffers.hits
-    n = len(sample_wi)
-    for k in range(n):
-        paths.ids[k] = k
-        for c in range(3):
-            paths.values[k, c] = 1.0
-            paths.origins[k, c] = samples.origins[k, c]
-            paths.directions[k, c] = samples.directions[k, c]
+    n = _first_segments(samples, paths)
     rays = shadow
     path_pdf, out_pdf = buffers.pdfs[0], buffers.pdfs[1]
     has_lights = len(emit_triangles) > 0 and lobe_light
-    lights = sa.lights
-    n_delta = len(lights.kinds)
+    n_delta = len(sa.lights.kinds)
     triangle, hit_u, hit_v = hits.triangle, hits.u, hits.v
     for depth in range(max_depth):
         if n == 0:
@@ -307,57 +321,10 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 n_out += 1
                 continue
             exponent = materials[m, EXPONENT]
-            if has_lights:
-                # the light sample at the glossy hit
-                tri = pick_emitter(emit_cdf, emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
-                area_pdf = emit_area_pdf[tri]
-                origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
-                (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
-                if area_pdf > 0.0:
-                    (dx, dy, dz), dist, cos_light = toward_light_point(
-                        positions, faces, face_normals, epsilon, tri, origin,
-                        (rand(seed, STREAM_GATHER_LIGHT, item, 1), rand(seed, STREAM_GATHER_LIGHT, item, 2)),
-                    )  # fmt: skip
-                if dist > 0.0:
-                    cos_i = dx * nx + dy * ny + dz * nz
-                    if cos_light > 0.0 and cos_i > 0.0 and dx * gx + dy * gy + dz * gz > 0.0:
-                        dn = d[0] * nx + d[1] * ny + d[2] * nz
-                        cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
-                        if cos_alpha > 0.0:
-                            lobe = phong_lobe(min(cos_alpha, 1.0), exponent)
-                            if lobe > 0.0:
-                                traced += 1
-                                if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist):
-                                    p_light = area_pdf * dist * dist / cos_light
-                                    p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
-                                    scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
-                                    lm = face_material[tri]
-                                    f0, f1, f2 = 1.0, 1.0, 1.0
-                                    if fresnel:
-                                        f0, f1, f2 = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
-                                    incoming[target, 0] += values[k, 0] * (ks0 * f0 * materials[lm, EMISSION] * scale)
-                                    incoming[target, 1] += values[k, 1] * (ks1 * f1 * materials[lm, EMISSION + 1] * scale)
-                                    incoming[target, 2] += values[k, 2] * (ks2 * f2 * materials[lm, EMISSION + 2] * scale)
-            if n_delta > 0:
-                # a delta light at the glossy hit: chosen by power, no ray finds it otherwise
-                j = pick_light(lights.cdf, rand(seed, STREAM_GATHER_DELTA, item, 0))
-                origin = off_surface((px, py, pz), (gx, gy, gz), epsilon)
-                (dx, dy, dz), dist, le = arriving(lights, j, origin)
-                cos_i = dx * nx + dy * ny + dz * nz
-                if dist > epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0 and dx * gx + dy * gy + dz * gz > 0.0:
-                    dn = d[0] * nx + d[1] * ny + d[2] * nz
-                    cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
-                    lobe = phong_lobe(min(cos_alpha, 1.0), exponent) if cos_alpha > 0.0 else 0.0
-                    if lobe > 0.0:
-                        traced += 1
-                        if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist - epsilon):
-                            scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / lights.pick[j]
-                            f0, f1, f2 = 1.0, 1.0, 1.0
-                            if fresnel:
-                                f0, f1, f2 = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
-                            incoming[target, 0] += values[k, 0] * (ks0 * f0 * le[0] * scale)
-                            incoming[target, 1] += values[k, 1] * (ks1 * f1 * le[1] * scale)
-                            incoming[target, 2] += values[k, 2] * (ks2 * f2 * le[2] * scale)
+            traced += _phong_hit(
+                (rt, rayhit, sa), materials, m, ((px, py, pz), (gx, gy, gz), (nx, ny, nz), d),
+                (values[k], target, incoming), (seed, item, has_lights, n_delta),
+            )  # fmt: skip
             # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
             # diffuse lobe's light is in the irradiance)
             tx, ty, tz, bx, by, bz = onb(nx, ny, nz)
@@ -406,6 +373,76 @@ def _push_path(paths, pdfs, n, target, start, step):
         paths.origins[n, c] = point[c] + epsilon * g[c]
         paths.directions[n, c] = direction[c]
         paths.values[n, c] = value[c]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _phong_hit(tracing, materials, m, where, path, numbers):
+    """At a gather path's hit on a Phong surface (material m of the call's ``materials``):
+    the light sample of an emitter (f_s cos / (p_light + p_lobe), the balance heuristic
+    against the lobe's continuation) and of a delta light (f_s cos I / d^2 over its
+    choice's probability), f_s = ks (n + 2) / (2 pi) cos^n alpha, alpha from the mirror
+    direction (times Schlick's Fresnel where the material has it). tracing = (rt,
+    rayhit, sa); where = (point, geometric normal, shading normal, d the path's
+    direction); path = (its throughput, its target, ``incoming``); numbers = (seed, item,
+    has_lights, n_delta). Adds to ``incoming[target]``; returns the shadow rays traced."""
+    rt, rayhit, sa = tracing
+    point, g, n, d = where
+    value, target, incoming = path
+    seed, item, has_lights, n_delta = numbers
+    mat = materials[m]
+    exponent, fresnel = mat[EXPONENT], mat[HAS_FRESNEL] > 0.0
+    ks = (mat[KS], mat[KS + 1], mat[KS + 2])
+    epsilon = sa.epsilon
+    nx, ny, nz = n
+    dn = d[0] * nx + d[1] * ny + d[2] * nz
+    traced = 0
+    if has_lights:
+        tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
+        area_pdf = sa.emit_area_pdf[tri]
+        origin = off_surface(point, g, epsilon)
+        (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
+        if area_pdf > 0.0:
+            (dx, dy, dz), dist, cos_light = toward_light_point(
+                sa.positions, sa.faces, sa.face_normals, epsilon, tri, origin,
+                (rand(seed, STREAM_GATHER_LIGHT, item, 1), rand(seed, STREAM_GATHER_LIGHT, item, 2)),
+            )  # fmt: skip
+        if dist > 0.0:
+            cos_i = dx * nx + dy * ny + dz * nz
+            if cos_light > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
+                cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+                lobe = phong_lobe(min(cos_alpha, 1.0), exponent) if cos_alpha > 0.0 else 0.0
+                if lobe > 0.0:
+                    traced += 1
+                    if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist):
+                        p_light = area_pdf * dist * dist / cos_light
+                        p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
+                        scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
+                        lm = sa.face_material[tri]
+                        f = (1.0, 1.0, 1.0)
+                        if fresnel:
+                            f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                        for c in range(3):
+                            incoming[target, c] += value[c] * (ks[c] * f[c] * materials[lm, EMISSION + c] * scale)
+    if n_delta > 0:
+        # a delta light: chosen by power, no ray finds it otherwise
+        lights = sa.lights
+        j = pick_light(lights.cdf, rand(seed, STREAM_GATHER_DELTA, item, 0))
+        origin = off_surface(point, g, epsilon)
+        (dx, dy, dz), dist, le = arriving(lights, j, origin)
+        cos_i = dx * nx + dy * ny + dz * nz
+        if dist > epsilon and max(le[0], le[1], le[2]) > 0.0 and cos_i > 0.0 and dx * g[0] + dy * g[1] + dz * g[2] > 0.0:
+            cos_alpha = dx * (d[0] - 2.0 * dn * nx) + dy * (d[1] - 2.0 * dn * ny) + dz * (d[2] - 2.0 * dn * nz)
+            lobe = phong_lobe(min(cos_alpha, 1.0), exponent) if cos_alpha > 0.0 else 0.0
+            if lobe > 0.0:
+                traced += 1
+                if not occluded1(rt, rayhit, origin, (dx, dy, dz), dist - epsilon):
+                    scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / lights.pick[j]
+                    f = (1.0, 1.0, 1.0)
+                    if fresnel:
+                        f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                    for c in range(3):
+                        incoming[target, c] += value[c] * (ks[c] * f[c] * le[c] * scale)
+    return traced
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -95,6 +95,83 @@ def _go_on(wave, survivors, pid, scattered, reference, u, origin, direction):
     return survivors + 1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _environment_photon(env, total_share, u):
+    """(power, origin, direction) of a photon from the environment ``env`` (``EnvArrays``):
+    a direction w towards it drawn from it (u[0], u[1]; density p(w)), a point on the disk
+    of the scene's bounding sphere facing w (u[2], u[3]) pushed out by R along w, the
+    photon going along -w with L(w) pi R^2 / (``total_share`` p(w)); nothing where p = 0."""
+    (wx, wy, wz), pdf = env_sample(env.rotation, env.row_cdf, env.column_cdf, env.cell_pdf, u[0], u[1])
+    le = env_lookup(env.pixels, env.rotation, wx, wy, wz) if pdf > 0.0 else (0.0, 0.0, 0.0)
+    scale = math.pi * env.radius * env.radius / (total_share * pdf) if pdf > 0.0 else 0.0
+    ox, oy, _ = cosine_direction(u[2], u[3])
+    tx, ty, tz, bx, by, bz = onb(wx, wy, wz)
+    centre, radius = env.center, env.radius
+    origin = (centre[0] + radius * (ox * tx + oy * bx + wx), centre[1] + radius * (ox * ty + oy * by + wy),
+              centre[2] + radius * (ox * tz + oy * bz + wz))
+    return (le[0] * scale, le[1] * scale, le[2] * scale), origin, (-wx, -wy, -wz)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _surface_photon(mesh, epsilon, tri, u):
+    """(origin, direction) of a photon leaving emitter triangle ``tri`` of mesh =
+    (positions, faces, face_normals): a uniform point on it (u[0], u[1]) pushed
+    ``epsilon`` off its front, a cosine-distributed direction about its normal (u[2], u[3])."""
+    positions, faces, face_normals = mesh
+    s = math.sqrt(u[0])
+    a = s * (1.0 - u[1])
+    b = s - a
+    px, py, pz = lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - a - b, a, b)
+    gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
+    lx, ly, lz = cosine_direction(u[2], u[3])
+    tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
+    return ((px + epsilon * gx, py + epsilon * gy, pz + epsilon * gz),
+            (lx * tx + ly * bx + lz * gx, lx * ty + ly * by + lz * gy, lx * tz + ly * bz + lz * gz))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _deposit(moments, frame, t, point, barycentric, power):
+    """Add ``power`` arriving at ``point`` of triangle t to the density moments =
+    (moment0, moment1) of its three vertices: moment0[j] += power lambda_j and
+    moment1[j] += power lambda_j (x - p_j) in vertex j's tangent frame (frame =
+    (positions, normals, tangents, faces); barycentric = (w, u, v), lambda_j the hat
+    function of vertex j)."""
+    moment0, moment1 = moments
+    positions, normals, tangents, faces = frame
+    px, py, pz = point
+    for j in range(3):
+        vert = faces[t, j]
+        lam = barycentric[j]
+        ex = px - positions[vert, 0]
+        ey = py - positions[vert, 1]
+        ez = pz - positions[vert, 2]
+        t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
+        n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
+        cx = n1 * t2 - n2 * t1
+        cy = n2 * t0 - n0 * t2
+        cz = n0 * t1 - n1 * t0
+        along_t = ex * t0 + ey * t1 + ez * t2
+        along_b = ex * cx + ey * cy + ez * cz
+        for c in range(3):
+            wc = power[c] * lam
+            moment0[vert, c] += wc
+            moment1[vert, c, 0] += wc * along_t
+            moment1[vert, c, 1] += wc * along_b
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _true_albedo(albedo_table, m, cosine):
+    """Material m's true albedo (RGB) towards a view of this cosine, interpolated in its
+    table (``albedo_table[m]``, cosines 0..1 evenly)."""
+    n_albedo = albedo_table.shape[1]
+    xa = min(max(cosine, 0.0), 1.0) * (n_albedo - 1)
+    ka = min(int(xa), n_albedo - 2)
+    fa = xa - ka
+    return ((1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0],
+            (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1],
+            (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2])
+
+
 @numba.njit(cache=True, nogil=True)
 def trace_photons(rt, sa, batch, acc):
     """Trace the photons of ``batch`` (``PhotonBatch``) to their end through the scene
@@ -139,16 +216,13 @@ def trace_photons(rt, sa, batch, acc):
     albedo_table, emit_cdf, emit_triangles, emit_area_pdf = sa.albedo_table, sa.emit_cdf, sa.emit_triangles, sa.emit_area_pdf
     epsilon = sa.epsilon
     env = sa.env
-    env_share, env_pixels, env_rotation = env.photon_share, env.pixels, env.rotation
-    env_row_cdf, env_column_cdf, env_cell_pdf = env.row_cdf, env.column_cdf, env.cell_pdf
-    env_center, env_radius = env.center, env.radius
+    env_share = env.photon_share
     lights = sa.lights
     lights_share = lights.photon_share
     seed, first_id, count, total, max_depth = batch.seed, batch.first_id, batch.count, batch.total, batch.max_depth
     wave = max(1, min(batch.wave, count))
     moment0, moment1, tally = acc.moment0, acc.moment1, acc.tally
     rayhit = new_rayhit()
-    n_albedo = albedo_table.shape[1]
     ids = np.empty(wave, np.int64)
     power = np.empty((wave, 3))
     ray = np.empty((wave, 6), np.float32)  # origin, direction: float32, as a ``Rays`` stores them
@@ -163,59 +237,36 @@ def trace_photons(rt, sa, batch, acc):
             pid = first + i
             u0 = rand(seed, STREAM_EMIT, pid, 0)
             ids[i] = pid
-            if u0 < env_share:
-                # from the environment: a direction toward it, a point on the disk of the
-                # bounding sphere facing it, outside the sphere
-                (wx, wy, wz), pdf = env_sample(
-                    env_rotation, env_row_cdf, env_column_cdf, env_cell_pdf,
-                    rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2),
-                )  # fmt: skip
-                le = env_lookup(env_pixels, env_rotation, wx, wy, wz) if pdf > 0.0 else (0.0, 0.0, 0.0)
-                scale = math.pi * env_radius * env_radius / (total * env_share * pdf) if pdf > 0.0 else 0.0
-                ox, oy, _ = cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
-                tx, ty, tz, bx, by, bz = onb(wx, wy, wz)
-                for c in range(3):
-                    power[i, c] = le[c] * scale
-                ray[i, 0] = env_center[0] + env_radius * (ox * tx + oy * bx + wx)
-                ray[i, 1] = env_center[1] + env_radius * (ox * ty + oy * by + wy)
-                ray[i, 2] = env_center[2] + env_radius * (ox * tz + oy * bz + wz)
-                ray[i, 3], ray[i, 4], ray[i, 5] = -wx, -wy, -wz
-                continue
-            if lights_share > 0.0 and (u0 < env_share + lights_share or lights.only):
+            if u0 < env_share:  # from the environment
+                carried, origin, direction = _environment_photon(
+                    env, total * env_share, (rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2),
+                                             rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4)))
+            elif lights_share > 0.0 and (u0 < env_share + lights_share or lights.only):
                 # from a delta light, chosen by power
                 j = pick_light(lights.cdf, min((u0 - env_share) / lights_share, 1.0))
                 origin, direction, carried = emit_delta(
                     lights, j, (rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2)),
                     1.0 / (total * lights_share * lights.pick[j]),
                 )  # fmt: skip
-                for c in range(3):
-                    power[i, c] = carried[c]
-                    ray[i, c] = origin[c]
-                    ray[i, 3 + c] = direction[c]
-                continue
-            if env_share > 0.0 or lights_share > 0.0:
-                u0 = (u0 - env_share - lights_share) / (1.0 - env_share - lights_share)
-            tri = pick_emitter(emit_cdf, emit_triangles, u0)
-            s = math.sqrt(rand(seed, STREAM_EMIT, pid, 1))
-            u = s * (1.0 - rand(seed, STREAM_EMIT, pid, 2))
-            v = s - u
-            px, py, pz = lerp3(positions, faces[tri, 0], faces[tri, 1], faces[tri, 2], 1.0 - u - v, u, v)
-            gx, gy, gz = face_normals[tri, 0], face_normals[tri, 1], face_normals[tri, 2]
-            lx, ly, lz = cosine_direction(rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4))
-            tx, ty, tz, bx, by, bz = onb(gx, gy, gz)
-            m = face_material[tri]
-            scale = math.pi / (total * emit_area_pdf[tri])
-            if env_share > 0.0 or lights_share > 0.0:
-                scale /= 1.0 - env_share - lights_share
-            power[i, 0] = materials[m, EMISSION] * scale
-            power[i, 1] = materials[m, EMISSION + 1] * scale
-            power[i, 2] = materials[m, EMISSION + 2] * scale
-            ray[i, 0] = px + epsilon * gx
-            ray[i, 1] = py + epsilon * gy
-            ray[i, 2] = pz + epsilon * gz
-            ray[i, 3] = lx * tx + ly * bx + lz * gx
-            ray[i, 4] = lx * ty + ly * by + lz * gy
-            ray[i, 5] = lx * tz + ly * bz + lz * gz
+            else:
+                # from an emitting triangle, chosen by power
+                if env_share > 0.0 or lights_share > 0.0:
+                    u0 = (u0 - env_share - lights_share) / (1.0 - env_share - lights_share)
+                tri = pick_emitter(emit_cdf, emit_triangles, u0)
+                origin, direction = _surface_photon(
+                    (positions, faces, face_normals), epsilon, tri,
+                    (rand(seed, STREAM_EMIT, pid, 1), rand(seed, STREAM_EMIT, pid, 2),
+                     rand(seed, STREAM_EMIT, pid, 3), rand(seed, STREAM_EMIT, pid, 4)))
+                m = face_material[tri]
+                scale = math.pi / (total * emit_area_pdf[tri])
+                if env_share > 0.0 or lights_share > 0.0:
+                    scale /= 1.0 - env_share - lights_share
+                carried = (materials[m, EMISSION] * scale, materials[m, EMISSION + 1] * scale,
+                           materials[m, EMISSION + 2] * scale)
+            for c in range(3):
+                power[i, c] = carried[c]
+                ray[i, c] = origin[c]
+                ray[i, 3 + c] = direction[c]
         for depth in range(max_depth):
             if n == 0:
                 break
@@ -287,25 +338,8 @@ def trace_photons(rt, sa, batch, acc):
                     d0, d1, d2 = p0 * fw, p1 * fw, p2 * fw
                 else:
                     d0, d1, d2 = p0, p1, p2
-                # deposit
-                for j in range(3):
-                    vert = faces[t, j]
-                    lam = w if j == 0 else (u if j == 1 else v)
-                    ex = px - positions[vert, 0]
-                    ey = py - positions[vert, 1]
-                    ez = pz - positions[vert, 2]
-                    t0, t1, t2 = tangents[vert, 0], tangents[vert, 1], tangents[vert, 2]
-                    n0, n1, n2 = normals[vert, 0], normals[vert, 1], normals[vert, 2]
-                    cx = n1 * t2 - n2 * t1
-                    cy = n2 * t0 - n0 * t2
-                    cz = n0 * t1 - n1 * t0
-                    along_t = ex * t0 + ey * t1 + ez * t2
-                    along_b = ex * cx + ey * cy + ez * cz
-                    for c in range(3):
-                        wc = (d0 if c == 0 else (d1 if c == 1 else d2)) * lam
-                        moment0[vert, c] += wc
-                        moment1[vert, c, 0] += wc * along_t
-                        moment1[vert, c, 1] += wc * along_b
+                _deposit((moment0, moment1), (positions, normals, tangents, faces), t, (px, py, pz), (w, u, v),
+                         (d0, d1, d2))
                 tally[T_INCIDENT] += p0
                 tally[T_INCIDENT + 1] += p1
                 tally[T_INCIDENT + 2] += p2
@@ -330,12 +364,7 @@ def trace_photons(rt, sa, batch, acc):
                 sz = wix * tz + wiy * bz + wiz * nz
                 ok = wiz > 0.0 and pdf > 0.0 and sx * gx + sy * gy + sz * gz > 0.0
                 # the true albedo, interpolated in its table
-                xa = min(max(woz, 0.0), 1.0) * (n_albedo - 1)
-                ka = min(int(xa), n_albedo - 2)
-                fa = xa - ka
-                a0 = (1.0 - fa) * albedo_table[m, ka, 0] + fa * albedo_table[m, ka + 1, 0]
-                a1 = (1.0 - fa) * albedo_table[m, ka, 1] + fa * albedo_table[m, ka + 1, 1]
-                a2 = (1.0 - fa) * albedo_table[m, ka, 2] + fa * albedo_table[m, ka + 1, 2]
+                a0, a1, a2 = _true_albedo(albedo_table, m, woz)
                 if texture >= 0:  # the diffuse part of the albedo is kd (kd b(cos) with Fresnel): kd * texel instead
                     b = diffuse_exitance(materials[m], woz)
                     a0 += b * materials[m, KD] * (tex0 - 1.0)
