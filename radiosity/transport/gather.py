@@ -323,7 +323,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
             exponent = materials[m, EXPONENT]
             traced += _phong_hit(
                 (rt, rayhit, sa), materials, m, ((px, py, pz), (gx, gy, gz), (nx, ny, nz), d),
-                (values[k], target, incoming), (seed, item, has_lights, n_delta),
+                (values, k, target, incoming), (seed, item, has_lights, n_delta),
             )  # fmt: skip
             # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
             # diffuse lobe's light is in the irradiance)
@@ -383,15 +383,16 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
     choice's probability), f_s = ks (n + 2) / (2 pi) cos^n alpha, alpha from the mirror
     direction (times Schlick's Fresnel where the material has it). tracing = (rt,
     rayhit, sa); where = (point, geometric normal, shading normal, d the path's
-    direction); path = (its throughput, its target, ``incoming``); numbers = (seed, item,
-    has_lights, n_delta). Adds to ``incoming[target]``; returns the shadow rays traced."""
+    direction); path = (the paths' throughputs, this one's row k, its target,
+    ``incoming``); numbers = (seed, item, has_lights, n_delta). Adds to
+    ``incoming[target]``; returns the shadow rays traced. Rows are indexed, not taken
+    as views: a view per hit costs a reference-count update."""
     rt, rayhit, sa = tracing
     point, g, n, d = where
-    value, target, incoming = path
+    values, k, target, incoming = path
     seed, item, has_lights, n_delta = numbers
-    mat = materials[m]
-    exponent, fresnel = mat[EXPONENT], mat[HAS_FRESNEL] > 0.0
-    ks = (mat[KS], mat[KS + 1], mat[KS + 2])
+    exponent, fresnel = materials[m, EXPONENT], materials[m, HAS_FRESNEL] > 0.0
+    ks = (materials[m, KS], materials[m, KS + 1], materials[m, KS + 2])
     epsilon = sa.epsilon
     nx, ny, nz = n
     dn = d[0] * nx + d[1] * ny + d[2] * nz
@@ -420,9 +421,9 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
                         lm = sa.face_material[tri]
                         f = (1.0, 1.0, 1.0)
                         if fresnel:
-                            f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                            f = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
                         for c in range(3):
-                            incoming[target, c] += value[c] * (ks[c] * f[c] * materials[lm, EMISSION + c] * scale)
+                            incoming[target, c] += values[k, c] * (ks[c] * f[c] * materials[lm, EMISSION + c] * scale)
     if n_delta > 0:
         # a delta light: chosen by power, no ray finds it otherwise
         lights = sa.lights
@@ -439,9 +440,9 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
                     scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / lights.pick[j]
                     f = (1.0, 1.0, 1.0)
                     if fresnel:
-                        f = schlick(mat, half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
+                        f = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
                     for c in range(3):
-                        incoming[target, c] += value[c] * (ks[c] * f[c] * le[c] * scale)
+                        incoming[target, c] += values[k, c] * (ks[c] * f[c] * le[c] * scale)
     return traced
 
 
