@@ -225,7 +225,10 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
     rays = shadow
     path_pdf, out_pdf = buffers.pdfs[0], buffers.pdfs[1]
     has_lights = len(emit_triangles) > 0 and lobe_light
-    n_delta = len(sa.lights.kinds)
+    lights = sa.lights
+    n_delta = len(lights.kinds)
+    # what a Phong hit's light samples read, unpacked once (see ``_phong_hit``)
+    emitters = (sa.emit_cdf, emit_triangles, emit_area_pdf, face_material, positions, faces, face_normals)
     triangle, hit_u, hit_v = hits.triangle, hits.u, hits.v
     for depth in range(max_depth):
         if n == 0:
@@ -322,7 +325,7 @@ def trace_gather(rt, sa, irradiance, block, light, samples, buffers):
                 continue
             exponent = materials[m, EXPONENT]
             traced += _phong_hit(
-                (rt, rayhit, sa), materials, m, ((px, py, pz), (gx, gy, gz), (nx, ny, nz), d),
+                (rt, rayhit, emitters, lights, epsilon), materials, m, ((px, py, pz), (gx, gy, gz), (nx, ny, nz), d),
                 (values, k, target, incoming), (seed, item, has_lights, n_delta),
             )  # fmt: skip
             # the lobe's continuation (a BRDF sample with u1 = 0: the specular lobe; the
@@ -382,29 +385,31 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
     against the lobe's continuation) and of a delta light (f_s cos I / d^2 over its
     choice's probability), f_s = ks (n + 2) / (2 pi) cos^n alpha, alpha from the mirror
     direction (times Schlick's Fresnel where the material has it). tracing = (rt,
-    rayhit, sa); where = (point, geometric normal, shading normal, d the path's
+    rayhit, emitters, lights, epsilon), emitters = the scene's (emit_cdf, emit_triangles,
+    emit_area_pdf, face_material, positions, faces, face_normals); where = (point, geometric normal, shading normal, d the path's
     direction); path = (the paths' throughputs, this one's row k, its target,
     ``incoming``); numbers = (seed, item, has_lights, n_delta). Adds to
-    ``incoming[target]``; returns the shadow rays traced. Rows are indexed, not taken
-    as views: a view per hit costs a reference-count update."""
-    rt, rayhit, sa = tracing
+    ``incoming[target]``; returns the shadow rays traced. The scene's arrays come
+    unpacked and rows are indexed, not taken as views: a record's field or a view read
+    per hit costs a reference-count update."""
+    rt, rayhit, emitters, lights, epsilon = tracing
+    emit_cdf, emit_triangles, emit_area_pdf, face_material, positions, faces, face_normals = emitters
     point, g, n, d = where
     values, k, target, incoming = path
     seed, item, has_lights, n_delta = numbers
     exponent, fresnel = materials[m, EXPONENT], materials[m, HAS_FRESNEL] > 0.0
     ks = (materials[m, KS], materials[m, KS + 1], materials[m, KS + 2])
-    epsilon = sa.epsilon
     nx, ny, nz = n
     dn = d[0] * nx + d[1] * ny + d[2] * nz
     traced = 0
     if has_lights:
-        tri = pick_emitter(sa.emit_cdf, sa.emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
-        area_pdf = sa.emit_area_pdf[tri]
+        tri = pick_emitter(emit_cdf, emit_triangles, rand(seed, STREAM_GATHER_LIGHT, item, 0))
+        area_pdf = emit_area_pdf[tri]
         origin = off_surface(point, g, epsilon)
         (dx, dy, dz), dist, cos_light = (0.0, 0.0, 0.0), 0.0, 0.0
         if area_pdf > 0.0:
             (dx, dy, dz), dist, cos_light = toward_light_point(
-                sa.positions, sa.faces, sa.face_normals, epsilon, tri, origin,
+                positions, faces, face_normals, epsilon, tri, origin,
                 (rand(seed, STREAM_GATHER_LIGHT, item, 1), rand(seed, STREAM_GATHER_LIGHT, item, 2)),
             )  # fmt: skip
         if dist > 0.0:
@@ -418,7 +423,7 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
                         p_light = area_pdf * dist * dist / cos_light
                         p_lobe = (exponent + 1.0) / (2.0 * math.pi) * lobe
                         scale = (exponent + 2.0) / (2.0 * math.pi) * lobe * cos_i / (p_light + p_lobe)
-                        lm = sa.face_material[tri]
+                        lm = face_material[tri]
                         f = (1.0, 1.0, 1.0)
                         if fresnel:
                             f = schlick(materials[m], half_cosine(-(dx * d[0] + dy * d[1] + dz * d[2])))
@@ -426,7 +431,6 @@ def _phong_hit(tracing, materials, m, where, path, numbers):
                             incoming[target, c] += values[k, c] * (ks[c] * f[c] * materials[lm, EMISSION + c] * scale)
     if n_delta > 0:
         # a delta light: chosen by power, no ray finds it otherwise
-        lights = sa.lights
         j = pick_light(lights.cdf, rand(seed, STREAM_GATHER_DELTA, item, 0))
         origin = off_surface(point, g, epsilon)
         (dx, dy, dz), dist, le = arriving(lights, j, origin)
