@@ -235,7 +235,7 @@ def pose_from_matrix(matrix):
     if np.linalg.norm(forward) == 0:
         raise InputError("camera: the matrix maps the viewing direction to zero")
     look_at = eye + forward / np.linalg.norm(forward)
-    return tuple(eye), tuple(look_at), tuple(up), bool(np.linalg.det(linear) < 0)
+    return tuple(eye), tuple(look_at), tuple(up), bool(np.linalg.slogdet(linear)[0] < 0)
 
 
 def camera_from_meta(meta, fail):

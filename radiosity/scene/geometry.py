@@ -439,7 +439,7 @@ def apply_transform(matrix, positions, faces, normals=None):
     linear = matrix[:3, :3]
     with np.errstate(over="ignore", invalid="ignore"):  # huge values become inf, which callers refuse
         p = positions @ linear.T + matrix[:3, 3]
-        mirrored = np.linalg.det(linear) < 0
+        mirrored = np.linalg.slogdet(linear)[0] < 0
     if mirrored:
         faces = faces[:, ::-1].copy()
     if normals is not None:

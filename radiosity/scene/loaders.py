@@ -35,6 +35,7 @@ missing loads with the default material (diffuse 0.8) and a SceneWarning.
 
 from __future__ import annotations
 
+import math
 import os
 import tomllib
 import unicodedata
@@ -373,7 +374,8 @@ def _parse_object(entry, index, materials_textures, base_dir, where):
     )
     if "transform" in entry:  # a 4x4 matrix, applied after scale, rotate_deg and translate
         transform = _matrix(entry["transform"], here, "transform")
-        if not np.allclose(transform[3], [0, 0, 0, 1]) or abs(np.linalg.det(transform[:3, :3])) < 1e-300:
+        sign, log_det = np.linalg.slogdet(transform[:3, :3])  # its logarithm: a huge scale's would overflow
+        if not np.allclose(transform[3], [0, 0, 0, 1]) or sign == 0 or log_det < math.log(1e-300):
             raise InputError(f"{here}: 'transform' must be affine (last row 0 0 0 1) and not singular")
         matrix = transform @ matrix
     within = np.abs(positions).max() <= MAX_COORDINATE  # False for NaN: build_object names that

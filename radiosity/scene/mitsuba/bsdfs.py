@@ -73,6 +73,7 @@ def _surface(doc, node):
 def _make_surface(doc, node):
     kind = node.attrs.get("type")
     props = _Props(doc, node)
+    props.check_refs(("bsdf",))
     inner = [c for c in props.unnamed if c.tag == "bsdf"]
     if kind == "twosided":
         if not inner:
@@ -119,6 +120,8 @@ def _make_surface(doc, node):
         if len(inner) != 2:
             raise node.fail("needs two <bsdf> to blend")
         weight = float(np.mean(props.colour("weight", 0.5)))
+        if not 0.0 <= weight <= 1.0:
+            raise node.fail(f"the blend's weight must be between 0 and 1, got {weight:g}")
         a, b = _surface(doc, inner[0]), _surface(doc, inner[1])
         if a.texture is not None or b.texture is not None:
             node.warn("a blend of textured bsdfs: each texture taken as its mean colour")

@@ -184,6 +184,8 @@ class _Document:
         if node.tag != "ref":
             return node
         ident = node.attrs.get("id")
+        if not ident:
+            raise node.fail("needs an 'id' (the element it refers to)")
         target = self.ids.get(ident)
         if target is None:
             raise node.fail(f"no element has id {ident!r}")

@@ -92,6 +92,7 @@ class _Reader:
         if self.placed > MAX_SHAPES:
             raise node.fail(f"more than {MAX_SHAPES:,} shapes in all, instances' shapes counted (nested instances "
                             "multiply)")
+        props.check_refs(("shape:shapegroup",) if kind == "instance" else ("bsdf", "emitter", "medium"))
         if kind == "instance":
             group = [t for t in props.unnamed if t.tag == "shape" and t.attrs.get("type") == "shapegroup"]
             group += [t for _, t in props.named.values() if t.tag == "shape" and t.attrs.get("type") == "shapegroup"]
@@ -147,7 +148,7 @@ class _Reader:
         positions = positions @ to_world[:3, :3].T + to_world[:3, 3]
         if normals is not None:
             normals = normals @ np.linalg.inv(to_world[:3, :3])
-        if np.linalg.det(to_world[:3, :3]) < 0 and (normals is not None or kind not in ("obj", "ply", "serialized")):
+        if np.linalg.slogdet(to_world[:3, :3])[0] < 0 and (normals is not None or kind not in ("obj", "ply", "serialized")):
             # a mirroring transform turns the winding around; Mitsuba 3 keeps a mirrored mesh's facing only where
             # its own vertex normals say so (a mesh without them faces as its unturned winding does)
             faces = faces[:, ::-1]

@@ -82,6 +82,11 @@ _PROPERTY_TAGS = {"float", "integer", "boolean", "string", "rgb", "srgb", "spect
 _REFERABLE = ("bsdf", "texture", "shape", "emitter", "medium")
 
 
+def _a(tag):
+    """``tag`` ("<emitter>", "<bsdf ...>") with its article."""
+    return f"{'an' if tag[1] in 'aeiou' else 'a'} {tag}"
+
+
 class _Props:
     """The properties of one element: ``named`` (``float``, ``rgb``, a named
     ``texture`` or ``ref``, ...: name -> (the element, what it stands for after
@@ -92,6 +97,7 @@ class _Props:
         self.doc, self.node = doc, node
         self.named = {}
         self.unnamed = []
+        self.refs = []  # (the <ref>, what it names) of every reference without a name
         for child in node.children:
             target = doc.deref(child, _REFERABLE)
             name = child.attrs.get("name")
@@ -99,6 +105,20 @@ class _Props:
                 self.named[_snake(name)] = (child, target)
             if name is None or target.tag == "bsdf":
                 self.unnamed.append(target)
+            if name is None and child.tag == "ref":
+                self.refs.append((child, target))
+
+    def check_refs(self, takes):
+        """InputError at the first unnamed ``<ref>`` naming an element whose tag (or a
+        shape's type, ``shape:TYPE``) is not one of ``takes``: Mitsuba refuses such a
+        reference, and reading on would drop it in silence."""
+        for ref, target in self.refs:
+            kind = f"shape:{target.attrs.get('type')}" if target.tag == "shape" else target.tag
+            if kind not in takes:
+                names = [_a(f"<{t}>" if ":" not in t else f"<shape type={t.split(':')[1]!r}>") for t in takes]
+                wanted = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+                found = _a(f"<{target.tag} type={target.attrs.get('type')!r}>")
+                raise ref.fail(f"id {ref.attrs.get('id')!r} is {found}, where a <{self.node.tag}> takes {wanted}")
 
     def _get(self, name):
         return self.named.get(name)
@@ -372,6 +392,9 @@ def _transform(node, normalise_axes=True):
             values = _numbers(step, step.attrs.get("value", ""), (16, 9))
             if len(values) == 16:
                 m = np.array(values).reshape(4, 4)
+                if not np.array_equal(m[3], (0.0, 0.0, 0.0, 1.0)):
+                    raise step.fail(f"the last row must be 0 0 0 1, got {' '.join(f'{v:g}' for v in m[3])} (a projective "
+                                    "transform is not read)")
             else:
                 m[:3, :3] = np.array(values).reshape(3, 3)
         elif step.tag == "lookat":
@@ -379,6 +402,9 @@ def _transform(node, normalise_axes=True):
         else:
             raise step.fail("not a transform step (matrix, translate, rotate, scale, lookat)")
         matrix = m @ matrix
-    if not np.isfinite(matrix).all() or abs(np.linalg.det(matrix[:3, :3])) < 1e-300:
+    # the determinant's logarithm: a huge scale's determinant would overflow (the
+    # coordinates it makes are refused, by size, where the shape is read)
+    sign, log_det = np.linalg.slogdet(matrix[:3, :3]) if np.isfinite(matrix).all() else (0.0, -np.inf)
+    if sign == 0 or log_det < math.log(1e-300):
         raise node.fail("the transform is singular or not finite")
     return matrix
