@@ -1,5 +1,5 @@
-"""Fixtures of the display tests: tiny solution and fit files, a guard against making a
-GL context, and the command run in this process."""
+"""Fixtures of the display tests: tiny solution and fit files, the draft Cornell box's
+solution, a guard against making a GL context, and the command run in this process."""
 
 import pytest
 from display_fixtures import tiny_solution, write_pair
@@ -22,6 +22,16 @@ def flat_pair(tmp_path_factory):
     """(fit.npz, solution.npz) of the wall alone, uniformly lit: the reference, the
     fitted and the diffuse pictures are identical (PSNR infinite)."""
     return write_pair(tmp_path_factory.mktemp("flat"), tiny_solution(glossy=False))
+
+
+@pytest.fixture(scope="session")
+def cornell_draft():
+    """The Cornell box (diffuse, with a camera) solved at draft with seed 3: a real solve,
+    made once for every module that needs one lit scene (tests must not change it)."""
+    from radiosity.scene.loaders import load_scene
+    from radiosity.transport.solve import SolveOptions, solve
+
+    return solve(load_scene("cornell"), SolveOptions(quality="draft", seed=3))
 
 
 @pytest.fixture

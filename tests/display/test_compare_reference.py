@@ -136,13 +136,11 @@ def test_a_reference_twice_as_bright_halves_every_mean_ratio(tmp_path, cli, pair
 
 
 @pytest.fixture(scope="module")
-def cornell_pair(tmp_path_factory):
+def cornell_pair(tmp_path_factory, cornell_draft):
     """(fit.npz, solution.npz) of the Cornell box, draft: a lit scene with a camera."""
     from fitting import FitOptions, fit
-    from radiosity.scene.loaders import load_scene
-    from radiosity.transport.solve import SolveOptions, solve
 
-    solution = solve(load_scene("cornell"), SolveOptions(quality="draft", seed=3))
+    solution = cornell_draft
     folder = tmp_path_factory.mktemp("cornell")
     solution.save(folder / "solution.npz")
     fit(solution, FitOptions(lights=1)).save(folder / "fit.npz")

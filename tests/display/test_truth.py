@@ -11,14 +11,12 @@ from display.renderer import Renderer
 from display.truth import ground_truth, load_truth, scene_for_truth
 from radiosity.files.camera import Camera
 from radiosity.files.errors import InputError
-from radiosity.scene.loaders import load_scene
 from radiosity.transport.pathtrace import PathTracer, scene_of_solution
-from radiosity.transport.solve import SolveOptions, solve
 
 
 @pytest.fixture(scope="module")
-def diffuse_box():
-    return solve(load_scene("cornell"), SolveOptions(quality="draft", seed=3))
+def diffuse_box(cornell_draft):
+    return cornell_draft
 
 
 def object_ids(renderer, camera, names):
