@@ -64,26 +64,21 @@ modified-Phong (kd, ks, n) of ``radiosity.scene.material_kernels`` by this rule:
   term's albedo (plastic; 0 for conductors), at most ``fresnel_kd_limit``. ks comes out
   above 1 (2.4 to 2.8 for the plastics, 1.0 to 1.4 for the metals): the Phong lobe's
   albedo falls as about cos theta where the microfacet lobe's does not, and the fit
-  makes up part of it. The price, measured on the sphere (``--parts sphere``, power
-  ratio Phong / reference): a plastic's highlight at 30 degrees incidence is now 1.2 to
-  2.2 times too bright (it was 0.7-0.9), at 60 degrees 0.4-1.0 (it was 0.1-0.2); a
-  metal's 0.97-1.10 at 30 degrees (was 0.74-0.90) and 0.35-0.71 at 60 (was 0.29-0.53).
-  No single ks makes a lobe whose albedo falls as the cosine right at both.
-- Before that (``fresnel=False``, kept for comparison): ks the fit of a constant ks
-  S_n(theta), kd of a constant, both scaled down if kd + ks would exceed 1. Matching at
-  normal incidence only (the first rule) left oblique highlights dim: against Mitsuba 3
-  the Veach scene's mean went from 0.874 to 0.912 of Mitsuba's, validate_box's from
-  0.987 to 0.991 (benchmarks/validate_mitsuba.py, converged images). With Fresnel the
-  plates scene (a rough plastic floor at grazing, three metal plates) went from 0.834 to
-  0.858 of Mitsuba's mean (its floor from 0.72 to 0.84; FLIP 0.235 to 0.206 at 256 spp),
-  validate_box from 0.991 to 0.992; Fresnel with ks <= 1 made the plates worse (0.797).
+  makes up part of it. The price: an oblique highlight comes out too bright on the
+  plastics at 30 degrees and too dim at 60 (no single ks makes a lobe whose albedo falls
+  as the cosine right at both); ``bench_material_mapping.py --parts sphere`` measures the
+  power ratio Phong / reference per material and incidence.
+- Without Fresnel (``fresnel=False``, kept for comparison): ks the fit of a constant ks
+  S_n(theta), kd of a constant, both scaled down if kd + ks would exceed 1; matching at
+  normal incidence only leaves oblique highlights dim. ``benchmarks/validate_mitsuba.py``
+  measures how near Mitsuba 3's converged images the rule in use comes (RESULTS.md).
 - smooth ``plastic`` and ``conductor``: n = MAX_EXPONENT (the nearest to a mirror the
   material model holds), ks fitted as above.
 
 What the rule cannot hold (measured by ``bench_material_mapping.py --parts fresnel``):
 the Phong lobe's albedo falls towards grazing as about cos theta, so even with Fresnel
 a plastic's specular albedo at 80 degrees is 0.12-0.20 where the microfacet one is
-0.2-0.39 (without Fresnel it was 0.013: 15 to 30 times too little), and a metal's 0.18-0.22
+0.2-0.39, and a metal's 0.18-0.22
 where the microfacet one is 0.6-0.83 (the metals gain little: their F is nearly flat);
 the microfacet lobe's off-specular peak and its anisotropy at oblique incidence; GGX's
 long tail, which carries energy the Phong lobe puts nearer the peak (a smooth aluminium
