@@ -32,9 +32,9 @@ Antialiasing (``samples`` per pixel, ``display.gl.sample_plan``)
     covers) whose samples ``ctx.copy_framebuffer`` averages into a float texture; beyond
     it, into one ``factor`` times larger on each side, whose factor x factor blocks a
     shader then averages (supersampling: shaded per sub-pixel). All in linear radiance,
-    before any tone mapping. 1 sample is the pixel centre alone. Object masks, triangle
-    ids and attributes (``object_mask``, ``render_triangles``, ``render_attributes``)
-    are always one sample per pixel.
+    before any tone mapping. 1 sample is the pixel centre alone. Object masks and the
+    attributes program (``object_mask``; the tests' probes of what the shaders see) are
+    always one sample per pixel.
 Sides and depth
     Surfaces are one-sided, as the solver and the path tracer have them: a triangle's
     front (counter-clockwise seen from the eye, as its geometric normal says) shows its
@@ -244,7 +244,7 @@ class _Object:
         self.n_lights = 0
         self.per_light = False  # True: (V, K, 3) coefficients in the renderer's coefficient texture
         self.coefficient_base = 0
-        self.specular = None  # the fitted coefficients as given, (V, 3) or (V, K, 3) (render_attributes)
+        self.specular = None  # the fitted coefficients as given, (V, 3) or (V, K, 3) (what the tests' attribute probe blends)
         self.base = 0
         self.grid_n = 0
         # the emitters' highlights per mode ("fitted", "reference"): (visibility base, parts,
@@ -560,7 +560,6 @@ class Renderer:
         self.store = Store(ctx, self.layout, plan)
         self._programs = {}
         self._framebuffers = {}
-        self._scratch = None
         self._full_screens = {}  # program -> its vertex array of one triangle (no attributes)
 
     def _highlight(self, mode, obj, parts, visibility, ks, exponent, plan, *, fresnel=None, microfacet=None):
@@ -1146,79 +1145,6 @@ class Renderer:
         """(H, W) bool: pixels whose centre sees one of the objects ``names`` (one sample)."""
         return self._read(self.draw(view, "diffuse", "pixel", mask=set(names), samples=1), 0)[..., 0] > 0.5
 
-    def _attribute_targets(self, view):
-        """One draw of the attributes program (one sample, at the pixel centres): its six
-        targets read back (H, W, 4)."""
-        fbo = self.draw(view, "fitted", "pixel", targets=6, program_key="attributes", samples=1)
-        return [self._read(fbo, i, components=4) for i in range(6)]
-
-    @staticmethod
-    def _triangles(targets):
-        covered = targets[0][..., 3] > 0  # alpha of target 0 marks coverage
-        ids = targets[5]  # vertex ids as float32: exact below 2^24
-        obj = np.where(covered, np.rint(ids[..., 3]).astype(np.int64), -1)
-        return obj, np.where(covered[..., None], np.rint(ids[..., :3]).astype(np.int64), -1), targets[4][..., :3]
-
-    def render_triangles(self, view):
-        """What each pixel's fragment interpolates from: (object (H, W) int, -1 for the
-        background; vertices (H, W, 3) int, its triangle's vertex ids; barycentrics
-        (H, W, 3) float32), row 0 at the top. Ids and barycentrics come from the
-        geometry shader of the per-light program: for objects whose coefficients are
-        shared (drawn without it) they are -1 and 0."""
-        return self._triangles(self._attribute_targets(view))
-
-    def render_attributes(self, view):
-        """Per-pixel interpolated (position, normal, emitted, specular, coverage) as
-        float arrays, row 0 at the top: what the per-pixel shader sees (for tests).
-
-        specular is (H, W, 3) when every object shares its coefficient among its lights;
-        when one has per-light coefficients, (H, W, K, 3) for K the most lights of an
-        object: per-light ones blended with the fragment's barycentrics over its
-        triangle's vertices (float64, as the fragment shader blends them), shared ones
-        repeated for each light, zero past an object's own lights."""
-        targets = self._attribute_targets(view)
-        position, normal, emitted, specular = (t[..., :3] for t in targets[:4])
-        covered = targets[0][..., 3] > 0
-        if any(o.per_light for o in self.objects):
-            obj_index, vertices, bary = self._triangles(targets)
-            k_max = max(o.n_lights for o in self.objects)
-            per_light = np.zeros(specular.shape[:2] + (k_max, 3))
-            for i, o in enumerate(self.objects):
-                here = obj_index == i
-                if not here.any() or not o.n_lights:
-                    continue
-                if o.per_light:
-                    c = np.asarray(o.specular, np.float64)[vertices[here]]  # (P, 3 vertices, K, 3)
-                    per_light[here, : o.n_lights] = np.einsum("pv,pvkc->pkc", bary[here].astype(np.float64), c)
-                else:
-                    per_light[here, : o.n_lights] = specular[here][:, None, :]
-            specular = per_light
-        return position, normal, emitted, specular, covered
-
-    def vertex_colours(self, view, name, mode="fitted", lights=None):
-        """The Gouraud vertex shader's colours (V, 3) of object ``name`` for ``mode``,
-        read back by transform feedback (what is interpolated across the triangles)."""
-        key = "reference-feedback" if mode == "reference" else "fitted-feedback"
-        obj = next(o for o in self.objects if o.name == name)
-        program = self._program(key, self._drawn_parts(obj, mode, PARTS, self._light_count(obj, mode, lights)))
-        program["mvp"].write(self._matrices(view))
-        self._set(program, "eye", tuple(float(v) for v in view.eye))
-        if mode == "reference":
-            self._bind_reference(program, obj)
-            attributes = ("in_position", "in_normal", "in_tangent")
-        else:
-            self._bind_fitted(program, obj, self._light_count(obj, mode, lights), mode)
-            attributes = ("in_position", "in_normal", "in_emitted", "in_specular", "in_probe")
-        vao = obj.vao(self.ctx, program, attributes, indexed=False)  # gl_VertexID = 0 .. V-1
-        out = self.ctx.buffer(reserve=obj.n_vertices * 12)
-        if self._scratch is None:  # transform feedback writes nothing without a bound framebuffer
-            self._scratch = self.ctx.simple_framebuffer((1, 1))
-        self._scratch.use()
-        vao.transform(out, moderngl.POINTS, vertices=obj.n_vertices)
-        colours = np.frombuffer(out.read(), np.float32).reshape(-1, 3).copy()
-        out.release()
-        return colours
-
     def _read(self, fbo, attachment, components=3):
         """Attachment ``attachment`` as (H, W, components) float32, row 0 at the top."""
         texture = fbo.color_attachments[attachment]
@@ -1235,8 +1161,7 @@ class Renderer:
                         *self._glass_probes.values(), *self._mirror_images.values()):
             if texture is not None:
                 texture.release()
-        for resource in (self._scratch, *self._full_screens.values()):
-            if resource is not None:
-                resource.release()
+        for resource in self._full_screens.values():
+            resource.release()
         for fbs in self._framebuffers.values():
             fbs.release()

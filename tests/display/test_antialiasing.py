@@ -32,6 +32,7 @@ import math
 import numpy as np
 import pytest
 from display_fixtures import assert_refused, listing, tilted_tile_solution, tiny_fit
+from renderer_probes import ProbedRenderer
 
 import display.gl
 import display.window
@@ -42,7 +43,6 @@ from display.gl import (
     framebuffer_bytes,
     sample_plan,
 )
-from display.renderer import Renderer
 from radiosity.files.camera import Camera
 from radiosity.files.errors import InputError
 
@@ -109,7 +109,7 @@ def coverage(view, solution):
 @pytest.mark.parametrize("samples", [4, 16, 64])  # 4: MSAA alone; 16, 64: supersampled 2x2, 4x4 (of MSAA 4 here)
 def test_an_edge_pixel_is_the_covered_fraction_of_the_two_sides(samples, mode, shading, scene, gl_context):
     fit, solution = scene
-    renderer = Renderer(gl_context, fit=fit, solution=solution, samples=samples)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=solution, samples=samples)
     plan = renderer.plan
     image = renderer.render(VIEW, mode, shading)
     one = renderer.render(VIEW, mode, shading, samples=1)
@@ -139,9 +139,9 @@ def test_an_edge_pixel_is_the_covered_fraction_of_the_two_sides(samples, mode, s
 def test_one_sample_is_the_pixel_centre(scene, gl_context):
     # samples=1 is the display as it was: each pixel the surface its centre sees
     fit, solution = scene
-    renderer = Renderer(gl_context, fit=fit, solution=solution, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=solution, samples=1)
     image = renderer.render(VIEW, "fitted", "pixel")
-    default = Renderer(gl_context, fit=fit, solution=solution)
+    default = ProbedRenderer(gl_context, fit=fit, solution=solution)
     assert default.samples == DEFAULT_SAMPLES
     assert np.array_equal(default.render(VIEW, "fitted", "pixel", samples=1), image)
     assert not np.array_equal(default.render(VIEW, "fitted", "pixel"), image)
@@ -165,7 +165,7 @@ def test_one_sample_is_the_pixel_centre(scene, gl_context):
 @pytest.mark.gl
 def test_masks_and_ids_stay_one_sample(scene, gl_context):
     fit, solution = scene
-    many, one = Renderer(gl_context, fit=fit, samples=16), Renderer(gl_context, fit=fit, samples=1)
+    many, one = ProbedRenderer(gl_context, fit=fit, samples=16), ProbedRenderer(gl_context, fit=fit, samples=1)
     assert np.array_equal(many.object_mask(VIEW, ["tile"]), one.object_mask(VIEW, ["tile"]))
     for a, b in zip(many.render_triangles(VIEW), one.render_triangles(VIEW)):
         assert np.array_equal(a, b)
@@ -265,7 +265,7 @@ def test_the_hdr_file_is_the_averaged_radiance(scene, tmp_path, cli, gl_context)
         written[samples] = np.load(hdr)
     # the renderer made after the commands' own contexts are gone (a context made and released
     # by moderngl in this process leaves the earlier ones' objects unusable until re-entered)
-    renderer = Renderer(gl_context, fit=fit)
+    renderer = ProbedRenderer(gl_context, fit=fit)
     for samples, image in written.items():
         assert np.array_equal(image, renderer.render(VIEW, samples=samples))
     renderer.release()

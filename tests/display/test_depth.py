@@ -16,10 +16,11 @@ near plane 1e-5 of the far one); now none, with reversed Z and with the fallback
 import numpy as np
 import pytest
 from depth_scenes import SKY, VIEWS, casting, expected, interior, solution, view, wrong_pixels
+from renderer_probes import ProbedRenderer
 
 import display.renderer
 from display.gl import depth_control
-from display.renderer import NEAR_FRACTION, Depth, Renderer, depth_range
+from display.renderer import NEAR_FRACTION, Depth, depth_range
 from radiosity.files.camera import Camera
 
 pytestmark = pytest.mark.gl
@@ -51,14 +52,14 @@ def test_the_context_has_reversed_depth(gl_context):
     """llvmpipe has OpenGL 4.5: the tests below draw with reversed Z into float depth
     (the fallback is tested by its own test, with clip control hidden)."""
     assert depth_control(gl_context) is not None
-    assert Renderer(gl_context, solution=solution()[0], samples=1).depth.reversed
+    assert ProbedRenderer(gl_context, solution=solution()[0], samples=1).depth.reversed
 
 
 @pytest.mark.parametrize("scale", SCALES)
 @pytest.mark.parametrize("environment", [False, True], ids=["black", "environment"])
 def test_every_mode_draws_the_nearest_front_at_any_scale(gl_context, scale, environment):
     sol, fit = solution(scale, environment)
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=1)
     seen = check_views(renderer, sol, scale, SKY if environment else (0.0, 0.0, 0.0))
     renderer.release()
     # not vacuous: the 1 mm gaps show what is in front, not what is 1 mm behind
@@ -75,7 +76,7 @@ def test_a_two_sided_wall_shows_the_side_the_eye_is_on(gl_context, scale):
     every pixel on it the radiance of the side facing the eye, none of the other, none
     black."""
     sol, fit = solution(scale)
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=1)
     names = [o.name for o in sol.objects]
     rgb = {o.name: o.radiance[0, 0] for o in sol.objects}
     for name, side, other in (("inside, the partition's front", "partition", "partition (back)"),
@@ -99,7 +100,7 @@ def test_a_one_sided_wall_from_behind_is_black_and_hides_what_is_behind(gl_conte
     in every mode, and hide the partition's back copy, which faces this eye, and the
     environment, which shows around them."""
     sol, fit = solution(environment=True)
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=1)
     camera = view("outside, behind the back wall")
     _, what, front = expected(casting(sol), camera, SKY)
     names = [o.name for o in sol.objects]
@@ -124,7 +125,7 @@ def test_masks_and_attributes_see_fronts_alone(gl_context):
     front is the nearest surface (not where its back is); the attribute targets cover
     the fronts alone (a back: no triangle, coverage 0)."""
     sol, fit = solution()
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=1)
     names = [o.name for o in sol.objects]
     for name in ("inside, the partition's back", "outside, behind the back wall", "inside, the panel's gap"):
         camera = view(name)
@@ -150,7 +151,7 @@ def test_antialiased_pictures_are_right_inside_each_surface(gl_context, samples,
     off at most here with 4 samples, 0.8 % with 16), while one sample of another surface
     would be 7.5 % and 1.9 % off at least (the surfaces differ by 30 % or more)."""
     sol, fit = solution()
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=samples)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=samples)
     check_views(renderer, sol, 1.0, (0.0, 0.0, 0.0), modes=[("reference", "pixel"), ("fitted", "gouraud")],
                 samples=samples, rtol=rtol)
     renderer.release()
@@ -164,7 +165,7 @@ def test_without_clip_control_the_conventional_range_draws_the_scenes_too(gl_con
     1 mm gaps from inside)."""
     monkeypatch.setattr(display.renderer, "depth_control", lambda ctx: None)
     sol, fit = solution(scale, environment=True)
-    renderer = Renderer(gl_context, fit=fit, solution=sol, samples=1)
+    renderer = ProbedRenderer(gl_context, fit=fit, solution=sol, samples=1)
     assert not renderer.depth.reversed
     check_views(renderer, sol, scale, SKY, modes=[("reference", "pixel"), ("fitted", "gouraud")])
     renderer.release()

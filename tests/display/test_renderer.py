@@ -17,8 +17,9 @@ import json
 import numpy as np
 import pytest
 import trimesh
+from renderer_probes import ProbedRenderer
 
-from display.renderer import Renderer, tonemap
+from display.renderer import tonemap
 from fitting import FittedModel, FittedObject, load_fit, shade
 from fitting.model import directional, shade_arrays
 from radiosity.files.camera import Camera
@@ -111,14 +112,14 @@ def assert_vertices(renderer, obj, view, lights=None, rtol=RTOL, atol=ATOL):
 
 def test_fitted_per_pixel_equals_the_shading_formula(gl_context, rng):
     model = ball_model(rng)
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     assert_pixels(r, model.objects[0], VIEW)
     r.release()
 
 
 def test_gouraud_vertex_colours_equal_shade_at_the_vertices(gl_context, rng):
     model = ball_model(rng)
-    r = Renderer(gl_context, fit=model)
+    r = ProbedRenderer(gl_context, fit=model)
     o = model.objects[0]
     for lights in (None, 1, 2):
         assert_vertices(r, o, VIEW, lights)
@@ -130,7 +131,7 @@ def test_gouraud_vertex_colours_equal_shade_at_the_vertices(gl_context, rng):
 
 def test_diffuse_mode_is_the_emitted_colour(gl_context, rng):
     model = ball_model(rng)
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "diffuse", "pixel")
     _, _, emitted, _, covered = r.render_attributes(VIEW)
     assert np.allclose(image[covered], emitted[covered], rtol=1e-6, atol=1e-7)
@@ -149,7 +150,7 @@ def test_point_lights_and_per_light_coefficients_per_pixel(gl_context, rng, case
     model = ball_model(rng, kinds=kinds, per_light=per_light)
     o = model.objects[0]
     assert o.per_light == per_light and o.positional.tolist() == [c == "p" for c in kinds]
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image, expected, emitted, covered = assert_pixels(r, o, VIEW)
     assert (image[covered] - emitted[covered]).max() > 0.5  # the lights show
     r.release()
@@ -160,7 +161,7 @@ def test_point_lights_and_per_light_coefficients_gouraud(gl_context, rng, case):
     kinds, per_light = CASES[case]
     model = ball_model(rng, kinds=kinds, per_light=per_light)
     o = model.objects[0]
-    r = Renderer(gl_context, fit=model)
+    r = ProbedRenderer(gl_context, fit=model)
     for lights in (None, 0, 1, 2):
         assert_vertices(r, o, VIEW, lights)
     # the rasterised Gouraud picture is the vertex colours interpolated: between their extremes
@@ -174,7 +175,7 @@ def test_first_k_lights_with_per_light_coefficients(gl_context, rng):
     # --lights K: the first K lights with their own coefficients (stride K_total in the texture)
     model = ball_model(rng, kinds="pdpdd", per_light=True, shininess=(5.0, 40.0, 300.0, 20.0, 8.0))
     o = model.objects[0]
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     previous = None
     for lights in (0, 1, 2, 4, 5, 99):
         assert_vertices(r, o, VIEW, lights)
@@ -191,7 +192,7 @@ def test_sixty_four_per_light_coefficients(gl_context, rng):
     model = ball_model(rng, kinds="dp" * 32, per_light=True, shininess=(5.0, 40.0, 300.0, 12.0))
     o = model.objects[0]
     assert o.n_lights == 64
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     assert_vertices(r, o, VIEW)
     assert_pixels(r, o, VIEW)
     r.release()
@@ -223,7 +224,7 @@ def test_a_point_light_behind_the_surface(gl_context, rng, per_light):
     # below the plane: the lobe is 0 near the middle (n . h < 0), not at the edges (no n . l
     # gate); off the grid's axes, so that no vertex lies where h = l + w is 0 (ill-conditioned)
     obj = grid_object("plane", 9, 1.2, 0.0, rng, per_light, [[0.13, -0.5, 0.07, 1.0]])
-    r = Renderer(gl_context, fit=FittedModel(objects=(obj,)), samples=1)
+    r = ProbedRenderer(gl_context, fit=FittedModel(objects=(obj,)), samples=1)
     image, expected, emitted, covered = assert_pixels(r, obj, ABOVE)
     dark = covered & np.all(expected == emitted, axis=2)  # where the reference's lobe is 0
     lit = covered & ~dark
@@ -243,7 +244,7 @@ def test_a_point_light_at_a_vertex(gl_context, rng, per_light):
                       shininess=4.0)
     centre = 40
     assert np.array_equal(obj.positions[centre], [0.0, 0.0, 0.0])
-    r = Renderer(gl_context, fit=FittedModel(objects=(obj,)), samples=1)
+    r = ProbedRenderer(gl_context, fit=FittedModel(objects=(obj,)), samples=1)
     got, want = assert_vertices(r, obj, ABOVE)
     alone = first_lights(obj, 1)  # the light at the vertex alone adds nothing there
     assert np.array_equal(r.vertex_colours(ABOVE, "plane", "fitted", lights=1)[centre], obj.emitted[centre])
@@ -262,7 +263,7 @@ def test_objects_with_shared_and_per_light_coefficients_in_one_frame(gl_context,
     top = grid_object("top", 5, 0.6, 1.2, rng, True, [[0.0, 0.6, 0.8, 0.0], [0.2, 2.0, 1.0, 1.0]])
     model = FittedModel(objects=(floor, ball, top))
     view = Camera(eye=(0.5, 2.5, 3.5), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=60.0, width=96, height=80)
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     for lights in (None, 1):
         image = r.render(view, "fitted", "pixel", lights)
         position, normal, emitted, specular, covered = r.render_attributes(view)
@@ -301,7 +302,7 @@ def test_a_version_1_fit_file_renders_as_its_version_2(gl_context, rng, tmp_path
     o = old.objects[0]
     assert not o.per_light and not o.positional.any()
     assert np.array_equal(o.light_pos, directional(dirs).astype(np.float32))
-    a, b = Renderer(gl_context, fit=old, samples=1), Renderer(gl_context, fit=new, samples=1)
+    a, b = ProbedRenderer(gl_context, fit=old, samples=1), ProbedRenderer(gl_context, fit=new, samples=1)
     for shading in ("pixel", "gouraud"):
         assert np.array_equal(a.render(VIEW, "fitted", shading), b.render(VIEW, "fitted", shading))
     assert np.array_equal(a.vertex_colours(VIEW, "ball"), b.vertex_colours(VIEW, "ball"))
@@ -332,7 +333,7 @@ def world(obj, vertex, local):
 def test_reference_returns_the_stored_radiance_at_cell_centres(gl_context, rng, cell):
     solution = quad_solution(rng)
     obj = solution.objects[0]
-    r = Renderer(gl_context, solution=solution)
+    r = ProbedRenderer(gl_context, solution=solution)
     vertex = 2
     w = world(obj, vertex, directions.grid_directions(6)[cell])
     eye = obj.positions[vertex].astype(float) + 3.0 * w
@@ -347,7 +348,7 @@ def test_reference_returns_the_stored_radiance_at_cell_centres(gl_context, rng, 
 def test_reference_interpolates_between_centres(gl_context, rng):
     solution = quad_solution(rng, grid=8)
     obj = solution.objects[0]
-    r = Renderer(gl_context, solution=solution)
+    r = ProbedRenderer(gl_context, solution=solution)
     vertex = 1
     for a, b in [(0.1, -0.3), (-0.55, 0.2), (0.0, 0.0)]:
         local = directions.square_to_hemisphere(a, b)
@@ -365,7 +366,7 @@ def test_reference_per_pixel_matches_a_numpy_lookup(gl_context, rng):
     solution = quad_solution(rng, grid=8)
     obj = solution.objects[0]
     view = Camera(eye=(0.4, 1.5, 2.2), look_at=(0.0, 0.0, 0.0), fov_deg=60.0, width=40, height=30)
-    r = Renderer(gl_context, solution=solution, samples=1)
+    r = ProbedRenderer(gl_context, solution=solution, samples=1)
     image = r.render(view, "reference", "pixel")
     # numpy: intersect each pixel's ray with the plane y = 0, blend the three vertices' lookups
     rays = view.pixel_rays()
@@ -420,7 +421,7 @@ def test_the_glsl_tone_map_is_tonemap(gl_context, rng):
     ])[: width * height * 3]
     hdr = values.reshape(height, width, 3).astype(np.float32)
     ctx = gl_context
-    r = Renderer(ctx, solution=tiny_solution(), samples=1)
+    r = ProbedRenderer(ctx, solution=tiny_solution(), samples=1)
     rgba = np.concatenate([hdr, np.ones((height, width, 1), np.float32)], axis=2)
     source = ctx.framebuffer(color_attachments=[ctx.texture((width, height), 4, rgba.tobytes(), dtype="f4")])
     floats = ctx.framebuffer(color_attachments=[ctx.texture((width, height), 4, dtype="f4")])

@@ -16,11 +16,11 @@ import moderngl
 import numpy as np
 import pytest
 import trimesh
+from renderer_probes import ProbedRenderer
 
 import display.renderer
 import display.store
 from display.glsl import DESKTOP, defines, resolve
-from display.renderer import Renderer
 from display.store import MAX_PAGES, WIDTH, store_layout
 from fitting import FittedModel, FittedObject
 from fitting.model import Highlight
@@ -125,7 +125,7 @@ def reference_at_vertices(solution, obj, eye):
 
 def test_a_solution_over_several_textures_draws_as_in_one(gl_context, rng, monkeypatch, small_store):
     solution = spheres_solution(rng)
-    many = Renderer(gl_context, solution=solution, samples=1)
+    many = ProbedRenderer(gl_context, solution=solution, samples=1)
     assert many.layout.rows == 16 and many.layout.page_layers == 1
     values = sum(o.radiance.size // 3 for o in solution.objects) + 2 * 642 * 2
     assert many.layout.values == values and many.layout.pages == len(many.store.pages) == 5
@@ -133,7 +133,7 @@ def test_a_solution_over_several_textures_draws_as_in_one(gl_context, rng, monke
     assert bases[1][0] == 2 and bases[2][0] == 4  # the right sphere's grid starts in layer 2 and ends in layer 4
     monkeypatch.setattr(display.store, "LAYER_ROWS", None)
     monkeypatch.setattr(display.store, "PAGE_LAYERS", None)
-    one = Renderer(gl_context, solution=solution, samples=1)
+    one = ProbedRenderer(gl_context, solution=solution, samples=1)
     assert one.layout.pages == one.layout.layers == 1
     for mode in ("reference", "diffuse"):
         for shading in ("pixel", "gouraud"):
@@ -153,14 +153,14 @@ def test_a_solution_over_several_textures_draws_as_in_one(gl_context, rng, monke
 
 def test_per_light_coefficients_over_several_textures_draw_as_in_one(gl_context, rng, monkeypatch, small_store):
     fit = balls_fit(rng)
-    many = Renderer(gl_context, fit=fit, samples=1)
+    many = ProbedRenderer(gl_context, fit=fit, samples=1)
     assert many.layout.pages == 2  # 2 x (41,088 + 1,284) values
     right = many.objects[1]
     assert many.layout.address(right.coefficient_base)[0] == 0  # starts in the first texture, ends in the second
     assert many.layout.address(right.coefficient_base + 642 * 64 - 1)[0] == 1
     monkeypatch.setattr(display.store, "LAYER_ROWS", None)
     monkeypatch.setattr(display.store, "PAGE_LAYERS", None)
-    one = Renderer(gl_context, fit=fit, samples=1)
+    one = ProbedRenderer(gl_context, fit=fit, samples=1)
     assert one.layout.pages == 1
     for shading in ("pixel", "gouraud"):
         a, b = many.render(VIEW, "fitted", shading), one.render(VIEW, "fitted", shading)
@@ -222,7 +222,7 @@ def test_every_value_reads_back_through_the_store(gl_context, rng, small_store):
     uploaded, bit for bit, across six textures of one layer."""
     fit = balls_fit(rng)  # the two glossy spheres of the solution: drawn from both files
     solution = Solution(objects=spheres_solution(rng).objects[:2], emitters=lamps(), emitter_nodes=8)
-    r = Renderer(gl_context, solution=solution, fit=fit, samples=1)
+    r = ProbedRenderer(gl_context, solution=solution, fit=fit, samples=1)
     assert r.layout.pages == 6
     source = DESKTOP + defines(extra=(r.store.define,)) + resolve("store.glsl") + VALUE_PROGRAM
     cases, expected = [], []
@@ -322,21 +322,21 @@ def test_a_layout_names_each_value_by_layer_and_texel():
 
 def test_a_model_beyond_the_free_memory_is_refused_in_one_line(gl_context, rng, monkeypatch):
     solution = spheres_solution(rng, grid=8)
-    r = Renderer(gl_context, solution=solution, samples=1)
+    r = ProbedRenderer(gl_context, solution=solution, samples=1)
     estimate = r.estimate
     r.release()
     assert estimate.store == r.layout.nbytes and estimate.buffers > 0 and estimate.host > 0
     monkeypatch.setattr(display.store, "available_memory", lambda: estimate.total - 1)
     with pytest.raises(InputError) as refused:
-        Renderer(gl_context, solution=solution, samples=1)
+        ProbedRenderer(gl_context, solution=solution, samples=1)
     message = str(refused.value)
     assert "\n" not in message and "needs about" in message and "is free" in message and "--grid" in message
     monkeypatch.setattr(display.store, "available_memory", lambda: estimate.total)
     said = []
-    Renderer(gl_context, solution=solution, samples=1, say=said.append).release()  # just enough: drawn
+    ProbedRenderer(gl_context, solution=solution, samples=1, say=said.append).release()  # just enough: drawn
     assert said == []  # quiet below SAY_BYTES
     monkeypatch.setattr(display.store, "SAY_BYTES", 0)
-    Renderer(gl_context, solution=solution, samples=1, say=said.append).release()
+    ProbedRenderer(gl_context, solution=solution, samples=1, say=said.append).release()
     assert len(said) == 1 and said[0].startswith("drawing: about ") and "free" in said[0] and "\n" not in said[0]
 
 
@@ -359,7 +359,7 @@ def test_a_grid_beyond_what_the_shaders_address_is_refused(gl_context):
     obj = ObjectSolution("huge", p, n, t, np.array([[0, 1, 2]], np.int32), dirs,
                          np.zeros((3, grid * grid, 3), np.float32), GLOSSY)
     with pytest.raises(InputError, match="66,049 radiance directions a vertex; the display reads at most 65,536"):
-        Renderer(gl_context, solution=Solution(objects=(obj,)))
+        ProbedRenderer(gl_context, solution=Solution(objects=(obj,)))
 
 
 # ------------------------------------------------------------------ the real size
@@ -394,7 +394,7 @@ def test_a_solution_of_more_than_ten_to_the_eight_samples_draws(gl_context):
     solution = big_solution()
     samples = sum(o.radiance.size // 3 for o in solution.objects)
     assert samples > 10**8
-    r = Renderer(gl_context, solution=solution)
+    r = ProbedRenderer(gl_context, solution=solution)
     assert r.layout.values == samples and r.layout.layers >= 2  # more rows than one texture has
     view = Camera(eye=(0.0, 1.0, 7.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=640,
                   height=360)

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 import trimesh
 from analytic import SQUARE_LIGHT, polygon_irradiance
+from renderer_probes import ProbedRenderer
 
-from display.renderer import PARTS, Renderer
+from display.renderer import PARTS
 from fitting import FittedModel, FittedObject
 from fitting.model import Highlight
 from fitting.probe import Probe, albedo_table, decode
@@ -113,7 +114,7 @@ def test_per_pixel_equals_the_formula_with_each_part_on_and_off(gl_context, rng,
     model = ball_model(rng)
     obj = model.objects[0]
     parts_on = tuple(p for p in PARTS if p not in off)
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "fitted", "pixel", parts=parts_on)
     expected, covered = expected_pixels(r, obj, VIEW, parts_on)
     assert covered.sum() > 500
@@ -144,7 +145,7 @@ def test_objects_drawing_their_own_parts_per_pixel_equal_the_formula(gl_context,
             highlight=Highlight(h.parts, h.nodes, h.ks, h.exponent, h.visibility, h.fresnel, own)))
     model = FittedModel(objects=tuple(balls), source="test", emitters=lamps, emitter_nodes=8)
     assert model.version == 6
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "fitted", "pixel")
     for k, ball in enumerate(balls):
         expected, covered = expected_pixels(r, ball, VIEW, PARTS, which=k)
@@ -165,7 +166,7 @@ def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl
     f0 = np.array([0.04, 0.3, 0.9])
     model = ball_model(rng, probe=False, lights=1, fresnel=f0)
     obj = model.objects[0]
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "fitted", "pixel", parts=("emitters",))
     expected, covered = expected_pixels(r, obj, VIEW, ("emitters",))
     assert covered.sum() > 500 and expected.max() > 0.01
@@ -177,7 +178,7 @@ def test_a_fresnel_highlight_per_pixel_and_at_the_vertices_equals_the_formula(gl
     assert np.allclose(got, obj.shade(w), rtol=RTOL, atol=ATOL)
     without = FittedModel(objects=(dataclasses.replace(obj, highlight=dataclasses.replace(obj.highlight, fresnel=None)),),
                           source="test", emitters=model.emitters, emitter_nodes=8)
-    rp = Renderer(gl_context, fit=without, samples=1)
+    rp = ProbedRenderer(gl_context, fit=without, samples=1)
     assert np.abs(rp.render(VIEW, "fitted", "pixel", parts=("emitters",)) - image).max() > 0.01
     r.release()
     rp.release()
@@ -195,7 +196,7 @@ def test_microfacet_highlights_per_pixel_and_at_the_vertices_equal_the_formula(g
     obj = model.objects[0]
     obj = dataclasses.replace(obj, highlight=dataclasses.replace(obj.highlight, microfacet=mf))
     model = dataclasses.replace(model, objects=(obj,))
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "fitted", "pixel", parts=("emitters",))
     expected, covered = expected_pixels(r, obj, VIEW, ("emitters",))
     assert covered.sum() > 500 and expected.max() > 0.05
@@ -226,7 +227,7 @@ def test_delta_parts_highlights_per_pixel_and_at_the_vertices_equal_the_formula(
     pp = delta_parts()
     model = ball_model(rng, probe=False, lights=1, fresnel=None if fresnel is None else np.array(fresnel), emitters=pp)
     obj = model.objects[0]
-    r = Renderer(gl_context, fit=model, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, samples=1)
     image = r.render(VIEW, "fitted", "pixel", parts=("emitters",))
     expected, covered = expected_pixels(r, obj, VIEW, ("emitters",))
     assert covered.sum() > 500 and expected.max() > 0.05
@@ -253,7 +254,7 @@ def test_delta_parts_highlights_per_pixel_and_at_the_vertices_equal_the_formula(
 def test_gouraud_vertex_colours_equal_the_formula_at_the_vertices(gl_context, rng):
     model = ball_model(rng)
     obj = model.objects[0]
-    r = Renderer(gl_context, fit=model)
+    r = ProbedRenderer(gl_context, fit=model)
     got = r.vertex_colours(VIEW, "ball")
     w = np.asarray(VIEW.eye) - obj.positions.astype(np.float64)
     w /= np.linalg.norm(w, axis=1, keepdims=True)
@@ -285,7 +286,7 @@ def test_the_reference_display_adds_the_highlights_back_to_the_rest(gl_context, 
     ball = ObjectSolution("ball", positions, normals, tangents, np.asarray(s.faces, np.int32), dirs,
                           (rest + highlight).astype(np.float32), material, visibility=vis)
     sol = Solution(objects=(ball,), emitters=pp, emitter_nodes=8)
-    r = Renderer(gl_context, solution=sol, samples=1)
+    r = ProbedRenderer(gl_context, solution=sol, samples=1)
     image = r.render(VIEW, "reference", "pixel")
     # the barycentrics come from a fitted model of the same mesh (its per-pixel program's)
     fit_like = FittedModel(objects=(FittedObject(
@@ -293,7 +294,7 @@ def test_the_reference_display_adds_the_highlights_back_to_the_rest(gl_context, 
         emitted=np.zeros_like(positions), specular=np.zeros((len(positions), 0, 3), np.float32),
         light_pos=np.zeros((0, 4), np.float32), light_rgb=np.zeros((0, 3), np.float32), shininess=np.zeros(0, np.float32),
         highlight=Highlight(pp, 8, KS, EXPONENT, vis)),), emitters=pp)
-    rr = Renderer(gl_context, fit=fit_like, solution=sol, samples=1)
+    rr = ProbedRenderer(gl_context, fit=fit_like, solution=sol, samples=1)
     expected, covered = expected_pixels(rr, fit_like.objects[0], VIEW, ("emitters",))
     got = rr.render(VIEW, "reference", "pixel")
     assert np.allclose(got, image)
@@ -329,7 +330,7 @@ def test_no_light_counted_twice_a_glossy_floor_under_a_square_lamp(gl_context, t
     assert [p.source for p in sol.emitters] == ["lamp"]
     model = fit(sol, FitOptions(model="probe", probe_size=8))
     view = Camera(eye=(0.0, 0.9, 1.4), look_at=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=40.0, width=64, height=64)
-    r = Renderer(gl_context, fit=model, solution=sol, samples=1)
+    r = ProbedRenderer(gl_context, fit=model, solution=sol, samples=1)
     index, vertices, bary = r.render_triangles(view)
     floor_index = [o.name for o in r.objects].index("floor")
     on_floor = index == floor_index
