@@ -337,7 +337,7 @@ def _lights_asked(obj, full, options, lights, exponent, blocking):
         error, seen = relative_error(full, approximation), perceptual_error(full, approximation)
         diffuse = relative_error(full, np.broadcast_to(found.emitted[:, None, :], full.radiance.shape))
     return Components(
-        model="lights", emitters=False, emitted=found.emitted, lights=Lights(found.pos, found.rgb, found.shininess),
+        model="lights", emitters=False, emitted=found.emitted, lights=found.lights(),
         specular=found.specular, probe=None, probe_weight=None, error=error["relative_rms"],
         floats=_floats(n_vertices, 0, 0, found.n_lights, False, not found.per_light), perceptual=seen,
         baseline=diffuse["relative_rms"], loss=loss, chosen_by=chosen_by, iterations=found.iterations,

@@ -216,7 +216,7 @@ def evaluate(problem, pos, rgb, shininess):
         rgb = np.ones((len(np.reshape(pos, (-1, 4))), 3))
     lights = Lights.of(pos, rgb, shininess)
     e, s, err = coefficients(problem, lights)
-    return LightsFit(lights.pos, lights.rgb, lights.shininess, e, s, err)
+    return LightsFit(*lights, e, s, err)
 
 
 def no_lights(problem):

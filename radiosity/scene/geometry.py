@@ -12,6 +12,7 @@ trimesh supplies the face adjacency; scipy the KD-tree and connected components.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -21,6 +22,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from radiosity.files.errors import InputError
+
+_LOG_TINY_DET = math.log(1e-300)  # a transform whose |det| is below 1e-300 is singular
 
 # corner k of a face starts edge k, which runs to corner (k + 1) % 3
 _EDGE_CORNERS = np.array([[0, 1], [1, 2], [2, 0]])
@@ -431,6 +434,16 @@ def transform_matrix(scale=1.0, rotate_deg=(0.0, 0.0, 0.0), translate=(0.0, 0.0,
         m = trimesh.transformations.rotation_matrix(np.radians(deg), direction) @ m
     m[:3, 3] += np.asarray(translate, dtype=np.float64)
     return m
+
+
+def singular(linear):
+    """Whether a transform's 3x3 ``linear`` part is singular (|det| < 1e-300) or not finite.
+    Judged on the determinant's logarithm: a huge scale's determinant would overflow,
+    yet it is a transform (the coordinates it makes are refused, by size, elsewhere)."""
+    if not np.isfinite(linear).all():
+        return True
+    sign, log_det = np.linalg.slogdet(linear)
+    return bool(sign == 0 or log_det < _LOG_TINY_DET)
 
 
 def apply_transform(matrix, positions, faces, normals=None):

@@ -35,7 +35,6 @@ missing loads with the default material (diffuse 0.8) and a SceneWarning.
 
 from __future__ import annotations
 
-import math
 import os
 import tomllib
 import unicodedata
@@ -374,8 +373,7 @@ def _parse_object(entry, index, materials_textures, base_dir, where):
     )
     if "transform" in entry:  # a 4x4 matrix, applied after scale, rotate_deg and translate
         transform = _matrix(entry["transform"], here, "transform")
-        sign, log_det = np.linalg.slogdet(transform[:3, :3])  # its logarithm: a huge scale's would overflow
-        if not np.allclose(transform[3], [0, 0, 0, 1]) or sign == 0 or log_det < math.log(1e-300):
+        if not np.allclose(transform[3], [0, 0, 0, 1]) or geometry.singular(transform[:3, :3]):
             raise InputError(f"{here}: 'transform' must be affine (last row 0 0 0 1) and not singular")
         matrix = transform @ matrix
     within = np.abs(positions).max() <= MAX_COORDINATE  # False for NaN: build_object names that

@@ -17,6 +17,7 @@ from radiosity.files.errors import InputError, SceneWarning
 from radiosity.files.images import read_image
 from radiosity.physics.materials import srgb_to_linear
 from radiosity.physics.textures import WRAP_MODES, as_repeating
+from radiosity.scene.geometry import singular
 from radiosity.scene.spectra import spectrum_to_rgb
 
 from .document import Node, _snake
@@ -402,9 +403,6 @@ def _transform(node, normalise_axes=True):
         else:
             raise step.fail("not a transform step (matrix, translate, rotate, scale, lookat)")
         matrix = m @ matrix
-    # the determinant's logarithm: a huge scale's determinant would overflow (the
-    # coordinates it makes are refused, by size, where the shape is read)
-    sign, log_det = np.linalg.slogdet(matrix[:3, :3]) if np.isfinite(matrix).all() else (0.0, -np.inf)
-    if sign == 0 or log_det < math.log(1e-300):
+    if not np.isfinite(matrix).all() or singular(matrix[:3, :3]):
         raise node.fail("the transform is singular or not finite")
     return matrix
